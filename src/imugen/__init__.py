@@ -1,0 +1,27 @@
+"""imugen: route files -> 6-DoF truth -> ideal and erroneous IMU -> strapdown -> RMSE.
+
+Conventions (written once, here; every module names its variables by them)
+---------------------------------------------------------------------------
+Frames
+    ``n``  navigation frame: local East-North-Up (ENU). Its axes are those of the
+           topocentric frame at the route origin (a WGS-84 geodetic point).
+    ``b``  body frame: x forward, y left, z up (FLU). A level, still IMU reads
+           specific force ``f_b = (0, 0, +g)``.
+    ``e``  Earth-centred Earth-fixed (ECEF, WGS-84).
+    ``C_nb`` rotates a vector from ``b`` to ``n`` (``v_n = C_nb @ v_b``).
+    Quaternions are scalar first ``(w, x, y, z)``.
+    Suffixes name the frame a vector is resolved in: ``v_n``, ``f_b``, ``omega_ib_b``.
+Units
+    SI and radians inside. Degrees appear only at the edges (geodetic latitude and
+    longitude columns ``lat_deg``/``lon_deg``, figure labels). Datasheet units
+    (``deg_per_h``, ``deg_per_sqrt_h``, ``ug``, ``m_per_s_per_sqrt_h``, ``ppm``) are
+    converted once, when the configuration is read.
+Time
+    Seconds from the first sample of the route (``time_s``); absolute start time, when
+    known, is kept in file metadata as ISO-8601 UTC.
+Errors
+    A problem with a user's input raises :class:`imugen.errors.InputError`; the CLI prints
+    it as one line naming the file and exits with status 2.
+"""
+
+__version__ = "0.1.0"

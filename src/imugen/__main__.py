@@ -1,0 +1,5 @@
+import sys
+
+from imugen.cli import main
+
+sys.exit(main())

@@ -1,0 +1,127 @@
+"""Command line: ``imugen <stage> ...``, a thin dispatcher onto the stages' functions.
+
+A user's mistake (bad file, bad option) prints one line ``imugen: error: FILE: problem``
+and exits with status 2; no traceback, no partial output.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from imugen import __version__
+from imugen.errors import InputError
+
+
+def _add_ingest_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--path", help="candidate path name, or 1-based index, when the file has several"
+    )
+    p.add_argument("--origin", metavar="LAT,LON,H", help="ENU origin (default: first point)")
+    p.add_argument("--dt", type=float, metavar="SECONDS", help="uniform clock for an untimed path")
+
+
+def _cmd_ingest(a) -> int:
+    from imugen.ingest import run
+
+    ing = run(
+        a.src,
+        a.output,
+        path=a.path,
+        origin=a.origin,
+        dt=a.dt,
+        utm=a.utm,
+        max_speed_kmh=a.max_speed_kmh,
+        max_extent_km=a.max_extent_km,
+        gap_warn_s=a.gap_warn_s,
+    )
+    for w in ing.warnings:
+        print(f"imugen: warning: {a.src}: {w}", file=sys.stderr)
+    m = ing.meta
+    print(
+        f"{a.output}: path {m['path']!r}, {m['points_out']} points, "
+        f"{m['length_3d_m']:.1f} m, {'timed ' + format(m['duration_s'], '.1f') + ' s' if m['timed'] else 'untimed'}, "
+        f"origin {m['origin']['lat_deg']:.7f},{m['origin']['lon_deg']:.7f},{m['origin']['alt_m']:.2f}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _cmd_truth(a) -> int:
+    from imugen.truth import run
+
+    run(a.enu, a.output, rate_hz=a.rate_hz, earth=a.earth, vehicle=a.vehicle)
+    return 0
+
+
+def _cmd_closure(a) -> int:
+    from imugen.closure import closure
+
+    result = closure(
+        a.src,
+        rate_hz=a.rate_hz,
+        earth=a.earth,
+        vehicle=a.vehicle,
+        path=a.path,
+        origin=a.origin,
+        dt=a.dt,
+    )
+    print(json.dumps(result))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="imugen", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"imugen {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("ingest", help="route file -> geodetic table + local ENU (.parquet/.csv)")
+    p.add_argument("src", help="KML, KMZ, GPX, CSV or E N U text file")
+    p.add_argument("-o", "--output", required=True, help="output file ending in .parquet or .csv")
+    _add_ingest_options(p)
+    p.add_argument("--utm", action="store_true", help="also write UTM easting/northing columns")
+    p.add_argument(
+        "--max-speed-kmh", type=float, default=1200.0, help="refuse faster implied speeds"
+    )
+    p.add_argument(
+        "--max-extent-km", type=float, default=100.0, help="largest distance from origin"
+    )
+    p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
+    p.set_defaults(func=_cmd_ingest)
+
+    p = sub.add_parser("truth", help="ENU route -> 6-DoF truth and ideal IMU at the IMU rate")
+    p.add_argument("enu", help="ENU Parquet written by `imugen ingest`")
+    p.add_argument("-o", "--output", required=True, help="truth Parquet")
+    _add_truth_options(p)
+    p.set_defaults(func=_cmd_truth)
+
+    p = sub.add_parser("closure", help="ingest -> truth -> mechanize the ideal IMU; print errors")
+    p.add_argument("src", help="any route file ingestion reads")
+    _add_truth_options(p)
+    _add_ingest_options(p)
+    p.set_defaults(func=_cmd_closure)
+    return parser
+
+
+def _add_truth_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate (default 100)")
+    p.add_argument("--earth", choices=["flat", "wgs84", "auto"], default="flat")
+    p.add_argument("--vehicle", choices=["car", "aircraft", "pedestrian"], default="car")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"imugen: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("imugen: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

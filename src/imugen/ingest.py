@@ -1,0 +1,482 @@
+"""Ingestion stage: route file -> one validated path -> geodetic table + exact local ENU.
+
+Rules (documented once here and in the README)
+----------------------------------------------
+Path choice
+    A file may hold several candidate paths (Placemarks, tracks, segments, routes). The only
+    one is taken; otherwise ``--path`` names one (exact name) or indexes it (1-based, in
+    file order); otherwise ingestion refuses and lists the candidates with their name,
+    point count and length.
+Validation (each failure: one line naming the file, exit status 2, no output)
+    At least two points; no NaN/inf; latitude in [-90, 90], longitude in [-180, 180],
+    height in [-11 km, 100 km]; a non-zero path length; no point farther than
+    ``max_extent_km`` (default 100 km) from the origin (see :mod:`imugen.frames`); for timed
+    paths, no implied speed above ``max_speed_kmh`` (default 1,200 km/h) between
+    consecutive points (GPS spikes).
+Time
+    ISO-8601 times become seconds from the first point (``time_s``); a time without an offset
+    is UTC. Exact duplicates (same time and same position) are dropped with a warning. A time
+    that does not increase at a point whose position differs is refused (the order of the
+    points is ambiguous). When every point has the same time, or only some points have a time,
+    the clock cannot be used: the path falls back to untimed with a warning. Gaps are kept (the
+    truth stage interpolates through them) and reported when longer than ``gap_warn_s``
+    (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
+    1 point per second); it is ignored (with a warning) when the file has a usable clock.
+Untimed paths
+    Consecutive repeated positions are dropped (a path without a clock has no stops); the truth
+    stage later gives it a clock from a speed profile.
+Origin
+    ``origin`` if given, else the origin recorded by an earlier ``imugen ingest`` (CSV stage),
+    else the first point. E N U rows are placed on the Earth by putting their first row at the
+    origin, which must then be given.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+from pyproj import Geod
+
+from imugen import __version__
+from imugen.errors import InputError
+from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
+from imugen.readers import read_route_file
+from imugen.route import RoutePath, iso_utc
+
+METADATA_KEY = b"imugen"
+UNITS = {
+    "time_s": "s",
+    "lat_deg": "deg (WGS-84)",
+    "lon_deg": "deg (WGS-84)",
+    "alt_m": "m (ellipsoidal height as given by the file)",
+    "e_m": "m",
+    "n_m": "m",
+    "u_m": "m",
+    "utm_e_m": "m",
+    "utm_n_m": "m",
+}
+_GEOD = Geod(ellps="WGS84")
+
+
+@dataclass
+class Ingested:
+    """Result of ingestion: the table (one row per kept input point) and its metadata."""
+
+    table: pd.DataFrame
+    meta: dict
+    warnings: list[str] = field(default_factory=list)
+
+
+def parse_origin(text: str | None) -> Origin | None:
+    """Parse ``"LAT,LON,H"`` (degrees, degrees, metres); None passes through."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        lat, lon, h = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(
+            "--origin", f"{text!r} is not LAT,LON,H (degrees, degrees, metres)"
+        ) from None
+    _check_geodetic(np.array([lat]), np.array([lon]), np.array([h]), "--origin", what="origin")
+    return Origin(lat, lon, h)
+
+
+def _path_length_m(p: RoutePath) -> float:
+    if p.enu_m is not None:
+        d = np.diff(p.enu_m, axis=0)
+        return float(np.nansum(np.linalg.norm(d, axis=1)))
+    ok = np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
+    ok &= (np.abs(p.lat_deg) <= 90) & (np.abs(p.lon_deg) <= 180)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(_GEOD.line_length(p.lon_deg[ok], p.lat_deg[ok]))
+
+
+def _describe(i: int, p: RoutePath) -> str:
+    length = _path_length_m(p)
+    ls = (
+        "?"
+        if not np.isfinite(length)
+        else (f"{length / 1000:.2f} km" if length >= 1000 else f"{length:.0f} m")
+    )
+    timed = ", timed" if p.time_unix_s is not None else ""
+    return f"[{i}] {p.name!r} ({p.kind}, {p.n_points} points, {ls}{timed})"
+
+
+def select_path(cands: list[RoutePath], spec: str | int | None, source) -> RoutePath:
+    """Choose one candidate: the only one, or the one ``spec`` names or indexes (1-based)."""
+    listing = "; ".join(_describe(i, p) for i, p in enumerate(cands, start=1))
+    if spec is None or spec == "":
+        if len(cands) == 1:
+            return cands[0]
+        raise InputError(
+            source,
+            f"holds {len(cands)} candidate paths; choose one with --path NAME or --path INDEX: {listing}",
+        )
+    spec = str(spec)
+    exact = [p for p in cands if p.name == spec]
+    if len(exact) == 1:
+        return exact[0]
+    folded = [p for p in cands if p.name.casefold() == spec.casefold()]
+    if len(folded) == 1:
+        return folded[0]
+    if len(exact) > 1 or len(folded) > 1:
+        raise InputError(
+            source, f"several paths are named {spec!r}; use an index instead: {listing}"
+        )
+    if spec.lstrip("+").isdigit():
+        k = int(spec)
+        if 1 <= k <= len(cands):
+            return cands[k - 1]
+        raise InputError(
+            source, f"--path {k}: there are only {len(cands)} candidate paths: {listing}"
+        )
+    raise InputError(source, f"no path named {spec!r}; candidates: {listing}")
+
+
+def _first_bad(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def _check_geodetic(lat, lon, alt, source, what="point") -> None:
+    for arr, name in ((lat, "latitude"), (lon, "longitude"), (alt, "height")):
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            i = _first_bad(bad)
+            label = what if what == "origin" else f"{what} {i + 1}"
+            raise InputError(source, f"{label}: {name} is {arr[i]} (not a finite number)")
+    for arr, name, lo, hi, unit in (
+        (lat, "latitude", -90.0, 90.0, "deg"),
+        (lon, "longitude", -180.0, 180.0, "deg"),
+        (alt, "height", -11_000.0, 100_000.0, "m"),
+    ):
+        bad = (arr < lo) | (arr > hi)
+        if bad.any():
+            i = _first_bad(bad)
+            label = what if what == "origin" else f"{what} {i + 1}"
+            raise InputError(
+                source, f"{label}: {name} {arr[i]:g} {unit} is outside [{lo:g}, {hi:g}] {unit}"
+            )
+
+
+def _check_enu(enu: np.ndarray, source) -> None:
+    bad = ~np.isfinite(enu)
+    if bad.any():
+        i = int(np.flatnonzero(bad.any(axis=1))[0])
+        raise InputError(
+            source, f"row {i + 1}: E/N/U value is not a finite number ({enu[i].tolist()})"
+        )
+
+
+def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str]):
+    """Decide the clock of a path: returns (time_s or None, time source label, start UTC)."""
+    t = p.time_unix_s
+    if t is not None:
+        have = np.isfinite(t)
+        if not have.all():
+            warnings.append(
+                f"only {int(have.sum())} of {len(t)} points have a time: the clock is not "
+                "usable and the path is treated as untimed"
+            )
+            t = None
+        elif np.ptp(t) == 0.0:
+            warnings.append(
+                f"all {len(t)} points have the same time ({iso_utc(float(t[0]))}): the clock is "
+                "not usable and the path is treated as untimed"
+            )
+            t = None
+        else:
+            moves = np.any(pos[1:] != pos[:-1], axis=1)
+            stuck = (np.diff(t) <= 0) & moves
+            if moves.any() and stuck.sum() >= 0.5 * moves.sum():
+                warnings.append(
+                    f"the time does not advance on {int(stuck.sum())} of {int(moves.sum())} moves "
+                    "(placeholder timestamps?): the clock is not usable and the path is treated "
+                    "as untimed"
+                )
+                t = None
+    if t is not None:
+        if dt is not None:
+            warnings.append("the file has a clock: the dt option is ignored")
+        start = iso_utc(float(t[0])) if p.time_is_absolute else None
+        return t - t[0], "file", start
+    if dt is not None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise InputError("--dt", f"{dt!r} must be a positive number of seconds")
+        return np.arange(p.n_points) * float(dt), f"uniform dt = {dt:g} s (option)", None
+    return None, None, None
+
+
+def _dedupe(table: dict, timed: bool, source, warnings: list[str]) -> dict:
+    """Drop exact duplicates (timed) or repeated positions (untimed); refuse bad clocks."""
+    pos = table["pos"]
+    same_pos = np.all(pos[1:] == pos[:-1], axis=1)
+    if timed:
+        t = table["time"]
+        same_t = t[1:] == t[:-1]
+        dup = same_t & same_pos
+        keep = np.concatenate([[True], ~dup])
+        if dup.any():
+            warnings.append(
+                f"dropped {int(dup.sum())} exact duplicate points (same time and position)"
+            )
+        for k in table:
+            table[k] = table[k][keep]
+        dtime = np.diff(table["time"])
+        bad = dtime <= 0
+        if bad.any():
+            i = _first_bad(bad)
+            kind = "repeats" if dtime[i] == 0 else "goes backwards"
+            raise InputError(
+                source,
+                f"time {kind} at point {i + 2} of the kept points ({table['time'][i + 1]:.3f} s after "
+                f"{table['time'][i]:.3f} s) while the position changes: the point order is ambiguous",
+            )
+    else:
+        keep = np.concatenate([[True], ~same_pos])
+        if not keep.all():
+            warnings.append(
+                f"dropped {int((~keep).sum())} repeated consecutive positions (an untimed path has no stops)"
+            )
+        for k in table:
+            table[k] = table[k][keep]
+    return table
+
+
+def ingest(
+    src: str | Path,
+    *,
+    path: str | int | None = None,
+    origin: Origin | str | None = None,
+    dt: float | None = None,
+    utm: bool = False,
+    max_speed_kmh: float = 1200.0,
+    max_extent_km: float = MAX_EXTENT_M / 1000.0,
+    gap_warn_s: float = 60.0,
+) -> Ingested:
+    """Read, select, validate and convert one path of a route file.
+
+    Parameters
+    ----------
+    src : path-like
+        KML, KMZ, GPX, CSV (with a header) or E N U text file.
+    path : str or int, optional
+        Candidate path name, or 1-based index.
+    origin : Origin or "LAT,LON,H", optional
+        ENU origin; default the origin carried from a previous stage, else the first point.
+    dt : float, optional
+        Uniform sample interval (s) given to an untimed path.
+    utm : bool
+        Also output UTM easting/northing in the zone of the origin.
+    max_speed_kmh, max_extent_km, gap_warn_s : float
+        Validation limits (see the module docstring).
+
+    Returns
+    -------
+    Ingested
+        ``table`` columns: ``time_s`` (timed paths only), ``lat_deg``, ``lon_deg``, ``alt_m``,
+        ``e_m``, ``n_m``, ``u_m`` (and ``utm_e_m``, ``utm_n_m``); ``meta`` dict for the file.
+    """
+    src = Path(src)
+    if isinstance(origin, str):
+        origin = parse_origin(origin)
+    cands = read_route_file(src)
+    p = select_path(cands, path, src)
+    warnings: list[str] = []
+    n_in = p.n_points
+    if n_in < 2:
+        raise InputError(src, f"path {p.name!r} has {n_in} point(s): a path needs at least two")
+
+    origin_from = "option" if origin is not None else None
+    if origin is None and p.carried.get("origin"):
+        o = p.carried["origin"]
+        origin = Origin(float(o["lat_deg"]), float(o["lon_deg"]), float(o["alt_m"]))
+        origin_from = "carried from " + str(p.carried.get("source", "the previous stage"))
+
+    if p.enu_m is not None:
+        _check_enu(p.enu_m, src)
+        if origin is None:
+            raise InputError(
+                src,
+                "E N U rows need an origin to be placed on the Earth: pass --origin LAT,LON,H "
+                "(the geodetic position of the first row)",
+            )
+        enu_first = p.enu_m - p.enu_m[0]
+        frame = LocalFrame(origin)
+        lat, lon, alt = frame.to_geodetic(enu_first)
+        pos = enu_first
+    else:
+        lat, lon, alt = p.lat_deg, p.lon_deg, p.alt_m
+        _check_geodetic(lat, lon, alt, src)
+        pos = np.column_stack([lat, lon, alt])
+
+    time_s, time_source, start_utc = _clock(p, pos, dt, warnings)
+    timed = time_s is not None
+    cols = {"pos": pos, "lat": lat, "lon": lon, "alt": alt}
+    if timed:
+        cols["time"] = time_s
+    cols = _dedupe(cols, timed, src, warnings)
+    lat, lon, alt = cols["lat"], cols["lon"], cols["alt"]
+    if len(lat) < 2:
+        raise InputError(
+            src,
+            f"path {p.name!r} has fewer than two distinct points: all points are the same location",
+        )
+
+    if origin is None:
+        origin = Origin(float(lat[0]), float(lon[0]), float(alt[0]))
+        origin_from = "first point"
+    frame = LocalFrame(origin)
+    enu = frame.to_enu(lat, lon, alt)
+
+    seg = np.linalg.norm(np.diff(enu, axis=0), axis=1)
+    length_3d = float(seg.sum())
+    if length_3d == 0.0:
+        raise InputError(src, f"path {p.name!r} has zero length: all points are the same location")
+    horiz = np.hypot(enu[:, 0], enu[:, 1])
+    lon_jump = np.abs(np.diff(lon)) > 180.0
+    crosses = bool(lon_jump.any())
+    if horiz.max() > max_extent_km * 1000.0:
+        i = int(np.argmax(horiz))
+        why = " and crosses the antimeridian" if crosses else ""
+        raise InputError(
+            src,
+            f"path {p.name!r} reaches {horiz[i] / 1000:,.0f} km from its origin{why}; a local ENU "
+            f"frame is limited to {max_extent_km:g} km (beyond it the tangent plane departs from "
+            "the Earth's surface by more than 785 m and the vertical tilts by more than 0.9 deg); "
+            "split the route or raise --max-extent-km",
+        )
+    if crosses:
+        warnings.append(
+            f"the path crosses the antimeridian after point {_first_bad(lon_jump) + 1}; "
+            "ENU is computed through ECEF and is continuous there"
+        )
+
+    gaps = {}
+    if timed:
+        t = cols["time"]
+        dts = np.diff(t)
+        speed_kmh = seg / dts * 3.6
+        bad = speed_kmh > max_speed_kmh
+        if bad.any():
+            i = int(np.argmax(np.where(bad, speed_kmh, -1)))
+            raise InputError(
+                src,
+                f"implied speed {speed_kmh[i]:,.0f} km/h between points {i + 1} and {i + 2} of the kept "
+                f"points ({seg[i]:.1f} m in {dts[i]:g} s) exceeds the limit of {max_speed_kmh:g} km/h "
+                "(a GPS spike?); fix the file or raise --max-speed-kmh",
+            )
+        big = dts > gap_warn_s
+        gaps = {"count_over_warn": int(big.sum()), "max_s": float(dts.max()), "warn_s": gap_warn_s}
+        if big.any():
+            warnings.append(
+                f"{int(big.sum())} time gaps longer than {gap_warn_s:g} s (longest {dts.max():g} s): "
+                "kept; the truth stage interpolates through them"
+            )
+
+    data = {}
+    if timed:
+        data["time_s"] = cols["time"]
+    data.update(lat_deg=lat, lon_deg=lon, alt_m=alt, e_m=enu[:, 0], n_m=enu[:, 1], u_m=enu[:, 2])
+    utm_meta = None
+    if utm:
+        try:
+            crs = utm_crs(origin)
+        except ValueError as exc:
+            raise InputError(src, f"--utm: {exc}") from None
+        data["utm_e_m"], data["utm_n_m"] = to_utm(lat, lon, crs)
+        utm_meta = {"epsg": crs.to_epsg(), "name": crs.name}
+    table = pd.DataFrame(data)
+
+    meta = {
+        "stage": "ingest",
+        "imugen_version": __version__,
+        "source": str(src),
+        "source_sha256": hashlib.sha256(src.read_bytes()).hexdigest(),
+        "path": p.name,
+        "path_kind": p.kind,
+        "candidates": len(cands),
+        "origin": origin.as_dict(),
+        "origin_from": origin_from,
+        "frame": "local ENU (x East, y North, z Up) of the origin's topocentric frame, WGS-84",
+        "method": LocalFrame.method,
+        "units": {k: v for k, v in UNITS.items() if k in data},
+        "timed": timed,
+        "time_source": time_source,
+        "start_time_utc": start_utc,
+        "altitude_mode": p.altitude_mode,
+        "altitude_trusted": p.altitude_trusted,
+        "points_in": n_in,
+        "points_out": len(table),
+        "length_3d_m": length_3d,
+        "length_horizontal_m": float(np.hypot(*np.diff(enu[:, :2], axis=0).T).sum()),
+        "max_distance_from_origin_m": float(horiz.max()),
+        "duration_s": float(cols["time"][-1]) if timed else None,
+        "gaps": gaps or None,
+        "utm": utm_meta,
+        "notes": list(p.notes),
+        "warnings": warnings,
+    }
+    return Ingested(table=table, meta=meta, warnings=warnings)
+
+
+def _atomic_target(out: Path):
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def write(ing: Ingested, out: str | Path) -> Path:
+    """Write the table atomically (temporary name, then rename) as .parquet or .csv."""
+    out = Path(out)
+    suffix = out.suffix.lower()
+    if suffix not in (".parquet", ".csv"):
+        raise InputError(out, "output must end in .parquet or .csv")
+    try:
+        tmp = _atomic_target(out)
+    except OSError as exc:
+        raise InputError(out, f"cannot write here ({exc.strerror})") from None
+    try:
+        if suffix == ".parquet":
+            tbl = pa.Table.from_pandas(ing.table, preserve_index=False)
+            md = dict(tbl.schema.metadata or {})
+            md[METADATA_KEY] = json.dumps(ing.meta).encode()
+            pq.write_table(tbl.replace_schema_metadata(md), tmp)
+        else:
+            with tmp.open("w", encoding="utf-8", newline="\n") as fh:
+                fh.write("# imugen: " + json.dumps(ing.meta) + "\n")
+                ing.table.to_csv(fh, index=False)
+        os.replace(tmp, out)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise InputError(out, f"cannot write ({exc.strerror})") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return out
+
+
+def read_meta(parquet_path: str | Path) -> dict:
+    """The ``imugen`` metadata dict of a Parquet file written by this package."""
+    md = pq.read_schema(parquet_path).metadata or {}
+    return json.loads(md.get(METADATA_KEY, b"{}"))
+
+
+def run(src: str | Path, out: str | Path, **kwargs) -> Ingested:
+    """Ingest ``src`` and write ``out``; returns the result (for the CLI's summary)."""
+    ing = ingest(src, **kwargs)
+    write(ing, out)
+    return ing

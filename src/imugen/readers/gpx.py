@@ -1,0 +1,118 @@
+"""GPX 1.0 / 1.1 reader: tracks (trk/trkseg/trkpt) and routes (rte/rtept).
+
+Each track segment and each route is one candidate path. A segment is named after its
+track (``"<trk name> / segment k"`` when the track has several segments); unnamed tracks
+and routes are called ``"track k"`` and ``"route k"``. ``<ele>`` gives the height (GPX
+defines it as metres above mean sea level, WGS-84 geoid: taken as trusted); a point without
+``<ele>`` gets 0 m and the path is flagged untrusted. ``<time>`` gives the clock; a path
+where no point has a time is untimed, a path where only some points do keeps NaN for the
+others (ingestion then decides, see :mod:`imugen.ingest`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from imugen.errors import InputError
+from imugen.route import RoutePath, parse_iso_time, parse_number
+from imugen.xmlsafe import local, parse_xml
+
+
+def _child(el, name):
+    for c in el:
+        if local(c.tag) == name:
+            return c
+    return None
+
+
+def _children(el, name):
+    return [c for c in el if local(c.tag) == name]
+
+
+def _text(el, name) -> str | None:
+    c = _child(el, name)
+    return None if c is None or c.text is None else c.text.strip()
+
+
+def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
+    n = len(pts)
+    lat = np.empty(n)
+    lon = np.empty(n)
+    alt = np.zeros(n)
+    t = np.full(n, np.nan)
+    have_ele = 0
+    for i, p in enumerate(pts):
+        try:
+            lat[i] = parse_number(p.get("lat", ""))
+            lon[i] = parse_number(p.get("lon", ""))
+        except ValueError:
+            raise InputError(
+                source,
+                f"{where} point {i + 1}: lat/lon attributes are missing or not numbers "
+                f"(lat={p.get('lat')!r}, lon={p.get('lon')!r})",
+            ) from None
+        ele = _text(p, "ele")
+        if ele:
+            try:
+                alt[i] = parse_number(ele)
+                have_ele += 1
+            except ValueError:
+                raise InputError(
+                    source, f"{where} point {i + 1}: <ele> {ele!r} is not a number"
+                ) from None
+        when = _text(p, "time")
+        if when:
+            try:
+                t[i] = parse_iso_time(when)
+            except ValueError:
+                raise InputError(
+                    source, f"{where} point {i + 1}: <time> {when!r} is not ISO-8601"
+                ) from None
+    notes = []
+    trusted = have_ele == n
+    if not trusted:
+        notes.append(f"{n - have_ele} of {n} points have no <ele>: their height is set to 0 m")
+    timed = bool(np.isfinite(t).any())
+    return RoutePath(
+        name=name,
+        kind=kind,
+        lat_deg=lat,
+        lon_deg=lon,
+        alt_m=alt,
+        time_unix_s=t if timed else None,
+        altitude_trusted=trusted,
+        notes=notes,
+    )
+
+
+def read_gpx(path: str | Path) -> list[RoutePath]:
+    """Read all track segments and routes of a GPX file.
+
+    Returns
+    -------
+    list of RoutePath
+        One per non-empty ``trkseg`` and per non-empty ``rte``, in document order.
+    """
+    path = Path(path)
+    root = parse_xml(path.read_bytes(), path)
+    if local(root.tag) != "gpx":
+        raise InputError(path, f"is not GPX: the root element is <{local(root.tag)}>, not <gpx>")
+    out: list[RoutePath] = []
+    n_wpt = len(_children(root, "wpt"))
+    for ti, trk in enumerate(_children(root, "trk"), start=1):
+        tname = _text(trk, "name") or f"track {ti}"
+        segs = [s for s in _children(trk, "trkseg") if _children(s, "trkpt")]
+        for si, seg in enumerate(segs, start=1):
+            name = tname if len(segs) == 1 else f"{tname} / segment {si}"
+            out.append(_points(_children(seg, "trkpt"), f"track {name!r}", path, name, "trkseg"))
+    for ri, rte in enumerate(_children(root, "rte"), start=1):
+        pts = _children(rte, "rtept")
+        if pts:
+            name = _text(rte, "name") or f"route {ri}"
+            out.append(_points(pts, f"route {name!r}", path, name, "rte"))
+    if not out:
+        extra = f" (it holds {n_wpt} waypoints, which are not a path)" if n_wpt else ""
+        raise InputError(path, f"has no track or route with points{extra}")
+    return out

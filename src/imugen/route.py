@@ -1,0 +1,90 @@
+"""Shared vocabulary of the readers: a candidate path read from a route file."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+
+import numpy as np
+
+
+@dataclass
+class RoutePath:
+    """One candidate path of a route file, as read (no validation yet).
+
+    Attributes
+    ----------
+    name : str
+        Human-readable name (Placemark/track name, or a generated ``"<kind> k"``).
+    kind : str
+        Geometry it came from: ``LineString``, ``Track``, ``trkseg``, ``rte``, ``csv``, ``enu``.
+    lat_deg, lon_deg, alt_m : ndarray, shape (n,)
+        Geodetic WGS-84 coordinates; ``alt_m`` is 0 where the file gives none. Empty
+        (shape (0,)) for ``enu`` paths.
+    enu_m : ndarray, shape (n, 3) or None
+        East, North, Up in metres, only for ``enu`` paths (geodetic arrays are then empty).
+    time_unix_s : ndarray, shape (n,) or None
+        POSIX seconds (UTC), NaN where a point has no time; None when the path is untimed.
+    altitude_mode : str or None
+        KML altitudeMode as written (None: not given).
+    altitude_trusted : bool
+        False when the altitudes are not absolute heights (KML clampToGround/default,
+        relativeToGround, or 2-D coordinates).
+    time_is_absolute : bool
+        False when the file gives relative seconds rather than dates.
+    notes : list of str
+        What the reader did that a user should know (skipped coordinates, etc.).
+    carried : dict
+        Metadata written by an earlier ``imugen ingest`` (CSV stage), e.g. the origin.
+    """
+
+    name: str
+    kind: str
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    alt_m: np.ndarray
+    enu_m: np.ndarray | None = None
+    time_unix_s: np.ndarray | None = None
+    altitude_mode: str | None = None
+    altitude_trusted: bool = True
+    time_is_absolute: bool = True
+    notes: list[str] = field(default_factory=list)
+    carried: dict = field(default_factory=dict)
+
+    @property
+    def n_points(self) -> int:
+        return len(self.enu_m) if self.enu_m is not None else len(self.lat_deg)
+
+
+def parse_number(text: str) -> float:
+    """Parse a decimal number as written in route files (``+008.5``, ``-1e-3``).
+
+    Raises ValueError on anything else (including empty strings). NaN and inf are
+    returned as such; the validation stage refuses them with a message.
+    """
+    return float(text.strip())
+
+
+def parse_iso_time(text: str) -> float:
+    """ISO-8601 date-time -> POSIX seconds (UTC).
+
+    Accepts ``Z`` and ``+hh:mm`` offsets and fractional seconds; a time without an
+    offset is taken as UTC (documented in the README). Raises ValueError when the text
+    is not ISO-8601.
+    """
+    s = text.strip()
+    if not s:
+        raise ValueError("empty time")
+    dt = datetime.fromisoformat(s)
+    if dt.tzinfo is None:
+        dt = dt.replace(tzinfo=UTC)
+    ts = dt.timestamp()
+    if not math.isfinite(ts):
+        raise ValueError(f"time out of range: {text!r}")
+    return ts
+
+
+def iso_utc(unix_s: float) -> str:
+    """POSIX seconds -> ISO-8601 UTC string with a ``Z`` suffix."""
+    return datetime.fromtimestamp(unix_s, tz=UTC).isoformat().replace("+00:00", "Z")

@@ -1,0 +1,278 @@
+"""Ingestion: path choice, validation, time rules, frames, outputs and the CLI contract."""
+
+import json
+from datetime import UTC, datetime, timedelta
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+from pyproj import Geod
+
+from imugen.errors import InputError
+from imugen.ingest import ingest, read_meta, run
+
+GEOD = Geod(ellps="WGS84")
+
+
+def gpx(points, name="t.gpx", tmp=None):
+    pts = []
+    for p in points:
+        lat, lon = p[0], p[1]
+        ele = f"<ele>{p[2]}</ele>" if len(p) > 2 and p[2] is not None else ""
+        tm = f"<time>{p[3]}</time>" if len(p) > 3 and p[3] is not None else ""
+        pts.append(f'<trkpt lat="{lat}" lon="{lon}">{ele}{tm}</trkpt>')
+    f = tmp / name
+    f.write_text(f"<gpx><trk><trkseg>{''.join(pts)}</trkseg></trk></gpx>")
+    return f
+
+
+def T(s):
+    t = datetime(2024, 5, 1, 10, 0, 0, tzinfo=UTC) + timedelta(seconds=s)
+    return t.isoformat().replace("+00:00", "Z")
+
+
+def test_timed_gpx_table_and_metadata(tmp_path):
+    f = gpx(
+        [(31.63, -7.99, 450, T(0)), (31.6301, -7.99, 451, T(2)), (31.6302, -7.9899, 452, T(4))],
+        tmp=tmp_path,
+    )
+    out = run(f, tmp_path / "o.parquet")
+    df = pd.read_parquet(tmp_path / "o.parquet")
+    assert list(df.columns) == ["time_s", "lat_deg", "lon_deg", "alt_m", "e_m", "n_m", "u_m"]
+    np.testing.assert_allclose(df.time_s, [0, 2, 4])
+    np.testing.assert_allclose(df.iloc[0][["e_m", "n_m", "u_m"]], 0, atol=1e-9)
+    meta = read_meta(tmp_path / "o.parquet")
+    assert meta["origin"] == {"lat_deg": 31.63, "lon_deg": -7.99, "alt_m": 450.0}
+    assert meta["origin_from"] == "first point" and meta["timed"]
+    assert meta["start_time_utc"] == "2024-05-01T10:00:00Z"
+    assert meta["source"].endswith("t.gpx") and len(meta["source_sha256"]) == 64
+    assert meta["units"]["e_m"] == "m" and "WGS-84" in meta["frame"]
+    length = GEOD.line_length([-7.99, -7.99, -7.9899], [31.63, 31.6301, 31.6302])
+    assert meta["length_horizontal_m"] == pytest.approx(length, rel=1e-4)
+    assert out.meta == meta
+
+
+def test_origin_option_and_utm(tmp_path):
+    f = gpx([(31.63, -7.99, 450), (31.64, -7.99, 450)], tmp=tmp_path)
+    ing = ingest(f, origin="31.63,-8.0,400", utm=True)
+    assert ing.table.e_m.iloc[0] == pytest.approx(947.9, abs=1.0)  # 0.01 deg of longitude east
+    assert ing.table.u_m.iloc[0] > 49.9  # 50 m above the origin (less curvature drop)
+    assert ing.meta["utm"]["epsg"] == 32629
+    assert {"utm_e_m", "utm_n_m"} <= set(ing.table.columns)
+
+
+def test_enu_text_needs_origin_and_dt(tmp_path):
+    f = tmp_path / "p.txt"
+    f.write_text("1000\t2000\t480\n1003\t\t2004\t481\n1006\t2008\t481\n")
+    with pytest.raises(InputError, match="--origin"):
+        ingest(f)
+    ing = ingest(f, origin="31.63,-7.99,480", dt=1.0)
+    np.testing.assert_allclose(ing.table.time_s, [0, 1, 2])
+    np.testing.assert_allclose(ing.table[["e_m", "n_m", "u_m"]].iloc[1], [3, 4, 1], atol=1e-6)
+    assert ing.table.alt_m.iloc[0] == pytest.approx(480.0, abs=1e-6)
+    assert ing.meta["time_source"].startswith("uniform dt")
+
+
+def test_csv_stage_round_trip(tmp_path):
+    f = gpx(
+        [(31.63, -7.99, 450, T(0)), (31.6301, -7.9901, 455, T(1.5)), (31.6305, -7.99, 452, T(3))],
+        tmp=tmp_path,
+    )
+    a = run(f, tmp_path / "r.csv", origin="31.62,-7.98,440")
+    b = run(tmp_path / "r.csv", tmp_path / "r.parquet")
+    assert b.meta["origin"] == a.meta["origin"] and "carried" in b.meta["origin_from"]
+    assert b.meta["start_time_utc"] == a.meta["start_time_utc"]
+    pd.testing.assert_frame_equal(a.table, b.table, check_exact=False, rtol=0, atol=1e-9)
+
+
+def test_duplicates_and_clock_rules(tmp_path):
+    f = gpx(
+        [(1, 2, 0, T(0)), (1, 2, 0, T(0)), (1.001, 2, 0, T(1)), (1.002, 2, 0, T(2))], tmp=tmp_path
+    )
+    ing = ingest(f)
+    assert len(ing.table) == 3 and any("exact duplicate" in w for w in ing.warnings)
+    back = gpx(
+        [(1, 2, 0, T(0)), (1.001, 2, 0, T(2)), (1.002, 2, 0, T(1)), (1.003, 2, 0, T(3))],
+        "b.gpx",
+        tmp_path,
+    )
+    with pytest.raises(InputError, match="goes backwards at point 3"):
+        ingest(back)
+    rep = gpx(
+        [(1, 2, 0, T(0)), (1.001, 2, 0, T(1)), (1.002, 2, 0, T(1)), (1.003, 2, 0, T(3))],
+        "r.gpx",
+        tmp_path,
+    )
+    with pytest.raises(InputError, match="repeats at point 3"):
+        ingest(rep)
+    same = gpx([(1, 2, 0, T(5)), (1.001, 2, 0, T(5)), (1.002, 2, 0, T(5))], "s.gpx", tmp_path)
+    ing = ingest(same)
+    assert "time_s" not in ing.table.columns and any("same time" in w for w in ing.warnings)
+    part = gpx([(1, 2, 0, T(0)), (1.001, 2, 0, None), (1.002, 2, 0, T(5))], "p.gpx", tmp_path)
+    assert "time_s" not in ingest(part).table.columns
+    stop = gpx([(1, 2, 0, T(0)), (1, 2, 0, T(30)), (1.001, 2, 0, T(100))], "stop.gpx", tmp_path)
+    ing = ingest(stop, gap_warn_s=60)
+    assert (
+        len(ing.table) == 3
+        and ing.meta["gaps"]["max_s"] == 70
+        and any("gaps" in w for w in ing.warnings)
+    )
+    untimed = gpx([(1, 2), (1, 2), (1.001, 2), (1.001, 2), (1.002, 2)], "u.gpx", tmp_path)
+    ing = ingest(untimed)
+    assert len(ing.table) == 3 and any("repeated consecutive" in w for w in ing.warnings)
+
+
+@pytest.mark.parametrize(
+    "points, message",
+    [
+        ([(1, -1230), (1, 2)], "point 1: longitude -1230 deg is outside"),
+        ([(1, 2), (95, 2)], "point 2: latitude 95"),
+        ([(1, 2), (float("nan"), 2)], "point 2: latitude is nan"),
+        ([(1, 2, 1e7), (1.1, 2)], "height 1e\\+07 m"),
+        ([(1, 2)], "at least two"),
+        ([(1, 2), (1, 2), (1, 2)], "fewer than two distinct points"),
+        ([(1, 2, 0, T(0)), (1, 2, 0, T(1))], "zero length"),
+        (
+            [(1, 2, 0, T(0)), (1.01, 2, 0, T(1)), (1.02, 2, 0, T(2))],
+            "implied speed 3,9\\d\\d km/h between points [12] and [23]",
+        ),
+        ([(0, 0), (0, 2)], "limited to 100 km"),
+    ],
+)
+def test_validation_refusals(tmp_path, points, message):
+    with pytest.raises(InputError, match=message):
+        ingest(gpx(points, tmp=tmp_path))
+
+
+def test_small_route_across_antimeridian_is_handled(tmp_path):
+    f = gpx([(-16.8, 179.995, 0), (-16.8, -179.995, 0), (-16.79, -179.99, 0)], tmp=tmp_path)
+    ing = ingest(f)
+    seg = np.linalg.norm(np.diff(ing.table[["e_m", "n_m", "u_m"]].to_numpy(), axis=0), axis=1)
+    geod = [
+        GEOD.inv(179.995, -16.8, -179.995, -16.8)[2],
+        GEOD.inv(-179.995, -16.8, -179.99, -16.79)[2],
+    ]
+    np.testing.assert_allclose(seg, geod, rtol=1e-5)
+    assert any("antimeridian" in w for w in ing.warnings)
+
+
+def test_path_selection(tmp_path):
+    f = tmp_path / "m.gpx"
+    f.write_text(
+        '<gpx><trk><name>A</name><trkseg><trkpt lat="1" lon="2"/><trkpt lat="1.001" lon="2"/></trkseg></trk>'
+        '<trk><name>B</name><trkseg><trkpt lat="1" lon="2"/><trkpt lat="1.002" lon="2"/>'
+        '<trkpt lat="1.003" lon="2"/></trkseg></trk></gpx>'
+    )
+    with pytest.raises(
+        InputError, match=r"2 candidate paths.*\[1\] 'A' \(trkseg, 2 points, 111 m\).*\[2\] 'B'"
+    ):
+        ingest(f)
+    assert ingest(f, path="B").meta["path"] == "B"
+    assert ingest(f, path="b").meta["path"] == "B"
+    assert ingest(f, path=1).meta["path"] == "A"
+    with pytest.raises(InputError, match="only 2 candidate"):
+        ingest(f, path="3")
+    with pytest.raises(InputError, match="no path named 'C'"):
+        ingest(f, path="C")
+
+
+def test_cli_error_contract(tmp_path, cli):
+    bad = gpx([(1, -1230), (1, 2)], tmp=tmp_path)
+    out = tmp_path / "out.parquet"
+    proc = cli("ingest", bad, "-o", out)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(bad) in lines[0] and "longitude -1230" in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert (
+        not out.exists()
+        and list(tmp_path.glob("*.tmp")) == []
+        and list(tmp_path.glob(".out*")) == []
+    )
+    nul = tmp_path / "nul.kml"
+    nul.write_bytes(b"<kml>\x00</kml>")
+    proc = cli("ingest", nul, "-o", out)
+    assert proc.returncode == 2 and "NUL" in proc.stderr and "Traceback" not in proc.stderr
+    proc = cli("ingest", tmp_path / "missing.gpx", "-o", out)
+    assert proc.returncode == 2 and "no such file" in proc.stderr
+    proc = cli("ingest", bad, "-o", tmp_path / "out.txt")
+    assert proc.returncode == 2
+    proc = cli("ingest", bad, "--origin", "north", "-o", out)
+    assert proc.returncode == 2 and "LAT,LON,H" in proc.stderr and not out.exists()
+
+
+def test_cli_unwritable_output(tmp_path, cli):
+    good = gpx([(1, 2), (1.001, 2)], tmp=tmp_path)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    proc = cli("ingest", good, "-o", blocker / "sub" / "o.parquet")
+    assert proc.returncode == 2 and "cannot write" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_cli_success_writes_parquet_and_csv(tmp_path, cli):
+    good = gpx([(1, 2, 5, T(0)), (1.001, 2, 5, T(10))], tmp=tmp_path)
+    cli("ingest", good, "-o", tmp_path / "o.csv", check=0)
+    first = (tmp_path / "o.csv").read_text().splitlines()[0]
+    assert first.startswith("# imugen: ") and json.loads(first[10:])["timed"]
+    cli("ingest", tmp_path / "o.csv", "-o", tmp_path / "o.parquet", check=0)
+    schema = pq.read_schema(tmp_path / "o.parquet")
+    assert b"imugen" in schema.metadata
+
+
+# every real file is either read correctly or refused with the documented message
+REAL = {
+    "a_sparkfun_rally_course_ge_pro.kml": dict(points=138, timed=False, path="path"),
+    "b_kml23_track_no_gx_prefix.kml": dict(points=7, timed=True),
+    "b_mapfinity_hike_austin_gxtrack.kml": dict(points=451, timed=True),
+    "c_limassol_tour_newline_coords.kml": dict(points=1812, timed=False),
+    "e_cycling_central_park_1hz.gpx": dict(points=1812, timed=True),
+    "f_hike_identical_1901_timestamps.gpx": dict(timed=False, warn="does not advance"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REAL))
+def test_real_files_read(shared_file, name):
+    f = shared_file(name)
+    exp = REAL[name]
+    ing = ingest(f)
+    if "points" in exp:
+        assert len(ing.table) <= exp["points"]
+        assert ing.meta["points_in"] == exp["points"]
+    assert ing.meta["timed"] == exp["timed"]
+    if "warn" in exp:
+        assert any(exp["warn"] in w for w in ing.warnings)
+    enu = ing.table[["e_m", "n_m", "u_m"]].to_numpy()
+    assert np.isfinite(enu).all()
+    geod = GEOD.line_length(ing.table.lon_deg.to_numpy(), ing.table.lat_deg.to_numpy())
+    assert ing.meta["length_horizontal_m"] == pytest.approx(geod, rel=1e-3)
+
+
+def test_real_central_park_time_span(shared_file):
+    ing = ingest(shared_file("e_cycling_central_park_1hz.gpx"))
+    assert ing.meta["duration_s"] == pytest.approx(ing.table.time_s.iloc[-1])
+    assert 1700 < ing.meta["duration_s"] < 1900 and 9.0e3 < ing.meta["length_horizontal_m"] < 1.05e4
+
+
+def test_real_refusals(shared_file):
+    with pytest.raises(InputError, match=r"antimeridian.*limited to 100 km"):
+        ingest(shared_file("f_pacific_route_antimeridian.kml"))
+    with pytest.raises(InputError, match="6 candidate paths"):
+        ingest(shared_file("c_google_kml_samples.kml"))
+    with pytest.raises(InputError, match="2 candidate paths"):
+        ingest(shared_file("e_car_colorado_mountain_pass.gpx"))
+    car = ingest(shared_file("e_car_colorado_mountain_pass.gpx"), path=1)
+    assert car.meta["points_in"] == 104 and car.meta["timed"]
+    assert ingest(shared_file("c_google_kml_samples.kml"), path="Absolute").meta["altitude_trusted"]
+
+
+def test_real_paper_trajectory(shared_file):
+    ing = ingest(
+        shared_file("seed_reference_trajectory_enu.txt"), origin="31.63,-7.99,480.6", dt=1.0
+    )
+    assert len(ing.table) == 620 and ing.meta["duration_s"] == 619
+    raw = np.loadtxt(shared_file("seed_reference_trajectory_enu.txt"))
+    np.testing.assert_allclose(ing.table[["e_m", "n_m", "u_m"]].to_numpy(), raw - raw[0], atol=1e-6)
+    assert ing.meta["length_3d_m"] == pytest.approx(
+        np.linalg.norm(np.diff(raw, axis=0), axis=1).sum()
+    )

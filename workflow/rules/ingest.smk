@@ -1,0 +1,27 @@
+# Ingestion: route file (KML/KMZ/GPX/CSV/ENU text) -> geodetic CSV -> ENU Parquet.
+
+
+rule ingest_csv:
+    input:
+        src=lambda wc: config["routes"][wc.route]["file"],
+        code=stage_code("ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml", "readers/gpx", "readers/text"),
+    output:
+        "results/{route}/route.csv",
+    params:
+        opts=ingest_opts,
+    log:
+        "logs/{route}/ingest_csv.log",
+    shell:
+        "imugen ingest {input.src:q} -o {output:q} {params.opts} > {log:q} 2>&1"
+
+
+rule ingest_enu:
+    input:
+        csv="results/{route}/route.csv",
+        code=stage_code("ingest", "frames", "readers/text"),
+    output:
+        "results/{route}/enu.parquet",
+    log:
+        "logs/{route}/ingest_enu.log",
+    shell:
+        "imugen ingest {input.csv:q} -o {output:q} > {log:q} 2>&1"
