@@ -102,3 +102,25 @@ def test_real_paper_file(shared_file):
     assert p.n_points == len(rows) == 620
     np.testing.assert_allclose(p.enu_m[0], [float(x) for x in rows[0]])
     np.testing.assert_allclose(p.enu_m[-1], [float(x) for x in rows[-1]])
+
+
+def test_strict_numbers():
+    from imugen.route import parse_number
+
+    assert parse_number("+008.5") == 8.5 and parse_number(" -1e-3 ") == -1e-3
+    assert parse_number(".5") == 0.5 and np.isnan(parse_number("nan"))
+    for bad in ("1_000", "0x10", "", "1,5", "--1"):
+        with pytest.raises(ValueError):
+            parse_number(bad)
+
+
+def test_utf16_kml_with_bom(tmp_path):
+    kml = (
+        '<?xml version="1.0" encoding="UTF-16"?><kml xmlns="http://www.opengis.net/kml/2.2">'
+        "<Placemark><name>Ünïcode</name><LineString><altitudeMode>absolute</altitudeMode>"
+        "<coordinates>2,1,10 2.001,1,11</coordinates></LineString></Placemark></kml>"
+    )
+    f = tmp_path / "u16.kml"
+    f.write_bytes(kml.encode("utf-16"))
+    (p,) = read_route_file(f)
+    assert p.name == "Ünïcode" and p.n_points == 2

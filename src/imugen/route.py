@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
@@ -57,13 +58,19 @@ class RoutePath:
         return len(self.enu_m) if self.enu_m is not None else len(self.lat_deg)
 
 
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)", re.I)
+
+
 def parse_number(text: str) -> float:
     """Parse a decimal number as written in route files (``+008.5``, ``-1e-3``).
 
-    Raises ValueError on anything else (including empty strings). NaN and inf are
-    returned as such; the validation stage refuses them with a message.
+    Raises ValueError on anything else (empty strings, ``1_000``, hex). NaN and inf are
+    returned as such; the validation stage refuses them with a message naming the point.
     """
-    return float(text.strip())
+    s = text.strip()
+    if not _NUMBER.fullmatch(s):
+        raise ValueError(f"not a number: {text!r}")
+    return float(s)
 
 
 def parse_iso_time(text: str) -> float:

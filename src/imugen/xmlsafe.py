@@ -49,7 +49,7 @@ def parse_xml(data: bytes, source: str | Path) -> ET.Element:
     xml.etree.ElementTree.Element
         The root element.
     """
-    if b"\x00" in data:
+    if b"\x00" in data and not data.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise InputError(source, "contains NUL bytes: not a text route file")
     guard = expat.ParserCreate()
     guard.StartDoctypeDeclHandler = _forbid_doctype

@@ -37,7 +37,9 @@ def read_route_file(path: str | Path) -> list[RoutePath]:
     suffix = path.suffix.lower()
     if head.startswith(b"PK\x03\x04") or suffix == ".kmz":
         return kml.read_kmz(path)
-    if b"\x00" in head:
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16 with a byte-order mark
+        head = head.decode("utf-16", errors="replace").encode("utf-8", errors="replace")
+    elif b"\x00" in head:
         raise InputError(path, "contains NUL bytes: not a text route file")
     lowered = head.lower()
     if suffix == ".gpx" or b"<gpx" in lowered:
