@@ -10,7 +10,8 @@ import pytest
 from pyproj import Geod
 
 from imugen.errors import InputError
-from imugen.ingest import ingest, read_meta, run
+from imugen.ingest import ingest, run
+from imugen.io import read_meta
 
 GEOD = Geod(ellps="WGS84")
 

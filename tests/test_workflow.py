@@ -1,6 +1,5 @@
 """The Snakemake workflow end to end on a tiny config in a temporary directory."""
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -8,17 +7,25 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from imugen.ingest import read_meta
+from imugen.io import read_meta
 
 REPO = Path(__file__).resolve().parents[1]
-pytestmark = pytest.mark.skipif(shutil.which("snakemake") is None, reason="snakemake not installed")
 
 
 def snakemake(workdir, *args):
     bindir = Path(sys.executable).parent
     env = {"PATH": f"{bindir}:/usr/bin:/bin", "HOME": str(workdir)}
     return subprocess.run(
-        ["snakemake", "-s", str(REPO / "Snakefile"), "--directory", str(workdir), *args],
+        [
+            sys.executable,
+            "-m",
+            "snakemake",
+            "-s",
+            str(REPO / "Snakefile"),
+            "--directory",
+            str(workdir),
+            *args,
+        ],
         capture_output=True,
         text=True,
         env=env,

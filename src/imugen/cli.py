@@ -51,7 +51,54 @@ def _cmd_ingest(a) -> int:
 def _cmd_truth(a) -> int:
     from imugen.truth import run
 
-    run(a.enu, a.output, rate_hz=a.rate_hz, earth=a.earth, vehicle=a.vehicle)
+    run(a.enu, a.output, rate_hz=a.rate_hz, earth=a.earth, vehicle=a.vehicle, grade=a.grade)
+    return 0
+
+
+def _cmd_simulate(a) -> int:
+    from imugen.simulate import run
+
+    if a.truth is None and a.static is None:
+        raise InputError("imugen simulate", "give a TRUTH.parquet or --static SECONDS")
+    if a.truth is not None and a.static is not None:
+        raise InputError("imugen simulate", "give either a TRUTH.parquet or --static, not both")
+    terms = None if a.terms is None else [t.strip() for t in a.terms.split(",") if t.strip()]
+    temperature = None
+    if a.temperature is not None:
+        try:
+            temperature = json.loads(a.temperature)
+        except json.JSONDecodeError as exc:
+            raise InputError("--temperature", f"is not JSON ({exc.msg})") from None
+    meta = run(
+        truth=a.truth,
+        out=a.output,
+        grade=a.grade,
+        sequences=a.sequences,
+        seed=a.seed,
+        shard=a.shard,
+        static_s=a.static,
+        rate_hz=a.rate_hz,
+        outputs=a.outputs,
+        draw=a.draw,
+        terms=terms,
+        temperature=temperature,
+        series=a.series,
+        dtype=a.dtype,
+        grades_file=a.grades_file,
+        static_earth=a.earth,
+    )
+    print(
+        f"{a.output}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
+        f"seed {a.seed}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _cmd_allan(a) -> int:
+    from imugen.allan import run
+
+    print(json.dumps(run(a.shard, plot=a.plot, max_sequences=a.max_sequences)))
     return 0
 
 
@@ -66,6 +113,7 @@ def _cmd_closure(a) -> int:
         path=a.path,
         origin=a.origin,
         dt=a.dt,
+        grade=a.grade,
     )
     print(json.dumps(result))
     return 0
@@ -94,13 +142,43 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("enu", help="ENU Parquet written by `imugen ingest`")
     p.add_argument("-o", "--output", required=True, help="truth Parquet")
     _add_truth_options(p)
+    p.add_argument(
+        "--grade",
+        help="sensor grade whose error budget `--earth auto` compares the dropped terms with",
+    )
     p.set_defaults(func=_cmd_truth)
 
     p = sub.add_parser("closure", help="ingest -> truth -> mechanize the ideal IMU; print errors")
     p.add_argument("src", help="any route file ingestion reads")
     _add_truth_options(p)
     _add_ingest_options(p)
+    p.add_argument("--grade", help="grade for the `--earth auto` budget")
     p.set_defaults(func=_cmd_closure)
+
+    p = sub.add_parser("simulate", help="truth (or a still IMU) -> one shard of erroneous IMU")
+    p.add_argument("truth", nargs="?", help="truth Parquet written by `imugen truth`")
+    p.add_argument("-o", "--output", required=True, help="shard Parquet (labels go beside it)")
+    p.add_argument("--grade", required=True, help="preset name, or FILE.yaml:NAME")
+    p.add_argument("--sequences", type=int, required=True, help="sequences in this shard (M)")
+    p.add_argument("--seed", type=int, required=True, help="base seed of the experiment")
+    p.add_argument("--shard", type=int, required=True, help="shard index K (0-based)")
+    p.add_argument("--static", type=float, metavar="SECONDS", help="simulate a still, level IMU")
+    p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate for --static")
+    p.add_argument("--earth", choices=["flat", "wgs84"], default="flat", help="for --static")
+    p.add_argument("--outputs", choices=["increments", "rates", "both"], default="increments")
+    p.add_argument("--draw", choices=["ranges", "nominal"], default="ranges")
+    p.add_argument("--terms", help="comma-separated error terms to keep (default: all)")
+    p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
+    p.add_argument("--series", action="store_true", help="also write true bias/SF series")
+    p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
+    p.add_argument("--grades-file", help="YAML file with custom grades")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("allan", help="Allan deviation of a static shard against its grade")
+    p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")
+    p.add_argument("--plot", help="also draw the Allan plot to this PNG/SVG")
+    p.add_argument("--max-sequences", type=int, default=16, help="sequences to analyse")
+    p.set_defaults(func=_cmd_allan)
     return parser
 
 

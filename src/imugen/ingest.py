@@ -35,24 +35,20 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 from pyproj import Geod
 
 from imugen import __version__
 from imugen.errors import InputError
 from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
+from imugen.io import atomic_output, write_parquet
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
 
-METADATA_KEY = b"imugen"
 UNITS = {
     "time_s": "s",
     "lat_deg": "deg (WGS-84)",
@@ -432,47 +428,18 @@ def ingest(
     return Ingested(table=table, meta=meta, warnings=warnings)
 
 
-def _atomic_target(out: Path):
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    return Path(tmp)
-
-
 def write(ing: Ingested, out: str | Path) -> Path:
     """Write the table atomically (temporary name, then rename) as .parquet or .csv."""
     out = Path(out)
     suffix = out.suffix.lower()
     if suffix not in (".parquet", ".csv"):
         raise InputError(out, "output must end in .parquet or .csv")
-    try:
-        tmp = _atomic_target(out)
-    except OSError as exc:
-        raise InputError(out, f"cannot write here ({exc.strerror})") from None
-    try:
-        if suffix == ".parquet":
-            tbl = pa.Table.from_pandas(ing.table, preserve_index=False)
-            md = dict(tbl.schema.metadata or {})
-            md[METADATA_KEY] = json.dumps(ing.meta).encode()
-            pq.write_table(tbl.replace_schema_metadata(md), tmp)
-        else:
-            with tmp.open("w", encoding="utf-8", newline="\n") as fh:
-                fh.write("# imugen: " + json.dumps(ing.meta) + "\n")
-                ing.table.to_csv(fh, index=False)
-        os.replace(tmp, out)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(out, f"cannot write ({exc.strerror})") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    if suffix == ".parquet":
+        return write_parquet(ing.table, ing.meta, out)
+    with atomic_output(out) as tmp, tmp.open("w", encoding="utf-8", newline="\n") as fh:
+        fh.write("# imugen: " + json.dumps(ing.meta) + "\n")
+        ing.table.to_csv(fh, index=False)
     return out
-
-
-def read_meta(parquet_path: str | Path) -> dict:
-    """The ``imugen`` metadata dict of a Parquet file written by this package."""
-    md = pq.read_schema(parquet_path).metadata or {}
-    return json.loads(md.get(METADATA_KEY, b"{}"))
 
 
 def run(src: str | Path, out: str | Path, **kwargs) -> Ingested:

@@ -1,0 +1,165 @@
+"""Evaluation stage: navigation errors -> per-sequence RMSE -> per-grade tables.
+
+Per sequence, over the evaluation epochs (every epoch of the navigation error table, the
+first one included, as the paper does):
+
+- ``rmse_east_m``, ``rmse_north_m``, ``rmse_up_m``: root mean square of the position error
+  along each ENU axis;
+- ``rmse_total_m = sqrt(E^2 + N^2 + U^2)`` of those three (the paper's "Total");
+- ``final_east_m`` ... ``final_3d_m``: error at the last epoch; ``final_pct_distance``: final
+  horizontal error as a percentage of the horizontal distance travelled.
+
+Per grade: the median over sequences of each value (``east_m``, ``north_m``, ``up_m``,
+``total_m``, ...) with its 5th and 95th percentiles (``*_p05_m``, ``*_p95_m``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ERR = ("err_e_m", "err_n_m", "err_u_m")
+AXES = ("east", "north", "up")
+
+
+def sequence_metrics(nav: pd.DataFrame, distance_m: float) -> pd.DataFrame:
+    """Per-sequence RMSE and final errors.
+
+    Parameters
+    ----------
+    nav : DataFrame
+        Columns ``sequence``, ``time_s`` and ``err_e_m``, ``err_n_m``, ``err_u_m`` (metres),
+        one row per sequence and evaluation epoch.
+    distance_m : float
+        Horizontal distance travelled by the truth over the evaluated span (m).
+
+    Returns
+    -------
+    DataFrame
+        One row per sequence (index ``sequence``).
+    """
+    nav = nav.sort_values(["sequence", "time_s"], kind="stable")
+    g = nav.groupby("sequence", sort=True)
+    out = pd.DataFrame(index=pd.Index(sorted(nav["sequence"].unique()), name="sequence"))
+    sq = nav[list(ERR)].pow(2)
+    sq["sequence"] = nav["sequence"].to_numpy()
+    ms = sq.groupby("sequence", sort=True).mean()
+    for axis, col in zip(AXES, ERR, strict=True):
+        out[f"rmse_{axis}_m"] = np.sqrt(ms[col].to_numpy())
+    out["rmse_total_m"] = np.sqrt(sum(out[f"rmse_{a}_m"] ** 2 for a in AXES))
+    last = g.tail(1).set_index("sequence")
+    for axis, col in zip(AXES, ERR, strict=True):
+        out[f"final_{axis}_m"] = last[col]
+    out["final_horizontal_m"] = np.hypot(last[ERR[0]], last[ERR[1]])
+    out["final_3d_m"] = np.sqrt((last[list(ERR)] ** 2).sum(axis=1))
+    out["final_pct_distance"] = (
+        100.0 * out["final_horizontal_m"] / distance_m if distance_m > 0 else np.nan
+    )
+    out["epochs"] = g.size()
+    return out
+
+
+_STATS = {
+    "east_m": "rmse_east_m",
+    "north_m": "rmse_north_m",
+    "up_m": "rmse_up_m",
+    "total_m": "rmse_total_m",
+    "final_3d_m": "final_3d_m",
+    "final_pct_distance": "final_pct_distance",
+}
+
+
+def grade_row(grade: str, metrics: pd.DataFrame) -> dict:
+    """Median and 5-95 % of each per-sequence value, for one grade."""
+    row: dict = {"grade": grade, "sequences": len(metrics)}
+    for name, col in _STATS.items():
+        v = metrics[col].to_numpy(dtype=float)
+        p05, p50, p95 = np.percentile(v, [5, 50, 95])
+        stem = name[:-2] if name.endswith("_m") else name
+        unit = "_m" if name.endswith("_m") else ""
+        row[name] = p50
+        row[f"{stem}_p05{unit}"] = p05
+        row[f"{stem}_p95{unit}"] = p95
+    return row
+
+
+def grade_table(rows: list[dict]) -> pd.DataFrame:
+    """Table with one row per grade; the first columns are those the README documents."""
+    df = pd.DataFrame(rows)
+    first = ["grade", "east_m", "north_m", "up_m", "total_m", "total_p05_m", "total_p95_m"]
+    return df[first + [c for c in df.columns if c not in first]]
+
+
+def _fmt(x: float) -> str:
+    if not np.isfinite(x):
+        return "n/a"
+    if x == 0 or 1e-3 <= abs(x) < 1e5:
+        return f"{x:.3g}" if abs(x) < 10 else f"{x:,.1f}"
+    return f"{x:.2e}"
+
+
+def display_table(table: pd.DataFrame) -> pd.DataFrame:
+    """Human table: RMSE E/N/U/Total as median [5-95 %] over sequences."""
+    rows = []
+    for _, r in table.iterrows():
+        row = {"grade": r["grade"], "sequences": int(r["sequences"])}
+        for label, stem in (
+            ("East", "east"),
+            ("North", "north"),
+            ("Up", "up"),
+            ("Total", "total"),
+            ("Final 3-D", "final_3d"),
+        ):
+            row[f"{label} (m)"] = (
+                f"{_fmt(r[stem + '_m'])} [{_fmt(r[stem + '_p05_m'])}-{_fmt(r[stem + '_p95_m'])}]"
+            )
+        row["Final % dist."] = _fmt(r["final_pct_distance"])
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
+    """Write the grade table as CSV (machine) and Markdown, LaTeX and HTML (human)."""
+    out_csv = Path(out_csv)
+    stem = out_csv.with_suffix("")
+    paths = {
+        "csv": out_csv,
+        "md": stem.with_suffix(".md"),
+        "tex": stem.with_suffix(".tex"),
+        "html": stem.with_suffix(".html"),
+    }
+    table.to_csv(paths["csv"], index=False, float_format="%.6g")
+    human = display_table(table)
+    caption = (
+        "RMSE of position per grade: median over sequences [5th-95th percentile], metres; "
+        "Total = sqrt(E^2 + N^2 + U^2)."
+    )
+    cols = list(human.columns)
+    md = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    md += ["| " + " | ".join(str(v) for v in r) + " |" for r in human.itertuples(index=False)]
+    paths["md"].write_text(caption + "\n\n" + "\n".join(md) + "\n")
+
+    def tex(v) -> str:
+        return str(v).replace("%", r"\%").replace("_", r"\_")
+
+    lines = [
+        r"\begin{table}",
+        r"\centering",
+        rf"\caption{{{tex(caption)}}}",
+        r"\label{tab:rmse}",
+        r"\begin{tabular}{l" + "r" * (len(cols) - 1) + "}",
+        r"\hline",
+        " & ".join(tex(c) for c in cols) + r" \\",
+        r"\hline",
+        *(" & ".join(tex(v) for v in r) + r" \\" for r in human.itertuples(index=False)),
+        r"\hline",
+        r"\end{tabular}",
+        r"\end{table}",
+    ]
+    paths["tex"].write_text("\n".join(lines) + "\n")
+    paths["html"].write_text(
+        f"<p>{caption}</p>\n" + human.to_html(index=False, border=0, classes="rmse") + "\n"
+    )
+    return paths

@@ -1,0 +1,57 @@
+"""numba ``njit`` with an on-disk cache that follows the whole package's code.
+
+numba's ``cache=True`` revalidates a compiled kernel against the source file of that
+function only; a kernel that calls jitted helpers from another module (the mechanization
+calls :mod:`imugen.earth`'s gravity) would keep stale machine code after that other module
+changes. Before the first kernel is defined, this module hashes every ``*.py`` file of the
+package and, when the hash differs from the one stamped in the package's ``__pycache__``,
+deletes the package's numba cache files there. Kernels then recompile once (a few
+seconds) and are cached across processes again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+from numba import njit as _njit
+
+_PACKAGE = Path(__file__).resolve().parent
+_STAMP = "imugen-numba-source.sha256"
+
+
+def _source_digest() -> str:
+    h = hashlib.sha256()
+    for path in sorted(_PACKAGE.rglob("*.py")):
+        h.update(str(path.relative_to(_PACKAGE)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def _refresh_cache() -> None:
+    cache = _PACKAGE / "__pycache__"
+    if not cache.is_dir():
+        return
+    digest = _source_digest()
+    stamp = cache / _STAMP
+    try:
+        if stamp.is_file() and stamp.read_text() == digest:
+            return
+        for f in (*cache.glob("*.nbi"), *cache.glob("*.nbc")):
+            f.unlink(missing_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=cache, prefix=".stamp.")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(digest)
+        os.replace(tmp, stamp)
+    except OSError:
+        pass  # read-only install: numba then caches elsewhere or not at all
+
+
+_refresh_cache()
+
+
+def njit(*args, **kwargs):
+    """``numba.njit`` (same arguments); see the module docstring for the cache policy."""
+    return _njit(*args, **kwargs)

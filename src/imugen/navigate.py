@@ -1,0 +1,161 @@
+"""Navigation stage: a shard of measured IMU sequences -> strapdown -> errors against truth.
+
+Each sequence starts from the true initial state (position, velocity, attitude at ``t_0``:
+no initial-alignment error) and is mechanized with :mod:`imugen.mechanize` on the shard's
+angle/velocity increments (or, when the shard holds rates only, on increments formed from
+them by :func:`imugen.mechanize.increments_from_rates`), in the Earth model of the truth.
+Sequences are streamed from the shard in batches, so memory is bounded by the batch size.
+
+Output (Parquet, one row per sequence and evaluation epoch; epochs every
+``round(rate / eval_rate_hz)`` samples from ``t_0``): ``sequence``, ``time_s``, position
+error ``err_e_m``, ``err_n_m``, ``err_u_m`` (navigation minus truth, metres) and attitude
+error ``err_att_rad`` (angle of the rotation from the true to the computed attitude).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from imugen import __version__
+from imugen import columns as col
+from imugen.earth import OriginFrame
+from imugen.errors import InputError
+from imugen.io import read_meta, write_parquet
+from imugen.mechanize import increments_from_rates, mechanize
+from imugen.rotations import log_quat, quat_conj, quat_mul
+
+SEQUENCE = "sequence"
+NAV_COLUMNS = (SEQUENCE, col.TIME, "err_e_m", "err_n_m", "err_u_m", "err_att_rad")
+
+
+def frame_from_truthread_meta(meta: dict) -> OriginFrame:
+    """The navigation frame and Earth model a truth file was built with."""
+    o = meta["origin"]
+    return OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=meta["earth"])
+
+
+def _sequence_blocks(shard_path: Path, columns: list[str], samples: int, batch: int):
+    """Yield (sequence ids, {column: array (b, samples)}) for complete sequences, in order."""
+    pf = pq.ParquetFile(shard_path)
+    names = [SEQUENCE, *columns]
+    pending: list[pa.RecordBatch] = []
+    have = 0
+    want = samples * batch
+
+    def emit(tbl: pa.Table, nseq: int):
+        seq = tbl.column(SEQUENCE).to_numpy().reshape(nseq, samples)
+        if not (seq == seq[:, :1]).all():
+            raise InputError(shard_path, "rows are not grouped by sequence with one row per sample")
+        arrays = {
+            c: tbl.column(c).to_numpy().astype(np.float64).reshape(nseq, samples) for c in columns
+        }
+        return seq[:, 0], arrays
+
+    for rb in pf.iter_batches(batch_size=min(want, 1 << 20), columns=names):
+        pending.append(rb)
+        have += rb.num_rows
+        while have >= want:
+            tbl = pa.Table.from_batches(pending)
+            yield emit(tbl.slice(0, want), batch)
+            rest = tbl.slice(want)
+            pending = rest.to_batches()
+            have = rest.num_rows
+    if have:
+        if have % samples:
+            raise InputError(
+                shard_path, f"holds {have % samples} stray rows: not whole sequences of {samples}"
+            )
+        yield emit(pa.Table.from_batches(pending), have // samples)
+
+
+def navigate(
+    truth_path,
+    shard_path,
+    *,
+    eval_rate_hz: float = 1.0,
+    batch: int = 64,
+) -> pd.DataFrame:
+    """Mechanize every sequence of a shard and return its errors at the evaluation epochs."""
+    truth_path, shard_path = Path(truth_path), Path(shard_path)
+    tmeta = read_meta(truth_path)
+    smeta = read_meta(shard_path)
+    truth = pd.read_parquet(truth_path, columns=[col.TIME, *col.POS, *col.VEL, *col.QUAT])
+    t = truth[col.TIME].to_numpy()
+    K = len(t)
+    rate = float(tmeta.get("rate_hz", 1.0 / np.median(np.diff(t))))
+    dt = 1.0 / rate
+    every = max(1, round(rate / eval_rate_hz))
+    frame = frame_from_truthread_meta(tmeta)
+    p_true = truth[list(col.POS)].to_numpy()
+    q_true = truth[list(col.QUAT)].to_numpy()
+    p0, v0, q0 = p_true[0], truth[list(col.VEL)].iloc[0].to_numpy(), q_true[0]
+
+    names = set(pq.read_schema(shard_path).names)
+    if set(col.DTHETA + col.DV) <= names:
+        columns, kind = [*col.DTHETA, *col.DV], "increments"
+    elif set(col.GYRO + col.ACCEL) <= names:
+        columns, kind = [*col.GYRO, *col.ACCEL], "rates"
+    else:
+        raise InputError(shard_path, "holds neither increment nor rate columns of an IMU shard")
+    if smeta.get("samples") not in (None, K):
+        raise InputError(shard_path, f"has {smeta['samples']} samples per sequence; truth has {K}")
+
+    frames = []
+    for seq_ids, arr in _sequence_blocks(shard_path, columns, K, batch):
+        a = np.stack([arr[c] for c in columns[:3]], axis=-1)
+        b = np.stack([arr[c] for c in columns[3:]], axis=-1)
+        if kind == "increments":
+            dth, dvb = a[:, 1:], b[:, 1:]
+        else:
+            dth, dvb = increments_from_rates(a, b, dt)
+        nav = mechanize(dth, dvb, dt, p0, v0, q0, frame, every=every, outputs=("p", "q"))
+        idx = nav.index
+        err = nav.p_n - p_true[idx][None]
+        dq = quat_mul(quat_conj(q_true[idx])[None], nav.q_nb)
+        att = np.linalg.norm(log_quat(dq), axis=-1)
+        n_seq, n_ep = err.shape[:2]
+        frames.append(
+            pd.DataFrame(
+                {
+                    SEQUENCE: np.repeat(seq_ids.astype(np.int32), n_ep),
+                    col.TIME: np.tile(t[idx], n_seq),
+                    "err_e_m": err[..., 0].ravel(),
+                    "err_n_m": err[..., 1].ravel(),
+                    "err_u_m": err[..., 2].ravel(),
+                    "err_att_rad": att.ravel(),
+                }
+            )
+        )
+    if not frames:
+        raise InputError(shard_path, "holds no sequences")
+    return pd.concat(frames, ignore_index=True)
+
+
+def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int = 64) -> Path:
+    """Navigate a shard and write its error table atomically (Parquet with metadata)."""
+    out = Path(out)
+    df = navigate(truth, shard, eval_rate_hz=eval_rate_hz, batch=batch)
+    smeta = read_meta(shard)
+    meta = {
+        "stage": "navigate",
+        "imugen_version": __version__,
+        "truth": str(truth),
+        "shard": str(shard),
+        "grade": smeta.get("grade"),
+        "eval_rate_hz": eval_rate_hz,
+        "units": {
+            "time_s": "s",
+            "err_e_m": "m",
+            "err_n_m": "m",
+            "err_u_m": "m",
+            "err_att_rad": "rad",
+        },
+        "error": "navigation minus truth, ENU of the route origin",
+    }
+    write_parquet(df, meta, out)
+    return out

@@ -1,0 +1,860 @@
+"""Monte-Carlo shards: a truth table (or a still IMU) -> M erroneous IMU sequences of a grade.
+
+Randomness
+----------
+A shard's root is ``SeedSequence(seed, spawn_key=(grade_id, shard))``. Sequence ``j`` of the
+shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(grade_id, shard, j,
+stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one per
+stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate random
+walk and bias-instability normals. So a shard's data never depends on how many shards exist or
+on the order they run; raising N only adds shards; sequence ``j`` of a shard does not depend
+on ``M`` (a larger shard only appends sequences); switching a term off leaves the other terms'
+realizations unchanged; and the chunking of time cannot change the numbers (NumPy fills normals
+sequentially). Bit-identity across machines holds for the same NumPy bit-generator algorithms
+(PCG64, ``standard_normal``) -- the NumPy version is recorded in the metadata.
+
+Per-sequence parameters (see :func:`imugen.sensors.draw_sensor`)
+-----------------------------------------------------------------
+Levels log-uniform in the grade's ranges (``draw="ranges"``, default) or nominal
+(``draw="nominal"``); turn-on biases, scale factors, cross-couplings, g-sensitivities,
+temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationary law.
+
+Output (one shard = one Parquet file + a labels sidecar)
+--------------------------------------------------------
+Rows sorted by ``sequence`` then time, one per (sequence, IMU sample):
+``sequence`` int32 (global id ``shard * M + j``), ``time_s`` float64, then
+``dtheta_{x,y,z}_rad``, ``dv_{x,y,z}_mps`` (``outputs="increments"``, default; row k holds
+the interval ending at ``t_k``, row 0 of each sequence is zero as in the truth table) and/or
+``gyro_{x,y,z}_radps``, ``accel_{x,y,z}_mps2`` (``outputs="rates"``). Measurements are float32
+by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is a
+white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives 6e-8 rad
+per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is available.
+``series=True`` adds the true slow bias (turn-on + in-run + RRW + temperature, at ``t_k``)
+and scale-factor error of each axis (``gyro_bias_x_radps``, ``gyro_sf_x``, ...).
+Row groups are written as time chunks are produced (bounded buffer, never the whole shard).
+The labels sidecar ``<stem>.labels.parquet`` holds one row per sequence with every drawn
+parameter (SI units in the column names). Both files carry JSON metadata under ``b"imugen"``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from imugen import __version__
+from imugen import columns as col
+from imugen.errors import InputError
+from imugen.grades import TERMS, Grade, get_grade, preset_text
+from imugen.io import atomic_output, with_meta
+from imugen.sensors import SensorModel, SensorParams, draw_sensor
+
+CHUNK = 8192
+"""Samples per sequence processed per step (a constant; results do not depend on it)."""
+ROW_GROUP = 1 << 20
+"""Rows per Parquet row group."""
+SEQUENCE = "sequence"
+STREAMS = {
+    "params": 0,
+    "gyro_white": 1,
+    "accel_white": 2,
+    "gyro_rrw": 3,
+    "accel_rrw": 4,
+    "gyro_bi": 5,
+    "accel_bi": 6,
+}
+"""Per-sequence random streams: last element of the spawn key."""
+OUTPUTS = ("increments", "rates", "both")
+DRAWS = ("ranges", "nominal")
+BIAS_SERIES = {
+    "gyro": tuple(f"gyro_bias_{a}_radps" for a in "xyz"),
+    "accel": tuple(f"accel_bias_{a}_mps2" for a in "xyz"),
+}
+SF_SERIES = {
+    "gyro": tuple(f"gyro_sf_{a}" for a in "xyz"),
+    "accel": tuple(f"accel_sf_{a}" for a in "xyz"),
+}
+DEFAULT_STATIC_ORIGIN = (45.0, 0.0, 0.0)
+"""Origin (lat_deg, lon_deg, alt_m) of a still IMU built with ``--static``."""
+
+
+# --- truth sources ------------------------------------------------------------------------------
+class Truth:
+    """Ideal IMU signals on a uniform time grid, served in chunks.
+
+    Attributes
+    ----------
+    K : int
+        Number of samples.
+    dt : float
+        Sample interval [s].
+    meta : dict
+        Provenance for the shard metadata.
+    """
+
+    K: int
+    dt: float
+    meta: dict
+
+    def chunk(self, k0: int, L: int):
+        """``(time_s (L,), omega_ib_b (L,3), f_b (L,3), dtheta (L,3), dv (L,3))``, float64."""
+        raise NotImplementedError
+
+
+class ArrayTruth(Truth):
+    """Truth held as arrays (rows ``k``: sample at ``t_k``; increments of the interval ending there).
+
+    Parameters
+    ----------
+    time_s : (K,)
+    omega_ib_b, f_b, dtheta, dv : (K, 3)
+    meta : dict, optional
+    """
+
+    def __init__(self, time_s, omega_ib_b, f_b, dtheta, dv, meta=None, source="<arrays>"):
+        self.time = np.ascontiguousarray(time_s, dtype=np.float64)
+        self.w = np.ascontiguousarray(omega_ib_b, dtype=np.float64)
+        self.f = np.ascontiguousarray(f_b, dtype=np.float64)
+        self.dth = np.ascontiguousarray(dtheta, dtype=np.float64)
+        self.dv = np.ascontiguousarray(dv, dtype=np.float64)
+        self.K = len(self.time)
+        if self.K < 2:
+            raise InputError(source, "truth needs at least 2 samples")
+        for a in (self.w, self.f, self.dth, self.dv):
+            if a.shape != (self.K, 3):
+                raise InputError(source, f"truth arrays must be ({self.K}, 3), got {a.shape}")
+        d = np.diff(self.time)
+        self.dt = float((self.time[-1] - self.time[0]) / (self.K - 1))
+        if not np.all(np.isfinite(self.time)) or np.max(np.abs(d - self.dt)) > 1e-9 * max(
+            1.0, self.dt
+        ) + 1e-12 * abs(self.time[-1]):
+            raise InputError(source, "time_s is not a uniform grid")
+        self.meta = dict(meta or {})
+
+    def chunk(self, k0, L):
+        s = slice(k0, k0 + L)
+        return self.time[s], self.w[s], self.f[s], self.dth[s], self.dv[s]
+
+    @classmethod
+    def from_frame(cls, df: pd.DataFrame, meta=None, source="<frame>") -> ArrayTruth:
+        need = (col.TIME, *col.GYRO, *col.ACCEL, *col.DTHETA, *col.DV)
+        miss = [c for c in need if c not in df.columns]
+        if miss:
+            raise InputError(source, f"not a truth table: missing column(s) {', '.join(miss)}")
+        return cls(
+            df[col.TIME].to_numpy(),
+            df[list(col.GYRO)].to_numpy(),
+            df[list(col.ACCEL)].to_numpy(),
+            df[list(col.DTHETA)].to_numpy(),
+            df[list(col.DV)].to_numpy(),
+            meta,
+            source,
+        )
+
+    @classmethod
+    def read(cls, path) -> ArrayTruth:
+        path = Path(path)
+        need = [col.TIME, *col.GYRO, *col.ACCEL, *col.DTHETA, *col.DV]
+        try:
+            pf = pq.ParquetFile(path)
+        except (OSError, pa.ArrowInvalid) as exc:
+            raise InputError(path, f"cannot read as Parquet: {exc}") from None
+        names = pf.schema_arrow.names
+        miss = [c for c in need if c not in names]
+        if miss:
+            raise InputError(path, f"not a truth table: missing column(s) {', '.join(miss)}")
+        tbl = pf.read(columns=need)
+        md = pf.schema_arrow.metadata or {}
+        meta = {}
+        if col.METADATA_KEY in md:
+            try:
+                meta = json.loads(md[col.METADATA_KEY])
+            except ValueError:
+                meta = {}
+
+        def arr(names_):
+            return np.column_stack([tbl.column(c).to_numpy() for c in names_])
+
+        keep = {
+            k: meta[k] for k in ("origin", "earth", "rate_hz", "vehicle", "source") if k in meta
+        }
+        keep["path"] = str(path)
+        return cls(
+            tbl.column(col.TIME).to_numpy(),
+            arr(col.GYRO),
+            arr(col.ACCEL),
+            arr(col.DTHETA),
+            arr(col.DV),
+            keep,
+            str(path),
+        )
+
+
+class StaticTruth(Truth):
+    """A still, level IMU (body axes = ENU axes of the origin), built chunk by chunk.
+
+    ``flat``: ``f_b = (0, 0, g0)``, ``omega_ib_b = 0``. ``wgs84``: the body turns with the Earth,
+    ``omega_ib_b = Omega (0, cos lat, sin lat)``, and the exact increments are
+    ``dtheta = omega dt`` and ``dv = int_0^dt Exp([omega x] tau) f_b dtau`` (closed form).
+
+    Parameters
+    ----------
+    duration_s : float
+        Length [s]; samples at ``k dt`` for ``k = 0 .. floor(duration/dt)``.
+    rate_hz : float
+    earth : {"flat", "wgs84"}
+    origin : (lat_deg, lon_deg, alt_m)
+    """
+
+    def __init__(self, duration_s, rate_hz=100.0, earth="flat", origin=DEFAULT_STATIC_ORIGIN):
+        from imugen.earth import OriginFrame, earth_rate_n, gravity_n
+
+        if not (duration_s > 0 and math.isfinite(duration_s)):
+            raise InputError("--static", f"duration must be > 0 s, got {duration_s!r}")
+        if not (rate_hz > 0 and math.isfinite(rate_hz)):
+            raise InputError("--rate-hz", f"rate must be > 0 Hz, got {rate_hz!r}")
+        if earth not in ("flat", "wgs84"):
+            raise InputError("--earth", f"static earth model must be flat or wgs84, got {earth!r}")
+        self.dt = 1.0 / float(rate_hz)
+        self.K = math.floor(duration_s * rate_hz + 1e-9) + 1
+        frame = OriginFrame.from_deg(*origin, model=earth)
+        if earth == "flat":
+            g = np.array([0.0, 0.0, -frame.g0])
+        else:
+            g = np.asarray(gravity_n(np.zeros((1, 3)), frame), float).reshape(3)
+        self.omega = np.asarray(earth_rate_n(frame), float).reshape(3)
+        self.f_b = -g
+        self.dth_c = self.omega * self.dt
+        W = np.array(
+            [
+                [0.0, -self.omega[2], self.omega[1]],
+                [self.omega[2], 0.0, -self.omega[0]],
+                [-self.omega[1], self.omega[0], 0.0],
+            ]
+        )
+        wn = float(np.linalg.norm(self.omega))
+        if wn > 0:
+            th = wn * self.dt
+            # (th - sin th) / wn^3 by its series when th is small (cancellation)
+            c3 = (
+                (th - math.sin(th)) / wn**3
+                if th > 1e-2
+                else self.dt**3 / 6.0 * (1.0 - th**2 / 20.0 + th**4 / 840.0)
+            )
+            A = self.dt * np.eye(3) + (2.0 * math.sin(th / 2) ** 2 / wn**2) * W + c3 * (W @ W)
+        else:
+            A = self.dt * np.eye(3)
+        self.dv_c = A @ self.f_b
+        self._cache = None
+        self.meta = {
+            "static": {
+                "duration_s": float(duration_s),
+                "earth": earth,
+                "origin": {"lat_deg": origin[0], "lon_deg": origin[1], "alt_m": origin[2]},
+                "f_b_mps2": self.f_b.tolist(),
+                "omega_ib_b_radps": self.omega.tolist(),
+            },
+            "rate_hz": float(rate_hz),
+            "earth": earth,
+        }
+
+    def chunk(self, k0, L):
+        if self._cache is None or len(self._cache[0]) < L:
+            n = max(L, CHUNK)
+            self._cache = (
+                np.tile(self.omega, (n, 1)),
+                np.tile(self.f_b, (n, 1)),
+                np.tile(self.dth_c, (n, 1)),
+                np.tile(self.dv_c, (n, 1)),
+            )
+        w, f, dth, dv = (c[:L] for c in self._cache)
+        if k0 == 0:
+            dth = dth.copy()
+            dv = dv.copy()
+            dth[0] = 0.0
+            dv[0] = 0.0
+        t = np.arange(k0, k0 + L, dtype=np.float64) * self.dt
+        return t, w, f, dth, dv
+
+
+# --- temperature profiles ---------------------------------------------------------------------------
+def temperature_profile(spec):
+    """A callable ``t [s] -> temperature offset [K]`` from a profile specification.
+
+    ``None`` (off); ``{"kind": "warmup", "delta_K": d, "tau_s": T}`` for
+    ``d (1 - exp(-t / T))`` (self-heating after turn-on; the turn-on bias holds the value at
+    turn-on); ``{"kind": "linear", "rate_K_per_s": r}``; ``{"kind": "table", "time_s": [...],
+    "delta_K": [...]}`` (linear interpolation, held constant outside). A JSON string is accepted.
+    """
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        try:
+            spec = json.loads(spec)
+        except ValueError:
+            raise InputError("--temperature", "expected a JSON object") from None
+    if not isinstance(spec, dict) or "kind" not in spec:
+        raise InputError("--temperature", 'expected {"kind": warmup|linear|table, ...}')
+    k = spec["kind"]
+    try:
+        if k == "warmup":
+            d, T = float(spec["delta_K"]), float(spec["tau_s"])
+            if not T > 0:
+                raise ValueError("tau_s must be > 0")
+            return lambda t: -d * np.expm1(-np.asarray(t) / T)
+        if k == "linear":
+            r = float(spec["rate_K_per_s"])
+            return lambda t: r * np.asarray(t)
+        if k == "table":
+            tt = np.asarray(spec["time_s"], float)
+            dd = np.asarray(spec["delta_K"], float)
+            if tt.ndim != 1 or tt.shape != dd.shape or len(tt) < 1 or np.any(np.diff(tt) <= 0):
+                raise ValueError("time_s and delta_K must be equal-length, time increasing")
+            return lambda t: np.interp(t, tt, dd)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError("--temperature", f"bad {k} profile: {exc}") from None
+    raise InputError("--temperature", f"unknown profile kind {k!r}")
+
+
+# --- term selection ----------------------------------------------------------------------------------
+def enabled_terms(grade: Grade, terms=None) -> dict[str, frozenset]:
+    """Which terms to apply per sensor.
+
+    ``terms=None``: everything the grade configures. Otherwise an iterable of ``"gyro"``,
+    ``"accel"``, a term name (both sensors; ``"temperature"`` = both temperature terms) or
+    ``"gyro.<term>"`` / ``"accel.<term>"``.
+    """
+    out = {"gyro": set(), "accel": set()}
+    if terms is None:
+        for s in out:
+            out[s] = set(grade.sensor(s).configured())
+        return {k: frozenset(v) for k, v in out.items()}
+    if isinstance(terms, str):
+        terms = [t for t in terms.replace(",", " ").split() if t]
+    alias = {
+        "temperature": ("temperature_bias", "temperature_scale_factor"),
+        "saturation": ("range",),
+        "misalignment": ("cross_coupling",),
+    }
+    for item in terms:
+        sensors, _, name = item.rpartition(".")
+        sens = [sensors] if sensors else ["gyro", "accel"]
+        if not sensors and name in out:
+            sens, name = [name], ""
+        if any(s not in out for s in sens):
+            raise InputError("--terms", f"unknown sensor in {item!r} (gyro or accel)")
+        names = TERMS if not name else alias.get(name, (name,))
+        for n in names:
+            if n not in TERMS:
+                raise InputError("--terms", f"unknown term {item!r}; terms: {', '.join(TERMS)}")
+            for s in sens:
+                if n in grade.sensor(s).configured():
+                    out[s].add(n)
+    return {k: frozenset(v) for k, v in out.items()}
+
+
+# --- sinks ----------------------------------------------------------------------------------------------
+class _MemorySink:
+    def __init__(self, M, K, names):
+        self.data = {n: np.empty((M, K, 3)) for n in names}
+
+    def put(self, j, k0, L, t, outs):
+        for n, a in outs.items():
+            self.data[n][j, k0 : k0 + L] = a
+
+
+class _ParquetSink:
+    """Fills fixed-size column buffers and writes a row group whenever they are full."""
+
+    def __init__(self, writer, schema, col_groups, dtype, seq_offset):
+        self.w = writer
+        self.schema = schema
+        self.groups = col_groups  # name -> tuple of 3 column names
+        self.n = 0
+        self.seq_offset = seq_offset
+        self.buf = {SEQUENCE: np.empty(ROW_GROUP, np.int32), col.TIME: np.empty(ROW_GROUP)}
+        for names in col_groups.values():
+            for c in names:
+                self.buf[c] = np.empty(ROW_GROUP, dtype)
+
+    def put(self, j, k0, L, t, outs):
+        done = 0
+        while done < L:
+            m = min(L - done, ROW_GROUP - self.n)
+            a, b = self.n, self.n + m
+            self.buf[SEQUENCE][a:b] = self.seq_offset + j
+            self.buf[col.TIME][a:b] = t[done : done + m]
+            for g, names in self.groups.items():
+                src = outs[g]
+                for i, c in enumerate(names):
+                    self.buf[c][a:b] = src[done : done + m, i]
+            self.n = b
+            done += m
+            if self.n == ROW_GROUP:
+                self.flush()
+
+    def flush(self):
+        if self.n == 0:
+            return
+        arrays = [pa.array(self.buf[f.name][: self.n]) for f in self.schema]
+        self.w.write_table(
+            pa.Table.from_arrays(arrays, schema=self.schema), row_group_size=ROW_GROUP
+        )
+        self.n = 0
+
+
+# --- the generator ---------------------------------------------------------------------------------------
+@dataclass
+class Shard:
+    """In-memory result of :func:`simulate`.
+
+    Attributes
+    ----------
+    time_s : (K,)
+    data : dict of name -> (M, K, 3) float64
+        ``"dtheta"``, ``"dv"`` (increments) and/or ``"gyro"``, ``"accel"`` (rates), plus
+        ``"gyro_bias"``, ``"gyro_sf"``, ``"accel_bias"``, ``"accel_sf"`` with ``series``.
+    labels : pandas.DataFrame
+        One row per sequence, every drawn parameter.
+    gyro, accel : SensorParams
+        Drawn parameters (arrays with leading axis M).
+    meta : dict
+    """
+
+    time_s: np.ndarray
+    data: dict
+    labels: pd.DataFrame
+    gyro: SensorParams
+    accel: SensorParams
+    meta: dict
+
+
+def _seed_seq(seed, gid, shard, j, stream):
+    return np.random.SeedSequence(seed, spawn_key=(gid, shard, j, STREAMS[stream]))
+
+
+def _rng(seed, gid, shard, j, stream):
+    return np.random.Generator(np.random.PCG64(_seed_seq(seed, gid, shard, j, stream)))
+
+
+def _check_int(name, v, lo=0):
+    if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
+        raise InputError(name, f"must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Truth:
+    if isinstance(truth, Truth):
+        return truth
+    if truth is None:
+        if static_s is None:
+            raise InputError("simulate", "give a truth table or --static SECONDS")
+        return StaticTruth(float(static_s), rate_hz, static_earth, static_origin)
+    if static_s is not None:
+        raise InputError("--static", "give either a truth table or --static, not both")
+    if isinstance(truth, pd.DataFrame):
+        return ArrayTruth.from_frame(truth)
+    if isinstance(truth, dict):
+        return ArrayTruth(
+            truth[col.TIME],
+            truth["omega_ib_b"],
+            truth["f_b"],
+            truth["dtheta"],
+            truth["dv"],
+            truth.get("meta"),
+        )
+    return ArrayTruth.read(truth)
+
+
+def _prepare(truth, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file):
+    grade = get_grade(grade, grades_file)
+    M = _check_int("--sequences", sequences, 1)
+    seed = _check_int("--seed", seed, 0)
+    shard = _check_int("--shard", shard, 0)
+    if outputs not in OUTPUTS:
+        raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
+    if draw not in DRAWS:
+        raise InputError("--draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
+    if shard * M + M - 1 >= 2**31:
+        raise InputError("--shard", "sequence ids (shard * M + j) overflow int32")
+    enabled = enabled_terms(grade, terms)
+    temp = temperature_profile(temperature)
+    nominal = draw == "nominal"
+    gp, ap = [], []
+    for j in range(M):
+        rng = _rng(seed, grade.id, shard, j, "params")
+        gp.append(draw_sensor(grade.gyro, rng, enabled["gyro"], nominal))
+        ap.append(draw_sensor(grade.accel, rng, enabled["accel"], nominal))
+    return grade, M, seed, shard, enabled, temp, gp, ap
+
+
+def _labels(grade, M, seed, shard, gpar: SensorParams, apar: SensorParams) -> pd.DataFrame:
+    d = {
+        SEQUENCE: (shard * M + np.arange(M)).astype(np.int32),
+        "shard": np.full(M, shard, np.int32),
+        "index": np.arange(M, dtype=np.int32),
+        "seed": np.full(M, seed, np.int64),
+        "grade_id": np.full(M, grade.id, np.int32),
+    }
+    d.update(gpar.labels("gyro", "radps"))
+    d.update(apar.labels("accel", "mps2"))
+    return pd.DataFrame(d)
+
+
+def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink):
+    """Generate every sequence in time chunks and hand each chunk to ``sink.put``."""
+    K, dt = truth.K, truth.dt
+    want_inc = outputs in ("increments", "both")
+    want_rate = outputs in ("rates", "both")
+    bufs = {}
+    for name in (
+        "gyro_rate",
+        "gyro_inc",
+        "accel_rate",
+        "accel_inc",
+        "gyro_bias",
+        "gyro_sf",
+        "accel_bias",
+        "accel_sf",
+    ):
+        bufs[name] = np.empty((1, CHUNK, 3))
+    nz = {}
+    normals = 0
+    for j in range(M):
+        models = {"gyro": SensorModel(gp[j], dt), "accel": SensorModel(ap[j], dt)}
+        rngs = {}
+        for s, m in models.items():
+            normals += m.normals_per_sample
+            if m.use_w:
+                rngs[f"{s}_white"] = (_rng(seed, grade.id, shard, j, f"{s}_white"), 3)
+            if m.use_r:
+                rngs[f"{s}_rrw"] = (_rng(seed, grade.id, shard, j, f"{s}_rrw"), 3)
+            if m.use_b:
+                rngs[f"{s}_bi"] = (_rng(seed, grade.id, shard, j, f"{s}_bi"), 3 * m.p.components)
+        for key, (_, w) in rngs.items():
+            if key not in nz or nz[key].shape[1] != w:
+                nz[key] = np.empty((CHUNK, w))
+        for k0 in range(0, K, CHUNK):
+            L = min(CHUNK, K - k0)
+            t, w_b, f_b, dth, dv = truth.chunk(k0, L)
+            dT = None
+            if temp is not None:
+                # time since turn-on of the sample before the chunk and of each sample
+                tt = np.maximum(np.arange(k0 - 1, k0 + L), 0) * dt
+                dT = np.ascontiguousarray(temp(tt), dtype=np.float64)
+            z = {}
+            for key, (rng, _) in rngs.items():
+                buf = nz[key][:L]
+                rng.standard_normal(out=buf)
+                z[key] = buf[None]
+            outs = {}
+            for s, m in models.items():
+                o_rate = bufs[f"{s}_rate"][:, :L] if want_rate else None
+                o_inc = bufs[f"{s}_inc"][:, :L] if want_inc else None
+                o_bias = bufs[f"{s}_bias"][:, :L] if series else None
+                o_sf = bufs[f"{s}_sf"][:, :L] if series else None
+                if s == "gyro":
+                    m.step(
+                        k0,
+                        w_b,
+                        dth,
+                        f_b,
+                        dv,
+                        dT,
+                        z.get("gyro_white"),
+                        z.get("gyro_rrw"),
+                        z.get("gyro_bi"),
+                        o_rate,
+                        o_inc,
+                        o_bias,
+                        o_sf,
+                    )
+                else:
+                    m.step(
+                        k0,
+                        f_b,
+                        dv,
+                        None,
+                        None,
+                        dT,
+                        z.get("accel_white"),
+                        z.get("accel_rrw"),
+                        z.get("accel_bi"),
+                        o_rate,
+                        o_inc,
+                        o_bias,
+                        o_sf,
+                    )
+                if want_inc:
+                    outs["dtheta" if s == "gyro" else "dv"] = o_inc[0]
+                if want_rate:
+                    outs[s] = o_rate[0]
+                if series:
+                    outs[f"{s}_bias"] = o_bias[0]
+                    outs[f"{s}_sf"] = o_sf[0]
+            sink.put(j, k0, L, t, outs)
+    return normals / M if M else 0
+
+
+def _names(outputs, series):
+    names = []
+    if outputs in ("increments", "both"):
+        names += ["dtheta", "dv"]
+    if outputs in ("rates", "both"):
+        names += ["gyro", "accel"]
+    if series:
+        names += ["gyro_bias", "gyro_sf", "accel_bias", "accel_sf"]
+    return names
+
+
+_COLS = {
+    "dtheta": col.DTHETA,
+    "dv": col.DV,
+    "gyro": col.GYRO,
+    "accel": col.ACCEL,
+    "gyro_bias": BIAS_SERIES["gyro"],
+    "gyro_sf": SF_SERIES["gyro"],
+    "accel_bias": BIAS_SERIES["accel"],
+    "accel_sf": SF_SERIES["accel"],
+}
+_UNITS = {
+    "dtheta": "rad",
+    "dv": "m/s",
+    "gyro": "rad/s",
+    "accel": "m/s^2",
+    "gyro_bias": "rad/s",
+    "gyro_sf": "1",
+    "accel_bias": "m/s^2",
+    "accel_sf": "1",
+}
+
+
+def _meta(
+    grade,
+    truth,
+    M,
+    seed,
+    shard,
+    enabled,
+    outputs,
+    draw,
+    temperature,
+    series,
+    dtype,
+    names,
+    labels_name=None,
+):
+    units = {SEQUENCE: "1", col.TIME: "s"}
+    for n in names:
+        units.update(dict.fromkeys(_COLS[n], _UNITS[n]))
+    return {
+        "format": "imugen-shard",
+        "format_version": 1,
+        "code_version": __version__,
+        "numpy_version": np.__version__,
+        "grade": {
+            "name": grade.name,
+            "id": grade.id,
+            "origin": grade.origin,
+            "description": grade.description,
+            "source": grade.source,
+            "reading": grade.reading,
+            "config": grade.config,
+        },
+        "preset_source": grade.origin,
+        "seed": seed,
+        "shard": shard,
+        "sequences": M,
+        "sequence_ids": [shard * M, shard * M + M - 1],
+        "spawn_key": [grade.id, shard],
+        "sequence_spawn_key": "(grade_id, shard, index, stream)",
+        "streams": STREAMS,
+        "bit_generator": "PCG64",
+        "draw": draw,
+        "terms": {k: sorted(v) for k, v in enabled.items()},
+        "outputs": outputs,
+        "series": bool(series),
+        "dtype": np.dtype(dtype).name,
+        "chunk": CHUNK,
+        "rate_hz": 1.0 / truth.dt,
+        "dt_s": truth.dt,
+        "samples_per_sequence": truth.K,
+        "truth": truth.meta,
+        "temperature": temperature,
+        "rows": "sorted by sequence then time; increments on row k are the interval ending at t_k; row 0 of each sequence is zero",
+        "units": units,
+        "labels_file": labels_name,
+    }
+
+
+def simulate(
+    truth,
+    grade,
+    sequences=1,
+    seed=0,
+    shard=0,
+    *,
+    outputs="increments",
+    draw="ranges",
+    terms=None,
+    temperature=None,
+    series=False,
+    static_s=None,
+    rate_hz=100.0,
+    static_earth="flat",
+    static_origin=DEFAULT_STATIC_ORIGIN,
+    grades_file=None,
+) -> Shard:
+    """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
+
+    Parameters
+    ----------
+    truth : path, DataFrame, dict, Truth or None
+        Truth table (Parquet path or DataFrame with the columns of :mod:`imugen.columns`), a
+        dict with ``time_s``, ``omega_ib_b``, ``f_b``, ``dtheta``, ``dv`` arrays, or None with
+        ``static_s``.
+    grade : str or Grade
+        Preset name, ``file.yaml:name``, or a :class:`~imugen.grades.Grade`.
+    sequences, seed, shard : int
+        ``M`` sequences; root seed; shard index.
+    outputs : {"increments", "rates", "both"}
+    draw : {"ranges", "nominal"}
+        Draw levels in the grade's ranges, or use the nominal values for every sequence.
+    terms : iterable of str, optional
+        Apply only these terms (see :func:`enabled_terms`).
+    temperature : dict or str, optional
+        Temperature profile (:func:`temperature_profile`).
+    series : bool
+        Also return the true slow-bias and scale-factor series.
+    static_s, rate_hz, static_earth, static_origin
+        Still IMU instead of a truth table.
+    """
+    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
+    grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
+        tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
+    )
+    names = _names(outputs, series)
+    sink = _MemorySink(M, tr.K, names)
+    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
+    gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
+    time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
+    meta = _meta(
+        grade, tr, M, seed, shard, enabled, outputs, draw, temperature, series, np.float64, names
+    )
+    return Shard(time_s, sink.data, _labels(grade, M, seed, shard, gpar, apar), gpar, apar, meta)
+
+
+def labels_path(out_path) -> Path:
+    """Sidecar path of a shard: ``dir/stem.labels.parquet``."""
+    p = Path(out_path)
+    return p.with_name(
+        p.name[: -len(".parquet")] + ".labels.parquet"
+        if p.name.endswith(".parquet")
+        else p.name + ".labels.parquet"
+    )
+
+
+def run(
+    truth=None,
+    out=None,
+    grade="consumer",
+    sequences=1,
+    seed=0,
+    shard=0,
+    static_s=None,
+    rate_hz=100.0,
+    *,
+    outputs="increments",
+    draw="ranges",
+    terms=None,
+    temperature=None,
+    series=False,
+    dtype="float32",
+    compression="none",
+    grades_file=None,
+    static_earth="flat",
+    static_origin=DEFAULT_STATIC_ORIGIN,
+) -> dict:
+    """Generate one shard and write it (Parquet + labels sidecar) atomically.
+
+    Parameters are those of :func:`simulate`, plus ``out`` (the shard path; the sidecar is
+    :func:`labels_path`), ``dtype`` of the measurement columns (``"float32"`` or
+    ``"float64"``) and the Parquet ``compression`` (``"none"`` default: noise-like floats do
+    not compress, see benchmarks/README.md). Dictionary encoding is used only for ``sequence``
+    (constant runs); float columns are written PLAIN. ``rate_hz`` and ``static_*`` only apply
+    to ``static_s`` (a truth table has its own rate).
+
+    Returns
+    -------
+    dict
+        The metadata written to the shard.
+    """
+    if out is None:
+        raise InputError("-o", "an output path is required")
+    out = Path(out)
+    if dtype not in ("float32", "float64"):
+        raise InputError("--dtype", f"must be float32 or float64, got {dtype!r}")
+    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
+    grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
+        tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
+    )
+    names = _names(outputs, series)
+    lab_path = labels_path(out)
+    meta = _meta(
+        grade,
+        tr,
+        M,
+        seed,
+        shard,
+        enabled,
+        outputs,
+        draw,
+        temperature,
+        series,
+        dtype,
+        names,
+        lab_path.name,
+    )
+    meta["preset_sha"] = None
+    if grade.origin.startswith("imugen/data/"):
+        import hashlib
+
+        meta["preset_sha"] = hashlib.sha256(preset_text().encode()).hexdigest()
+    fields = [pa.field(SEQUENCE, pa.int32()), pa.field(col.TIME, pa.float64())]
+    ftype = pa.float32() if dtype == "float32" else pa.float64()
+    for n in names:
+        fields += [pa.field(c, ftype) for c in _COLS[n]]
+    schema = pa.schema(fields, metadata={col.METADATA_KEY: json.dumps(meta).encode()})
+    # shard and labels each go to a temporary name; both are renamed only once both are
+    # complete (labels last: a killed job never leaves a shard without its labels looking done)
+    with atomic_output(lab_path) as tmp_lab, atomic_output(out) as tmp:
+        with pq.ParquetWriter(
+            tmp,
+            schema,
+            compression=compression,
+            use_dictionary=[SEQUENCE],
+            write_statistics=[SEQUENCE, col.TIME],
+        ) as w:
+            sink = _ParquetSink(w, schema, {n: _COLS[n] for n in names}, np.dtype(dtype), shard * M)
+            _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
+            sink.flush()
+        lab = _labels(grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap))
+        lmeta = dict(meta)
+        lmeta["format"] = "imugen-shard-labels"
+        lmeta["shard_file"] = out.name
+        pq.write_table(with_meta(pa.Table.from_pandas(lab, preserve_index=False), lmeta), tmp_lab)
+    return meta
+
+
+def read_meta(path) -> dict:
+    """The ``b"imugen"`` metadata of a shard (or labels) file."""
+    md = pq.read_schema(path).metadata or {}
+    if col.METADATA_KEY not in md:
+        raise InputError(path, "no imugen metadata (not an imugen shard)")
+    return json.loads(md[col.METADATA_KEY])
