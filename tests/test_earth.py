@@ -134,22 +134,34 @@ def _line(T, L, n=200):
     return t, p
 
 
+NAV = E.GradeFigures(
+    "navigation-like",
+    gyro_bias_radps=0.003 * E.DEG_PER_H,
+    accel_bias_mps2=25 * E.MICRO_G,
+    gyro_scale_factor=5e-6,
+)
+CONSUMER = E.GradeFigures(
+    "consumer-like",
+    gyro_bias_radps=10 * E.DEG_PER_H,
+    accel_bias_mps2=50 * E.MICRO_G,
+    gyro_scale_factor=5e-3,
+)
+
+
 def test_auto_budget_picks_by_grade_and_scene():
     lat = math.radians(45.0)
-    # a 2-minute walk: flat is enough even for a navigation-grade IMU?  No: navigation grade
-    # errors are tiny, Coriolis on 150 m for 120 s (~1.3 mm) vs bias effect (~18 mm) is 7 %.
+    # a 2-minute walk with a consumer IMU: Coriolis on 150 m is far below the bias effect
     t, p = _line(120.0, 150.0)
-    assert E.choose_earth_model(t, p, lat, "consumer").model == "flat"
+    assert E.choose_earth_model(t, p, lat, CONSUMER).model == "flat"
     # an hour-long 100 km drive: the dropped terms (Schuler, tilt) are large for any grade
     t, p = _line(3600.0, 1e5)
-    for grade in E.GRADE_NOMINAL:
-        b = E.choose_earth_model(t, p, lat, grade)
-        assert b.model == "wgs84"
+    for fig in (NAV, CONSUMER):
+        assert E.choose_earth_model(t, p, lat, fig).model == "wgs84"
     # a 10-minute car scene: consumer -> flat, navigation grade -> wgs84
     t, p = _line(600.0, 6000.0)
-    assert E.choose_earth_model(t, p, lat, "consumer").model == "flat"
-    assert E.choose_earth_model(t, p, lat, "navigation").model == "wgs84"
-    b = E.choose_earth_model(t, p, lat, "navigation")
+    assert E.choose_earth_model(t, p, lat, CONSUMER).model == "flat"
+    b = E.choose_earth_model(t, p, lat, NAV)
+    assert b.model == "wgs84"
     text = "\n".join(b.lines)
     for name in b.terms_m:
         assert name in text
@@ -158,15 +170,28 @@ def test_auto_budget_picks_by_grade_and_scene():
     assert (b.model == "flat") == all(v < b.fraction * b.grade_effect_m for v in b.terms_m.values())
     # the Coriolis term is Omega * L * T (constant speed along a line)
     assert b.terms_m["Coriolis 2*Omega x v"] == pytest.approx(E.OMEGA_IE * 6000.0 * 600.0)
-    with pytest.raises(ValueError):
-        E.choose_earth_model(t, p, lat, "bogus")
 
 
-def test_auto_budget_figures_override():
+def test_auto_budget_grade_effect_closed_forms():
     t, p = _line(600.0, 6000.0)
     lat = math.radians(45.0)
-    nav = E.choose_earth_model(t, p, lat, "navigation")
-    same = E.choose_earth_model(t, p, lat, "mine", figures=E.GRADE_NOMINAL["navigation"])
-    assert same.grade_effect_m == nav.grade_effect_m and same.model == nav.model
-    # a worse gyro makes the same scene flat-worthy
-    assert E.choose_earth_model(t, p, lat, "mine", figures=(20.0, 100.0, 5000.0)).model == "flat"
+    ws = math.sqrt(E.normal_gravity(lat, 0.0) / E.R_MEAN)
+    ba = E.GradeFigures("a", accel_bias_mps2=1e-3)
+    assert E.choose_earth_model(t, p, lat, ba).grade_effect_m == pytest.approx(
+        1e-3 * (1 - math.cos(ws * 600.0)) / ws**2
+    )
+    vrw = E.GradeFigures("v", vrw_mps_per_sqrt_s=1e-3)
+    assert E.choose_earth_model(t, p, lat, vrw).grade_effect_m == pytest.approx(
+        1e-3 * math.sqrt(600.0**3 / 3)
+    )
+
+
+def test_auto_budget_from_presets():
+    from imugen.grades import budget_figures
+
+    t, p = _line(600.0, 6000.0)
+    lat = math.radians(31.6)
+    assert E.choose_earth_model(t, p, lat, budget_figures("consumer")).model == "flat"
+    assert E.choose_earth_model(t, p, lat, budget_figures("navigation")).model == "wgs84"
+    # a white-noise-only grade (the paper's) still has a finite, positive effect
+    assert E.choose_earth_model(t, p, lat, budget_figures("paper_low_cost")).grade_effect_m > 0

@@ -1,15 +1,45 @@
-"""The Snakemake workflow end to end on a tiny config in a temporary directory."""
+"""The Snakemake workflow end to end on a tiny config in a temporary directory.
 
+Covers: a full run then nothing to do; edits rerun only what they affect (asserted on the
+dry-run job list); -j1 and -j2 give identical tables and bit-identical datasets; clean failures.
+"""
+
+import copy
+import hashlib
+import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
+import yaml
 
 from imugen.io import read_meta
 
 REPO = Path(__file__).resolve().parents[1]
+ROUTE = REPO / "resources" / "example_route.kml"
+PAPER = REPO / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
+
+TINY = {
+    "routes": {
+        "example": {"file": str(ROUTE)},
+        "paper": {"file": str(PAPER), "origin": [31.63, -7.99, 480.6], "dt_s": 1.0},
+    },
+    "truth": {"rate_hz": 10, "earth": "auto"},
+    "grades": {
+        "consumer": {},
+        "tactical": {},
+        "mine": {
+            "id": 101,
+            "gyro": {"white_noise": {"value": 0.2, "unit": "deg_per_sqrt_h"}},
+            "accel": {"white_noise": {"value": 0.05, "unit": "m_per_s_per_sqrt_h"}},
+        },
+    },
+    "simulate": {"sequences": 4, "sequences_per_shard": 2, "seed": 7},
+    "allan": {"static_s": 300, "rate_hz": 10, "sequences": 2},
+}
 
 
 def snakemake(workdir, *args):
@@ -22,60 +52,133 @@ def snakemake(workdir, *args):
             "snakemake",
             "-s",
             str(REPO / "Snakefile"),
-            "--directory",
+            "-d",
             str(workdir),
             *args,
         ],
         capture_output=True,
         text=True,
         env=env,
-        timeout=600,
+        timeout=900,
     )
 
 
-@pytest.fixture
-def workdir(tmp_path):
-    (tmp_path / "config").mkdir()
-    route = REPO / "resources" / "example_route.kml"
-    paper = REPO / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
-    (tmp_path / "config" / "config.yaml").write_text(
-        "routes:\n"
-        f"  example:\n    file: {route}\n"
-        f"  paper:\n    file: {paper}\n    origin: [31.63, -7.99, 480.6]\n    dt_s: 1.0\n"
-    )
-    return tmp_path
+def write_config(workdir, cfg):
+    (workdir / "config").mkdir(exist_ok=True)
+    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
 
 
-def test_full_run_then_nothing_to_do(workdir):
+def planned_jobs(workdir) -> dict[str, int]:
+    """Rule -> job count of a dry run (the `Job stats` table)."""
+    proc = snakemake(workdir, "-n", "-j1", "--quiet", "rules")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = proc.stdout + proc.stderr
+    if "Nothing to be done" in out:
+        return {}
+    jobs = dict(re.findall(r"^(\w+)\s+(\d+)$", out, flags=re.M))
+    jobs.pop("total", None)
+    return {k: int(v) for k, v in jobs.items()}
+
+
+def digest(paths):
+    h = hashlib.sha256()
+    for p in sorted(paths):
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+@pytest.fixture(scope="module")
+def done(tmp_path_factory):
+    """A complete run of the tiny config (shared by the tests below, which copy it)."""
+    workdir = tmp_path_factory.mktemp("wf")
+    write_config(workdir, TINY)
     proc = snakemake(workdir, "-j2")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    return workdir
+
+
+def copy_run(src, dst):
+    shutil.copytree(src, dst, symlinks=True)
+    return dst
+
+
+def test_full_run_outputs_then_nothing_to_do(done):
     for route in ("example", "paper"):
-        enu = pd.read_parquet(workdir / "results" / route / "enu.parquet")
-        assert {"e_m", "n_m", "u_m", "lat_deg", "lon_deg", "alt_m"} <= set(enu.columns)
-    meta = read_meta(workdir / "results" / "paper" / "enu.parquet")
-    assert meta["timed"] and meta["points_out"] == 620
-    assert meta["origin"] == {"lat_deg": 31.63, "lon_deg": -7.99, "alt_m": 480.6}
-    dry = snakemake(workdir, "-n", "-j2")
-    assert dry.returncode == 0
-    assert "Nothing to be done" in dry.stdout + dry.stderr
+        table = pd.read_csv(done / "results" / route / "rmse.csv")
+        assert list(table.grade) == ["consumer", "tactical", "mine"]
+        for c in ("east_m", "north_m", "up_m", "total_m", "total_p05_m", "total_p95_m"):
+            assert (table[c] > 0).all()
+        # RMSE total is the paper's sqrt(E^2 + N^2 + U^2) per sequence; medians are ordered
+        assert (table.total_p05_m <= table.total_m).all() and (
+            table.total_m <= table.total_p95_m
+        ).all()
+    meta = read_meta(done / "results" / "paper" / "truth.parquet")
+    assert meta["rate_hz"] == 10 and meta["earth"] in ("flat", "wgs84")
+    shards = sorted((done / "results" / "paper" / "imu" / "mine").glob("shard-*[0-9].parquet"))
+    assert [p.name for p in shards] == ["shard-000.parquet", "shard-001.parquet"]
+    assert (done / "results" / "allan" / "consumer" / "allan.png").stat().st_size > 1000
+    assert planned_jobs(done) == {}
 
 
-def test_bad_route_fails_cleanly(workdir):
-    bad = workdir / "bad.gpx"
+def test_edit_one_grade_reruns_only_that_grade(done, tmp_path):
+    wd = copy_run(done, tmp_path / "wd")
+    cfg = copy.deepcopy(TINY)
+    cfg["grades"]["mine"]["gyro"]["white_noise"]["value"] = 0.3
+    write_config(wd, cfg)
+    jobs = planned_jobs(wd)
+    # 2 routes x 2 shards of "mine" + its Allan check; gathers of each route; nothing else
+    assert jobs == {
+        "custom_grade": 1,
+        "simulate": 4,
+        "navigate": 4,
+        "evaluate": 2,
+        "tables": 2,
+        "allan_static": 1,
+        "allan": 1,
+        "all": 1,
+    }
+
+
+def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):
+    wd = copy_run(done, tmp_path / "wd")
+    cfg = copy.deepcopy(TINY)
+    cfg["simulate"]["sequences"] = 6
+    write_config(wd, cfg)
+    jobs = planned_jobs(wd)
+    # one new shard per route and grade: 2 routes x 3 grades
+    assert jobs == {"simulate": 6, "navigate": 6, "evaluate": 6, "tables": 2, "all": 1}
+
+
+def test_j1_and_j2_identical(done, tmp_path):
+    wd = tmp_path / "j1"
+    wd.mkdir()
+    write_config(wd, TINY)
+    proc = snakemake(wd, "-j1", "results/paper/rmse.csv")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    a = pd.read_csv(done / "results" / "paper" / "rmse.csv")
+    b = pd.read_csv(wd / "results" / "paper" / "rmse.csv")
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    for grade in TINY["grades"]:
+        ga = sorted((done / "results" / "paper" / "imu" / grade).glob("*.parquet"))
+        gb = sorted((wd / "results" / "paper" / "imu" / grade).glob("*.parquet"))
+        assert [p.name for p in ga] == [p.name for p in gb]
+        assert digest(ga) == digest(gb), grade
+
+
+def test_bad_route_fails_cleanly(tmp_path):
+    bad = tmp_path / "bad.gpx"
     bad.write_text(
         '<gpx><trk><trkseg><trkpt lat="1" lon="-1230"/><trkpt lat="1" lon="2"/></trkseg></trk></gpx>'
     )
-    (workdir / "config" / "config.yaml").write_text(f"routes:\n  bad:\n    file: {bad}\n")
-    proc = snakemake(workdir, "-j1")
+    write_config(tmp_path, {"routes": {"bad": {"file": str(bad)}}})
+    proc = snakemake(tmp_path, "-j1", "results/bad/enu.parquet")
     assert proc.returncode != 0
-    log = (workdir / "logs" / "bad" / "ingest_csv.log").read_text()
+    log = (tmp_path / "logs" / "bad" / "ingest_csv.log").read_text()
     assert "longitude -1230" in log and "Traceback" not in log
-    assert not (workdir / "results" / "bad" / "route.csv").exists()
+    assert not (tmp_path / "results" / "bad" / "route.csv").exists()
 
 
-def test_schema_refuses_bad_config(workdir):
-    (workdir / "config" / "config.yaml").write_text(
-        "routes:\n  ex:\n    file: x.kml\n    dt_s: -1\n"
-    )
-    proc = snakemake(workdir, "-n", "-j1")
+def test_schema_refuses_bad_config(tmp_path):
+    write_config(tmp_path, {"routes": {"ex": {"file": "x.kml", "dt_s": -1}}})
+    proc = snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "dt_s" in proc.stdout + proc.stderr

@@ -102,6 +102,28 @@ def _cmd_allan(a) -> int:
     return 0
 
 
+def _cmd_navigate(a) -> int:
+    from imugen.navigate import run
+
+    run(a.truth, a.shard, a.output, eval_rate_hz=a.eval_rate_hz)
+    return 0
+
+
+def _cmd_evaluate(a) -> int:
+    from imugen.evaluate import run
+
+    run(a.truth, a.nav, a.output, grade=a.grade)
+    return 0
+
+
+def _cmd_tables(a) -> int:
+    from imugen.evaluate import run_tables
+
+    paths = run_tables(a.metrics, a.output)
+    print(paths["md"].read_text(), file=sys.stderr)
+    return 0
+
+
 def _cmd_closure(a) -> int:
     from imugen.closure import closure
 
@@ -144,7 +166,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_truth_options(p)
     p.add_argument(
         "--grade",
-        help="sensor grade whose error budget `--earth auto` compares the dropped terms with",
+        action="append",
+        help="sensor grade(s) whose error budget `--earth auto` compares the dropped terms "
+        "with (repeat for several: the most demanding decides; default consumer)",
     )
     p.set_defaults(func=_cmd_truth)
 
@@ -173,6 +197,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
     p.add_argument("--grades-file", help="YAML file with custom grades")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("navigate", help="shard of IMU sequences -> strapdown -> errors vs truth")
+    p.add_argument("truth", help="truth Parquet")
+    p.add_argument("shard", help="shard Parquet written by `imugen simulate`")
+    p.add_argument("-o", "--output", required=True, help="navigation-error Parquet")
+    p.add_argument("--eval-rate-hz", type=float, default=1.0, help="evaluation epochs per second")
+    p.set_defaults(func=_cmd_navigate)
+
+    p = sub.add_parser("evaluate", help="navigation errors of one grade -> per-sequence RMSE")
+    p.add_argument("truth", help="truth Parquet")
+    p.add_argument("nav", nargs="+", help="navigation-error Parquet files of the grade")
+    p.add_argument("-o", "--output", required=True, help="per-sequence metrics Parquet")
+    p.add_argument("--grade", required=True, help="grade name (recorded in the output)")
+    p.set_defaults(func=_cmd_evaluate)
+
+    p = sub.add_parser("tables", help="per-grade metrics -> RMSE table (CSV, MD, TeX, HTML)")
+    p.add_argument("metrics", nargs="+", help="metrics Parquet files, one per grade")
+    p.add_argument("-o", "--output", required=True, help="CSV path; .md/.tex/.html beside it")
+    p.set_defaults(func=_cmd_tables)
 
     p = sub.add_parser("allan", help="Allan deviation of a static shard against its grade")
     p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")

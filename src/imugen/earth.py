@@ -466,17 +466,20 @@ def gravity_n_numba(p_n, frame: OriginFrame, gravitation: bool = False) -> np.nd
 DEG_PER_H = math.pi / 180.0 / 3600.0
 MICRO_G = 9.80665e-6
 
-GRADE_NOMINAL = {
-    # grade: (gyro bias instability [deg/h], accel bias [ug], gyro scale factor [ppm])
-    # Nominal values of the "Proposed preset bands" table, shared/notes/peers.md section 6
-    # (derived there from MPU-6050, ICM-42688-P, ADIS16465, STIM300, HG1700, HG9900, ...
-    # datasheets). Replaced by the grade presets of issue 4 once they exist.
-    "consumer": (10.0, 50.0, 5000.0),
-    "industrial": (5.0, 20.0, 500.0),
-    "tactical": (0.5, 50.0, 150.0),
-    "navigation": (0.003, 25.0, 5.0),
-}
-"""Nominal grade figures for the ``auto`` budget (source: peers.md section 6, preset bands)."""
+
+@dataclass(frozen=True)
+class GradeFigures:
+    """Nominal error figures of a grade for the ``auto`` budget (SI; zeros where absent).
+
+    Built from a grade preset by :func:`imugen.grades.budget_figures`.
+    """
+
+    name: str
+    gyro_bias_radps: float = 0.0
+    accel_bias_mps2: float = 0.0
+    gyro_scale_factor: float = 0.0
+    arw_rad_per_sqrt_s: float = 0.0
+    vrw_mps_per_sqrt_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -502,17 +505,17 @@ class EarthBudget:
     terms_m: dict
     fraction: float
     lines: list
+    grade: str = ""
 
 
-def choose_earth_model(
-    time_s, p_n, lat0_rad, grade="consumer", fraction=0.1, figures=None
-) -> EarthBudget:
+def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.1) -> EarthBudget:
     """Pick ``flat`` or ``wgs84`` for a scene from a position-error budget (``--earth auto``).
 
     Estimates (order of magnitude, distance from the origin taken to grow linearly in time):
 
-    * grade effect: accelerometer bias ``b_a (1 - cos ws T)/ws^2`` plus gyro bias
-      ``R b_g (T - sin(ws T)/ws)`` (Schuler-bounded tilt errors), ``ws = sqrt(g/R)``;
+    * grade effect: root sum square of accelerometer bias ``b_a (1 - cos ws T)/ws^2``, gyro
+      bias ``R b_g (T - sin(ws T)/ws)`` (Schuler-bounded tilt errors), ``ws = sqrt(g/R)``,
+      velocity random walk ``N_a sqrt(T^3/3)`` and angle random walk ``g N_g sqrt(T^5/20)``;
     * Coriolis ``2 Omega x v``: ``Omega L T`` for a path of length ``L`` over ``T``;
     * Earth rate in the gyros: coupling of the attitude error (``g Omega b_g T^4 / 24``) and
       the gyro scale factor acting on Omega (``g s_g Omega T^3 / 6``);
@@ -530,20 +533,15 @@ def choose_earth_model(
         ENU positions relative to the origin [m].
     lat0_rad : float
         Origin latitude [rad].
-    grade : str
-        Key of :data:`GRADE_NOMINAL`.
+    figures : GradeFigures
+        Nominal figures of the grade the scene is simulated for.
     fraction : float
         Threshold; ``flat`` when every dropped term < ``fraction`` x grade effect.
-    figures : tuple of 3 floats, optional
-        ``(gyro bias deg/h, accel bias ug, gyro scale factor ppm)`` overriding the nominal
-        table (e.g. from a configured grade); ``grade`` then only names it.
 
     Returns
     -------
     EarthBudget
     """
-    if figures is None and grade not in GRADE_NOMINAL:
-        raise ValueError(f"unknown grade {grade!r}; one of {sorted(GRADE_NOMINAL)}")
     t = np.asarray(time_s, dtype=float)
     p = np.asarray(p_n, dtype=float).reshape(-1, 3)
     T = float(t[-1] - t[0]) if t.size > 1 else 0.0
@@ -554,12 +552,15 @@ def choose_earth_model(
     g = float(normal_gravity(lat0_rad, 0.0))
     R = R_MEAN
     ws = math.sqrt(g / R)
-    bg_dph, ba_ug, sf_ppm = GRADE_NOMINAL[grade] if figures is None else map(float, figures)
-    bg = bg_dph * DEG_PER_H
-    ba = ba_ug * MICRO_G
-    sg = sf_ppm * 1e-6
+    bg, ba = figures.gyro_bias_radps, figures.accel_bias_mps2
+    sg = figures.gyro_scale_factor
     wT = ws * T
-    grade_m = ba * (1.0 - math.cos(wT)) / ws**2 + R * bg * (T - math.sin(wT) / ws)
+    grade_m = math.sqrt(
+        (ba * (1.0 - math.cos(wT)) / ws**2) ** 2
+        + (R * bg * (T - math.sin(wT) / ws)) ** 2
+        + figures.vrw_mps_per_sqrt_s**2 * T**3 / 3.0
+        + (g * figures.arw_rad_per_sqrt_s) ** 2 * T**5 / 20.0
+    )
     # gravity change over the scene: d g / d lat * north extent / R + free-air * height range
     dg_dlat = GAMMA_E * (K_SOMIGLIANA + 0.5 * E2_WGS84) * abs(math.sin(2.0 * lat0_rad))
     dg = dg_dlat * dn / R + 3.086e-6 * dh
@@ -574,9 +575,10 @@ def choose_earth_model(
     limit = fraction * grade_m
     model = "flat" if all(v < limit for v in terms.values()) and T > 0.0 else "wgs84"
     lines = [
-        f"earth model budget (grade {grade}: gyro bias {bg_dph:g} deg/h, accel bias "
-        f"{ba_ug:g} ug, gyro SF {sf_ppm:g} ppm; "
-        + ("nominal figures from peers.md s.6)" if figures is None else "given figures)"),
+        f"earth model budget (grade {figures.name}: gyro bias {bg / DEG_PER_H:g} deg/h, accel "
+        f"bias {ba / MICRO_G:g} ug, gyro SF {sg * 1e6:g} ppm, ARW "
+        f"{figures.arw_rad_per_sqrt_s * 60 * 180 / math.pi:g} deg/sqrt(h), VRW "
+        f"{figures.vrw_mps_per_sqrt_s * 60:g} m/s/sqrt(h))",
         f"scene: {T:.1f} s, path {L:.1f} m, max distance {D:.1f} m, north extent {dn:.1f} m, "
         f"height range {dh:.1f} m",
         f"grade position effect over the scene: {grade_m:.4g} m; limit "
@@ -590,4 +592,4 @@ def choose_earth_model(
             else f"  {name:<55s} {val:11.4g} m"
         )
     lines.append(f"-> earth model: {model}")
-    return EarthBudget(model, grade_m, terms, fraction, lines)
+    return EarthBudget(model, grade_m, terms, fraction, lines, figures.name)

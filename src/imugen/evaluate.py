@@ -130,7 +130,13 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
         "tex": stem.with_suffix(".tex"),
         "html": stem.with_suffix(".html"),
     }
-    table.to_csv(paths["csv"], index=False, float_format="%.6g")
+    from imugen.io import atomic_output
+
+    def write_text(path: Path, text: str) -> None:
+        with atomic_output(path) as tmp:
+            tmp.write_text(text)
+
+    write_text(paths["csv"], table.to_csv(index=False, float_format="%.6g"))
     human = display_table(table)
     caption = (
         "RMSE of position per grade: median over sequences [5th-95th percentile], metres; "
@@ -139,7 +145,7 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
     cols = list(human.columns)
     md = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     md += ["| " + " | ".join(str(v) for v in r) + " |" for r in human.itertuples(index=False)]
-    paths["md"].write_text(caption + "\n\n" + "\n".join(md) + "\n")
+    write_text(paths["md"], caption + "\n\n" + "\n".join(md) + "\n")
 
     def tex(v) -> str:
         return str(v).replace("%", r"\%").replace("_", r"\_")
@@ -158,8 +164,44 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
         r"\end{tabular}",
         r"\end{table}",
     ]
-    paths["tex"].write_text("\n".join(lines) + "\n")
-    paths["html"].write_text(
-        f"<p>{caption}</p>\n" + human.to_html(index=False, border=0, classes="rmse") + "\n"
+    write_text(paths["tex"], "\n".join(lines) + "\n")
+    write_text(
+        paths["html"],
+        f"<p>{caption}</p>\n" + human.to_html(index=False, border=0, classes="rmse") + "\n",
     )
     return paths
+
+
+def horizontal_distance_m(truth_path) -> float:
+    """Horizontal distance travelled by the truth (sum of its E-N steps), metres."""
+    tr = pd.read_parquet(truth_path, columns=["e_m", "n_m"])
+    return float(np.hypot(np.diff(tr["e_m"].to_numpy()), np.diff(tr["n_m"].to_numpy())).sum())
+
+
+def run(truth, nav_paths, out, *, grade: str) -> Path:
+    """Per-sequence metrics of one grade's navigation shards -> Parquet (index ``sequence``)."""
+    from imugen.io import write_parquet
+
+    distance = horizontal_distance_m(truth)
+    frames = [pd.read_parquet(p, columns=["sequence", "time_s", *ERR]) for p in nav_paths]
+    metrics = sequence_metrics(pd.concat(frames, ignore_index=True), distance)
+    meta = {
+        "stage": "evaluate",
+        "grade": grade,
+        "truth": str(truth),
+        "nav": [str(p) for p in nav_paths],
+        "distance_horizontal_m": distance,
+        "units": "metres; final_pct_distance in % of the horizontal distance travelled",
+    }
+    return write_parquet(metrics.reset_index(), meta, out)
+
+
+def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
+    """Gather per-grade metrics files into the RMSE table (CSV, Markdown, LaTeX, HTML)."""
+    from imugen.io import read_meta
+
+    rows = []
+    for p in metrics_paths:
+        grade = read_meta(p)["grade"]
+        rows.append(grade_row(grade, pd.read_parquet(p).set_index("sequence")))
+    return write_tables(grade_table(rows), out_csv)

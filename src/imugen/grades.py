@@ -60,6 +60,7 @@ import numpy as np
 import yaml
 
 from imugen import units
+from imugen.earth import GradeFigures
 from imugen.errors import InputError
 
 SENSORS = ("gyro", "accel")
@@ -609,3 +610,30 @@ def get_grade(spec, grades_file=None) -> Grade:
         return pre[spec]
     known = sorted(pre) + (sorted(load_grades(grades_file)) if grades_file else [])
     raise InputError("--grade", f"unknown grade {spec!r}; known: {', '.join(known)}")
+
+
+def budget_figures(grade: Grade | str) -> GradeFigures:
+    """Nominal figures of a grade for the ``--earth auto`` budget (SI, axis means).
+
+    Bias: root sum square of the turn-on bias (1 sigma) and the in-run bias-instability Allan
+    floor; scale factor and white-noise densities as configured; absent terms are 0.
+    """
+    g = get_grade(grade)
+
+    def mean(p: Param | None) -> float:
+        return 0.0 if p is None else float(np.mean(np.abs(p.value)))
+
+    def bias(s: SensorSpec) -> float:
+        on = mean(s.turn_on_bias)
+        bi = s.bias_instability
+        floor = 0.0 if bi is None else bi.allan_floor_from_level(mean(bi.level))
+        return float(np.hypot(on, floor))
+
+    return GradeFigures(
+        name=g.name,
+        gyro_bias_radps=bias(g.gyro),
+        accel_bias_mps2=bias(g.accel),
+        gyro_scale_factor=mean(g.gyro.scale_factor),
+        arw_rad_per_sqrt_s=mean(g.gyro.white_noise),
+        vrw_mps_per_sqrt_s=mean(g.accel.white_noise),
+    )

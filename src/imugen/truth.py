@@ -741,7 +741,7 @@ def _level_attitude(up):
 class TruthOptions:
     """Options of :func:`build_truth` beyond rate, Earth model and vehicle (None: defaults)."""
 
-    grade: str | None = None
+    grade: str | list[str] | None = None
     fit_tol_m: float | None = None
     stops: bool = True
     corner_m: float | None = None
@@ -787,7 +787,7 @@ def build_truth(
     rate_hz: float = 100.0,
     earth: str = "flat",
     vehicle: str = "car",
-    grade: str | None = None,
+    grade: str | list[str] | None = None,
     chunk: int = CHUNK,
     verbose: bool = True,
     **options,
@@ -805,8 +805,9 @@ def build_truth(
     earth : {"flat", "wgs84", "auto"}
         Earth model (``auto``: budget printed to stderr and stored in the metadata).
     vehicle : {"car", "pedestrian", "aircraft"}
-    grade : str, optional
-        Sensor grade for the ``auto`` budget (default ``consumer``).
+    grade : str or list of str, optional
+        Sensor grade(s) for the ``auto`` budget (default ``consumer``); with several, any
+        grade whose budget needs ``wgs84`` makes the truth ``wgs84``.
     **options
         Fields of :class:`TruthOptions` (``fit_tol_m``, ``stops``, ``corner_m``,
         ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``, ``jerk_mps3``, ``hold_speed_mps``).
@@ -849,8 +850,19 @@ def build_truth(
     if earth == "auto":
         pts = motion.position(np.linspace(motion.t0, motion.t1, min(K, 20001)))
         bt = np.linspace(motion.t0, motion.t1, len(pts))
-        budget = ea.choose_earth_model(
-            bt, pts, math.radians(lat0), grade=opts.grade or "consumer", fraction=opts.auto_fraction
+        from imugen.grades import budget_figures
+
+        names = [opts.grade] if isinstance(opts.grade, str) else list(opts.grade or ["consumer"])
+        budgets = [
+            ea.choose_earth_model(
+                bt, pts, math.radians(lat0), budget_figures(g), fraction=opts.auto_fraction
+            )
+            for g in names
+        ]
+        # the most demanding grade decides: any grade that needs wgs84 gets it for all
+        budget = next(
+            (b for b in budgets if b.model == "wgs84"),
+            min(budgets, key=lambda b: b.grade_effect_m),
         )
         model = budget.model
         if verbose:
@@ -1009,7 +1021,8 @@ def build_truth(
         "earth_budget": None
         if budget is None
         else {
-            "grade": opts.grade or "consumer",
+            "grade": budget.grade,
+            "grades_considered": [opts.grade] if isinstance(opts.grade, str) else opts.grade,
             "fraction": budget.fraction,
             "grade_effect_m": budget.grade_effect_m,
             "terms_m": budget.terms_m,

@@ -1,4 +1,7 @@
-# Helpers shared by the rule files: config validation, route list, code tracking.
+# Helpers shared by the rule files: config validation, routes/grades/shards, code tracking.
+import json
+import math
+import shlex
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -7,15 +10,17 @@ from snakemake.utils import validate
 validate(config, "../schemas/config.schema.yaml")
 
 ROUTES = sorted(config["routes"])
+GRADES = list(config["grades"])
+SIM = config["simulate"]
+N_SEQ = SIM["sequences"]
+PER_SHARD = SIM["sequences_per_shard"]
+SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
 
 
 wildcard_constraints:
     route="|".join(ROUTES),
-
-
-def route_cfg(wildcards):
-    """This route's slice of the config (only what the rule needs is tracked as params)."""
-    return config["routes"][wildcards.route]
+    grade="|".join(GRADES),
+    shard=r"\d{3}",
 
 
 def stage_code(*modules):
@@ -27,12 +32,35 @@ def stage_code(*modules):
     return [str(Path(workflow.basedir) / "src" / "imugen" / f"{m}.py") for m in modules]
 
 
+def is_custom(grade):
+    """A grade with a definition in the config (an empty mapping selects the preset)."""
+    return bool(config["grades"][grade])
+
+
+def grade_files(wildcards):
+    """The custom grade's YAML file, when the grade is custom."""
+    g = wildcards.grade
+    return [f"results/grades/{g}.yaml"] if is_custom(g) else []
+
+
+def grade_arg(wildcards):
+    """`--grade` value: the preset name, or FILE.yaml:NAME for a custom grade."""
+    g = wildcards.grade
+    return f"results/grades/{g}.yaml:{g}" if is_custom(g) else g
+
+
+def shard_sequences(wildcards):
+    """Sequences in this shard: M, except a shorter last shard when M does not divide N."""
+    k = int(wildcards.shard)
+    return min(PER_SHARD, N_SEQ - k * PER_SHARD)
+
+
 def ingest_opts(wildcards):
     """Command-line options of `imugen ingest` for this route (path, origin, dt)."""
-    r = route_cfg(wildcards)
+    r = config["routes"][wildcards.route]
     opts = []
     if r.get("path") is not None:
-        opts += ["--path", shlex_quote(str(r["path"]))]
+        opts += ["--path", shlex.quote(str(r["path"]))]
     if r.get("origin") is not None:
         opts += ["--origin", ",".join(repr(float(x)) for x in r["origin"])]
     if r.get("dt_s") is not None:
@@ -40,7 +68,17 @@ def ingest_opts(wildcards):
     return " ".join(opts)
 
 
-def shlex_quote(text):
-    import shlex
+def auto_grades():
+    """`--grade` options of the truth: the configured preset grades decide `--earth auto`."""
+    names = [g for g in GRADES if not is_custom(g)]
+    return " ".join(f"--grade {g}" for g in names)
 
-    return shlex.quote(text)
+
+def shard_paths(kind):
+    """Per-grade list of all shard files of one kind (imu or nav) for a route."""
+    return lambda wc: expand(
+        f"results/{{route}}/{kind}/{{grade}}/shard-{{shard}}.parquet",
+        route=wc.route,
+        grade=wc.grade,
+        shard=SHARDS,
+    )

@@ -1,0 +1,40 @@
+# Evaluation: per-grade per-sequence RMSE, then the RMSE table of each route.
+
+
+rule evaluate:
+    input:
+        truth="results/{route}/truth.parquet",
+        nav=shard_paths("nav"),
+        code=stage_code("evaluate"),
+    output:
+        "results/{route}/metrics/{grade}.parquet",
+    log:
+        "logs/{route}/evaluate/{grade}.log",
+    shell:
+        "imugen evaluate {input.truth:q} {input.nav:q} -o {output:q} --grade {wildcards.grade} "
+        "> {log:q} 2>&1"
+
+
+rule tables:
+    input:
+        metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
+        code=stage_code("evaluate"),
+    output:
+        csv=report(
+            "results/{route}/rmse.csv",
+            caption="../report/rmse.rst",
+            category="RMSE",
+            labels={"route": "{route}", "format": "CSV"},
+        ),
+        md="results/{route}/rmse.md",
+        tex="results/{route}/rmse.tex",
+        html=report(
+            "results/{route}/rmse.html",
+            caption="../report/rmse.rst",
+            category="RMSE",
+            labels={"route": "{route}", "format": "table"},
+        ),
+    log:
+        "logs/{route}/tables.log",
+    shell:
+        "imugen tables {input.metrics:q} -o {output.csv:q} > {log:q} 2>&1"

@@ -1,0 +1,78 @@
+# Sensor errors: per route, grade and shard, M sequences of measured IMU with their labels.
+
+
+rule custom_grade:
+    output:
+        "results/grades/{grade}.yaml",
+    params:
+        doc=lambda wc: json.dumps({"grades": {wc.grade: config["grades"][wc.grade]}}),
+    log:
+        "logs/grades/{grade}.log",
+    shell:
+        "printf '%s\\n' {params.doc:q} > {output:q} 2> {log:q}"
+
+
+rule simulate:
+    input:
+        truth="results/{route}/truth.parquet",
+        grade=grade_files,
+        code=stage_code("simulate", "sensors", "grades", "units"),
+    output:
+        shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
+        labels="results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
+    params:
+        grade=grade_arg,
+        spec=lambda wc: config["grades"][wc.grade],
+        sequences=shard_sequences,
+        seed=SIM["seed"],
+        draw=SIM["draw"],
+        dtype=SIM["dtype"],
+        outputs=SIM["outputs"],
+        series="--series" if SIM["series"] else "",
+        shard=lambda wc: int(wc.shard),
+    log:
+        "logs/{route}/simulate/{grade}/shard-{shard}.log",
+    shell:
+        "imugen simulate {input.truth:q} -o {output.shard:q} --grade {params.grade:q} "
+        "--sequences {params.sequences} --seed {params.seed} --shard {params.shard} "
+        "--draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
+        "> {log:q} 2>&1"
+
+
+rule allan_static:
+    input:
+        grade=grade_files,
+        code=stage_code("simulate", "sensors", "grades", "units"),
+    output:
+        "results/allan/{grade}/static.parquet",
+    params:
+        grade=grade_arg,
+        spec=lambda wc: config["grades"][wc.grade],
+        static_s=config["allan"]["static_s"],
+        rate_hz=config["allan"]["rate_hz"],
+        sequences=config["allan"]["sequences"],
+        seed=SIM["seed"],
+    log:
+        "logs/allan/{grade}/static.log",
+    shell:
+        "imugen simulate --static {params.static_s} --rate-hz {params.rate_hz} "
+        "-o {output:q} --grade {params.grade:q} --sequences {params.sequences} "
+        "--seed {params.seed} --shard 0 --draw nominal > {log:q} 2>&1"
+
+
+rule allan:
+    input:
+        static="results/allan/{grade}/static.parquet",
+        code=stage_code("allan"),
+    output:
+        json="results/allan/{grade}/allan.json",
+        plot=report(
+            "results/allan/{grade}/allan.png",
+            caption="../report/allan.rst",
+            category="Allan deviation",
+            labels={"grade": "{grade}"},
+        ),
+    log:
+        "logs/allan/{grade}/allan.log",
+    shell:
+        "imugen allan {input.static:q} --plot {output.plot:q} > {output.json:q} 2> {log:q}"

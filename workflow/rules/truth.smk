@@ -1,0 +1,19 @@
+# Truth: ENU route -> smooth 6-DoF motion and the ideal IMU at the IMU rate.
+
+
+rule truth:
+    input:
+        enu="results/{route}/enu.parquet",
+        code=stage_code("truth", "earth", "rotations", "columns", "grades"),
+    output:
+        "results/{route}/truth.parquet",
+    params:
+        rate_hz=config["truth"]["rate_hz"],
+        earth=config["truth"]["earth"],
+        vehicle=lambda wc: config["routes"][wc.route]["vehicle"],
+        grades=auto_grades(),
+    log:
+        "logs/{route}/truth.log",
+    shell:
+        "imugen truth {input.enu:q} -o {output:q} --rate-hz {params.rate_hz} "
+        "--earth {params.earth} --vehicle {params.vehicle} {params.grades} > {log:q} 2>&1"
