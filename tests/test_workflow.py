@@ -117,6 +117,9 @@ def test_full_run_outputs_then_nothing_to_do(done):
     shards = sorted((done / "results" / "paper" / "imu" / "mine").glob("shard-*[0-9].parquet"))
     assert [p.name for p in shards] == ["shard-000.parquet", "shard-001.parquet"]
     assert (done / "results" / "allan" / "consumer" / "allan.png").stat().st_size > 1000
+    for stem in ("figure8", "trajectories_3d", "error_vs_time", "imu_mine"):
+        for ext in ("png", "svg"):
+            assert (done / "results" / "paper" / "figures" / f"{stem}.{ext}").stat().st_size > 1000
     assert planned_jobs(done) == {}
 
 
@@ -135,6 +138,8 @@ def test_edit_one_grade_reruns_only_that_grade(done, tmp_path):
         "tables": 2,
         "allan_static": 1,
         "allan": 1,
+        "figures": 2,
+        "export_mat": 2,
         "all": 1,
     }
 
@@ -146,7 +151,32 @@ def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):
     write_config(wd, cfg)
     jobs = planned_jobs(wd)
     # one new shard per route and grade: 2 routes x 3 grades
-    assert jobs == {"simulate": 6, "navigate": 6, "evaluate": 6, "tables": 2, "all": 1}
+    assert jobs == {
+        "simulate": 6,
+        "navigate": 6,
+        "evaluate": 6,
+        "tables": 2,
+        "figures": 2,
+        "export_mat": 6,
+        "all": 1,
+    }
+
+
+def test_figure_option_reruns_only_figures(done, tmp_path):
+    wd = copy_run(done, tmp_path / "wd")
+    cfg = copy.deepcopy(TINY)
+    cfg["figures"] = {"zoom_fraction": 0.3}
+    write_config(wd, cfg)
+    assert planned_jobs(wd) == {"figures": 2, "all": 1}
+
+
+def test_report_has_figures_and_tables(done, tmp_path):
+    wd = copy_run(done, tmp_path / "wd")
+    proc = snakemake(wd, "--report", "report.html")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    html = (wd / "report.html").read_text(errors="replace")
+    for name in ("figure8", "error_vs_time", "rmse", "allan"):
+        assert name in html, name
 
 
 def test_j1_and_j2_identical(done, tmp_path):
@@ -182,3 +212,12 @@ def test_schema_refuses_bad_config(tmp_path):
     write_config(tmp_path, {"routes": {"ex": {"file": "x.kml", "dt_s": -1}}})
     proc = snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "dt_s" in proc.stdout + proc.stderr
+
+
+def test_lint_only_the_documented_conda_lint(tmp_path):
+    write_config(tmp_path, TINY)
+    proc = snakemake(tmp_path, "--lint")
+    text = proc.stdout + proc.stderr
+    lints = re.findall(r"^\s+\* (.+?):$", text, flags=re.M)
+    assert lints, text[-2000:]
+    assert set(lints) == {"Specify a conda environment or container for each rule."}

@@ -124,6 +124,60 @@ def _cmd_tables(a) -> int:
     return 0
 
 
+def _pairs(items, option):
+    """``GRADE=PATH`` options -> {grade: [paths]} in the given order."""
+    out: dict[str, list[str]] = {}
+    for item in items or []:
+        grade, sep, path = item.partition("=")
+        if not sep or not grade or not path:
+            raise InputError(option, f"{item!r} is not GRADE=PATH")
+        out.setdefault(grade, []).append(path)
+    return out
+
+
+def _cmd_figures(a) -> int:
+    from pathlib import Path
+
+    from imugen import figures as fg
+
+    nav = _pairs(a.nav, "--nav")
+    metrics = {g: p[0] for g, p in _pairs(a.metrics, "--metrics").items()}
+    imu = {g: p[0] for g, p in _pairs(a.imu, "--imu").items()}
+    out = Path(a.outdir)
+    kw = {"formats": tuple(a.formats), "dpi": a.dpi}
+    fg.figure8(
+        a.truth,
+        nav,
+        metrics,
+        out / "figure8",
+        zoom_fraction=a.zoom_fraction,
+        representative=a.representative,
+        **kw,
+    )
+    fg.trajectories_3d(
+        a.truth, nav, metrics, out / "trajectories_3d", representative=a.representative, **kw
+    )
+    fg.error_vs_time(nav, out / "error_vs_time", **kw)
+    for grade, shard in imu.items():
+        fg.imu_signals(a.truth, shard, out / f"imu_{grade}", **kw)
+    return 0
+
+
+def _cmd_export_mat(a) -> int:
+    from imugen.export import export_mat
+
+    export_mat(
+        a.truth,
+        a.shards,
+        a.output,
+        grade=a.grade,
+        nav_paths=a.nav,
+        version=a.mat_version,
+        route=a.route,
+    )
+    return 0
+
+
 def _cmd_closure(a) -> int:
     from imugen.closure import closure
 
@@ -216,6 +270,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("metrics", nargs="+", help="metrics Parquet files, one per grade")
     p.add_argument("-o", "--output", required=True, help="CSV path; .md/.tex/.html beside it")
     p.set_defaults(func=_cmd_tables)
+
+    p = sub.add_parser("figures", help="route figures: Figure 8, 3-D, errors vs time, IMU")
+    p.add_argument("truth", help="truth Parquet")
+    p.add_argument("-o", "--outdir", required=True, help="folder for the figures")
+    p.add_argument("--nav", action="append", metavar="GRADE=PATH", help="navigation errors")
+    p.add_argument("--metrics", action="append", metavar="GRADE=PATH", help="per-sequence RMSE")
+    p.add_argument("--imu", action="append", metavar="GRADE=PATH", help="a shard per grade")
+    p.add_argument("--formats", nargs="+", default=["png", "svg"], help="figure formats")
+    p.add_argument("--dpi", type=int, default=150)
+    p.add_argument("--zoom-fraction", type=float, default=0.2, help="zoom of Figure 8")
+    p.add_argument("--representative", choices=["median", "best", "worst"], default="median")
+    p.set_defaults(func=_cmd_figures)
+
+    p = sub.add_parser("export-mat", help="one grade's truth, IMU, labels, errors -> MATLAB .mat")
+    p.add_argument("--truth", required=True, help="truth Parquet")
+    p.add_argument("--shards", nargs="+", required=True, help="the grade's shard Parquet files")
+    p.add_argument("--nav", nargs="+", help="the grade's navigation-error files (optional)")
+    p.add_argument("--grade", required=True, help="grade name (checked against the shards)")
+    p.add_argument("--route", help="route name recorded in the file (default: truth's folder)")
+    p.add_argument("--mat-version", choices=["auto", "5", "7.3"], default="auto")
+    p.add_argument("-o", "--output", required=True, help=".mat path")
+    p.set_defaults(func=_cmd_export_mat)
 
     p = sub.add_parser("allan", help="Allan deviation of a static shard against its grade")
     p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")

@@ -102,8 +102,9 @@ def navigate(
         columns, kind = [*col.GYRO, *col.ACCEL], "rates"
     else:
         raise InputError(shard_path, "holds neither increment nor rate columns of an IMU shard")
-    if smeta.get("samples") not in (None, K):
-        raise InputError(shard_path, f"has {smeta['samples']} samples per sequence; truth has {K}")
+    n = smeta.get("samples_per_sequence")
+    if n is not None and n != K:
+        raise InputError(shard_path, f"has {n} samples per sequence where the truth has {K}")
 
     frames = []
     for seq_ids, arr in _sequence_blocks(shard_path, columns, K, batch):

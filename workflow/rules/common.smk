@@ -1,4 +1,4 @@
-# Helpers shared by the rule files: config validation, routes/grades/shards, code tracking.
+# Helpers for every stage: config validation, routes/grades/shards, code tracking.
 import json
 import math
 import shlex
@@ -15,6 +15,7 @@ SIM = config["simulate"]
 N_SEQ = SIM["sequences"]
 PER_SHARD = SIM["sequences_per_shard"]
 SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
+FIG = config["figures"]
 
 
 wildcard_constraints:
@@ -82,3 +83,18 @@ def shard_paths(kind):
         grade=wc.grade,
         shard=SHARDS,
     )
+
+
+def grade_pairs(kind):
+    """`--nav GRADE=PATH ...`-style options from the rule's named inputs."""
+
+    def opts(wildcards, input):
+        files = input[kind]
+        per = len(files) // len(GRADES)
+        return " ".join(
+            f"--{kind} {g}={shlex.quote(f)}"
+            for i, g in enumerate(GRADES)
+            for f in files[i * per : (i + 1) * per]
+        )
+
+    return opts

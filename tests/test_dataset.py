@@ -1,0 +1,284 @@
+"""Training windows and leakage-safe splits, on small synthetic Parquet files."""
+
+from __future__ import annotations
+
+import pickle
+from collections import Counter
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from imugen import columns as col
+from imugen import dataset as ds
+from imugen.errors import InputError
+from imugen.io import write_parquet
+
+K, M = 101, 3
+BIAS = list(ds.BIAS)
+
+
+def make_results(
+    tmp,
+    routes=("alpha", "beta"),
+    shards=(0, 1),
+    grade="consumer",
+    rows_per_group=40,
+    statistics=True,
+    seed=0,
+):
+    """results/<route>/truth.parquet and imu/<grade>/shard-*.parquet (+ a labels file)."""
+    rng = np.random.default_rng(seed)
+    frames = {}
+    for r in routes:
+        truth = pd.DataFrame({c: rng.standard_normal(K) for c in col.TRUTH_COLUMNS})
+        truth[col.TIME] = np.arange(K) * 0.01
+        write_parquet(
+            truth, {"rate_hz": 100.0}, tmp / r / "truth.parquet", row_group_size=rows_per_group
+        )
+        parts = []
+        for sh in shards:
+            ids = sh * M + np.arange(M)
+            df = pd.DataFrame(
+                {
+                    "sequence": np.repeat(ids, K).astype(np.int32),
+                    col.TIME: np.tile(truth[col.TIME].to_numpy(), M),
+                }
+            )
+            for c in [*col.DTHETA, *col.DV, *BIAS]:
+                df[c] = rng.standard_normal(M * K).astype(np.float32)
+            p = tmp / r / "imu" / grade / f"shard-{sh:03d}.parquet"
+            write_parquet(
+                df,
+                {"grade": {"name": grade}},
+                p,
+                row_group_size=rows_per_group,
+                write_statistics=statistics,
+            )
+            write_parquet(
+                df[["sequence"]].drop_duplicates(),
+                {},
+                p.with_name(f"shard-{sh:03d}.labels.parquet"),
+            )
+            parts.append(df)
+        frames[r] = (truth, pd.concat(parts, ignore_index=True))
+    return frames
+
+
+def expected_windows(routes, frames, window, stride, keys=None):
+    """(route, sequence, k0) of every window, in the documented order, by brute force."""
+    out = []
+    for r in routes:
+        for p in r.shards:
+            for sid in pd.read_parquet(p, columns=["sequence"])["sequence"].unique():
+                if keys is not None and (r.name, int(sid)) not in keys:
+                    continue
+                for k0 in range(1, K, stride):
+                    if k0 + window <= K:
+                        out.append((r.name, int(sid), k0))
+    return out
+
+
+# --- splits ------------------------------------------------------------------------------------
+def all_keys(nroutes=20, nseq=500):
+    return [(f"route{r}", s) for r in range(nroutes) for s in range(nseq)]
+
+
+def test_split_deterministic_disjoint_and_complete():
+    keys = all_keys()
+    a = ds.split(keys, seed=3)
+    assert a == ds.split(keys, seed=3)
+    assert sum(len(v) for v in a.values()) == len(keys)
+    assert set(a["train"]).isdisjoint(a["val"]) and set(a["val"]).isdisjoint(a["test"])
+    assert set().union(*map(set, a.values())) == set(keys)
+    # shares close to the fractions on 10,000 keys (binomial sd ~0.004)
+    assert abs(len(a["train"]) / len(keys) - 0.8) < 0.02
+    assert abs(len(a["test"]) / len(keys) - 0.1) < 0.02
+    assert ds.split(keys, seed=4) != a
+
+
+def test_split_stable_when_sequences_and_routes_are_added():
+    small = [(r, s) for r, s in all_keys(5, 100)]
+    big = all_keys(8, 300)
+    fr = {"train": 0.7, "val": 0.15, "test": 0.15}
+    for by in ("sequence", "route"):
+        a = ds.split(small, fr, seed=1, by=by)
+        b = ds.split(big, fr, seed=1, by=by)
+        for name in fr:
+            assert set(a[name]) == set(b[name]) & set(small)
+        assert all(ds.assign(r, s, fr, seed=1, by=by) == n for n in a for r, s in a[n])
+
+
+def test_split_by_route_keeps_routes_whole():
+    keys = all_keys(40, 30)
+    parts = ds.split(keys, seed=0, by="route")
+    where = {}
+    for name, ks in parts.items():
+        for r, _ in ks:
+            where.setdefault(r, set()).add(name)
+    assert all(len(v) == 1 for v in where.values()) and len(where) == 40
+    assert len({next(iter(v)) for v in where.values()}) == 3  # 40 routes reach all parts
+    # by sequence, a route's sequences spread over the parts
+    seq_parts = ds.split(keys, seed=0, by="sequence")
+    assert {n for n, ks in seq_parts.items() if any(r == "route0" for r, _ in ks)} == set(parts)
+
+
+def test_split_rejects_bad_fractions():
+    with pytest.raises(InputError, match="sum to 1"):
+        ds.split([("a", 1)], {"train": 0.8, "test": 0.1})
+    with pytest.raises(InputError, match="by must be"):
+        ds.split([("a", 1)], by="shard")
+
+
+# --- dataset -----------------------------------------------------------------------------------
+@pytest.fixture
+def results(tmp_path):
+    frames = make_results(tmp_path)
+    return tmp_path, frames
+
+
+def test_find_routes_and_keys(results):
+    root, _ = results
+    routes = ds.find_routes(root, "consumer")
+    assert [r.name for r in routes] == ["alpha", "beta"]
+    assert all(len(r.shards) == 2 and not any("labels" in p.name for p in r.shards) for r in routes)
+    assert ds.find_routes(root, "tactical") == []
+    keys = ds.sequence_keys(routes)
+    assert keys == [(r, s) for r in ("alpha", "beta") for s in range(2 * M)]
+
+
+@pytest.mark.parametrize(("window", "stride"), [(10, 10), (7, 3), (100, 1), (101, 5)])
+def test_windows_are_the_right_slices(results, window, stride):
+    root, frames = results
+    routes = ds.find_routes(root, "consumer")
+    d = ds.WindowDataset(routes, window=window, stride=stride)
+    exp = expected_windows(routes, frames, window, stride)
+    assert len(d) == len(exp)
+    for i in range(0, len(d), max(1, len(d) // 40)):
+        r, sid, k0 = exp[i]
+        info = d.window_info(i)
+        assert (info["route"], info["sequence"], info["start"], info["stop"]) == (
+            r,
+            sid,
+            k0,
+            k0 + window,
+        )
+        truth, shard = frames[r]
+        rows = shard[shard["sequence"] == sid].iloc[k0 : k0 + window]
+        x, y = d[i]
+        assert x.dtype == np.float32 and x.shape == (window, 6) and y.shape == (window, 6)
+        np.testing.assert_array_equal(x, rows[[*col.DTHETA, *col.DV]].to_numpy())
+        np.testing.assert_array_equal(
+            y, truth[[*col.DTHETA, *col.DV]].iloc[k0 : k0 + window].to_numpy().astype(np.float32)
+        )
+    with pytest.raises(IndexError):
+        d[len(d)]
+
+
+def test_delta_and_bias_targets(results):
+    root, frames = results
+    routes = ds.find_routes(root, "consumer")
+    dv = ds.WindowDataset(routes, window=25, stride=20, target="delta_vel_pos", dtype=np.float64)
+    db = ds.WindowDataset(routes, window=25, stride=20, target="bias")
+    assert len(dv) == len(db) == 4 * M * 4  # k0 = 1, 21, 41, 61
+    for i in range(len(dv)):
+        info = dv.window_info(i)
+        truth, shard = frames[info["route"]]
+        k0, k1 = info["start"], info["stop"]
+        _, y = dv[i]
+        vp = truth[[*col.VEL, *col.POS]].to_numpy()
+        np.testing.assert_array_equal(y, vp[k1 - 1] - vp[k0 - 1])
+        _, b = db[i]
+        rows = shard[shard["sequence"] == info["sequence"]].iloc[k0:k1]
+        np.testing.assert_array_equal(b, rows[BIAS].to_numpy())
+
+
+def test_keys_select_whole_sequences(results):
+    root, frames = results
+    routes = ds.find_routes(root, "consumer")
+    parts = ds.split(ds.sequence_keys(routes), {"a": 0.5, "b": 0.5}, seed=2)
+    full = ds.WindowDataset(routes, window=20, stride=10)
+    sub = {n: ds.WindowDataset(routes, window=20, stride=10, keys=k) for n, k in parts.items()}
+    assert sum(len(s) for s in sub.values()) == len(full)
+    seen = {}
+    for n, s in sub.items():
+        exp = expected_windows(routes, frames, 20, 10, keys=set(parts[n]))
+        assert len(s) == len(exp)
+        for i in range(len(s)):
+            info = s.window_info(i)
+            seen.setdefault((info["route"], info["sequence"]), set()).add(n)
+            assert (info["route"], info["sequence"], info["start"]) == exp[i]
+    assert all(len(v) == 1 for v in seen.values())
+
+
+def test_reads_only_the_row_groups_of_the_window(results, monkeypatch):
+    root, _ = results
+    routes = ds.find_routes(root, "consumer")
+    d = ds.WindowDataset(routes, window=10, stride=10)
+    reads = []
+    orig = pq.ParquetFile.read_row_group
+
+    def counting(self, i, *args, **kwargs):
+        reads.append((self.metadata.num_rows, i))
+        return orig(self, i, *args, **kwargs)
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("a whole file was read")
+
+    monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
+    monkeypatch.setattr(pq.ParquetFile, "read", forbidden)
+    monkeypatch.setattr(pq, "read_table", forbidden)
+    # sequence 4 of alpha = shard 1, j = 1: shard rows 101..201; window rows 1+10*3 = 31..40
+    i = [j for j in range(len(d)) if d.window_info(j)["sequence"] == 4][3]
+    info = d.window_info(i)
+    assert (info["route"], info["start"]) == ("alpha", 31)
+    d[i]
+    # shard rows 132..141 -> row group 3 (120..159); truth rows 31..40 -> groups 0 and 1
+    assert Counter(reads) == Counter({(M * K, 3): 1, (K, 0): 1, (K, 1): 1})
+    d[i]
+    d[i + 1]  # shard rows 142..151, truth rows 41..50: all cached
+    assert len(reads) == 3
+    d[i + 2]  # shard rows 152..161 straddle groups 3 and 4: one new read
+    assert Counter(reads) == Counter({(M * K, 3): 1, (M * K, 4): 1, (K, 0): 1, (K, 1): 1})
+
+
+def test_cache_is_bounded(results):
+    root, _ = results
+    d = ds.WindowDataset(ds.find_routes(root, "consumer"), window=10, cache_mb=0.002)
+    for i in range(len(d)):
+        d[i]
+        assert d._cached <= max(2048, max(a.nbytes for a in d._cache.values()))
+
+
+def test_pickles_without_files_and_local_shuffle(results):
+    root, _ = results
+    d = ds.WindowDataset(ds.find_routes(root, "consumer"), window=30, stride=15)
+    d[0]
+    e = pickle.loads(pickle.dumps(d))
+    assert len(e._cache) == 0
+    for i in (0, 5, len(d) - 1):
+        np.testing.assert_array_equal(d[i][0], e[i][0])
+        np.testing.assert_array_equal(d[i][1], e[i][1])
+    order = d.local_shuffle(seed=1, block=2)
+    assert sorted(order) == list(range(len(d))) and order != list(range(len(d)))
+    assert order == d.local_shuffle(seed=1, block=2)
+    # each block of 2 sequences (6 windows each) is contiguous in the order
+    nw = len(d) // (4 * M)
+    assert nw == 5  # k0 = 1, 16, 31, 46, 61
+    blocks = [{j // (2 * nw) for j in order[b : b + 2 * nw]} for b in range(0, len(d), 2 * nw)]
+    assert all(len(b) == 1 for b in blocks)
+
+
+def test_without_statistics_and_missing_columns(tmp_path):
+    frames = make_results(tmp_path, routes=("gamma",), shards=(2,), statistics=False)
+    routes = ds.find_routes(tmp_path, "consumer")
+    assert ds.sequence_keys(routes) == [("gamma", 6), ("gamma", 7), ("gamma", 8)]
+    d = ds.WindowDataset(routes, window=50, stride=50)
+    assert len(d) == 3 * 2
+    shard = frames["gamma"][1]
+    np.testing.assert_array_equal(
+        d[2][0], shard[shard["sequence"] == 7][[*col.DTHETA, *col.DV]].iloc[1:51].to_numpy()
+    )
+    with pytest.raises(InputError, match="lacks the columns gyro_x_radps"):
+        ds.WindowDataset(routes, window=10, inputs="rates")
