@@ -41,6 +41,7 @@ import numpy as np
 from imugen import earth
 from imugen.earth import OriginFrame
 from imugen.jit import njit
+from imugen.rotations import quat_mul
 
 # --- state layout (one row per sequence) --------------------------------------------------------
 S_P = 0  # position p_n (3)
@@ -234,59 +235,10 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     dt = prm[K_DT]
     c12 = dt / 12.0
     for s in range(S):
-        (
-            px,
-            py,
-            pz,
-            pcx,
-            pcy,
-            pcz,
-            vx,
-            vy,
-            vz,
-            vcx,
-            vcy,
-            vcz,
-            q0,
-            q1,
-            q2,
-            q3,
-            vpx,
-            vpy,
-            vpz,
-            Gx,
-            Gy,
-            Gz,
-            Gpx,
-            Gpy,
-            Gpz,
-        ) = (
-            st[s, 0],
-            st[s, 1],
-            st[s, 2],
-            st[s, 3],
-            st[s, 4],
-            st[s, 5],
-            st[s, 6],
-            st[s, 7],
-            st[s, 8],
-            st[s, 9],
-            st[s, 10],
-            st[s, 11],
-            st[s, 12],
-            st[s, 13],
-            st[s, 14],
-            st[s, 15],
-            st[s, 16],
-            st[s, 17],
-            st[s, 18],
-            st[s, 19],
-            st[s, 20],
-            st[s, 21],
-            st[s, 22],
-            st[s, 23],
-            st[s, 24],
-        )
+        # fmt: off
+        (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
+         q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz) = st[s, :25]
+        # fmt: on
         qc0, qc1, qc2, qc3 = st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3]
         k = int(st[s, S_K])
         for i in range(N):
@@ -509,59 +461,10 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                     q3,
                     True,
                 )
-        (
-            st[s, 0],
-            st[s, 1],
-            st[s, 2],
-            st[s, 3],
-            st[s, 4],
-            st[s, 5],
-            st[s, 6],
-            st[s, 7],
-            st[s, 8],
-            st[s, 9],
-            st[s, 10],
-            st[s, 11],
-            st[s, 12],
-            st[s, 13],
-            st[s, 14],
-            st[s, 15],
-            st[s, 16],
-            st[s, 17],
-            st[s, 18],
-            st[s, 19],
-            st[s, 20],
-            st[s, 21],
-            st[s, 22],
-            st[s, 23],
-            st[s, 24],
-        ) = (
-            px,
-            py,
-            pz,
-            pcx,
-            pcy,
-            pcz,
-            vx,
-            vy,
-            vz,
-            vcx,
-            vcy,
-            vcz,
-            q0,
-            q1,
-            q2,
-            q3,
-            vpx,
-            vpy,
-            vpz,
-            Gx,
-            Gy,
-            Gz,
-            Gpx,
-            Gpy,
-            Gpz,
-        )
+        # fmt: off
+        st[s, :25] = (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
+                      q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz)
+        # fmt: on
         st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3] = qc0, qc1, qc2, qc3
         st[s, S_K] = k
 
@@ -883,9 +786,9 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
                 V[:, 1] = vk
         p = p + dp
         vp = vk
-        d = _qmul_np(q, _qexpm1_np(dth[:, k]))
+        d = quat_mul(q, _qexpm1_np(dth[:, k]))
         if wgs:
-            d = d + _qmul_np(np.broadcast_to(qW, q.shape), q + d)
+            d = d + quat_mul(np.broadcast_to(qW, q.shape), q + d)
         eps = (
             (np.sum(q * q, axis=1, keepdims=True) - 1.0)
             + 2.0 * np.sum(q * d, axis=1, keepdims=True)
@@ -912,20 +815,3 @@ def _qexpm1_np(phi):
         c = np.where(small, c_ser, -2.0 * np.sin(0.25 * t) ** 2)
         s = np.where(small, s_ser, np.sin(0.5 * t) / t)
     return np.concatenate([c, s * phi], axis=-1)
-
-
-def _qmul_np(a, b):
-    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
-
-
-# --- precise angle increments from sampled attitudes (for truth generators) ---------------------

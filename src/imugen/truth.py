@@ -48,17 +48,13 @@ gravitation integral by 4-node Gauss-Legendre quadrature on the continuous truth
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time as _time
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 import scipy.sparse as sp
 from scipy.interpolate import BSpline, PPoly, make_interp_spline
 from scipy.ndimage import binary_dilation, maximum_filter1d, minimum_filter1d
@@ -70,7 +66,7 @@ from imugen import columns as col
 from imugen import earth as ea
 from imugen import rotations as rot
 from imugen.errors import InputError
-from imugen.io import write_parquet
+from imugen.io import read_meta, write_parquet
 
 K_SPLINE = 5  # quintic
 N_GAUSS = 4  # Gauss-Legendre nodes of the gravitation integral
@@ -1080,18 +1076,8 @@ def _expm1_rot(phi):
 # ------------------------------------------------------------------------------------------
 def read_enu(path) -> tuple[pd.DataFrame, dict]:
     """Read an ENU Parquet written by ``imugen ingest`` (table and metadata)."""
-    path = Path(path)
-    try:
-        tbl = pq.read_table(path)
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except (OSError, pa.ArrowInvalid) as exc:
-        raise InputError(path, f"cannot read as Parquet ({exc})") from None
-    md = tbl.schema.metadata or {}
-    if col.METADATA_KEY not in md:
-        raise InputError(path, "not an imugen ENU table (no imugen metadata)")
-    meta = json.loads(md[col.METADATA_KEY])
-    return tbl.to_pandas(), meta
+    meta = read_meta(path)
+    return pd.read_parquet(path), meta
 
 
 def run(
