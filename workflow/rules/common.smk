@@ -33,6 +33,9 @@ def stage_code(*modules):
     return [str(Path(workflow.basedir) / "src" / "imugen" / f"{m}.py") for m in modules]
 
 
+PRESETS = str(Path(workflow.basedir) / "src" / "imugen" / "data" / "grades.yaml")
+
+
 def is_custom(grade):
     """A grade with a definition in the config (an empty mapping selects the preset)."""
     return bool(config["grades"][grade])

@@ -17,6 +17,7 @@ rule simulate:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
         code=stage_code("simulate", "sensors", "grades", "units"),
+        presets=PRESETS,
     output:
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
         labels="results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
@@ -43,6 +44,7 @@ rule allan_static:
     input:
         grade=grade_files,
         code=stage_code("simulate", "sensors", "grades", "units"),
+        presets=PRESETS,
     output:
         "results/allan/{grade}/static.parquet",
     params:

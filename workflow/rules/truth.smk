@@ -5,6 +5,7 @@ rule truth:
     input:
         enu="results/{route}/enu.parquet",
         code=stage_code("truth", "earth", "rotations", "columns", "grades"),
+        presets=PRESETS,
     output:
         "results/{route}/truth.parquet",
     params:
