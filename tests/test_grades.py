@@ -63,8 +63,16 @@ def test_si_conversion_of_a_preset():
 def test_gm_allan_peak_matches_literature():
     # IEEE Std 952 / El-Sheimy 2008: a GM process' Allan deviation peaks at ~0.618 sigma
     # near tau ~ 1.89 T
-    assert grades.GM_PEAK == pytest.approx(0.618, abs=1e-3)
-    assert grades.GM_PEAK_X == pytest.approx(1.89, abs=0.01)
+    from scipy.optimize import minimize_scalar
+
+    r = minimize_scalar(
+        lambda lx: -grades.gm_avar(np.exp(lx), 1.0, 1.0),
+        bounds=(-1.0, 2.0),
+        method="bounded",
+        options={"xatol": 1e-12},
+    )
+    assert grades.GM_PEAK == pytest.approx(np.sqrt(-r.fun), rel=1e-9)
+    assert grades.GM_PEAK_X == pytest.approx(np.exp(r.x), rel=1e-6)
     # limits of the closed form: RRW for tau << T (K^2 = 2 sigma^2 / T), white for tau >> T
     s, T = 2.0, 50.0
     assert grades.gm_avar(1e-3, s, T) == pytest.approx(2 * s**2 / T * 1e-3 / 3, rel=1e-4)

@@ -147,10 +147,10 @@ def test_edit_one_grade_reruns_only_that_grade(done, tmp_path):
 def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):
     wd = copy_run(done, tmp_path / "wd")
     cfg = copy.deepcopy(TINY)
-    cfg["simulate"]["sequences"] = 6
+    cfg["simulate"]["sequences"] = 5
     write_config(wd, cfg)
     jobs = planned_jobs(wd)
-    # one new shard per route and grade: 2 routes x 3 grades
+    # one new (short) shard per route and grade: 2 routes x 3 grades
     assert jobs == {
         "simulate": 6,
         "navigate": 6,
@@ -160,6 +160,20 @@ def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):
         "export_mat": 6,
         "all": 1,
     }
+
+
+def test_short_last_shard_keeps_sequence_ids_unique(done, tmp_path):
+    wd = copy_run(done, tmp_path / "wd")
+    cfg = copy.deepcopy(TINY)
+    cfg["simulate"]["sequences"] = 5  # shards of 2, 2 and 1
+    write_config(wd, cfg)
+    proc = snakemake(wd, "-j2", "results/paper/metrics/mine.parquet")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    shards = sorted((wd / "results" / "paper" / "imu" / "mine").glob("shard-*[0-9].parquet"))
+    ids = [pd.read_parquet(p, columns=["sequence"]).sequence.unique().tolist() for p in shards]
+    assert ids == [[0, 1], [2, 3], [4]]
+    metrics = pd.read_parquet(wd / "results" / "paper" / "metrics" / "mine.parquet")
+    assert sorted(metrics.sequence) == [0, 1, 2, 3, 4]
 
 
 def test_figure_option_reruns_only_figures(done, tmp_path):

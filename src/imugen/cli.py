@@ -86,6 +86,7 @@ def _cmd_simulate(a) -> int:
         dtype=a.dtype,
         grades_file=a.grades_file,
         static_earth=a.earth,
+        shard_size=a.shard_size,
     )
     print(
         f"{a.output}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
@@ -240,6 +241,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sequences", type=int, required=True, help="sequences in this shard (M)")
     p.add_argument("--seed", type=int, required=True, help="base seed of the experiment")
     p.add_argument("--shard", type=int, required=True, help="shard index K (0-based)")
+    p.add_argument(
+        "--shard-size",
+        type=int,
+        metavar="M",
+        help="sequences per shard of the experiment: global ids are K*M+j (default: "
+        "--sequences; give it for a shorter last shard)",
+    )
     p.add_argument("--static", type=float, metavar="SECONDS", help="simulate a still, level IMU")
     p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate for --static")
     p.add_argument("--earth", choices=["flat", "wgs84"], default="flat", help="for --static")

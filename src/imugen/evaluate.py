@@ -180,11 +180,20 @@ def horizontal_distance_m(truth_path) -> float:
 
 def run(truth, nav_paths, out, *, grade: str) -> Path:
     """Per-sequence metrics of one grade's navigation shards -> Parquet (index ``sequence``)."""
+    from imugen.errors import InputError
     from imugen.io import write_parquet
 
     distance = horizontal_distance_m(truth)
-    frames = [pd.read_parquet(p, columns=["sequence", "time_s", *ERR]) for p in nav_paths]
-    metrics = sequence_metrics(pd.concat(frames, ignore_index=True), distance)
+    # one navigation file at a time (a sequence lives in one shard): memory stays at one
+    # file plus one metrics row per sequence, whatever the number of shards
+    parts = [
+        sequence_metrics(pd.read_parquet(p, columns=["sequence", "time_s", *ERR]), distance)
+        for p in nav_paths
+    ]
+    metrics = pd.concat(parts).sort_index(kind="stable")
+    if not metrics.index.is_unique:
+        dup = metrics.index[metrics.index.duplicated()][0]
+        raise InputError(grade, f"sequence {dup} appears in more than one navigation file")
     meta = {
         "stage": "evaluate",
         "grade": grade,

@@ -159,20 +159,10 @@ def gm_avar(tau, sigma, T):
     return 2.0 * sigma**2 * br / np.where(x > 0, x, np.inf)
 
 
-def _gm_peak() -> tuple[float, float]:
-    from scipy.optimize import minimize_scalar
-
-    r = minimize_scalar(
-        lambda lx: -gm_avar(math.exp(lx), 1.0, 1.0),
-        bounds=(-1.0, 2.0),
-        method="bounded",
-        options={"xatol": 1e-10},
-    )
-    return float(np.sqrt(-r.fun)), float(math.exp(r.x))
-
-
-GM_PEAK, GM_PEAK_X = _gm_peak()
-"""Peak Allan deviation of a unit-sigma GM process (~0.6182) and where it is (tau ~ 1.89 T)."""
+GM_PEAK, GM_PEAK_X = 0.6173642831444415, 1.8926178169666992
+"""Peak Allan deviation of a unit-sigma GM process and where it is (tau = 1.8926 T): the
+maximum of :func:`gm_avar` (constants, so that loading the module does not import
+scipy.optimize; ``tests/test_grades.py`` recomputes them)."""
 
 
 def flicker_taus(band: tuple[float, float], components: int):

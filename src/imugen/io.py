@@ -1,13 +1,15 @@
 """Files written by imugen: atomic outputs, and Parquet tables with JSON metadata.
 
-Every stage writes its outputs under a temporary name in the target directory and renames
-it into place only when complete, so an interrupted job never leaves a truncated file that
-looks done. Metadata (source, units, parameters, code version) travels as JSON under the
+Every stage writes its outputs under a temporary name in the target directory
+(``.NAME.XXXXXXXX.tmp``) and renames it into place only when complete, so an interrupted job
+never leaves a truncated file that looks done; the temporaries a killed job leaves behind are
+removed by the next successful write of the same output. Metadata (source, units, parameters, code version) travels as JSON under the
 Parquet schema metadata key :data:`imugen.columns.METADATA_KEY`.
 """
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import tempfile
@@ -23,19 +25,26 @@ from imugen.columns import METADATA_KEY
 from imugen.errors import InputError
 
 
+def _one_line(exc: OSError) -> str:
+    """The reason of an OS error on one line (Arrow's messages may span several)."""
+    return " ".join(str(exc.strerror or exc).split())
+
+
 @contextmanager
 def atomic_output(out: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``out``; rename it to ``out`` when the block succeeds.
 
     On any failure the temporary file is removed; an OS error (no space, no permission)
-    becomes a one-line :class:`InputError` naming ``out``.
+    becomes a one-line :class:`InputError` naming ``out``. After a success, temporaries of
+    ``out`` left by killed earlier attempts are deleted (one writer per output is assumed, as
+    under Snakemake).
     """
     out = Path(out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     except OSError as exc:
-        raise InputError(out, f"cannot write here ({exc.strerror or exc})") from None
+        raise InputError(out, f"cannot write here ({_one_line(exc)})") from None
     os.close(fd)
     tmp = Path(name)
     try:
@@ -46,10 +55,15 @@ def atomic_output(out: str | Path) -> Iterator[Path]:
         os.replace(tmp, out)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
-        raise InputError(out, f"cannot write ({exc.strerror or exc})") from None
+        raise InputError(out, f"cannot write ({_one_line(exc)})") from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    for stale in out.parent.glob(glob.escape(f".{out.name}.") + "*.tmp"):
+        try:
+            stale.unlink()
+        except OSError:
+            pass
 
 
 def with_meta(table: pa.Table, meta: dict) -> pa.Table:

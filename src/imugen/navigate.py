@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen import __version__
@@ -39,38 +38,69 @@ def frame_from_truthread_meta(meta: dict) -> OriginFrame:
     return OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=meta["earth"])
 
 
-def _sequence_blocks(shard_path: Path, columns: list[str], samples: int, batch: int):
-    """Yield (sequence ids, {column: array (b, samples)}) for complete sequences, in order."""
-    pf = pq.ParquetFile(shard_path)
-    names = [SEQUENCE, *columns]
-    pending: list[pa.RecordBatch] = []
-    have = 0
-    want = samples * batch
+BATCH_BYTES = 64 << 20
+"""Budget of the float64 increment buffers of one batch (both sensors): with the reused
+buffers it bounds a navigate job's memory whatever the shard's size and the IMU rate."""
 
-    def emit(tbl: pa.Table, nseq: int):
-        seq = tbl.column(SEQUENCE).to_numpy().reshape(nseq, samples)
-        if not (seq == seq[:, :1]).all():
-            raise InputError(shard_path, "rows are not grouped by sequence with one row per sample")
-        arrays = {
-            c: tbl.column(c).to_numpy().astype(np.float64).reshape(nseq, samples) for c in columns
-        }
-        return seq[:, 0], arrays
 
-    for rb in pf.iter_batches(batch_size=min(want, 1 << 20), columns=names):
-        pending.append(rb)
-        have += rb.num_rows
-        while have >= want:
-            tbl = pa.Table.from_batches(pending)
-            yield emit(tbl.slice(0, want), batch)
-            rest = tbl.slice(want)
-            pending = rest.to_batches()
-            have = rest.num_rows
-    if have:
-        if have % samples:
-            raise InputError(
-                shard_path, f"holds {have % samples} stray rows: not whole sequences of {samples}"
-            )
-        yield emit(pa.Table.from_batches(pending), have // samples)
+READ_ROWS = 1 << 16
+"""Rows per Parquet record batch read (results do not depend on it)."""
+
+
+def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
+    """Sequences per batch so that two ``(batch, samples, 3)`` float64 buffers fit ``budget``."""
+    return int(max(1, min(256, budget // (2 * 3 * 8 * max(int(samples), 1)))))
+
+
+def _sequence_blocks(shard_path: Path, columns: list[str], samples: int, batch: int, skip: int):
+    """Yield ``(ids (b,), a (b, samples-skip, 3), c (b, samples-skip, 3))`` per batch of sequences.
+
+    ``a`` holds ``columns[:3]`` and ``c`` ``columns[3:]`` as float64, the first ``skip`` rows of
+    each sequence dropped (the zero increment of ``t_0``). The arrays are views into two buffers
+    reused from batch to batch (first-touching fresh memory is slow), filled straight from the
+    Parquet record batches: memory stays at ``2 * batch * samples * 24`` bytes plus one record
+    batch, whatever the shard holds. Each view is valid until the next iteration.
+    """
+    # buffered reads, no pre-buffering of whole row groups, no reader threads: a 250-sequence
+    # shard then streams through ~30 MB instead of ~180 MB, with a fifth of the system time
+    pf = pq.ParquetFile(shard_path, pre_buffer=False, buffer_size=1 << 20)
+    K = int(samples)
+    width = K - skip
+    bufs = (np.empty((batch, width, 3)), np.empty((batch, width, 3)))
+    ids = np.empty(batch, np.int64)
+    n = 0  # complete sequences in the buffers
+    k = 0  # rows received of the current sequence
+    cur = 0
+    for rb in pf.iter_batches(
+        batch_size=READ_ROWS, columns=[SEQUENCE, *columns], use_threads=False
+    ):
+        seq = rb.column(0).to_numpy(zero_copy_only=False)
+        data = [rb.column(i + 1).to_numpy(zero_copy_only=False) for i in range(len(columns))]
+        r, R = 0, len(seq)
+        while r < R:
+            m = min(R - r, K - k)
+            if k == 0:
+                cur = seq[r]
+                ids[n] = cur
+            if not (seq[r : r + m] == cur).all():
+                raise InputError(
+                    shard_path, "rows are not grouped by sequence with one row per sample"
+                )
+            lo = max(k, skip)  # first sample of this run that is stored
+            if lo < k + m:
+                for i, src in enumerate(data):
+                    bufs[i // 3][n, lo - skip : k + m - skip, i % 3] = src[r + lo - k : r + m]
+            k += m
+            r += m
+            if k == K:
+                n, k = n + 1, 0
+                if n == batch:
+                    yield ids[:n], bufs[0][:n], bufs[1][:n]
+                    n = 0
+    if k:
+        raise InputError(shard_path, f"holds {k} stray rows: not whole sequences of {K}")
+    if n:
+        yield ids[:n], bufs[0][:n], bufs[1][:n]
 
 
 def navigate(
@@ -78,9 +108,13 @@ def navigate(
     shard_path,
     *,
     eval_rate_hz: float = 1.0,
-    batch: int = 64,
+    batch: int | None = None,
 ) -> pd.DataFrame:
-    """Mechanize every sequence of a shard and return its errors at the evaluation epochs."""
+    """Mechanize every sequence of a shard and return its errors at the evaluation epochs.
+
+    ``batch`` sequences are mechanized together (default :func:`batch_size`, from a fixed
+    memory budget); the result does not depend on it.
+    """
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     tmeta = read_meta(truth_path)
     smeta = read_meta(shard_path)
@@ -106,12 +140,13 @@ def navigate(
     if n is not None and n != K:
         raise InputError(shard_path, f"has {n} samples per sequence where the truth has {K}")
 
+    if batch is None:
+        batch = batch_size(K)
+    skip = 1 if kind == "increments" else 0
     frames = []
-    for seq_ids, arr in _sequence_blocks(shard_path, columns, K, batch):
-        a = np.stack([arr[c] for c in columns[:3]], axis=-1)
-        b = np.stack([arr[c] for c in columns[3:]], axis=-1)
+    for seq_ids, a, b in _sequence_blocks(shard_path, columns, K, int(batch), skip):
         if kind == "increments":
-            dth, dvb = a[:, 1:], b[:, 1:]
+            dth, dvb = a, b
         else:
             dth, dvb = increments_from_rates(a, b, dt)
         nav = mechanize(dth, dvb, dt, p0, v0, q0, frame, every=every, outputs=("p", "q"))
@@ -137,7 +172,7 @@ def navigate(
     return pd.concat(frames, ignore_index=True)
 
 
-def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int = 64) -> Path:
+def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = None) -> Path:
     """Navigate a shard and write its error table atomically (Parquet with metadata)."""
     out = Path(out)
     df = navigate(truth, shard, eval_rate_hz=eval_rate_hz, batch=batch)

@@ -22,7 +22,8 @@ temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationa
 Output (one shard = one Parquet file + a labels sidecar)
 --------------------------------------------------------
 Rows sorted by ``sequence`` then time, one per (sequence, IMU sample):
-``sequence`` int32 (global id ``shard * M + j``), ``time_s`` float64, then
+``sequence`` int32 (global id ``shard * shard_size + j``, ``shard_size`` the experiment's
+sequences per shard, by default this shard's ``M``), ``time_s`` float64, then
 ``dtheta_{x,y,z}_rad``, ``dv_{x,y,z}_mps`` (``outputs="increments"``, default; row k holds
 the interval ending at ``t_k``, row 0 of each sequence is zero as in the truth table) and/or
 ``gyro_{x,y,z}_radps``, ``accel_{x,y,z}_mps2`` (``outputs="rates"``). Measurements are float32
@@ -472,7 +473,34 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
     return ArrayTruth.read(truth)
 
 
-def _prepare(truth, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file):
+def _first_id(shard: int, M: int, shard_size) -> int:
+    """Global id of the shard's first sequence: ``shard * shard_size`` (default ``M``).
+
+    A shard holds at most ``shard_size`` sequences; only the last shard of an experiment whose
+    N is not a multiple of the shard size is shorter, and it must be given the experiment's
+    shard size, or its ids would repeat those of an earlier shard.
+    """
+    size = M if shard_size is None else _check_int("--shard-size", shard_size, 1)
+    if M > size:
+        raise InputError("--shard-size", f"is {size}, fewer than the {M} sequences of this shard")
+    if shard * size + M - 1 >= 2**31:
+        raise InputError("--shard", "sequence ids (shard * shard_size + j) overflow int32")
+    return shard * size
+
+
+def _prepare(
+    truth,
+    grade,
+    sequences,
+    seed,
+    shard,
+    outputs,
+    draw,
+    terms,
+    temperature,
+    grades_file,
+    shard_size=None,
+):
     grade = get_grade(grade, grades_file)
     M = _check_int("--sequences", sequences, 1)
     seed = _check_int("--seed", seed, 0)
@@ -481,8 +509,7 @@ def _prepare(truth, grade, sequences, seed, shard, outputs, draw, terms, tempera
         raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
     if draw not in DRAWS:
         raise InputError("--draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
-    if shard * M + M - 1 >= 2**31:
-        raise InputError("--shard", "sequence ids (shard * M + j) overflow int32")
+    _first_id(shard, M, shard_size)
     enabled = enabled_terms(grade, terms)
     temp = temperature_profile(temperature)
     nominal = draw == "nominal"
@@ -494,9 +521,12 @@ def _prepare(truth, grade, sequences, seed, shard, outputs, draw, terms, tempera
     return grade, M, seed, shard, enabled, temp, gp, ap
 
 
-def _labels(grade, M, seed, shard, gpar: SensorParams, apar: SensorParams) -> pd.DataFrame:
+def _labels(
+    grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, first=None
+) -> pd.DataFrame:
+    first = shard * M if first is None else first
     d = {
-        SEQUENCE: (shard * M + np.arange(M)).astype(np.int32),
+        SEQUENCE: (first + np.arange(M)).astype(np.int32),
         "shard": np.full(M, shard, np.int32),
         "index": np.arange(M, dtype=np.int32),
         "seed": np.full(M, seed, np.int64),
@@ -649,7 +679,9 @@ def _meta(
     dtype,
     names,
     labels_name=None,
+    first=None,
 ):
+    first = shard * M if first is None else first
     units = {SEQUENCE: "1", col.TIME: "s"}
     for n in names:
         units.update(dict.fromkeys(_COLS[n], _UNITS[n]))
@@ -671,7 +703,7 @@ def _meta(
         "seed": seed,
         "shard": shard,
         "sequences": M,
-        "sequence_ids": [shard * M, shard * M + M - 1],
+        "sequence_ids": [first, first + M - 1],
         "spawn_key": [grade.id, shard],
         "sequence_spawn_key": "(grade_id, shard, index, stream)",
         "streams": STREAMS,
@@ -710,6 +742,7 @@ def simulate(
     static_earth="flat",
     static_origin=DEFAULT_STATIC_ORIGIN,
     grades_file=None,
+    shard_size=None,
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
@@ -734,20 +767,37 @@ def simulate(
         Also return the true slow-bias and scale-factor series.
     static_s, rate_hz, static_earth, static_origin
         Still IMU instead of a truth table.
+    shard_size : int, optional
+        Sequences per shard of the experiment (``>= sequences``): global ids are
+        ``shard * shard_size + j``. Default ``sequences``; give it for a short last shard.
     """
     tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
     grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
         tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
     )
+    first = _first_id(shard, M, shard_size)
     names = _names(outputs, series)
     sink = _MemorySink(M, tr.K, names)
     _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
     gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
     time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
     meta = _meta(
-        grade, tr, M, seed, shard, enabled, outputs, draw, temperature, series, np.float64, names
+        grade,
+        tr,
+        M,
+        seed,
+        shard,
+        enabled,
+        outputs,
+        draw,
+        temperature,
+        series,
+        np.float64,
+        names,
+        first=first,
     )
-    return Shard(time_s, sink.data, _labels(grade, M, seed, shard, gpar, apar), gpar, apar, meta)
+    labels = _labels(grade, M, seed, shard, gpar, apar, first)
+    return Shard(time_s, sink.data, labels, gpar, apar, meta)
 
 
 def labels_path(out_path) -> Path:
@@ -780,6 +830,7 @@ def run(
     grades_file=None,
     static_earth="flat",
     static_origin=DEFAULT_STATIC_ORIGIN,
+    shard_size=None,
 ) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically.
 
@@ -804,6 +855,7 @@ def run(
     grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
         tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
     )
+    first = _first_id(shard, M, shard_size)
     names = _names(outputs, series)
     lab_path = labels_path(out)
     meta = _meta(
@@ -820,6 +872,7 @@ def run(
         dtype,
         names,
         lab_path.name,
+        first,
     )
     meta["preset_sha"] = None
     if grade.origin.startswith("imugen/data/"):
@@ -832,8 +885,8 @@ def run(
         fields += [pa.field(c, ftype) for c in _COLS[n]]
     schema = pa.schema(fields, metadata={col.METADATA_KEY: json.dumps(meta).encode()})
     # shard and labels each go to a temporary name; both are renamed only once both are
-    # complete (labels last: a killed job never leaves a shard without its labels looking done)
-    with atomic_output(lab_path) as tmp_lab, atomic_output(out) as tmp:
+    # complete, the shard last: a shard at its path always has its labels beside it
+    with atomic_output(out) as tmp:
         with pq.ParquetWriter(
             tmp,
             schema,
@@ -841,14 +894,17 @@ def run(
             use_dictionary=[SEQUENCE],
             write_statistics=[SEQUENCE, col.TIME],
         ) as w:
-            sink = _ParquetSink(w, schema, {n: _COLS[n] for n in names}, np.dtype(dtype), shard * M)
+            sink = _ParquetSink(w, schema, {n: _COLS[n] for n in names}, np.dtype(dtype), first)
             _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
             sink.flush()
-        lab = _labels(grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap))
+        lab = _labels(grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap), first)
         lmeta = dict(meta)
         lmeta["format"] = "imugen-shard-labels"
         lmeta["shard_file"] = out.name
-        pq.write_table(with_meta(pa.Table.from_pandas(lab, preserve_index=False), lmeta), tmp_lab)
+        with atomic_output(lab_path) as tmp_lab:
+            pq.write_table(
+                with_meta(pa.Table.from_pandas(lab, preserve_index=False), lmeta), tmp_lab
+            )
     return meta
 
 

@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time as _time
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -813,7 +812,6 @@ def build_truth(
     (DataFrame, dict)
         Truth table (float64) and its metadata.
     """
-    t_start = _time.perf_counter()
     if vehicle not in VEHICLES:
         raise InputError("--vehicle", f"unknown vehicle {vehicle!r}; one of {sorted(VEHICLES)}")
     if earth not in ("flat", "wgs84", "auto"):
@@ -1042,7 +1040,6 @@ def build_truth(
         "relative to the local level at the vehicle; quaternion scalar first; increments on the "
         "row ending their interval (row 0 zeros)",
         "units": {c: col.UNITS[c] for c in col.TRUTH_COLUMNS},
-        "build_seconds": _time.perf_counter() - t_start,
     }
     return df, tmeta
 

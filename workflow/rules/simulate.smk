@@ -25,6 +25,7 @@ rule simulate:
         grade=grade_arg,
         spec=lambda wc: config["grades"][wc.grade],
         sequences=shard_sequences,
+        shard_size=PER_SHARD,
         seed=SIM["seed"],
         draw=SIM["draw"],
         dtype=SIM["dtype"],
@@ -35,8 +36,8 @@ rule simulate:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
         "imugen simulate {input.truth:q} -o {output.shard:q} --grade {params.grade:q} "
-        "--sequences {params.sequences} --seed {params.seed} --shard {params.shard} "
-        "--draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
+        "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
+        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
         "> {log:q} 2>&1"
 
 
