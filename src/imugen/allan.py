@@ -31,8 +31,9 @@ from scipy.optimize import nnls
 from imugen import columns as col
 from imugen import units
 from imugen.errors import InputError
+from imugen.io import read_meta
 from imugen.sensors import avar_bias_instability, avar_quantization, avar_rrw, avar_white
-from imugen.simulate import SEQUENCE, Shard, labels_path, read_meta
+from imugen.simulate import SEQUENCE, Shard, labels_path
 
 QUANTITIES = {
     # key: (sensor, term)

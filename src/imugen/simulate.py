@@ -906,11 +906,3 @@ def run(
                 with_meta(pa.Table.from_pandas(lab, preserve_index=False), lmeta), tmp_lab
             )
     return meta
-
-
-def read_meta(path) -> dict:
-    """The ``b"imugen"`` metadata of a shard (or labels) file."""
-    md = pq.read_schema(path).metadata or {}
-    if col.METADATA_KEY not in md:
-        raise InputError(path, "no imugen metadata (not an imugen shard)")
-    return json.loads(md[col.METADATA_KEY])
