@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import json
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -86,8 +87,8 @@ DEFAULT_STATIC_ORIGIN = (45.0, 0.0, 0.0)
 
 
 # --- truth sources ------------------------------------------------------------------------------
-class Truth:
-    """Ideal IMU signals on a uniform time grid, served in chunks.
+class Truth(ABC):
+    """Ideal IMU signals on a uniform time grid, served in chunks (abstract base).
 
     Attributes
     ----------
@@ -103,9 +104,9 @@ class Truth:
     dt: float
     meta: dict
 
+    @abstractmethod
     def chunk(self, k0: int, L: int):
         """``(time_s (L,), omega_ib_b (L,3), f_b (L,3), dtheta (L,3), dv (L,3))``, float64."""
-        raise NotImplementedError
 
 
 class ArrayTruth(Truth):
