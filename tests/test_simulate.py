@@ -184,3 +184,15 @@ def test_input_errors(tmp_path, kw, match):
     with pytest.raises(InputError, match=match):
         S.run(None, tmp_path / "x.parquet", **args)
     assert not list(tmp_path.iterdir())
+
+
+def test_in_memory_and_written_metadata_agree(tmp_path):
+    """simulate() and run() describe a shard identically (preset checksum included)."""
+    from imugen.io import read_meta
+
+    mem = S.simulate(None, "consumer", sequences=2, seed=3, shard=1, static_s=2.0, rate_hz=10.0)
+    S.run(None, tmp_path / "s.parquet", "consumer", 2, 3, 1, static_s=2.0, rate_hz=10.0)
+    disk = read_meta(tmp_path / "s.parquet")
+    assert mem.meta["preset_sha"] is not None and mem.meta["preset_sha"] == disk["preset_sha"]
+    for key in ("grade", "seed", "shard", "sequence_ids", "spawn_key", "samples_per_sequence"):
+        assert mem.meta[key] == disk[key], key

@@ -39,6 +39,7 @@ parameter (SI units in the column names). Both files carry JSON metadata under `
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from abc import ABC, abstractmethod
@@ -701,6 +702,10 @@ def _meta(
             "config": grade.config,
         },
         "preset_source": grade.origin,
+        # checksum of the shipped presets file when the grade is a preset (None: custom grade)
+        "preset_sha": hashlib.sha256(preset_text().encode()).hexdigest()
+        if grade.origin.startswith("imugen/data/")
+        else None,
         "seed": seed,
         "shard": shard,
         "sequences": M,
@@ -875,11 +880,6 @@ def run(
         lab_path.name,
         first,
     )
-    meta["preset_sha"] = None
-    if grade.origin.startswith("imugen/data/"):
-        import hashlib
-
-        meta["preset_sha"] = hashlib.sha256(preset_text().encode()).hexdigest()
     fields = [pa.field(SEQUENCE, pa.int32()), pa.field(col.TIME, pa.float64())]
     ftype = pa.float32() if dtype == "float32" else pa.float64()
     for n in names:

@@ -452,6 +452,8 @@ def read_kmz(path: Path) -> list[RoutePath]:
                     chunks.append(chunk)
         except InputError:
             raise
+        # zipfile raises NotImplementedError for compression methods it lacks (e.g. deflate64)
+        # and RuntimeError for encrypted members: both are a user's file, not a bug
         except (zipfile.BadZipFile, RuntimeError, NotImplementedError, EOFError, OSError) as exc:
             raise InputError(path, f"KMZ member {member!r} cannot be read ({exc})") from None
         except zlib.error as exc:
