@@ -9,6 +9,8 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from imugen import columns as col
 from imugen import dataset as ds
@@ -82,7 +84,8 @@ def expected_windows(routes, frames, window, stride, keys=None):
 
 # --- splits ------------------------------------------------------------------------------------
 def all_keys(nroutes=20, nseq=500):
-    return [(f"route{r}", s) for r in range(nroutes) for s in range(nseq)]
+    """Keys with globally unique sequence ids, as route-keyed seeds make them."""
+    return [(f"route{r}", 10_000 * r + s) for r in range(nroutes) for s in range(nseq)]
 
 
 def test_split_deterministic_disjoint_and_complete():
@@ -99,19 +102,22 @@ def test_split_deterministic_disjoint_and_complete():
 
 
 def test_split_stable_when_sequences_and_routes_are_added():
-    small = [(r, s) for r, s in all_keys(5, 100)]
+    small = all_keys(5, 100)
     big = all_keys(8, 300)
-    fr = {"train": 0.7, "val": 0.15, "test": 0.15}
+    fr = {"train": 0.5, "val": 0.25, "test": 0.25}
     for by in ("sequence", "route"):
         a = ds.split(small, fr, seed=1, by=by)
         b = ds.split(big, fr, seed=1, by=by)
-        for name in fr:
-            assert set(a[name]) == set(b[name]) & set(small)
-        assert all(ds.assign(r, s, fr, seed=1, by=by) == n for n in a for r, s in a[n])
+        if by == "sequence":  # 500 units: no part empty, no repair
+            for name in fr:
+                assert set(a[name]) == set(b[name]) & set(small)
+        else:  # 5 routes: at most one route borrowed per part the hash left empty
+            moved = {r for name in fr for r, _ in set(a[name]) - set(b[name])}
+            assert len(moved) <= 2
 
 
 def test_split_by_route_keeps_routes_whole():
-    keys = all_keys(40, 30)
+    keys = [(f"route{r}", 1000 * r + s) for r in range(40) for s in range(30)]
     parts = ds.split(keys, seed=0, by="route")
     where = {}
     for name, ks in parts.items():
@@ -124,11 +130,108 @@ def test_split_by_route_keeps_routes_whole():
     assert {n for n, ks in seq_parts.items() if any(r == "route0" for r, _ in ks)} == set(parts)
 
 
-def test_split_rejects_bad_fractions():
-    with pytest.raises(InputError, match="sum to 1"):
-        ds.split([("a", 1)], {"train": 0.8, "test": 0.1})
-    with pytest.raises(InputError, match="by must be"):
-        ds.split([("a", 1)], by="shard")
+def test_split_never_leaves_a_part_empty_with_enough_units():
+    keys = [(f"r{r}", 100 * r + s) for r in range(4) for s in range(5)]
+    for seed in range(200):
+        parts = ds.split(keys, seed=seed, by="route")
+        assert all(parts.values()), seed
+    # a zero fraction stays empty; three sequences fill three parts
+    parts = ds.split(keys, {"train": 0.9, "val": 0.1, "test": 0.0}, seed=3, by="route")
+    assert parts["test"] == [] and parts["val"]
+    parts = ds.split([("a", 0), ("a", 1), ("a", 2)], seed=0)
+    assert sorted(len(v) for v in parts.values()) == [1, 1, 1]
+
+
+def test_split_repair_moves_only_units_of_an_empty_part():
+    # a unit keeps its hash part (the one it has among many units, where no part is empty)
+    # unless it was borrowed to fill an otherwise empty part: at most one unit per part
+    fr = {"train": 0.98, "val": 0.01, "test": 0.01}
+    big_keys = [(f"r{r}", r) for r in range(2000)]
+    big = ds.split(big_keys, fr, seed=0, by="route")
+    hashed = {k: n for n, ks in big.items() for k in ks}
+    for n in range(3, 40):
+        parts = ds.split(big_keys[:n], fr, seed=0, by="route")
+        assert all(parts.values())
+        moved = [k for name, ks in parts.items() for k in ks if hashed[k] != name]
+        empty = sum(not any(hashed[k] == name for k in big_keys[:n]) for name in fr)
+        assert len(moved) == empty
+
+
+def test_split_refuses_too_few_units():
+    with pytest.raises(InputError, match=r"3 non-empty parts .* need at least 3 routes"):
+        ds.split([("a", 0), ("b", 1)], seed=0, by="route")
+    with pytest.raises(InputError, match="need at least 3 sequences"):
+        ds.split([("a", 0), ("a", 1)], seed=0)
+
+
+def test_split_named_routes():
+    keys = [(f"r{r}", 10 * r + s) for r in range(6) for s in range(10)]
+    parts = ds.split(keys, seed=0, by="route", holdout_routes=["r2"], val_routes=["r4", "r5"])
+    assert {r for r, _ in parts["test"]} == {"r2"}
+    assert {r for r, _ in parts["val"]} == {"r4", "r5"}
+    assert {r for r, _ in parts["train"]} == {"r0", "r1", "r3"}
+    # by sequence: the held-out route whole in test, the others cut into train and val
+    parts = ds.split(keys, seed=0, holdout_routes="r2")
+    assert {r for r, _ in parts["test"]} == {"r2"} and len(parts["test"]) == 10
+    assert parts["val"] and {r for r, _ in parts["train"] + parts["val"]} == set(
+        "r0 r1 r3 r4 r5".split()
+    )
+    with pytest.raises(InputError, match="r9 hold no keys"):
+        ds.split(keys, holdout_routes=["r9"])
+    with pytest.raises(InputError, match="given for test and val"):
+        ds.split(keys, holdout_routes=["r1"], val_routes=["r1"])
+    with pytest.raises(InputError, match="not among"):
+        ds.split(keys, {"a": 0.5, "b": 0.5}, holdout_routes=["r1"])
+
+
+def test_split_warns_on_draws_shared_across_routes():
+    keys = [(f"r{r}", s) for r in range(6) for s in range(3)]  # legacy: same ids on every route
+    with pytest.warns(UserWarning, match="share those error draws"):
+        ds.split(keys, seed=0, by="route")
+    parts = ds.split(keys, seed=0, by="sequence")  # ids are the units: a draw stays together
+    assert all(len({s for _, s in v}) == len(v) // 6 for v in parts.values())
+
+
+route_names = st.sampled_from([f"route{i}" for i in range(7)])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    routes=st.lists(route_names, min_size=1, max_size=7, unique=True),
+    nseq=st.integers(1, 6),
+    seed=st.integers(0, 10**6),
+    by=st.sampled_from(["sequence", "route"]),
+    hold=st.booleans(),
+    fr=st.sampled_from(
+        [None, {"train": 0.6, "val": 0.2, "test": 0.2}, {"train": 0.9, "test": 0.1}]
+    ),
+)
+def test_split_properties(routes, nseq, seed, by, hold, fr):
+    # globally unique ids, one per draw (route-keyed seeds)
+    keys = [(r, 100 * i + s) for i, r in enumerate(routes) for s in range(nseq)]
+    holdout = routes[:1] if hold and len(routes) > 1 and (fr is None or "test" in fr) else None
+    names = list(fr or ds.DEFAULT_FRACTIONS)
+    free = [n for n in names if not (holdout and n == "test")]
+    rest = [k for k in keys if not holdout or k[0] not in holdout]
+    units = {k[0] if by == "route" else k[1] for k in rest}
+    if len(units) < len(free):
+        with pytest.raises(InputError, match="need at least"):
+            ds.split(keys, fr, seed=seed, by=by, holdout_routes=holdout)
+        return
+    parts = ds.split(keys, fr, seed=seed, by=by, holdout_routes=holdout)
+    assert list(parts) == names and all(parts.values())
+    assert sorted(k for v in parts.values() for k in v) == sorted(keys)
+    draw_part, route_part = {}, {}
+    for name, ks in parts.items():
+        for r, s in ks:
+            assert draw_part.setdefault(s, name) == name  # no draw in two parts
+            route_part.setdefault(r, set()).add(name)
+    if by == "route" or holdout:
+        for r in holdout or []:
+            assert route_part[r] == {"test"}
+    if by == "route":
+        assert all(len(v) == 1 for v in route_part.values())  # no route in two parts
+    assert parts == ds.split(keys, fr, seed=seed, by=by, holdout_routes=holdout)
 
 
 # --- dataset -----------------------------------------------------------------------------------

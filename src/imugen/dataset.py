@@ -31,14 +31,14 @@ before the cast.
 
 Splits
 ------
-:func:`split` assigns each ``(route, sequence)`` key to a part by hashing
-``(seed, route, sequence)`` (``by="sequence"``) or ``(seed, route)`` (``by="route"``) to a
-number in ``[0, 1)`` and cutting ``[0, 1)`` by the fractions. The assignment of a key depends
-on nothing else, so it is deterministic, never changes when sequences, shards or routes are
-added, and whole sequences (or whole routes) land in one part: no window crosses a split.
-The same sequence id of another grade (another noise realization of the same truth) goes to
-the same part. With ``by="sequence"`` all parts share the routes' trajectories; use
-``by="route"`` to test generalization to unseen trajectories.
+:func:`split` assigns each ``(route, sequence)`` key to a part by hashing its unit (the
+sequence id, globally unique, with ``by="sequence"``; the route with ``by="route"``) with the
+seed to a number in ``[0, 1)`` and cutting ``[0, 1)`` by the fractions; a part the cut leaves
+empty borrows the nearest unit (see :func:`split`), and too few units for the parts is refused.
+``holdout_routes`` (test) and ``val_routes`` name whole routes. Whole sequences (or routes) land
+in one part: no window and no error draw crosses a split, and adding units never moves existing
+ones (except the at most one borrowed per otherwise empty part). With ``by="sequence"`` all parts
+share the routes' trajectories; hold routes out to test generalization to unseen trajectories.
 
 Example
 -------
@@ -71,6 +71,7 @@ and cache, so ``num_workers > 0`` works.
 from __future__ import annotations
 
 import hashlib
+import warnings
 from collections import OrderedDict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -132,9 +133,9 @@ def find_routes(results_dir, grade: str | Iterable[str]) -> list[RouteFiles]:
 
 
 # --- splits ------------------------------------------------------------------------------------
-def _unit(seed, route, sequence) -> float:
-    """A uniform number in [0, 1) from the key (SHA-256; stable across runs and platforms)."""
-    h = hashlib.sha256(f"imugen-split\0{seed}\0{route}\0{sequence}".encode()).digest()
+def _unit_hash(seed, unit) -> float:
+    """A uniform number in [0, 1) from a split unit (SHA-256; stable across runs and platforms)."""
+    h = hashlib.sha256(f"imugen-split\0{seed}\0{unit}".encode()).digest()
     return int.from_bytes(h[:8], "big") / 2.0**64
 
 
@@ -146,23 +147,67 @@ def _check_fractions(fractions) -> dict[str, float]:
     return fr
 
 
-def assign(route: str, sequence: int, fractions=None, *, seed=0, by="sequence") -> str:
-    """The part (e.g. ``"train"``) of one ``(route, sequence)`` key; see :func:`split`."""
-    fr = _check_fractions(fractions)
-    if by not in ("sequence", "route"):
-        raise InputError("split", f"by must be 'sequence' or 'route', got {by!r}")
-    u = _unit(seed, route, int(sequence) if by == "sequence" else "*")
-    acc = 0.0
-    name = None
-    for name, f in fr.items():
-        acc += f
-        if u < acc:
-            return name
-    return name  # u within rounding of 1
+def _cut(units: list, fr: dict[str, float], seed, what: str) -> dict:
+    """Unit -> part: hash cut of [0, 1), then the repair that leaves no wanted part empty."""
+    names = list(fr)
+    total = sum(fr.values())
+    edges = np.cumsum([fr[n] / total for n in names]) if total > 0 else np.zeros(len(names))
+    lo = np.concatenate([[0.0], edges[:-1]])
+    wanted = [n for n in names if fr[n] > 0]
+    if units and len(units) < len(wanted):
+        raise InputError(
+            "split",
+            f"{len(wanted)} non-empty parts ({', '.join(wanted)}) need at least {len(wanted)} "
+            f"{what}s; the keys hold {len(units)}: name the routes of a part "
+            "(holdout_routes, val_routes) or give the parts fewer non-zero fractions",
+        )
+    u = {x: _unit_hash(seed, x) for x in units}
+    part = {}
+    for x, ux in u.items():
+        i = min(int(np.searchsorted(edges, ux, "right")), len(names) - 1)
+        while fr[names[i]] == 0:  # u on an edge of an empty interval (rounding)
+            i -= 1
+        part[x] = names[i]
+    if not units:
+        return part
+    count = {n: 0 for n in names}
+    for n in part.values():
+        count[n] += 1
+    for i, n in enumerate(names):
+        if fr[n] == 0 or count[n]:
+            continue
+        # borrow the unit nearest to this part's interval from a part that keeps one
+        a, b = lo[i], edges[i]
+        best = min(
+            (x for x in units if count[part[x]] > 1),
+            key=lambda x: (max(a - u[x], u[x] - b, 0.0), u[x]),
+        )
+        count[part[best]] -= 1
+        part[best] = n
+        count[n] = 1
+    return part
 
 
-def split(keys, fractions: Mapping[str, float] | None = None, *, seed=0, by="sequence"):
+def split(
+    keys,
+    fractions: Mapping[str, float] | None = None,
+    *,
+    seed=0,
+    by: str = "sequence",
+    holdout_routes: Iterable[str] | None = None,
+    val_routes: Iterable[str] | None = None,
+) -> dict[str, list[tuple[str, int]]]:
     """Assign ``(route, sequence)`` keys to parts, deterministically and leakage-free.
+
+    Each unit (a sequence id with ``by="sequence"``, a route name with ``by="route"``) is
+    hashed with ``seed`` to ``u`` in ``[0, 1)``, and ``[0, 1)`` is cut by the fractions. Sequence
+    ids are globally unique (one id = one error draw, whatever the route), so a draw never
+    lands in two parts; ids repeated across routes (shards simulated before route-keyed
+    seeds, which share draws) are one unit and stay together. A unit's part depends only on
+    ``(seed, unit)``, except for the repair: a part with a non-zero fraction that the cut left
+    empty borrows the one unit nearest to its interval from a part holding more than one.
+    Repairs happen only while a part would be empty, and stop once the hash fills it, so adding
+    units moves at most one unit per repaired part.
 
     Parameters
     ----------
@@ -174,16 +219,64 @@ def split(keys, fractions: Mapping[str, float] | None = None, *, seed=0, by="seq
         Changes the assignment.
     by : {"sequence", "route"}
         Hash each sequence, or each route (every sequence of a route in one part).
+    holdout_routes, val_routes : iterable of str, optional
+        Routes that form the ``"test"`` (``"val"``) part exactly, whole; the other routes are cut
+        among the remaining parts by their renormalized fractions.
 
     Returns
     -------
     dict
-        ``{name: [keys in input order]}`` for every part (possibly empty).
+        ``{name: [keys in input order]}`` for every part.
+
+    Raises
+    ------
+    InputError
+        Bad fractions or routes, or fewer units than parts with a non-zero fraction.
     """
     fr = _check_fractions(fractions)
+    if by not in ("sequence", "route"):
+        raise InputError("split", f"by must be 'sequence' or 'route', got {by!r}")
+    keys = [(str(r), int(s)) for r, s in keys]
+    present = {r for r, _ in keys}
+    fixed: dict[str, str] = {}
+    for name, given in (("test", holdout_routes), ("val", val_routes)):
+        if given is None:
+            continue
+        given = [given] if isinstance(given, str) else [str(r) for r in given]
+        if name not in fr:
+            raise InputError(
+                "split", f"routes given for part {name!r}, which is not among {list(fr)}"
+            )
+        unknown = sorted(set(given) - present)
+        if unknown:
+            raise InputError("split", f"{name} route(s) {', '.join(unknown)} hold no keys")
+        twice = sorted(r for r in given if fixed.get(r, name) != name)
+        if twice:
+            raise InputError("split", f"route(s) {', '.join(twice)} given for test and val")
+        fixed.update(dict.fromkeys(given, name))
+    free = {n: (0.0 if n in fixed.values() else f) for n, f in fr.items()}
+    rest = [k for k in keys if k[0] not in fixed]
+    if rest and sum(free.values()) == 0:
+        raise InputError(
+            "split", "every part with a fraction is named by routes; the other routes have none"
+        )
+    unit = (lambda k: k[0]) if by == "route" else (lambda k: k[1])
+    units = sorted({unit(k) for k in rest})
+    part = _cut(units, free, seed, by)
     out = {name: [] for name in fr}
-    for route, seq in keys:
-        out[assign(route, seq, fr, seed=seed, by=by)].append((route, int(seq)))
+    where: dict[int, set] = {}
+    for k in keys:
+        name = fixed[k[0]] if k[0] in fixed else part[unit(k)]
+        out[name].append(k)
+        where.setdefault(k[1], set()).add(name)
+    shared = sum(len(v) > 1 for v in where.values())
+    if shared:
+        warnings.warn(
+            f"split: {shared} sequence id(s) appear in two parts under different routes; shards "
+            "simulated before route-keyed seeds share those error draws across routes "
+            "(re-simulate for independent draws)",
+            stacklevel=2,
+        )
     return out
 
 
