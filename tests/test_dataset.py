@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pickle
-from collections import Counter
 
 import numpy as np
 import pandas as pd
@@ -58,8 +57,10 @@ def make_results(
                 row_group_size=rows_per_group,
                 write_statistics=statistics,
             )
+            lab = pd.DataFrame({"sequence": ids.astype(np.int32)})
+            lab["lab_a"], lab["lab_b"] = ids * 1.5, -ids.astype(float)
             write_parquet(
-                df[["sequence"]].drop_duplicates(),
+                lab,
                 {},
                 p.with_name(f"shard-{sh:03d}.labels.parquet"),
             )
@@ -315,62 +316,84 @@ def test_keys_select_whole_sequences(results):
     assert all(len(v) == 1 for v in seen.values())
 
 
-def test_reads_only_the_row_groups_of_the_window(results, monkeypatch):
+def test_shard_cache_built_once_and_rebuilt_when_the_shard_changes(results, monkeypatch):
     root, _ = results
     routes = ds.find_routes(root, "consumer")
-    d = ds.WindowDataset(routes, window=10, stride=10)
+    ds.WindowDataset(routes, window=10)
+    caches = sorted((root / "alpha" / "imu" / "consumer" / ds.CACHE_DIR).glob("*.npy"))
+    assert len(caches) == 2  # one per shard, for the input columns
     reads = []
-    orig = pq.ParquetFile.read_row_group
+    orig = pq.ParquetFile.iter_batches
 
-    def counting(self, i, *args, **kwargs):
-        reads.append((self.metadata.num_rows, i))
-        return orig(self, i, *args, **kwargs)
+    def counting(self, *args, **kwargs):
+        reads.append(self.metadata.num_rows)
+        return orig(self, *args, **kwargs)
 
-    def forbidden(*args, **kwargs):
-        raise AssertionError("a whole file was read")
-
-    monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
-    monkeypatch.setattr(pq.ParquetFile, "read", forbidden)
-    monkeypatch.setattr(pq, "read_table", forbidden)
-    # sequence 4 of alpha = shard 1, j = 1: shard rows 101..201; window rows 1+10*3 = 31..40
-    i = [j for j in range(len(d)) if d.window_info(j)["sequence"] == 4][3]
-    info = d.window_info(i)
-    assert (info["route"], info["start"]) == ("alpha", 31)
-    d[i]
-    # shard rows 132..141 -> row group 3 (120..159); truth rows 31..40 -> groups 0 and 1
-    assert Counter(reads) == Counter({(M * K, 3): 1, (K, 0): 1, (K, 1): 1})
-    d[i]
-    d[i + 1]  # shard rows 142..151, truth rows 41..50: all cached
-    assert len(reads) == 3
-    d[i + 2]  # shard rows 152..161 straddle groups 3 and 4: one new read
-    assert Counter(reads) == Counter({(M * K, 3): 1, (M * K, 4): 1, (K, 0): 1, (K, 1): 1})
+    monkeypatch.setattr(pq.ParquetFile, "iter_batches", counting)
+    d = ds.WindowDataset(routes, window=10)
+    assert reads == []  # warm: no Parquet decoded
+    shard = routes[0].shards[0]
+    df = pd.read_parquet(shard)
+    df[col.DTHETA[0]] = 7.0
+    write_parquet(df, {"grade": {"name": "consumer"}}, shard)
+    d = ds.WindowDataset(routes, window=10)
+    assert reads == [M * K]  # the rewritten shard only, and its stale cache is gone
+    assert len(list(caches[0].parent.glob("*.npy"))) == 2
+    assert (d[0][0][:, 0] == 7.0).all()
+    # another column group has its own cache beside
+    ds.WindowDataset(routes, window=10, target="bias")
+    assert len(list(caches[0].parent.glob("*.npy"))) == 4
 
 
-def test_cache_is_bounded(results):
+@pytest.mark.parametrize("target", ["increments", "bias", "delta_vel_pos", "lab_b"])
+def test_batches_in_memory_and_from_disk_equal_the_items(results, target, tmp_path):
     root, _ = results
-    d = ds.WindowDataset(ds.find_routes(root, "consumer"), window=10, cache_mb=0.002)
+    routes = ds.find_routes(root, "consumer")
+    keys = ds.sequence_keys(routes)[::2]
+    kw = {"window": 20, "stride": 7, "keys": keys, "target": target, "cache_dir": tmp_path / "c"}
+    disk = ds.WindowDataset(routes, **kw)
+    mem = ds.WindowDataset(routes, in_memory=True, **kw)
+    assert len(disk) == len(mem) > 0
+    batches = disk.batches(16, seed=5)
+    assert np.array_equal(np.sort(np.concatenate(batches)), np.arange(len(disk)))
+    assert [len(b) for b in disk.batches(16, seed=5, drop_last=True)] == [16] * (len(disk) // 16)
+    assert all(np.array_equal(a, b) for a, b in zip(batches, disk.batches(16, seed=5), strict=True))
+    # batches mix sequences: the first batch draws from many of them
+    info = [disk.window_info(i) for i in batches[0]]
+    assert len({(w["route"], w["sequence"]) for w in info}) >= 4  # of 6
+    for idx in batches[:3]:
+        xd, yd = disk[idx]
+        xm, ym = mem.get_batch(idx)
+        assert xd.shape == (len(idx), 20, 6) and xd.dtype == np.float32
+        np.testing.assert_array_equal(xd, xm)
+        np.testing.assert_array_equal(yd, ym)
+        for j, i in enumerate(idx):
+            x1, y1 = disk[int(i)]
+            np.testing.assert_array_equal(x1, xd[j])
+            np.testing.assert_array_equal(y1, yd[j])
+
+
+def test_label_target_is_the_sequence_scalar(tmp_path):
+    frames = make_results(tmp_path, routes=("gamma",), shards=(0, 1))
+    routes = ds.find_routes(tmp_path, "consumer")
+    d = ds.WindowDataset(routes, window=50, stride=25, target=["lab_a", "lab_b"], dtype=np.float64)
     for i in range(len(d)):
-        d[i]
-        assert d._cached <= max(2048, max(a.nbytes for a in d._cache.values()))
+        sid = d.window_info(i)["sequence"]
+        np.testing.assert_array_equal(d[i][1], [sid * 1.5, -sid])
+    assert frames
+    with pytest.raises(InputError, match="no label column"):
+        ds.WindowDataset(routes, window=50, target="nope")
 
 
-def test_pickles_without_files_and_local_shuffle(results):
+def test_pickles_without_the_maps(results):
     root, _ = results
     d = ds.WindowDataset(ds.find_routes(root, "consumer"), window=30, stride=15)
-    d[0]
-    e = pickle.loads(pickle.dumps(d))
-    assert len(e._cache) == 0
+    blob = pickle.dumps(d)
+    assert len(blob) < 20_000  # the memory maps are reopened, not copied
+    e = pickle.loads(blob)
     for i in (0, 5, len(d) - 1):
         np.testing.assert_array_equal(d[i][0], e[i][0])
         np.testing.assert_array_equal(d[i][1], e[i][1])
-    order = d.local_shuffle(seed=1, block=2)
-    assert sorted(order) == list(range(len(d))) and order != list(range(len(d)))
-    assert order == d.local_shuffle(seed=1, block=2)
-    # each block of 2 sequences (6 windows each) is contiguous in the order
-    nw = len(d) // (4 * M)
-    assert nw == 5  # k0 = 1, 16, 31, 46, 61
-    blocks = [{j // (2 * nw) for j in order[b : b + 2 * nw]} for b in range(0, len(d), 2 * nw)]
-    assert all(len(b) == 1 for b in blocks)
 
 
 def test_without_statistics_and_missing_columns(tmp_path):
