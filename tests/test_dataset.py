@@ -47,7 +47,7 @@ def make_results(
                     col.TIME: np.tile(truth[col.TIME].to_numpy(), M),
                 }
             )
-            for c in [*col.DTHETA, *col.DV, *BIAS]:
+            for c in [*col.DTHETA, *col.DV, *BIAS, *ds.EFFECTIVE_ERROR["increments"]]:
                 df[c] = rng.standard_normal(M * K).astype(np.float32)
             p = tmp / r / "imu" / grade / f"shard-{sh:03d}.parquet"
             write_parquet(
@@ -285,6 +285,7 @@ def test_delta_and_bias_targets(results):
     routes = ds.find_routes(root, "consumer")
     dv = ds.WindowDataset(routes, window=25, stride=20, target="delta_vel_pos", dtype=np.float64)
     db = ds.WindowDataset(routes, window=25, stride=20, target="bias")
+    de = ds.WindowDataset(routes, window=25, stride=20, target="effective_error")
     assert len(dv) == len(db) == 4 * M * 4  # k0 = 1, 21, 41, 61
     for i in range(len(dv)):
         info = dv.window_info(i)
@@ -296,6 +297,9 @@ def test_delta_and_bias_targets(results):
         _, b = db[i]
         rows = shard[shard["sequence"] == info["sequence"]].iloc[k0:k1]
         np.testing.assert_array_equal(b, rows[BIAS].to_numpy())
+        x, err = de[i]
+        np.testing.assert_array_equal(err, rows[list(ds.EFFECTIVE_ERROR["increments"])])
+        np.testing.assert_array_equal(x, rows[[*col.DTHETA, *col.DV]])
 
 
 def test_keys_select_whole_sequences(results):
@@ -345,7 +349,9 @@ def test_shard_cache_built_once_and_rebuilt_when_the_shard_changes(results, monk
     assert len(list(caches[0].parent.glob("*.npy"))) == 4
 
 
-@pytest.mark.parametrize("target", ["increments", "bias", "delta_vel_pos", "lab_b"])
+@pytest.mark.parametrize(
+    "target", ["increments", "effective_error", "bias", "delta_vel_pos", "lab_b"]
+)
 def test_batches_in_memory_and_from_disk_equal_the_items(results, target, tmp_path):
     root, _ = results
     routes = ds.find_routes(root, "consumer")
