@@ -110,10 +110,23 @@ def _cmd_navigate(a) -> int:
     return 0
 
 
+def _seconds_list(text: str) -> list[float]:
+    """``"30,60,120"`` -> ``[30.0, 60.0, 120.0]`` (argparse type of ``--segments``)."""
+    try:
+        out = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not a comma-separated list of seconds: {text!r}"
+        ) from None
+    if not out or any(not x > 0 for x in out):
+        raise argparse.ArgumentTypeError(f"need durations > 0 s, got {text!r}")
+    return out
+
+
 def _cmd_evaluate(a) -> int:
     from imugen.evaluate import run
 
-    run(a.truth, a.nav, a.output, grade=a.grade)
+    run(a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu)
     return 0
 
 
@@ -272,6 +285,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("nav", nargs="+", help="navigation-error Parquet files of the grade")
     p.add_argument("-o", "--output", required=True, help="per-sequence metrics Parquet")
     p.add_argument("--grade", required=True, help="grade name (recorded in the output)")
+    p.add_argument(
+        "--segments",
+        type=_seconds_list,
+        default=[],
+        metavar="T,T,...",
+        help="relative drift after T seconds from true starts (needs --imu), e.g. 30,60,120",
+    )
+    p.add_argument("--imu", nargs="+", default=[], help="IMU shards of the grade (for --segments)")
     p.set_defaults(func=_cmd_evaluate)
 
     p = sub.add_parser("tables", help="per-grade metrics -> RMSE table (CSV, MD, TeX, HTML)")
