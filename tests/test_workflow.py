@@ -235,3 +235,38 @@ def test_lint_only_the_documented_conda_lint(tmp_path):
     lints = re.findall(r"^\s+\* (.+?):$", text, flags=re.M)
     assert lints, text[-2000:]
     assert set(lints) == {"Specify a conda environment or container for each rule."}
+
+
+def dry_run_outputs(workdir, *args) -> list[str]:
+    """Output paths of every job a dry run schedules."""
+    proc = snakemake(workdir, "-n", "-j1", *args)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = re.findall(r"^\s+output: (.+)$", proc.stdout + proc.stderr, flags=re.M)
+    return [p for line in lines for p in line.split(", ")]
+
+
+def test_configfile_replaces_the_shipped_routes_and_grades(tmp_path):
+    # a working directory like the repository: the shipped config/ and resources/
+    (tmp_path / "config").symlink_to(REPO / "config")
+    (tmp_path / "resources").symlink_to(REPO / "resources")
+    shipped = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    paper = yaml.safe_load((REPO / "config" / "paper.yaml").read_text())
+    outs = dry_run_outputs(tmp_path, "--configfile", str(tmp_path / "config" / "paper.yaml"))
+    routes = {p.split("/")[1] for p in outs if p.startswith("results/") and "allan" not in p}
+    assert routes == set(paper["routes"]) and "example" not in routes
+    nav = [p for p in outs if "/nav/" in p]
+    shards = paper["simulate"]["sequences"] // paper["simulate"]["sequences_per_shard"]
+    assert len(nav) == len(paper["grades"]) * shards
+    # a user's file naming other grades: only those, and the shipped value of every other key
+    mine = {"routes": paper["routes"], "grades": {"tactical": {}}}
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump(mine))
+    outs = dry_run_outputs(tmp_path, "--configfile", str(tmp_path / "mine.yaml"))
+    grades = {p.split("/")[3] for p in outs if re.match(r"results/\w+/(imu|nav)/", p)}
+    assert grades == {"tactical"} and not any("example" in p or "consumer" in p for p in outs)
+    sim = shipped["simulate"]
+    nav = [p for p in outs if "/nav/" in p]
+    assert len(nav) == sim["sequences"] // sim["sequences_per_shard"]
+    # without --configfile, the shipped example as before
+    outs = dry_run_outputs(tmp_path)
+    assert {p.split("/")[1] for p in outs if "/nav/" in p} == set(shipped["routes"])
+    assert {p.split("/")[3] for p in outs if "/nav/" in p} == set(shipped["grades"])
