@@ -453,9 +453,9 @@ def test_errors_are_input_errors():
 
 
 def test_run_writes_parquet_atomically(tmp_path):
-    from imugen.tables import enu as tenu
-
     import pyarrow.parquet as pq
+
+    from imugen.tables import enu as tenu
 
     df, meta = truth.enu_table(POLY, None, ORIGIN)
     enu_path = tmp_path / "enu.parquet"
