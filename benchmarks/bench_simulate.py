@@ -29,6 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen import simulate as S
+from imugen.tables import shard as tshard
 
 
 class _Null:
@@ -152,7 +153,7 @@ def main():
             f"{size / 1e9:.2f} GB, peak RSS {rss_mb():.0f} MB"
         )
         out.unlink()
-        S.labels_path(out).unlink()
+        tshard.labels_path(out).unlink()
     res["parquet"] = parquet_rates()
     for k, v in res["parquet"].items():
         print(f"parquet {k:28s} {v['MB_per_s']:7.0f} MB/s  size/raw {v['file_over_raw']:.3f}")

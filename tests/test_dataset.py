@@ -327,13 +327,13 @@ def test_shard_cache_built_once_and_rebuilt_when_the_shard_changes(results, monk
     caches = sorted((root / "alpha" / "imu" / "consumer" / ds.CACHE_DIR).glob("*.npy"))
     assert len(caches) == 2  # one per shard, for the input columns
     reads = []
-    orig = pq.ParquetFile.iter_batches
+    orig = pq.ParquetFile.read_row_group
 
     def counting(self, *args, **kwargs):
         reads.append(self.metadata.num_rows)
         return orig(self, *args, **kwargs)
 
-    monkeypatch.setattr(pq.ParquetFile, "iter_batches", counting)
+    monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
     d = ds.WindowDataset(routes, window=10)
     assert reads == []  # warm: no Parquet decoded
     shard = routes[0].shards[0]
@@ -341,7 +341,8 @@ def test_shard_cache_built_once_and_rebuilt_when_the_shard_changes(results, monk
     df[col.DTHETA[0]] = 7.0
     write_parquet(df, {"grade": {"name": "consumer"}}, shard)
     d = ds.WindowDataset(routes, window=10)
-    assert reads == [M * K]  # the rewritten shard only, and its stale cache is gone
+    # the rewritten shard only (one row group), and its stale cache is gone
+    assert reads == [M * K]
     assert len(list(caches[0].parent.glob("*.npy"))) == 2
     assert (d[0][0][:, 0] == 7.0).all()
     # another column group has its own cache beside

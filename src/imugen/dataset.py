@@ -85,22 +85,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 
-from imugen import columns as col
 from imugen.errors import InputError
 from imugen.jit import njit
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+from imugen.tables.shard import BIAS, EFFECTIVE_ERROR, SEQUENCE
 
-SEQUENCE = "sequence"
-INPUTS = {"increments": (*col.DTHETA, *col.DV), "rates": (*col.GYRO, *col.ACCEL)}
-BIAS = (*(f"gyro_bias_{a}_radps" for a in "xyz"), *(f"accel_bias_{a}_mps2" for a in "xyz"))
-EFFECTIVE_ERROR = {
-    "increments": (
-        *(f"err_dtheta_{a}_rad" for a in "xyz"),
-        *(f"err_dv_{a}_mps" for a in "xyz"),
-    ),
-    "rates": (*(f"err_gyro_{a}_radps" for a in "xyz"), *(f"err_accel_{a}_mps2" for a in "xyz")),
-}
+INPUTS = {"increments": tshard.INCREMENTS, "rates": tshard.RATES}
 TARGETS = ("increments", "effective_error", "bias", "delta_vel_pos")
 CACHE_DIR = ".imugen-cache"
 CACHE_FORMAT = 1  # bump when the cache layout changes
@@ -298,59 +290,16 @@ def split(
 
 
 # --- file index --------------------------------------------------------------------------------
-def _row_starts(md) -> np.ndarray:
-    return np.concatenate(
-        [[0], np.cumsum([md.row_group(g).num_rows for g in range(md.num_row_groups)])]
-    )
-
-
 def _shard_sequence_ids(path: Path, K: int) -> np.ndarray:
-    """Sequence ids of a shard in row order, from the footer statistics when they suffice.
-
-    Rows are sorted by sequence then time with exactly ``K`` rows per sequence; the ids are
-    contiguous when every row group's min/max statistics say so, else the ``sequence`` column
-    is read once.
-    """
-    md = pq.ParquetFile(path).metadata
-    n = md.num_rows
-    if n % K:
-        raise InputError(path, f"holds {n} rows: not whole sequences of {K} samples")
-    nseq = n // K
-    if nseq == 0:
-        return np.zeros(0, np.int64)
-    try:
-        ci = md.schema.to_arrow_schema().get_field_index(SEQUENCE)
-    except KeyError:
-        ci = -1
-    if ci < 0:
-        raise InputError(path, "has no 'sequence' column")
-    starts = _row_starts(md)
-    ok = True
-    first = None
-    for g in range(md.num_row_groups):
-        st = md.row_group(g).column(ci).statistics
-        if st is None or not st.has_min_max:
-            ok = False
-            break
-        if first is None:
-            first = int(st.min)
-        a, b = starts[g], starts[g + 1]
-        if b > a and (st.min != first + a // K or st.max != first + (b - 1) // K):
-            ok = False
-            break
-    if ok:
-        return first + np.arange(nseq, dtype=np.int64)
-    seq = pq.read_table(path, columns=[SEQUENCE]).column(SEQUENCE).to_numpy().reshape(nseq, K)
-    if not (seq == seq[:, :1]).all() or np.any(np.diff(seq[:, 0]) <= 0):
-        raise InputError(path, f"rows are not grouped by sequence with {K} rows each")
-    return seq[:, 0].astype(np.int64)
+    """Sequence ids of a shard in row order (``K`` rows per sequence), from its metadata."""
+    return tshard.stored_ids(path, K, tshard.read_meta(path))
 
 
 def sequence_keys(routes: Iterable[RouteFiles]) -> list[tuple[str, int]]:
     """All distinct ``(route, sequence)`` keys of ``routes`` (footers only), sorted."""
     keys = set()
     for r in routes:
-        K = pq.ParquetFile(r.truth).metadata.num_rows
+        K = ttruth.samples(r.truth)
         for p in r.shards:
             keys.update((r.name, int(s)) for s in _shard_sequence_ids(Path(p), K))
     return sorted(keys)
@@ -365,10 +314,10 @@ def _cache_path(path: Path, columns, dtype, cache_dir) -> Path:
     return root / f"{path.stem}.{group[:12]}.{key[:12]}.npy"
 
 
-def shard_cache(path, columns, dtype=np.float32, cache_dir=None) -> np.ndarray:
-    """``columns`` of a Parquet file as a ``(rows, len(columns))`` memory-mapped array.
+def shard_cache(path, columns, samples: int, dtype=np.float32, cache_dir=None) -> np.ndarray:
+    """``columns`` of a shard as a ``(rows, len(columns))`` memory-mapped array.
 
-    Converted once, streaming record batches into ``.npy`` (in ``cache_dir``, default
+    ``samples`` rows per sequence. Converted once, streaming sequences into ``.npy`` (in ``cache_dir``, default
     ``.imugen-cache/`` beside the file), named ``STEM.COLUMNS.KEY.npy`` with ``KEY`` from the
     file's size and modification time: a rewritten shard gets a new cache and the stale one of
     the same columns is deleted. Written under a temporary name and renamed, so a reader never
@@ -379,7 +328,7 @@ def shard_cache(path, columns, dtype=np.float32, cache_dir=None) -> np.ndarray:
     dtype = np.dtype(dtype)
     out = _cache_path(path, columns, dtype, cache_dir)
     if not out.exists():
-        pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+        K = int(samples)
         try:
             out.parent.mkdir(parents=True, exist_ok=True)
             fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
@@ -387,13 +336,10 @@ def shard_cache(path, columns, dtype=np.float32, cache_dir=None) -> np.ndarray:
             raise InputError(out.parent, f"cannot write the loader cache here ({exc})") from None
         os.close(fd)
         try:
-            shape = (pf.metadata.num_rows, len(columns))
+            shape = (tshard.rows(path), len(columns))
             mm = np.lib.format.open_memmap(name, mode="w+", dtype=dtype, shape=shape)
-            r = 0
-            for rb in pf.iter_batches(batch_size=1 << 16, columns=list(columns), use_threads=False):
-                for i in range(len(columns)):
-                    mm[r : r + rb.num_rows, i] = rb.column(i).to_numpy(zero_copy_only=False)
-                r += rb.num_rows
+            for j, (_, block) in enumerate(tshard.iter_sequences(path, list(columns), K, dtype)):
+                mm[j * K : (j + 1) * K] = block.T
             mm.flush()
             del mm
             os.replace(name, out)
@@ -468,16 +414,19 @@ class WindowDataset:
         self.y_cols = {"bias": list(BIAS), "effective_error": list(EFFECTIVE_ERROR[inputs])}.get(
             self.target, []
         )
-        truth_cols = {"increments": [*col.DTHETA, *col.DV], "delta_vel_pos": [*col.VEL, *col.POS]}
+        truth_cols = {
+            "increments": [*ttruth.DTHETA, *ttruth.DV],
+            "delta_vel_pos": [*ttruth.VEL, *ttruth.POS],
+        }
         wanted = None if keys is None else {(str(r), int(s)) for r, s in keys}
 
         self.files: list[Path] = []
-        truths, toff, lab = [], [0], []
+        truths, toff, lab, file_k = [], [0], [], []
         ent_file, ent_row, ent_seq, ent_route, ent_k, nwin = [], [], [], [], [], []
         for ri, r in enumerate(self.routes):
-            K = pq.ParquetFile(r.truth).metadata.num_rows
+            K = ttruth.samples(r.truth)
             if self.target in truth_cols:
-                t = pq.read_table(r.truth, columns=truth_cols[self.target])
+                t = ttruth.read_arrow(r.truth, columns=truth_cols[self.target])
                 truths.append(np.column_stack([c.to_numpy() for c in t.columns]))
             toff.append(toff[-1] + K)
             nw = (K - 1 - self.window) // self.stride + 1 if K - 1 >= self.window else 0
@@ -490,6 +439,7 @@ class WindowDataset:
                     continue
                 self._check_columns(p, self.x_cols + self.y_cols)
                 self.files.append(p)
+                file_k.append(K)
                 if labels is not None:
                     lab.append(_label_rows(p, labels, ids[sel]))
                 for j in sel:
@@ -514,7 +464,8 @@ class WindowDataset:
             _cache_path(p, self.x_cols + self.y_cols, self.dtype, cache_dir) for p in self.files
         ]
         maps = [
-            shard_cache(p, self.x_cols + self.y_cols, self.dtype, cache_dir) for p in self.files
+            shard_cache(p, self.x_cols + self.y_cols, k, self.dtype, cache_dir)
+            for p, k in zip(self.files, file_k, strict=True)
         ]
         self._mem = None
         if in_memory:
@@ -532,7 +483,7 @@ class WindowDataset:
 
     @staticmethod
     def _check_columns(path: Path, columns) -> None:
-        names = pq.read_schema(path).names
+        names = tshard.column_names(path)
         missing = [c for c in columns if c not in names]
         if missing:
             raise InputError(path, f"lacks the columns {', '.join(missing)}")
@@ -644,20 +595,15 @@ def _gather(src, rows, sel, x, y):
 
 def _label_rows(shard: Path, names, ids) -> np.ndarray:
     """Label columns ``names`` of sequences ``ids`` from a shard's labels sidecar, ``(n, L)``."""
-    from imugen.simulate import labels_path
-
-    path = labels_path(shard)
-    try:
-        t = pq.read_table(path)
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"cannot read the labels ({exc})") from None
-    missing = [c for c in names if c not in t.column_names]
+    t = tshard.read_labels(shard)
+    missing = [c for c in names if c not in t.columns]
     if missing:
-        raise InputError(path, f"has no label column(s) {', '.join(missing)}")
-    seq = t.column(SEQUENCE).to_numpy()
+        raise InputError(tshard.labels_path(shard), f"has no label column(s) {', '.join(missing)}")
+    path = tshard.labels_path(shard)
+    seq = t[SEQUENCE].to_numpy()
     pos = {int(s): i for i, s in enumerate(seq)}
     absent = [int(s) for s in ids if int(s) not in pos]
     if absent:
         raise InputError(path, f"has no labels for sequence(s) {absent[:5]}")
     rows = np.array([pos[int(s)] for s in ids], np.int64)
-    return np.column_stack([t.column(c).to_numpy().astype(float)[rows] for c in names])
+    return np.column_stack([t[c].to_numpy(dtype=float)[rows] for c in names])

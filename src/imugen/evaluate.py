@@ -31,10 +31,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
-ERR = ("err_e_m", "err_n_m", "err_u_m")
-AXES = ("east", "north", "up")
+from imugen.tables import metrics as tmetrics
+from imugen.tables import nav as tnav
+from imugen.tables import truth as ttruth
+
+ERR = tnav.ERR_POS
+AXES = tmetrics.AXES
 
 
 def sequence_metrics(nav: pd.DataFrame, distance_m: float) -> pd.DataFrame:
@@ -113,25 +116,19 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     DataFrame
         Index ``sequence``; one column ``drift_<T>s_m`` (metres) per ``T``.
     """
-    from imugen import columns as col
-    from imugen.io import read_meta
     from imugen.mechanize import increments_from_rates, mechanize
-    from imugen.navigate import _sequence_blocks, batch_size, frame_from_truthread_meta
+    from imugen.navigate import batch_size
+    from imugen.tables import shard as tshard
 
-    tmeta = read_meta(truth_path)
-    truth = pd.read_parquet(truth_path, columns=[col.TIME, *col.POS, *col.VEL, *col.QUAT])
-    t = truth[col.TIME].to_numpy()
-    K = len(t)
-    rate = float(tmeta.get("rate_hz", 1.0 / np.median(np.diff(t))))
-    dt = 1.0 / rate
-    frame = frame_from_truthread_meta(tmeta)
-    p, v, q = (truth[list(c)].to_numpy() for c in (col.POS, col.VEL, col.QUAT))
-    names = set(pq.read_schema(imu_path).names)
-    rates = not set(col.DTHETA + col.DV) <= names
-    columns = [*col.GYRO, *col.ACCEL] if rates else [*col.DTHETA, *col.DV]
+    truth = ttruth.read(truth_path, columns=[ttruth.TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT])
+    K, dt, rate = truth.K, truth.dt, truth.rate_hz
+    frame = truth.origin_frame()
+    p, v, q = truth.p_n, truth.v_n, truth.q_nb
+    columns, kind = tshard.measurement(imu_path)
+    rates = kind == "rates"
     ids_all, out = [], {drift_column(T): [] for T in segments_s}
     batch = batch or max(1, batch_size(K) // 2)  # segments hold about twice the samples
-    for ids, a, c in _sequence_blocks(Path(imu_path), columns, K, batch, 0 if rates else 1):
+    for ids, a, c in tshard.iter_blocks(imu_path, columns, K, batch, 0 if rates else 1):
         dth, dvb = increments_from_rates(a, c, dt) if rates else (a, c)
         ids_all.append(ids.copy())
         for T in segments_s:
@@ -272,8 +269,9 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
 
 def horizontal_distance_m(truth_path) -> float:
     """Horizontal distance travelled by the truth (sum of its E-N steps), metres."""
-    tr = pd.read_parquet(truth_path, columns=["e_m", "n_m"])
-    return float(np.hypot(np.diff(tr["e_m"].to_numpy()), np.diff(tr["n_m"].to_numpy())).sum())
+    en = ttruth.read_arrow(truth_path, columns=list(ttruth.POS[:2]))
+    e, n = (en.column(c).to_numpy() for c in ttruth.POS[:2])
+    return float(np.hypot(np.diff(e), np.diff(n)).sum())
 
 
 def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=()) -> Path:
@@ -283,13 +281,12 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=()) -> Pa
     shards, which must hold the same sequences as the navigation files) is added.
     """
     from imugen.errors import InputError
-    from imugen.io import write_parquet
 
     distance = horizontal_distance_m(truth)
     # one navigation file at a time (a sequence lives in one shard): memory stays at one
     # file plus one metrics row per sequence, whatever the number of shards
     parts = [
-        sequence_metrics(pd.read_parquet(p, columns=["sequence", "time_s", *ERR]), distance)
+        sequence_metrics(tnav.read(p, columns=["sequence", "time_s", *ERR]), distance)
         for p in nav_paths
     ]
     metrics = pd.concat(parts).sort_index(kind="stable")
@@ -321,15 +318,13 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=()) -> Pa
         "segment_step": "T/2",
         "units": "metres; final_pct_distance in % of the horizontal distance travelled",
     }
-    return write_parquet(metrics.reset_index(), meta, out)
+    return tmetrics.write(metrics, meta, out)
 
 
 def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
     """Gather per-grade metrics files into the RMSE table (CSV, Markdown, LaTeX, HTML)."""
-    from imugen.io import read_meta
-
     rows = []
     for p in metrics_paths:
-        grade = read_meta(p)["grade"]
-        rows.append(grade_row(grade, pd.read_parquet(p).set_index("sequence")))
+        grade = tmetrics.read_meta(p)["grade"]
+        rows.append(grade_row(grade, tmetrics.read(p).set_index("sequence")))
     return write_tables(grade_table(rows), out_csv)

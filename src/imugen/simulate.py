@@ -48,21 +48,18 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from imugen import __version__
-from imugen import columns as col
 from imugen.errors import InputError
 from imugen.grades import TERMS, Grade, get_grade, preset_text
-from imugen.io import atomic_output, with_meta
 from imugen.sensors import SensorModel, SensorParams, draw_sensor
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+from imugen.tables.shard import SEQUENCE
+from imugen.tables.truth import ACCEL, DTHETA, DV, GYRO, TIME
 
 CHUNK = 8192
 """Samples per sequence processed per step (a constant; results do not depend on it)."""
-ROW_GROUP = 1 << 20
-"""Rows per Parquet row group."""
-SEQUENCE = "sequence"
 STREAMS = {
     "params": 0,
     "gyro_white": 1,
@@ -73,16 +70,8 @@ STREAMS = {
     "accel_bi": 6,
 }
 """Per-sequence random streams: last element of the spawn key."""
-OUTPUTS = ("increments", "rates", "both")
+OUTPUTS = tshard.OUTPUTS
 DRAWS = ("ranges", "nominal")
-BIAS_SERIES = {
-    "gyro": tuple(f"gyro_bias_{a}_radps" for a in "xyz"),
-    "accel": tuple(f"accel_bias_{a}_mps2" for a in "xyz"),
-}
-SF_SERIES = {
-    "gyro": tuple(f"gyro_sf_{a}" for a in "xyz"),
-    "accel": tuple(f"accel_sf_{a}" for a in "xyz"),
-}
 DEFAULT_STATIC_ORIGIN = (45.0, 0.0, 0.0)
 """Origin (lat_deg, lon_deg, alt_m) of a still IMU built with ``--static``."""
 
@@ -146,57 +135,33 @@ class ArrayTruth(Truth):
 
     @classmethod
     def from_frame(cls, df: pd.DataFrame, meta=None, source="<frame>") -> ArrayTruth:
-        need = (col.TIME, *col.GYRO, *col.ACCEL, *col.DTHETA, *col.DV)
+        need = (TIME, *GYRO, *ACCEL, *DTHETA, *DV)
         miss = [c for c in need if c not in df.columns]
         if miss:
             raise InputError(source, f"not a truth table: missing column(s) {', '.join(miss)}")
         return cls(
-            df[col.TIME].to_numpy(),
-            df[list(col.GYRO)].to_numpy(),
-            df[list(col.ACCEL)].to_numpy(),
-            df[list(col.DTHETA)].to_numpy(),
-            df[list(col.DV)].to_numpy(),
+            df[TIME].to_numpy(),
+            df[list(GYRO)].to_numpy(),
+            df[list(ACCEL)].to_numpy(),
+            df[list(DTHETA)].to_numpy(),
+            df[list(DV)].to_numpy(),
             meta,
             source,
         )
 
     @classmethod
     def read(cls, path) -> ArrayTruth:
-        path = Path(path)
-        need = [col.TIME, *col.GYRO, *col.ACCEL, *col.DTHETA, *col.DV]
-        try:
-            pf = pq.ParquetFile(path)
-        except (OSError, pa.ArrowInvalid) as exc:
-            raise InputError(path, f"cannot read as Parquet: {exc}") from None
-        names = pf.schema_arrow.names
-        miss = [c for c in need if c not in names]
-        if miss:
-            raise InputError(path, f"not a truth table: missing column(s) {', '.join(miss)}")
-        tbl = pf.read(columns=need)
-        md = pf.schema_arrow.metadata or {}
-        meta = {}
-        if col.METADATA_KEY in md:
-            try:
-                meta = json.loads(md[col.METADATA_KEY])
-            except ValueError:
-                meta = {}
-
-        def arr(names_):
-            return np.column_stack([tbl.column(c).to_numpy() for c in names_])
-
+        """Read a truth file; the provenance kept names it by file name and checksum only."""
+        tr = ttruth.read(path, columns=[TIME, *GYRO, *ACCEL, *DTHETA, *DV], need_meta=False)
         keep = {
-            k: meta[k] for k in ("origin", "earth", "rate_hz", "vehicle", "source") if k in meta
+            k: tr.meta[k]
+            for k in ("origin", "earth", "rate_hz", "vehicle", "source", "route")
+            if k in tr.meta
         }
-        keep["path"] = str(path)
-        return cls(
-            tbl.column(col.TIME).to_numpy(),
-            arr(col.GYRO),
-            arr(col.ACCEL),
-            arr(col.DTHETA),
-            arr(col.DV),
-            keep,
-            str(path),
-        )
+        # the path string is not kept: the bytes of a shard must not depend on its spelling
+        keep["file"] = Path(path).name
+        keep["sha256"] = ttruth.checksum(path)
+        return cls(tr.time_s, tr.omega_ib_b, tr.f_b, tr.dtheta, tr.dv, keep, str(path))
 
 
 class StaticTruth(Truth):
@@ -372,44 +337,15 @@ class _MemorySink:
             self.data[n][j, k0 : k0 + L] = a
 
 
-class _ParquetSink:
-    """Fills fixed-size column buffers and writes a row group whenever they are full."""
+class _WriterSink:
+    """Hands each chunk to a :class:`imugen.tables.shard.Writer` under its global id."""
 
-    def __init__(self, writer, schema, col_groups, dtype, seq_offset):
+    def __init__(self, writer, ids):
         self.w = writer
-        self.schema = schema
-        self.groups = col_groups  # name -> tuple of 3 column names
-        self.n = 0
-        self.seq_offset = seq_offset
-        self.buf = {SEQUENCE: np.empty(ROW_GROUP, np.int32), col.TIME: np.empty(ROW_GROUP)}
-        for names in col_groups.values():
-            for c in names:
-                self.buf[c] = np.empty(ROW_GROUP, dtype)
+        self.ids = ids
 
     def put(self, j, k0, L, t, outs):
-        done = 0
-        while done < L:
-            m = min(L - done, ROW_GROUP - self.n)
-            a, b = self.n, self.n + m
-            self.buf[SEQUENCE][a:b] = self.seq_offset + j
-            self.buf[col.TIME][a:b] = t[done : done + m]
-            for g, names in self.groups.items():
-                src = outs[g]
-                for i, c in enumerate(names):
-                    self.buf[c][a:b] = src[done : done + m, i]
-            self.n = b
-            done += m
-            if self.n == ROW_GROUP:
-                self.flush()
-
-    def flush(self):
-        if self.n == 0:
-            return
-        arrays = [pa.array(self.buf[f.name][: self.n]) for f in self.schema]
-        self.w.write_table(
-            pa.Table.from_arrays(arrays, schema=self.schema), row_group_size=ROW_GROUP
-        )
-        self.n = 0
+        self.w.put(int(self.ids[j]), t, outs)
 
 
 # --- the generator ---------------------------------------------------------------------------------------
@@ -438,12 +374,29 @@ class Shard:
     meta: dict
 
 
-def _seed_seq(seed, gid, shard, j, stream):
-    return np.random.SeedSequence(seed, spawn_key=(gid, shard, j, STREAMS[stream]))
+def _seed_seq(seed, rid, gid, shard, j, stream):
+    return np.random.SeedSequence(seed, spawn_key=(rid, gid, shard, j, STREAMS[stream]))
 
 
-def _rng(seed, gid, shard, j, stream):
-    return np.random.Generator(np.random.PCG64(_seed_seq(seed, gid, shard, j, stream)))
+def _rng(seed, rid, gid, shard, j, stream):
+    return np.random.Generator(np.random.PCG64(_seed_seq(seed, rid, gid, shard, j, stream)))
+
+
+def route_name(truth, tr: Truth, route=None) -> str:
+    """The route a shard belongs to: ``route``; else the truth metadata's ``route``; else the
+    truth file's folder name (``results/<route>/truth.parquet``); else ``"static"`` for a
+    still IMU and ``""`` for in-memory arrays."""
+    if route is not None:
+        if not isinstance(route, str):
+            raise InputError("--route", f"must be a string, got {route!r}")
+        return route
+    if tr.meta.get("route"):
+        return str(tr.meta["route"])
+    if isinstance(tr, StaticTruth):
+        return "static"
+    if isinstance(truth, str | Path):
+        return Path(truth).resolve().parent.name
+    return ""
 
 
 def _check_int(name, v, lo=0):
@@ -465,7 +418,7 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
         return ArrayTruth.from_frame(truth)
     if isinstance(truth, dict):
         return ArrayTruth(
-            truth[col.TIME],
+            truth[TIME],
             truth["omega_ib_b"],
             truth["f_b"],
             truth["dtheta"],
@@ -476,7 +429,7 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
 
 
 def _first_id(shard: int, M: int, shard_size) -> int:
-    """Global id of the shard's first sequence: ``shard * shard_size`` (default ``M``).
+    """Index of the shard's first sequence: ``shard * shard_size`` (default ``M``).
 
     A shard holds at most ``shard_size`` sequences; only the last shard of an experiment whose
     N is not a multiple of the shard size is shorter, and it must be given the experiment's
@@ -485,8 +438,8 @@ def _first_id(shard: int, M: int, shard_size) -> int:
     size = M if shard_size is None else _check_int("--shard-size", shard_size, 1)
     if M > size:
         raise InputError("--shard-size", f"is {size}, fewer than the {M} sequences of this shard")
-    if shard * size + M - 1 >= 2**31:
-        raise InputError("--shard", "sequence ids (shard * shard_size + j) overflow int32")
+    if shard * size + M - 1 >= 2**tshard.ROUTE_SHIFT:
+        raise InputError("--shard", "sequence index shard * shard_size + j must be < 2^31")
     return shard * size
 
 
@@ -502,6 +455,7 @@ def _prepare(
     temperature,
     grades_file,
     shard_size=None,
+    rid=0,
 ):
     grade = get_grade(grade, grades_file)
     M = _check_int("--sequences", sequences, 1)
@@ -517,18 +471,16 @@ def _prepare(
     nominal = draw == "nominal"
     gp, ap = [], []
     for j in range(M):
-        rng = _rng(seed, grade.id, shard, j, "params")
+        rng = _rng(seed, rid, grade.id, shard, j, "params")
         gp.append(draw_sensor(grade.gyro, rng, enabled["gyro"], nominal))
         ap.append(draw_sensor(grade.accel, rng, enabled["accel"], nominal))
     return grade, M, seed, shard, enabled, temp, gp, ap
 
 
-def _labels(
-    grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, first=None
-) -> pd.DataFrame:
-    first = shard * M if first is None else first
+def _labels(grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, ids, rid):
     d = {
-        SEQUENCE: (first + np.arange(M)).astype(np.int32),
+        SEQUENCE: ids,
+        "route_id": np.full(M, rid, np.int64),
         "shard": np.full(M, shard, np.int32),
         "index": np.arange(M, dtype=np.int32),
         "seed": np.full(M, seed, np.int64),
@@ -539,7 +491,7 @@ def _labels(
     return pd.DataFrame(d)
 
 
-def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink):
+def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, rid):
     """Generate every sequence in time chunks and hand each chunk to ``sink.put``."""
     K, dt = truth.K, truth.dt
     want_inc = outputs in ("increments", "both")
@@ -554,6 +506,10 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
         "gyro_sf",
         "accel_bias",
         "accel_sf",
+        "gyro_err_rate",
+        "gyro_err_inc",
+        "accel_err_rate",
+        "accel_err_inc",
     ):
         bufs[name] = np.empty((1, CHUNK, 3))
     nz = {}
@@ -564,11 +520,14 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
         for s, m in models.items():
             normals += m.normals_per_sample
             if m.use_w:
-                rngs[f"{s}_white"] = (_rng(seed, grade.id, shard, j, f"{s}_white"), 3)
+                rngs[f"{s}_white"] = (_rng(seed, rid, grade.id, shard, j, f"{s}_white"), 3)
             if m.use_r:
-                rngs[f"{s}_rrw"] = (_rng(seed, grade.id, shard, j, f"{s}_rrw"), 3)
+                rngs[f"{s}_rrw"] = (_rng(seed, rid, grade.id, shard, j, f"{s}_rrw"), 3)
             if m.use_b:
-                rngs[f"{s}_bi"] = (_rng(seed, grade.id, shard, j, f"{s}_bi"), 3 * m.p.components)
+                rngs[f"{s}_bi"] = (
+                    _rng(seed, rid, grade.id, shard, j, f"{s}_bi"),
+                    3 * m.p.components,
+                )
         for key, (_, w) in rngs.items():
             if key not in nz or nz[key].shape[1] != w:
                 nz[key] = np.empty((CHUNK, w))
@@ -591,6 +550,8 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
                 o_inc = bufs[f"{s}_inc"][:, :L] if want_inc else None
                 o_bias = bufs[f"{s}_bias"][:, :L] if series else None
                 o_sf = bufs[f"{s}_sf"][:, :L] if series else None
+                o_er = bufs[f"{s}_err_rate"][:, :L] if series and want_rate else None
+                o_ei = bufs[f"{s}_err_inc"][:, :L] if series and want_inc else None
                 if s == "gyro":
                     m.step(
                         k0,
@@ -606,6 +567,8 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
                         o_inc,
                         o_bias,
                         o_sf,
+                        o_er,
+                        o_ei,
                     )
                 else:
                     m.step(
@@ -622,6 +585,8 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
                         o_inc,
                         o_bias,
                         o_sf,
+                        o_er,
+                        o_ei,
                     )
                 if want_inc:
                     outs["dtheta" if s == "gyro" else "dv"] = o_inc[0]
@@ -630,41 +595,12 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
                 if series:
                     outs[f"{s}_bias"] = o_bias[0]
                     outs[f"{s}_sf"] = o_sf[0]
+                    if want_inc:
+                        outs["err_dtheta" if s == "gyro" else "err_dv"] = o_ei[0]
+                    if want_rate:
+                        outs[f"err_{s}"] = o_er[0]
             sink.put(j, k0, L, t, outs)
     return normals / M if M else 0
-
-
-def _names(outputs, series):
-    names = []
-    if outputs in ("increments", "both"):
-        names += ["dtheta", "dv"]
-    if outputs in ("rates", "both"):
-        names += ["gyro", "accel"]
-    if series:
-        names += ["gyro_bias", "gyro_sf", "accel_bias", "accel_sf"]
-    return names
-
-
-_COLS = {
-    "dtheta": col.DTHETA,
-    "dv": col.DV,
-    "gyro": col.GYRO,
-    "accel": col.ACCEL,
-    "gyro_bias": BIAS_SERIES["gyro"],
-    "gyro_sf": SF_SERIES["gyro"],
-    "accel_bias": BIAS_SERIES["accel"],
-    "accel_sf": SF_SERIES["accel"],
-}
-_UNITS = {
-    "dtheta": "rad",
-    "dv": "m/s",
-    "gyro": "rad/s",
-    "accel": "m/s^2",
-    "gyro_bias": "rad/s",
-    "gyro_sf": "1",
-    "accel_bias": "m/s^2",
-    "accel_sf": "1",
-}
 
 
 def _meta(
@@ -679,17 +615,15 @@ def _meta(
     temperature,
     series,
     dtype,
-    names,
-    labels_name=None,
-    first=None,
+    first,
+    route,
+    rid,
 ):
-    first = shard * M if first is None else first
-    units = {SEQUENCE: "1", col.TIME: "s"}
-    for n in names:
-        units.update(dict.fromkeys(_COLS[n], _UNITS[n]))
+    """The shard metadata block (the writer adds format, units and the labels file name)."""
+    ids = tshard.sequence_ids(rid, [first, first + M - 1])
     return {
-        "format": "imugen-shard",
-        "format_version": 1,
+        "format": tshard.FORMAT,
+        "format_version": tshard.FORMAT_VERSION,
         "code_version": __version__,
         "numpy_version": np.__version__,
         "grade": {
@@ -706,12 +640,16 @@ def _meta(
         "preset_sha": hashlib.sha256(preset_text().encode()).hexdigest()
         if grade.origin.startswith("imugen/data/")
         else None,
+        "route": route,
+        "route_id": rid,
         "seed": seed,
         "shard": shard,
         "sequences": M,
-        "sequence_ids": [first, first + M - 1],
-        "spawn_key": [grade.id, shard],
-        "sequence_spawn_key": "(grade_id, shard, index, stream)",
+        "first_index": first,
+        "sequence_ids": [int(ids[0]), int(ids[1])],
+        "sequence_id": "route_id << 31 | index, index = shard * shard_size + j",
+        "spawn_key": [rid, grade.id, shard],
+        "sequence_spawn_key": "(route_id, grade_id, shard, index_in_shard, stream)",
         "streams": STREAMS,
         "bit_generator": "PCG64",
         "draw": draw,
@@ -725,9 +663,9 @@ def _meta(
         "samples_per_sequence": truth.K,
         "truth": truth.meta,
         "temperature": temperature,
-        "rows": "sorted by sequence then time; increments on row k are the interval ending at t_k; row 0 of each sequence is zero",
-        "units": units,
-        "labels_file": labels_name,
+        "rows": "sorted by sequence then time; increments on row k are the interval ending at "
+        "t_k; row 0 of each sequence is zero",
+        "derived": None,
     }
 
 
@@ -749,15 +687,16 @@ def simulate(
     static_origin=DEFAULT_STATIC_ORIGIN,
     grades_file=None,
     shard_size=None,
+    route=None,
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
     Parameters
     ----------
     truth : path, DataFrame, dict, Truth or None
-        Truth table (Parquet path or DataFrame with the columns of :mod:`imugen.columns`), a
-        dict with ``time_s``, ``omega_ib_b``, ``f_b``, ``dtheta``, ``dv`` arrays, or None with
-        ``static_s``.
+        Truth table (Parquet path or DataFrame with the columns of :mod:`imugen.tables.truth`),
+        a dict with ``time_s``, ``omega_ib_b``, ``f_b``, ``dtheta``, ``dv`` arrays, or None
+        with ``static_s``.
     grade : str or Grade
         Preset name, ``file.yaml:name``, or a :class:`~imugen.grades.Grade`.
     sequences, seed, shard : int
@@ -770,21 +709,36 @@ def simulate(
     temperature : dict or str, optional
         Temperature profile (:func:`temperature_profile`).
     series : bool
-        Also return the true slow-bias and scale-factor series.
+        Also return the true slow-bias, scale-factor and effective-error series.
     static_s, rate_hz, static_earth, static_origin
         Still IMU instead of a truth table.
     shard_size : int, optional
-        Sequences per shard of the experiment (``>= sequences``): global ids are
+        Sequences per shard of the experiment (``>= sequences``): indices are
         ``shard * shard_size + j``. Default ``sequences``; give it for a short last shard.
+    route : str, optional
+        Route name; its :func:`~imugen.tables.shard.route_id` enters every spawn key and the
+        sequence ids. Default :func:`route_name`.
     """
     tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
+    route = route_name(truth, tr, route)
+    rid = tshard.route_id(route)
     grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
-        tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
+        tr,
+        grade,
+        sequences,
+        seed,
+        shard,
+        outputs,
+        draw,
+        terms,
+        temperature,
+        grades_file,
+        rid=rid,
     )
     first = _first_id(shard, M, shard_size)
-    names = _names(outputs, series)
+    names = tshard.groups(outputs, series)
     sink = _MemorySink(M, tr.K, names)
-    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
+    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, rid)
     gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
     time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
     meta = _meta(
@@ -799,21 +753,14 @@ def simulate(
         temperature,
         series,
         np.float64,
-        names,
-        first=first,
+        first,
+        route,
+        rid,
     )
-    labels = _labels(grade, M, seed, shard, gpar, apar, first)
+    meta["units"] = tshard.units(names)
+    ids = tshard.sequence_ids(rid, first + np.arange(M))
+    labels = _labels(grade, M, seed, shard, gpar, apar, ids, rid)
     return Shard(time_s, sink.data, labels, gpar, apar, meta)
-
-
-def labels_path(out_path) -> Path:
-    """Sidecar path of a shard: ``dir/stem.labels.parquet``."""
-    p = Path(out_path)
-    return p.with_name(
-        p.name[: -len(".parquet")] + ".labels.parquet"
-        if p.name.endswith(".parquet")
-        else p.name + ".labels.parquet"
-    )
 
 
 def run(
@@ -837,15 +784,15 @@ def run(
     static_earth="flat",
     static_origin=DEFAULT_STATIC_ORIGIN,
     shard_size=None,
+    route=None,
 ) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically.
 
     Parameters are those of :func:`simulate`, plus ``out`` (the shard path; the sidecar is
-    :func:`labels_path`), ``dtype`` of the measurement columns (``"float32"`` or
-    ``"float64"``) and the Parquet ``compression`` (``"none"`` default: noise-like floats do
-    not compress, see benchmarks/README.md). Dictionary encoding is used only for ``sequence``
-    (constant runs); float columns are written PLAIN. ``rate_hz`` and ``static_*`` only apply
-    to ``static_s`` (a truth table has its own rate).
+    :func:`~imugen.tables.shard.labels_path`), ``dtype`` of the measurement columns
+    (``"float32"`` or ``"float64"``) and the Parquet ``compression`` (``"none"`` default:
+    noise-like floats do not compress, see benchmarks/README.md). ``rate_hz`` and ``static_*``
+    only apply to ``static_s`` (a truth table has its own rate).
 
     Returns
     -------
@@ -858,12 +805,23 @@ def run(
     if dtype not in ("float32", "float64"):
         raise InputError("--dtype", f"must be float32 or float64, got {dtype!r}")
     tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
+    route = route_name(truth, tr, route)
+    rid = tshard.route_id(route)
     grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
-        tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
+        tr,
+        grade,
+        sequences,
+        seed,
+        shard,
+        outputs,
+        draw,
+        terms,
+        temperature,
+        grades_file,
+        rid=rid,
     )
     first = _first_id(shard, M, shard_size)
-    names = _names(outputs, series)
-    lab_path = labels_path(out)
+    names = tshard.groups(outputs, series)
     meta = _meta(
         grade,
         tr,
@@ -876,34 +834,27 @@ def run(
         temperature,
         series,
         dtype,
-        names,
-        lab_path.name,
         first,
+        route,
+        rid,
     )
-    fields = [pa.field(SEQUENCE, pa.int32()), pa.field(col.TIME, pa.float64())]
-    ftype = pa.float32() if dtype == "float32" else pa.float64()
-    for n in names:
-        fields += [pa.field(c, ftype) for c in _COLS[n]]
-    schema = pa.schema(fields, metadata={col.METADATA_KEY: json.dumps(meta).encode()})
-    # shard and labels each go to a temporary name; both are renamed only once both are
-    # complete, the shard last: a shard at its path always has its labels beside it
-    with atomic_output(out) as tmp:
-        with pq.ParquetWriter(
-            tmp,
-            schema,
-            compression=compression,
-            use_dictionary=[SEQUENCE],
-            write_statistics=[SEQUENCE, col.TIME],
-        ) as w:
-            sink = _ParquetSink(w, schema, {n: _COLS[n] for n in names}, np.dtype(dtype), first)
-            _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
-            sink.flush()
-        lab = _labels(grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap), first)
-        lmeta = dict(meta)
-        lmeta["format"] = "imugen-shard-labels"
-        lmeta["shard_file"] = out.name
-        with atomic_output(lab_path) as tmp_lab:
-            pq.write_table(
-                with_meta(pa.Table.from_pandas(lab, preserve_index=False), lmeta), tmp_lab
-            )
-    return meta
+    ids = tshard.sequence_ids(rid, first + np.arange(M))
+    with tshard.writer(out, meta, names, dtype, compression=compression) as w:
+        _loop(
+            tr,
+            grade,
+            M,
+            seed,
+            shard,
+            enabled,
+            temp,
+            gp,
+            ap,
+            outputs,
+            series,
+            _WriterSink(w, ids),
+            rid,
+        )
+        gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
+        w.labels = _labels(grade, M, seed, shard, gpar, apar, ids, rid)
+    return tshard.read_meta(out)

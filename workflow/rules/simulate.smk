@@ -35,7 +35,7 @@ rule simulate:
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
-        "imugen simulate {input.truth:q} -o {output.shard:q} --grade {params.grade:q} "
+        "imugen simulate {input.truth:q} -o {output.shard:q} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
         "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
         "> {log:q} 2>&1"
