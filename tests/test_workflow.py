@@ -6,6 +6,7 @@ dry-run job list); -j1 and -j2 give identical tables and bit-identical datasets;
 
 import copy
 import hashlib
+import os
 import re
 import shutil
 import subprocess
@@ -45,6 +46,8 @@ TINY = {
 def snakemake(workdir, *args):
     bindir = Path(sys.executable).parent
     env = {"PATH": f"{bindir}:/usr/bin:/bin", "HOME": str(workdir)}
+    if os.environ.get("PYTHONPATH"):  # a worktree's own src/ (else the installed imugen)
+        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
     return subprocess.run(
         [
             sys.executable,
