@@ -2,16 +2,23 @@
 
 Randomness
 ----------
-A shard's root is ``SeedSequence(seed, spawn_key=(grade_id, shard))``. Sequence ``j`` of the
-shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(grade_id, shard, j,
-stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one per
-stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate random
-walk and bias-instability normals. So a shard's data never depends on how many shards exist or
-on the order they run; raising N only adds shards; sequence ``j`` of a shard does not depend
-on ``M`` (a larger shard only appends sequences); switching a term off leaves the other terms'
-realizations unchanged; and the chunking of time cannot change the numbers (NumPy fills normals
-sequentially). Bit-identity across machines holds for the same NumPy bit-generator algorithms
-(PCG64, ``standard_normal``) -- the NumPy version is recorded in the metadata.
+A route is named by its id ``route_id = int.from_bytes(sha256(name.encode("utf-8"))[:4],
+"big")`` (:func:`imugen.tables.shard.route_id`; the name is ``--route``, else the truth
+metadata's ``route``, else the truth file's folder name, see :func:`route_name`). A shard's
+root is ``SeedSequence(seed, spawn_key=(route_id, grade_id, shard))``. Sequence ``j`` of the
+shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(route_id, grade_id,
+shard, j, stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one
+per stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate
+random walk and bias-instability normals. So no two (route, grade, sequence) share a draw (up
+to a collision of 32-bit route ids: probability ``n^2 / 2^33`` for ``n`` routes); a shard's
+data never depends on how many shards or routes exist or on the order they run; raising N
+only adds shards; sequence ``j`` of a shard does not depend on ``M`` (a larger shard only
+appends sequences); switching a term off leaves the other terms' realizations unchanged; and
+the chunking of time cannot change the numbers (NumPy fills normals sequentially).
+Bit-identity across machines holds for the same NumPy bit-generator algorithms (PCG64,
+``standard_normal``) -- the NumPy version is recorded in the metadata. The shard's bytes do
+not depend on how the truth path was spelled: the metadata names the truth by file name and
+SHA-256.
 
 Per-sequence parameters (see :func:`imugen.sensors.draw_sensor`)
 -----------------------------------------------------------------
@@ -21,20 +28,15 @@ temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationa
 
 Output (one shard = one Parquet file + a labels sidecar)
 --------------------------------------------------------
-Rows sorted by ``sequence`` then time, one per (sequence, IMU sample):
-``sequence`` int32 (global id ``shard * shard_size + j``, ``shard_size`` the experiment's
-sequences per shard, by default this shard's ``M``), ``time_s`` float64, then
-``dtheta_{x,y,z}_rad``, ``dv_{x,y,z}_mps`` (``outputs="increments"``, default; row k holds
-the interval ending at ``t_k``, row 0 of each sequence is zero as in the truth table) and/or
-``gyro_{x,y,z}_radps``, ``accel_{x,y,z}_mps2`` (``outputs="rates"``). Measurements are float32
-by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is a
-white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives 6e-8 rad
-per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is available.
-``series=True`` adds the true slow bias (turn-on + in-run + RRW + temperature, at ``t_k``)
-and scale-factor error of each axis (``gyro_bias_x_radps``, ``gyro_sf_x``, ...).
+The layout, ids and columns are those of :mod:`imugen.tables.shard` (``sequence`` int64
+``route_id << 31 | (shard * shard_size + j)``, ``time_s``, increments and/or rates, with
+``series=True`` the true bias, scale-factor and effective-error series). Measurements are
+float32 by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is
+a white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives
+6e-8 rad per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is
+available. Increments are ``compensated`` (the truth's) or ``raw`` (plain integrals of rate
+and specific force, :meth:`Truth.raw_chunk`), recorded as ``increments`` in the metadata.
 Row groups are written as time chunks are produced (bounded buffer, never the whole shard).
-The labels sidecar ``<stem>.labels.parquet`` holds one row per sequence with every drawn
-parameter (SI units in the column names). Both files carry JSON metadata under ``b"imugen"``.
 """
 
 from __future__ import annotations
