@@ -105,7 +105,8 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     Parameters
     ----------
     truth_path, imu_path : path
-        The route's truth and one IMU shard (increments, or rates only).
+        The route's truth and one IMU shard (increments, compensated or raw, or rates only),
+        navigated as :mod:`imugen.navigate` does.
     segments_s : sequence of float
         Segment durations ``T`` (s).
     batch : int, optional
@@ -116,7 +117,7 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     DataFrame
         Index ``sequence``; one column ``drift_<T>s_m`` (metres) per ``T``.
     """
-    from imugen.mechanize import increments_from_rates, mechanize
+    from imugen.mechanize import compensate_raw, increments_from_rates, mechanize
     from imugen.navigate import batch_size
     from imugen.tables import shard as tshard
 
@@ -126,10 +127,14 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     p, v, q = truth.p_n, truth.v_n, truth.q_nb
     columns, kind = tshard.measurement(imu_path)
     rates = kind == "rates"
+    raw = not rates and tshard.increment_kind(tshard.read_meta(imu_path)) == "raw"
     ids_all, out = [], {drift_column(T): [] for T in segments_s}
     batch = batch or max(1, batch_size(K) // 2)  # segments hold about twice the samples
     for ids, a, c in tshard.iter_blocks(imu_path, columns, K, batch, 0 if rates else 1):
-        dth, dvb = increments_from_rates(a, c, dt) if rates else (a, c)
+        if rates:
+            dth, dvb = increments_from_rates(a, c, dt)
+        else:  # raw increments get navigation's coning/sculling correction first
+            dth, dvb = compensate_raw(a, c) if raw else (a, c)
         ids_all.append(ids.copy())
         for T in segments_s:
             n = round(T * rate)
