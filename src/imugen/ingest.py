@@ -290,7 +290,7 @@ def ingest(
         origin = parse_origin(origin)
     cands = read_route_file(src)
     p = select_path(cands, path, src)
-    warnings: list[str] = []
+    warnings: list[str] = list(p.warnings)
     n_in = p.n_points
     if n_in < 2:
         raise InputError(src, f"path {p.name!r} has {n_in} point(s): a path needs at least two")

@@ -4,7 +4,11 @@
 rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
-        code=stage_code("ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml", "readers/gpx", "readers/text"),
+        code=stage_code(
+            "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
+            "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
+            "readers/gnsscsv", "readers/babel",
+        ),
     output:
         "results/{route}/route.csv",
     params:
