@@ -43,6 +43,7 @@ import pandas as pd
 from pyproj import Geod
 
 from imugen import __version__
+from imugen.clean import clean_path
 from imugen.errors import InputError
 from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
 from imugen.io import atomic_output, write_parquet
@@ -261,6 +262,7 @@ def ingest(
     max_speed_kmh: float = 1200.0,
     max_extent_km: float = MAX_EXTENT_M / 1000.0,
     gap_warn_s: float = 60.0,
+    vehicle: str = "car",
 ) -> Ingested:
     """Read, select, validate and convert one path of a route file.
 
@@ -278,6 +280,8 @@ def ingest(
         Also output UTM easting/northing in the zone of the origin.
     max_speed_kmh, max_extent_km, gap_warn_s : float
         Validation limits (see the module docstring).
+    vehicle : str
+        Vehicle class whose limits decide what is an outlier (:mod:`imugen.clean`).
 
     Returns
     -------
@@ -321,9 +325,14 @@ def ingest(
     time_s, time_source, start_utc = _clock(p, pos, dt, warnings)
     timed = time_s is not None
     cols = {"pos": pos, "lat": lat, "lon": lon, "alt": alt}
+    cols["alt_missing"] = np.zeros(n_in, bool) if p.alt_missing is None else p.alt_missing
     if timed:
         cols["time"] = time_s
     cols = _dedupe(cols, timed, src, warnings)
+    enu_frame = LocalFrame(origin) if p.enu_m is not None else None
+    cols, cleaning = clean_path(
+        cols, p, timed=timed, vehicle=vehicle, source=src, warnings=warnings, enu_frame=enu_frame
+    )
     lat, lon, alt = cols["lat"], cols["lon"], cols["alt"]
     if len(lat) < 2:
         raise InputError(
@@ -421,6 +430,7 @@ def ingest(
         "max_distance_from_origin_m": float(horiz.max()),
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
+        "cleaning": cleaning,
         "utm": utm_meta,
         "notes": list(p.notes),
         "warnings": warnings,

@@ -1,4 +1,12 @@
-# Ingestion: route file (KML/KMZ/GPX/CSV/ENU text) -> geodetic CSV -> ENU Parquet.
+# Ingestion: route file (KML/KMZ/GPX/CSV/ENU text, NMEA, IGC, GeoJSON, ...) -> geodetic CSV
+# -> ENU Parquet. Cleaning (vehicle limits) and gap handling happen in the first step; the CSV
+# carries their report to the second.
+
+
+def ingest_clean_opts(wildcards):
+    """`imugen ingest` options of the cleaning and gap rules for this route."""
+    r = config["routes"][wildcards.route]
+    return f"--vehicle {shlex.quote(str(r.get('vehicle', 'car')))}"
 
 
 rule ingest_csv:
@@ -7,12 +15,12 @@ rule ingest_csv:
         code=stage_code(
             "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
             "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
-            "readers/gnsscsv", "readers/babel",
+            "readers/gnsscsv", "readers/babel", "clean",
         ),
     output:
         "results/{route}/route.csv",
     params:
-        opts=ingest_opts,
+        opts=lambda wc: f"{ingest_opts(wc)} {ingest_clean_opts(wc)}",
     log:
         "logs/{route}/ingest_csv.log",
     shell:
@@ -22,7 +30,7 @@ rule ingest_csv:
 rule ingest_enu:
     input:
         csv="results/{route}/route.csv",
-        code=stage_code("ingest", "frames", "readers/text"),
+        code=stage_code("ingest", "frames", "readers/text", "clean"),
     output:
         "results/{route}/enu.parquet",
     log:
