@@ -37,6 +37,8 @@ def _cmd_ingest(a) -> int:
         max_extent_km=a.max_extent_km,
         gap_warn_s=a.gap_warn_s,
         vehicle=a.vehicle,
+        max_gap_s=a.max_gap_s,
+        gaps=a.gaps,
     )
     for w in ing.warnings:
         print(f"imugen: warning: {a.src}: {w}", file=sys.stderr)
@@ -220,6 +222,18 @@ def build_parser() -> argparse.ArgumentParser:
         choices=list(VEHICLE_LIMITS),
         default="car",
         help="vehicle class whose limits decide what is an outlier (default car)",
+    )
+    p.add_argument(
+        "--max-gap-s",
+        type=float,
+        metavar="SECONDS",
+        help="time gaps longer than this split the path (default 60; see --gaps)",
+    )
+    p.add_argument(
+        "--gaps",
+        choices=["split", "bridge"],
+        default="split",
+        help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
     )
     p.set_defaults(func=_cmd_ingest)
 

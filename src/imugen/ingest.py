@@ -49,6 +49,7 @@ from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
 from imugen.io import atomic_output, write_parquet
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
+from imugen.segments import choose_path
 
 UNITS = {
     "time_s": "s",
@@ -263,6 +264,8 @@ def ingest(
     max_extent_km: float = MAX_EXTENT_M / 1000.0,
     gap_warn_s: float = 60.0,
     vehicle: str = "car",
+    max_gap_s: float | None = None,
+    gaps: str = "split",
 ) -> Ingested:
     """Read, select, validate and convert one path of a route file.
 
@@ -282,6 +285,9 @@ def ingest(
         Validation limits (see the module docstring).
     vehicle : str
         Vehicle class whose limits decide what is an outlier (:mod:`imugen.clean`).
+    max_gap_s, gaps : float or None, {"split", "bridge"}
+        Time gaps longer than ``max_gap_s`` split the path, or are bridged when asked
+        (:mod:`imugen.segments`); ``path`` may then be ``"longest"``.
 
     Returns
     -------
@@ -293,8 +299,17 @@ def ingest(
     if isinstance(origin, str):
         origin = parse_origin(origin)
     cands = read_route_file(src)
-    p = select_path(cands, path, src)
-    warnings: list[str] = list(p.warnings)
+    warnings: list[str] = []
+    p, segments = choose_path(
+        cands,
+        path,
+        max_gap_s=max_gap_s,
+        gaps=gaps,
+        source=src,
+        warnings=warnings,
+        select=select_path,
+    )
+    warnings += p.warnings
     n_in = p.n_points
     if n_in < 2:
         raise InputError(src, f"path {p.name!r} has {n_in} point(s): a path needs at least two")
@@ -431,6 +446,7 @@ def ingest(
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
         "cleaning": cleaning,
+        "segments": segments,
         "utm": utm_meta,
         "notes": list(p.notes),
         "warnings": warnings,

@@ -6,7 +6,11 @@
 def ingest_clean_opts(wildcards):
     """`imugen ingest` options of the cleaning and gap rules for this route."""
     r = config["routes"][wildcards.route]
-    return f"--vehicle {shlex.quote(str(r.get('vehicle', 'car')))}"
+    opts = ["--vehicle", shlex.quote(str(r.get("vehicle", "car")))]
+    if r.get("max_gap_s") is not None:
+        opts += ["--max-gap-s", repr(float(r["max_gap_s"]))]
+    opts += ["--gaps", shlex.quote(str(r.get("gaps", "split")))]
+    return " ".join(opts)
 
 
 rule ingest_csv:
@@ -15,7 +19,7 @@ rule ingest_csv:
         code=stage_code(
             "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
             "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
-            "readers/gnsscsv", "readers/babel", "clean",
+            "readers/gnsscsv", "readers/babel", "clean", "segments",
         ),
     output:
         "results/{route}/route.csv",
@@ -30,7 +34,7 @@ rule ingest_csv:
 rule ingest_enu:
     input:
         csv="results/{route}/route.csv",
-        code=stage_code("ingest", "frames", "readers/text", "clean"),
+        code=stage_code("ingest", "frames", "readers/text", "clean", "segments"),
     output:
         "results/{route}/enu.parquet",
     log:
