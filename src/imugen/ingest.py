@@ -12,15 +12,19 @@ Validation (each failure: one line naming the file, exit status 2, no output)
     height in [-11 km, 100 km]; a non-zero path length; no point farther than
     ``max_extent_km`` (default 100 km) from the origin (see :mod:`imugen.frames`); for timed
     paths, no implied speed above ``max_speed_kmh`` (default 1,200 km/h) between
-    consecutive points (GPS spikes).
+    consecutive points once outliers are removed.
+Cleaning
+    Outliers beyond the vehicle's limits are removed, missing heights interpolated and the
+    noise estimated (:mod:`imugen.clean`); more than half of the points as outliers is refused.
 Time
     ISO-8601 times become seconds from the first point (``time_s``); a time without an offset
     is UTC. Exact duplicates (same time and same position) are dropped with a warning. A time
     that does not increase at a point whose position differs is refused (the order of the
     points is ambiguous). When every point has the same time, or only some points have a time,
-    the clock cannot be used: the path falls back to untimed with a warning. Gaps are kept (the
-    truth stage interpolates through them) and reported when longer than ``gap_warn_s``
-    (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
+    the clock cannot be used: the path falls back to untimed with a warning. Gaps longer than
+    ``max_gap_s`` split the path into candidate parts, or are bridged on request
+    (:mod:`imugen.segments`); shorter ones are kept (the truth stage interpolates through them)
+    and reported when longer than ``gap_warn_s`` (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
     1 point per second); it is ignored (with a warning) when the file has a usable clock.
 Untimed paths
     Consecutive repeated positions are dropped (a path without a clock has no stops); the truth

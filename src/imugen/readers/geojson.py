@@ -36,9 +36,12 @@ def _line(coords, times, name: str, source: Path) -> RoutePath:
         if not (isinstance(c, list) and 2 <= len(c) <= 4 and all(_is_num(v) for v in c)):
             shown = json.dumps(c)[:60]
             raise InputError(source, f"{name!r}: position {i + 1} {shown} is not [lon, lat[, h]]")
-        lon[i], lat[i] = c[0], c[1]
-        if len(c) >= 3:
-            alt[i], have[i] = c[2], True
+        try:
+            lon[i], lat[i] = c[0], c[1]
+            if len(c) >= 3:
+                alt[i], have[i] = c[2], True
+        except OverflowError:
+            raise InputError(source, f"{name!r}: position {i + 1} is out of range") from None
     t = None
     notes: list[str] = []
     if isinstance(times, list) and len(times) == n and n:

@@ -172,7 +172,7 @@ def read_gnss_csv(path: str | Path) -> list[RoutePath]:
                     t.append(parse_number(tok))
                 except ValueError:
                     t.append(parse_iso_time(tok))
-        except ValueError as exc:
+        except (ValueError, OverflowError) as exc:
             raise InputError(path, f"line {lineno}: {exc}") from None
     if no_fix:
         warnings.append(f"skipped {no_fix} rows without a fix (field.status.status < 0)")
