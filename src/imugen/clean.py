@@ -130,7 +130,9 @@ def noise_sigma(d: np.ndarray, dims: int) -> float:
     return min(max(float(np.median(d)) / (scale * _CHORD), NOISE_FLOOR_M), NOISE_CEILING_M)
 
 
-def median_residual(t: np.ndarray, x: np.ndarray, half: int = MEDIAN_HALF_WINDOW) -> np.ndarray:
+def median_residual(
+    t: np.ndarray, x: np.ndarray, at: np.ndarray | None = None, half: int = MEDIAN_HALF_WINDOW
+) -> np.ndarray:
     """Distance of every point from the median prediction of its neighbours.
 
     Every pair of neighbours ``(i - a, i + b)``, ``1 <= a, b <= half``, predicts ``x_i`` by
@@ -144,14 +146,16 @@ def median_residual(t: np.ndarray, x: np.ndarray, half: int = MEDIAN_HALF_WINDOW
         Strictly increasing times (s), n >= 3.
     x : ndarray, shape (n, k)
         Positions (m).
+    at : ndarray of int, shape (m,), optional
+        Points to evaluate (default all).
 
     Returns
     -------
-    ndarray, shape (n,)
-        ``|x_i - median prediction|`` (m).
+    ndarray, shape (m,)
+        ``|x_i - median prediction|`` (m) at the points ``at``.
     """
     n = len(t)
-    i = np.arange(n)
+    i = np.arange(n) if at is None else np.asarray(at)
     straddle = [(-a, b) for a in range(1, half + 1) for b in range(1, half + 1)]
     one_side = [(a, b) for a in range(1, half + 1) for b in range(a + 1, half + 2)]
     one_side += [(-b, -a) for a, b in one_side]
@@ -162,12 +166,12 @@ def median_residual(t: np.ndarray, x: np.ndarray, half: int = MEDIAN_HALF_WINDOW
         if (lo, hi) in one_side:
             ok &= (i == 0) | (i == n - 1)
         j, k = np.where(ok, j, 0), np.where(ok, k, 1)
-        lam = (t - t[j]) / (t[k] - t[j])
+        lam = (t[i] - t[j]) / (t[k] - t[j])
         p = x[j] + lam[:, None] * (x[k] - x[j])
         p[~ok] = np.nan
         preds.append(p)
     med = np.nanmedian(np.stack(preds, axis=1), axis=1)
-    return np.linalg.norm(x - med, axis=1)
+    return np.linalg.norm(x[i] - med, axis=1)
 
 
 def find_outliers(t: np.ndarray, x: np.ndarray, a_max: float) -> np.ndarray:
@@ -203,7 +207,7 @@ def find_outliers(t: np.ndarray, x: np.ndarray, a_max: float) -> np.ndarray:
         if not len(over):
             break
         run = np.cumsum(np.diff(over, prepend=-2) > 1)
-        resid = median_residual(t[idx], x[idx])[over]
+        resid = median_residual(t[idx], x[idx], over)
         order = np.lexsort((ratio[over], resid, run))
         last = np.flatnonzero(np.diff(run[order], append=run[order][-1] + 1))
         keep[idx[over[order[last]]]] = False
