@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import stat
+import subprocess
 import sys
 
 import pytest
 
 from imugen.errors import InputError
+from imugen.ingest import ingest
 from imugen.readers import babel, read_route_file
 
 GPX = (
@@ -71,8 +74,14 @@ def test_gpsbabel_failure_and_timeout(tmp_path, monkeypatch):
 
 
 @pytest.mark.skipif(shutil.which("gpsbabel") is None, reason="gpsbabel not installed")
-def test_real_fit_file(shared_file):
+def test_real_fit_file(shared_file, tmp_path):
     path = shared_file("g_bike_garmin_edge800.fit")
+    gpx = tmp_path / "direct.gpx"
+    cmd = ["gpsbabel", "-t", "-i", "garmin_fit", "-f", str(path), "-o", "gpx", "-F", str(gpx)]
+    subprocess.run(cmd, check=True, capture_output=True, timeout=120)
+    segs = re.findall(r"<trkseg>(.*?)</trkseg>", gpx.read_text(), re.S)
     cands = read_route_file(path)
-    assert cands and max(p.n_points for p in cands) > 100
-    assert all(p.time_unix_s is not None for p in cands)
+    assert [p.n_points for p in cands] == [s.count("<trkpt") for s in segs]
+    assert all(p.time_unix_s is not None for p in cands) and len(cands) > 1
+    ing = ingest(path, path="longest", vehicle="bicycle")
+    assert ing.meta["points_in"] == max(p.n_points for p in cands)  # here also the longest

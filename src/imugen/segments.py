@@ -164,7 +164,8 @@ def choose_path(
     path : RoutePath
     info : dict
         For the metadata: ``mode``, ``max_gap_s``, ``parts`` (of the chosen path's original),
-        ``not_used`` (names of the other parts), ``bridged_gaps``.
+        ``not_used`` (names of the other parts; with ``longest``, of every other candidate),
+        ``bridged_gaps``.
     """
     if gaps not in GAP_MODES:
         raise InputError("--gaps", f"{gaps!r} is not one of {', '.join(GAP_MODES)}")
@@ -187,7 +188,8 @@ def choose_path(
         expanded += parts
     if spec_s is not None and spec_s.casefold() == "longest":
         chosen = _longest(expanded, "--path longest", warnings)
-        group = expanded
+        group = next((g for g in groups.values() if any(q is chosen for q in g)), [chosen])
+        info["not_used"] = [p.name for p in expanded if p is not chosen]
     else:
         group = None
         if spec_s is None and len(cands) == 1 and groups:
@@ -204,7 +206,7 @@ def choose_path(
             chosen = select(expanded, spec, source)
             group = next((g for g in groups.values() if any(q is chosen for q in g)), [chosen])
     info["parts"] = len(group)
-    info["not_used"] = [p.name for p in group if p is not chosen]
+    info["not_used"] = info["not_used"] or [p.name for p in group if p is not chosen]
     t = chosen.time_unix_s
     if gaps == "bridge" and t is not None and np.isfinite(t).all():
         n_long = int((np.diff(t) > limit).sum())
