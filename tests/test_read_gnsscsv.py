@@ -68,6 +68,10 @@ def test_hemisphere_csv_and_bad_sign(tmp_path):
     np.testing.assert_array_equal(p.lat_deg, [30.2, 30.2001])
     np.testing.assert_array_equal(p.lon_deg, [-97.6, -97.6])
     assert p.time_is_absolute and np.diff(p.time_unix_s)[0] == 1.0
+    u16 = tmp_path / "u16.csv"
+    u16.write_bytes(f.read_text().encode("utf-16"))
+    (q,) = read_route_file(u16)
+    np.testing.assert_array_equal(q.lon_deg, p.lon_deg)
     g = tmp_path / "bad.csv"
     g.write_text("lat,lon\n30.2N,-097.6W\n30.3N,097.6W\n")
     with pytest.raises(InputError, match="line 2: negative value with hemisphere"):

@@ -119,6 +119,11 @@ def read_gnss_csv(path: str | Path) -> list[RoutePath]:
     path = Path(path)
     data = path.read_bytes()
     warnings: list[str] = []
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16 with a byte-order mark
+        try:
+            data = data.decode("utf-16").encode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError(path, "is not valid UTF-16 text") from None
     n_nul = data.count(b"\x00")
     if n_nul:
         data = data.replace(b"\x00", b"")
