@@ -31,6 +31,11 @@ Noise
     Horizontal and vertical position noise (m) estimated separately from the median chord
     deviations of the kept points; on sparse fixes they include real manoeuvres, so they are
     upper bounds.
+Metadata (``cleaning`` of the ingest metadata, carried through the CSV stage)
+    ``vehicle``, ``limits``, ``k_sigma``, ``min_kept_fraction``, ``points_in``,
+    ``outliers_removed`` and ``outlier_points`` (1-based, of the points kept after duplicate
+    removal), ``heights_rejected``, ``heights_filled`` and ``height_filled_points`` (1-based
+    rows of the output), ``noise_horizontal_m``, ``noise_vertical_m`` (None when untimed).
 """
 
 from __future__ import annotations
@@ -75,6 +80,8 @@ VEHICLE_LIMITS = {
 K_SIGMA = 5.0
 #: Least fraction of the points that must survive outlier removal.
 MIN_KEPT_FRACTION = 0.5
+#: Most point numbers listed in the metadata (``outlier_points``, ``height_filled_points``).
+MAX_LISTED = 1000
 #: Neighbours on each side whose pair predictions pick the outlier of a violating run.
 MEDIAN_HALF_WINDOW = 3
 #: Floor of the noise estimates (m): quantised coordinates can give a median deviation of 0.
@@ -313,10 +320,10 @@ def clean_path(
                 cols[k] = cols[k][keep]
             enu, missing, t = enu[keep], missing[keep], t[keep]
             report["outliers_removed"] = len(bad)
-            report["outlier_points"] = (bad + 1).tolist()
+            report["outlier_points"] = (bad[:MAX_LISTED] + 1).tolist()
             shown = ", ".join(str(i + 1) for i in bad[:10]) + (", ..." if len(bad) > 10 else "")
             warnings.append(
-                f"removed {len(bad)} horizontal outliers (points {shown} of the input; implied "
+                f"removed {len(bad)} horizontal outliers (points {shown} of the kept points; implied "
                 f"acceleration beyond a {vehicle}'s {lim.max_accel_mps2:g} m/s^2 plus noise)"
             )
         if np.any(cols["alt"][~missing] != 0):
@@ -343,7 +350,7 @@ def clean_path(
             cols["pos"] = np.column_stack([cols["lat"], cols["lon"], filled])
         n_fill = int(missing.sum()) - report["heights_rejected"]
         report["heights_filled"] = int(missing.sum())
-        report["height_filled_points"] = (np.flatnonzero(missing) + 1).tolist()
+        report["height_filled_points"] = (np.flatnonzero(missing)[:MAX_LISTED] + 1).tolist()
         if n_fill:
             warnings.append(
                 f"{n_fill} points have no height: interpolated from their neighbours "
