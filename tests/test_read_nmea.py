@@ -94,3 +94,13 @@ def test_checksums_fixes_and_rmc_only_epochs(tmp_path):
 def test_refusal_without_fixes(tmp_path):
     with pytest.raises(InputError, match=r"no valid NMEA GGA or RMC fix.*1 bad checksums"):
         read_nmea(_write(tmp_path, [_sentence("GPGGA,1,2", False)]))
+
+
+def test_dated_log_across_midnight_and_new_year(tmp_path):
+    lines = []
+    for tod, date in (("235958.5", "311223"), ("235959.5", "311223"), ("000000.5", "010124")):
+        lines.append(_sentence(f"GPRMC,{tod},A,4000.000,N,10500.000,W,0.0,,{date},,,A"))
+        lines.append(_sentence(f"GPGGA,{tod},4000.000,N,10500.000,W,1,08,1.0,1600.0,M,0,M,,"))
+    (p,) = read_nmea(_write(tmp_path, lines))
+    t0 = datetime(2023, 12, 31, 23, 59, 58, 500000, tzinfo=UTC).timestamp()
+    np.testing.assert_array_equal(p.time_unix_s - t0, [0.0, 1.0, 2.0])
