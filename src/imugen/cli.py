@@ -11,6 +11,7 @@ import json
 import sys
 
 from imugen import __version__
+from imugen.clean import VEHICLE_LIMITS
 from imugen.errors import InputError
 
 
@@ -35,6 +36,9 @@ def _cmd_ingest(a) -> int:
         max_speed_kmh=a.max_speed_kmh,
         max_extent_km=a.max_extent_km,
         gap_warn_s=a.gap_warn_s,
+        vehicle=a.vehicle,
+        max_gap_s=a.max_gap_s,
+        gaps=a.gaps,
     )
     for w in ing.warnings:
         print(f"imugen: warning: {a.src}: {w}", file=sys.stderr)
@@ -228,6 +232,24 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-extent-km", type=float, default=100.0, help="largest distance from origin"
     )
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
+    p.add_argument(
+        "--vehicle",
+        choices=list(VEHICLE_LIMITS),
+        default="car",
+        help="vehicle class whose limits decide what is an outlier (default car)",
+    )
+    p.add_argument(
+        "--max-gap-s",
+        type=float,
+        metavar="SECONDS",
+        help="time gaps longer than this split the path (default 60; see --gaps)",
+    )
+    p.add_argument(
+        "--gaps",
+        choices=["split", "bridge"],
+        default="split",
+        help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
+    )
     p.set_defaults(func=_cmd_ingest)
 
     p = sub.add_parser("truth", help="ENU route -> 6-DoF truth and ideal IMU at the IMU rate")

@@ -12,15 +12,19 @@ Validation (each failure: one line naming the file, exit status 2, no output)
     height in [-11 km, 100 km]; a non-zero path length; no point farther than
     ``max_extent_km`` (default 100 km) from the origin (see :mod:`imugen.frames`); for timed
     paths, no implied speed above ``max_speed_kmh`` (default 1,200 km/h) between
-    consecutive points (GPS spikes).
+    consecutive points once outliers are removed.
+Cleaning
+    Outliers beyond the vehicle's limits are removed, missing heights interpolated and the
+    noise estimated (:mod:`imugen.clean`); more than half of the points as outliers is refused.
 Time
     ISO-8601 times become seconds from the first point (``time_s``); a time without an offset
     is UTC. Exact duplicates (same time and same position) are dropped with a warning. A time
     that does not increase at a point whose position differs is refused (the order of the
     points is ambiguous). When every point has the same time, or only some points have a time,
-    the clock cannot be used: the path falls back to untimed with a warning. Gaps are kept (the
-    truth stage interpolates through them) and reported when longer than ``gap_warn_s``
-    (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
+    the clock cannot be used: the path falls back to untimed with a warning. Gaps longer than
+    ``max_gap_s`` split the path into candidate parts, or are bridged on request
+    (:mod:`imugen.segments`); shorter ones are kept (the truth stage interpolates through them)
+    and reported when longer than ``gap_warn_s`` (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
     1 point per second); it is ignored (with a warning) when the file has a usable clock.
 Untimed paths
     Consecutive repeated positions are dropped (a path without a clock has no stops); the truth
@@ -43,11 +47,13 @@ import pandas as pd
 from pyproj import Geod
 
 from imugen import __version__
+from imugen.clean import clean_path
 from imugen.errors import InputError
 from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
 from imugen.io import atomic_output
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
+from imugen.segments import choose_path
 from imugen.tables import enu as tenu
 
 UNITS = {
@@ -262,6 +268,9 @@ def ingest(
     max_speed_kmh: float = 1200.0,
     max_extent_km: float = MAX_EXTENT_M / 1000.0,
     gap_warn_s: float = 60.0,
+    vehicle: str = "car",
+    max_gap_s: float | None = None,
+    gaps: str = "split",
 ) -> Ingested:
     """Read, select, validate and convert one path of a route file.
 
@@ -279,6 +288,11 @@ def ingest(
         Also output UTM easting/northing in the zone of the origin.
     max_speed_kmh, max_extent_km, gap_warn_s : float
         Validation limits (see the module docstring).
+    vehicle : str
+        Vehicle class whose limits decide what is an outlier (:mod:`imugen.clean`).
+    max_gap_s, gaps : float or None, {"split", "bridge"}
+        Time gaps longer than ``max_gap_s`` split the path, or are bridged when asked
+        (:mod:`imugen.segments`); ``path`` may then be ``"longest"``.
 
     Returns
     -------
@@ -290,8 +304,17 @@ def ingest(
     if isinstance(origin, str):
         origin = parse_origin(origin)
     cands = read_route_file(src)
-    p = select_path(cands, path, src)
     warnings: list[str] = []
+    p, segments = choose_path(
+        cands,
+        path,
+        max_gap_s=max_gap_s,
+        gaps=gaps,
+        source=src,
+        warnings=warnings,
+        select=select_path,
+    )
+    warnings += p.warnings
     n_in = p.n_points
     if n_in < 2:
         raise InputError(src, f"path {p.name!r} has {n_in} point(s): a path needs at least two")
@@ -322,9 +345,14 @@ def ingest(
     time_s, time_source, start_utc = _clock(p, pos, dt, warnings)
     timed = time_s is not None
     cols = {"pos": pos, "lat": lat, "lon": lon, "alt": alt}
+    cols["alt_missing"] = np.zeros(n_in, bool) if p.alt_missing is None else p.alt_missing
     if timed:
         cols["time"] = time_s
     cols = _dedupe(cols, timed, src, warnings)
+    enu_frame = LocalFrame(origin) if p.enu_m is not None else None
+    cols, cleaning = clean_path(
+        cols, p, timed=timed, vehicle=vehicle, source=src, warnings=warnings, enu_frame=enu_frame
+    )
     lat, lon, alt = cols["lat"], cols["lon"], cols["alt"]
     if len(lat) < 2:
         raise InputError(
@@ -422,6 +450,8 @@ def ingest(
         "max_distance_from_origin_m": float(horiz.max()),
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
+        "cleaning": cleaning,
+        "segments": segments,
         "utm": utm_meta,
         "notes": list(p.notes),
         "warnings": warnings,

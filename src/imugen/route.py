@@ -38,6 +38,11 @@ class RoutePath:
         What the reader did that a user should know (skipped coordinates, etc.).
     carried : dict
         Metadata written by an earlier ``imugen ingest`` (CSV stage), e.g. the origin.
+    alt_missing : ndarray of bool, shape (n,), or None
+        True where the file gives no height for a point (its ``alt_m`` is then a
+        placeholder); None when every point has one or none has. Ingestion interpolates them.
+    warnings : list of str
+        What the reader did that the user must be told on the command line (printed).
     """
 
     name: str
@@ -52,6 +57,8 @@ class RoutePath:
     time_is_absolute: bool = True
     notes: list[str] = field(default_factory=list)
     carried: dict = field(default_factory=dict)
+    alt_missing: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def n_points(self) -> int:

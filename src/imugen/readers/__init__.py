@@ -17,10 +17,13 @@ _SNIFF_BYTES = 4096
 def read_route_file(path: str | Path) -> list[RoutePath]:
     """Read every candidate path of a route file, choosing the reader by content.
 
-    KMZ is recognised by its zip signature, KML and GPX by their XML root element, and
-    anything else is read as delimited text (CSV with a header, or E N U rows).
+    KMZ is recognised by its zip signature, KML and GPX by their XML root element, NMEA by
+    ``$GP``/``$GN``/... sentences, IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
+    suffixes of :data:`imugen.readers.babel.FORMATS` go through GPSBabel; NUL bytes, ROS
+    NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.readers.gnsscsv`; anything else is
+    read as delimited text (CSV with a header, or E N U rows).
     """
-    from imugen.readers import gpx, kml, text
+    from imugen.readers import babel, geojson, gnsscsv, gpx, igc, kml, nmea, text
 
     path = Path(path)
     try:
@@ -37,10 +40,21 @@ def read_route_file(path: str | Path) -> list[RoutePath]:
     suffix = path.suffix.lower()
     if head.startswith(b"PK\x03\x04") or suffix == ".kmz":
         return kml.read_kmz(path)
+    if suffix in babel.FORMATS:
+        return babel.read_with_gpsbabel(path)
     if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16 with a byte-order mark
         head = head.decode("utf-16", errors="replace").encode("utf-8", errors="replace")
     elif b"\x00" in head:
-        raise InputError(path, "contains NUL bytes: not a text route file")
+        return gnsscsv.read_gnss_csv(path)  # NUL-padded fields, or a binary file (refused)
+    start = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    if suffix == ".nmea" or start.startswith((b"$GP", b"$GN", b"$GL", b"$GA", b"$BD")):
+        return nmea.read_nmea(path)
+    if suffix == ".igc" or (start.startswith(b"A") and b"\nHFDTE" in head):
+        return igc.read_igc(path)
+    if suffix in (".geojson", ".json") or start.startswith(b"{"):
+        return geojson.read_geojson(path)
+    if gnsscsv.claims(head):
+        return gnsscsv.read_gnss_csv(path)
     lowered = head.lower()
     if suffix == ".gpx" or b"<gpx" in lowered:
         return gpx.read_gpx(path)

@@ -4,7 +4,8 @@ Each track segment and each route is one candidate path. A segment is named afte
 track (``"<trk name> / segment k"`` when the track has several segments); unnamed tracks
 and routes are called ``"track k"`` and ``"route k"``. ``<ele>`` gives the height (GPX
 defines it as metres above mean sea level, WGS-84 geoid: taken as trusted); a point without
-``<ele>`` gets 0 m and the path is flagged untrusted. ``<time>`` gives the clock; a path
+``<ele>`` is marked missing (ingestion interpolates it); a path without any ``<ele>`` gets
+0 m and is flagged untrusted. ``<time>`` gives the clock; a path
 where no point has a time is untimed, a path where only some points do keeps NaN for the
 others (ingestion then decides, see :mod:`imugen.ingest`).
 """
@@ -43,6 +44,7 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
     alt = np.zeros(n)
     t = np.full(n, np.nan)
     have_ele = 0
+    missing = np.ones(n, dtype=bool)
     for i, p in enumerate(pts):
         try:
             lat[i] = parse_number(p.get("lat", ""))
@@ -58,6 +60,7 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
             try:
                 alt[i] = parse_number(ele)
                 have_ele += 1
+                missing[i] = False
             except ValueError:
                 raise InputError(
                     source, f"{where} point {i + 1}: <ele> {ele!r} is not a number"
@@ -71,9 +74,11 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
                     source, f"{where} point {i + 1}: <time> {when!r} is not ISO-8601"
                 ) from None
     notes = []
-    trusted = have_ele == n
-    if not trusted:
-        notes.append(f"{n - have_ele} of {n} points have no <ele>: their height is set to 0 m")
+    trusted = have_ele > 0
+    if have_ele == 0:
+        notes.append("no point has <ele>: heights set to 0 m")
+    elif have_ele < n:
+        notes.append(f"{n - have_ele} of {n} points have no <ele>: heights interpolated")
     timed = bool(np.isfinite(t).any())
     return RoutePath(
         name=name,
@@ -84,6 +89,7 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
         time_unix_s=t if timed else None,
         altitude_trusted=trusted,
         notes=notes,
+        alt_missing=missing if 0 < have_ele < n else None,
     )
 
 

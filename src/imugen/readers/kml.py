@@ -30,8 +30,11 @@ as written in ``RoutePath.altitude_mode``)
     ``relativeToGround``, ``relativeToSeaFloor``
         Heights above a terrain we do not know: kept as written but
         ``altitude_trusted=False``, with a note.
-    ``clampToGround``, ``clampToSeaFloor``, no altitudeMode (KML default
-    ``clampToGround``), or an unknown value
+    no altitudeMode (KML default ``clampToGround``)
+        Google Earth would ignore the altitudes, but a track saved without a mode (an
+        airliner's climb) still carries real heights: kept as written,
+        ``altitude_trusted=False``, with a note (ingestion warns).
+    ``clampToGround``, ``clampToSeaFloor``, or an unknown value
         Google Earth ignores the altitudes, so do we: ``alt_m`` is set to 0,
         ``altitude_trusted=False``, with a note.
     2-D tuples (``lon,lat``) get altitude 0 and ``altitude_trusted=False`` whatever
@@ -134,8 +137,11 @@ def _apply_altitude_mode(
         )
         return alt_m, False
     if mode is None:
-        why = "no altitudeMode, KML default clampToGround"
-    elif mode in _CLAMPED:
+        notes.append(
+            "no altitudeMode (KML default clampToGround): altitudes kept as written, not trusted"
+        )
+        return alt_m, False
+    if mode in _CLAMPED:
         why = f"altitudeMode {mode}"
     else:
         why = f"unknown altitudeMode {mode!r}, treated as clampToGround"
