@@ -219,3 +219,14 @@ def test_ros2_bag_read_by_rosbags(route, exported):
     _, od = first["/ground_truth/odom"]
     q = od.pose.pose.orientation
     assert np.allclose([q.w, q.x, q.y, q.z], tr.q_nb[0])
+
+
+def test_ros2_truth_read_by_evo(route, exported):
+    evo_fi = pytest.importorskip("evo.tools.file_interface")
+    from rosbags.rosbag2 import Reader
+
+    tr, seqs = _seqs(route)
+    folder = exported / "ros2" / f"drive_consumer_{seqs[0][0]:06d}"
+    with Reader(folder) as reader:
+        traj = evo_fi.read_bag_trajectory(reader, "/ground_truth/odom")
+    assert np.allclose(traj.positions_xyz, tr.p_n) and np.allclose(traj.timestamps, tr.time_s)
