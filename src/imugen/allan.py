@@ -25,15 +25,14 @@ from pathlib import Path
 import allantools
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 from scipy.optimize import nnls
 
-from imugen import columns as col
 from imugen import units
 from imugen.errors import InputError
-from imugen.io import read_meta
 from imugen.sensors import avar_bias_instability, avar_quantization, avar_rrw, avar_white
-from imugen.simulate import SEQUENCE, Shard, labels_path
+from imugen.simulate import Shard
+from imugen.tables import shard as tshard
+from imugen.tables.shard import SEQUENCE
 
 QUANTITIES = {
     # key: (sensor, term)
@@ -141,17 +140,14 @@ def fit_avar(taus, avar, bases: dict, T: float) -> dict:
 
 def _read_shard(path, max_sequences):
     path = Path(path)
-    meta = read_meta(path)
-    lp = path.with_name(meta.get("labels_file") or labels_path(path).name)
-    if not lp.exists():
-        raise InputError(path, f"labels sidecar {lp.name} not found")
-    labels = pq.read_table(lp).to_pandas()
+    meta = tshard.read_meta(path)
+    labels = tshard.read_labels(path, meta)
     first = int(meta["sequence_ids"][0])
     n = min(int(meta["sequences"]), int(max_sequences))
     labels = labels[labels[SEQUENCE] < first + n].reset_index(drop=True)
     inc = meta["outputs"] in ("increments", "both")
-    cols = [*col.DTHETA, *col.DV] if inc else [*col.GYRO, *col.ACCEL]
-    tbl = pq.read_table(path, columns=[SEQUENCE, *cols], filters=[(SEQUENCE, "<", first + n)])
+    cols = list(tshard.INCREMENTS if inc else tshard.RATES)
+    tbl = tshard.read(path, [SEQUENCE, *cols], filters=[(SEQUENCE, "<", first + n)])
     seq = tbl.column(SEQUENCE).to_numpy()
     K = int(meta["samples_per_sequence"])
     data = {}

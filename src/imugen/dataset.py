@@ -79,12 +79,12 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from imugen import columns as col
 from imugen.errors import InputError
+from imugen.tables import shard as tshard
+from imugen.tables import truth as col
+from imugen.tables.shard import BIAS, SEQUENCE
 
-SEQUENCE = "sequence"
-INPUTS = {"increments": (*col.DTHETA, *col.DV), "rates": (*col.GYRO, *col.ACCEL)}
-BIAS = (*(f"gyro_bias_{a}_radps" for a in "xyz"), *(f"accel_bias_{a}_mps2" for a in "xyz"))
+INPUTS = {"increments": tshard.INCREMENTS, "rates": tshard.RATES}
 TARGETS = ("increments", "delta_vel_pos", "bias")
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
 

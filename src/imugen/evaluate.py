@@ -20,8 +20,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-ERR = ("err_e_m", "err_n_m", "err_u_m")
-AXES = ("east", "north", "up")
+from imugen.tables import metrics as tmetrics
+from imugen.tables import nav as tnav
+from imugen.tables import truth as ttruth
+
+ERR = tnav.ERR_POS
+AXES = tmetrics.AXES
 
 
 def sequence_metrics(nav: pd.DataFrame, distance_m: float) -> pd.DataFrame:
@@ -174,20 +178,20 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
 
 def horizontal_distance_m(truth_path) -> float:
     """Horizontal distance travelled by the truth (sum of its E-N steps), metres."""
-    tr = pd.read_parquet(truth_path, columns=["e_m", "n_m"])
-    return float(np.hypot(np.diff(tr["e_m"].to_numpy()), np.diff(tr["n_m"].to_numpy())).sum())
+    en = ttruth.read_arrow(truth_path, columns=list(ttruth.POS[:2]))
+    e, n = (en.column(c).to_numpy() for c in ttruth.POS[:2])
+    return float(np.hypot(np.diff(e), np.diff(n)).sum())
 
 
 def run(truth, nav_paths, out, *, grade: str) -> Path:
     """Per-sequence metrics of one grade's navigation shards -> Parquet (index ``sequence``)."""
     from imugen.errors import InputError
-    from imugen.io import write_parquet
 
     distance = horizontal_distance_m(truth)
     # one navigation file at a time (a sequence lives in one shard): memory stays at one
     # file plus one metrics row per sequence, whatever the number of shards
     parts = [
-        sequence_metrics(pd.read_parquet(p, columns=["sequence", "time_s", *ERR]), distance)
+        sequence_metrics(tnav.read(p, columns=["sequence", "time_s", *ERR]), distance)
         for p in nav_paths
     ]
     metrics = pd.concat(parts).sort_index(kind="stable")
@@ -202,15 +206,13 @@ def run(truth, nav_paths, out, *, grade: str) -> Path:
         "distance_horizontal_m": distance,
         "units": "metres; final_pct_distance in % of the horizontal distance travelled",
     }
-    return write_parquet(metrics.reset_index(), meta, out)
+    return tmetrics.write(metrics, meta, out)
 
 
 def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
     """Gather per-grade metrics files into the RMSE table (CSV, Markdown, LaTeX, HTML)."""
-    from imugen.io import read_meta
-
     rows = []
     for p in metrics_paths:
-        grade = read_meta(p)["grade"]
-        rows.append(grade_row(grade, pd.read_parquet(p).set_index("sequence")))
+        grade = tmetrics.read_meta(p)["grade"]
+        rows.append(grade_row(grade, tmetrics.read(p).set_index("sequence")))
     return write_tables(grade_table(rows), out_csv)

@@ -1,7 +1,7 @@
 """Figures of a route's results: the paper's Figure 8, 3-D tracks, error growth, IMU signals.
 
 Every function reads the stage files (truth, navigation errors, metrics, IMU shards; formats
-in :mod:`imugen.columns`, :mod:`imugen.navigate`, :mod:`imugen.evaluate`), draws one figure
+in :mod:`imugen.tables`), draws one figure
 with Matplotlib (object API, Agg renderer, no display, no global pyplot state), writes it
 atomically as ``<out_stem>.<ext>`` for each requested format and returns the paths written.
 
@@ -26,11 +26,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
-from imugen import columns as col
 from imugen.errors import InputError
-from imugen.io import atomic_output, read_meta
+from imugen.io import atomic_output
+from imugen.tables import metrics as tmetrics
+from imugen.tables import nav as tnav
+from imugen.tables import shard as tshard
+from imugen.tables import truth as col
+from imugen.tables._parquet import SEQUENCE
 
 __all__ = [
     "REPRESENTATIVE",
@@ -48,9 +51,8 @@ __all__ = [
     "zoom_window",
 ]
 
-SEQUENCE = "sequence"
-ERR = ("err_e_m", "err_n_m", "err_u_m")
-RMSE_TOTAL = "rmse_total_m"
+ERR = tnav.ERR_POS
+RMSE_TOTAL = tmetrics.RMSE_TOTAL
 #: accepted values of the ``representative`` option
 REPRESENTATIVE = ("median", "best", "worst")
 #: at most this many points of a densely sampled line are drawn (every k-th sample)
@@ -342,32 +344,15 @@ def epoch_matrix(nav: pd.DataFrame, source="nav") -> tuple[np.ndarray, np.ndarra
 
 
 def _read_metrics(path) -> pd.DataFrame:
-    try:
-        df = pq.read_table(path).to_pandas()
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read as Parquet ({exc})") from None
-    if SEQUENCE not in df.columns and df.index.name == SEQUENCE:
-        df = df.reset_index()
-    if SEQUENCE not in df.columns or RMSE_TOTAL not in df.columns:
-        raise InputError(path, f"is not a metrics table (needs {SEQUENCE}, {RMSE_TOTAL})")
-    return df
+    return tmetrics.read(path)
 
 
 def _read_nav_sequence(paths: Sequence, sid: int, grade: str) -> pd.DataFrame:
     """Navigation errors of sequence ``sid`` from whichever shard holds it."""
     for p in paths:
-        try:
-            tbl = pq.read_table(
-                p, columns=[SEQUENCE, col.TIME, *ERR], filters=[(SEQUENCE, "==", int(sid))]
-            )
-        except FileNotFoundError:
-            raise InputError(p, "no such file") from None
-        except OSError as exc:
-            raise InputError(p, f"cannot read navigation errors ({exc})") from None
-        if tbl.num_rows:
-            return tbl.to_pandas().sort_values(col.TIME, kind="stable")
+        df = tnav.read(p, [SEQUENCE, col.TIME, *ERR], filters=[(SEQUENCE, "==", int(sid))])
+        if len(df):
+            return df.sort_values(col.TIME, kind="stable")
     raise InputError(grade, f"sequence {sid} of the metrics is in none of the navigation files")
 
 
@@ -379,13 +364,7 @@ def _truth_track(path, queries: Mapping[str, np.ndarray], max_points: int = MAX_
     (exact at sample times).
     """
     cols = [col.TIME, *col.POS]
-    try:
-        pf = pq.ParquetFile(path)
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read as Parquet ({exc})") from None
-    total = pf.metadata.num_rows
+    total = col.samples(path)
     if total == 0:
         raise InputError(path, "truth table is empty")
     stride = max(1, math.ceil(total / max_points))
@@ -396,8 +375,7 @@ def _truth_track(path, queries: Mapping[str, np.ndarray], max_points: int = MAX_
     prev = None  # last row of the previous batch, (4,)
     start = 0
     last = None
-    for rb in pf.iter_batches(batch_size=1 << 16, columns=cols):
-        a = np.column_stack([rb.column(c).to_numpy().astype(np.float64) for c in cols])
+    for a in col.iter_batches(path, cols):
         idx = np.arange(start, start + a.shape[0])
         keep.append(a[idx % stride == 0])
         start += a.shape[0]
@@ -622,12 +600,7 @@ def _grade_errors(paths: Sequence, grade: str):
     parts: dict[str, list[np.ndarray]] = {"horizontal": [], "up": []}
     seen: set[int] = set()
     for p in paths:
-        try:
-            nav = pq.read_table(p, columns=[SEQUENCE, col.TIME, *ERR]).to_pandas()
-        except FileNotFoundError:
-            raise InputError(p, "no such file") from None
-        except OSError as exc:
-            raise InputError(p, f"cannot read navigation errors ({exc})") from None
+        nav = tnav.read(p, [SEQUENCE, col.TIME, *ERR])
         if nav.empty:
             continue
         ids, t, err = epoch_matrix(nav, source=p)
@@ -760,9 +733,9 @@ def imu_signals(
     -------
     list of Path
     """
-    meta = read_meta(shard_path)
+    meta = tshard.read_meta(shard_path)
     grade = meta.get("grade", {}).get("name", "measured")
-    names = pq.read_schema(shard_path).names
+    names = tshard.column_names(shard_path)
     rates = all(c in names for c in (*col.GYRO, *col.ACCEL))
     incs = all(c in names for c in (*col.DTHETA, *col.DV))
     if not (rates or incs):
@@ -773,9 +746,8 @@ def imu_signals(
         if ids:
             sequence = int(ids[0])
         else:
-            first = next(pq.ParquetFile(shard_path).iter_batches(batch_size=1, columns=[SEQUENCE]))
-            sequence = int(first.column(0)[0].as_py())
-    tbl = pq.read_table(
+            sequence = int(tshard.read(shard_path, [SEQUENCE]).column(0)[0].as_py())
+    tbl = tshard.read(
         shard_path,
         columns=[col.TIME, *gyro_cols, *accel_cols],
         filters=[(SEQUENCE, "==", int(sequence))],
@@ -801,7 +773,7 @@ def imu_signals(
     t, meas = t[m], meas[m]
     if t.size == 0:
         raise InputError("window_s", f"no sample of sequence {sequence} in [{w0:g}, {w1:g}] s")
-    truth = pq.read_table(
+    truth = col.read_arrow(
         truth_path,
         columns=[col.TIME, *col.GYRO, *col.ACCEL],
         filters=[(col.TIME, ">=", w0), (col.TIME, "<=", w1)],

@@ -45,9 +45,10 @@ from pyproj import Geod
 from imugen import __version__
 from imugen.errors import InputError
 from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
-from imugen.io import atomic_output, write_parquet
+from imugen.io import atomic_output
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
+from imugen.tables import enu as tenu
 
 UNITS = {
     "time_s": "s",
@@ -435,7 +436,7 @@ def write(ing: Ingested, out: str | Path) -> Path:
     if suffix not in (".parquet", ".csv"):
         raise InputError(out, "output must end in .parquet or .csv")
     if suffix == ".parquet":
-        return write_parquet(ing.table, ing.meta, out)
+        return tenu.write(ing.table, ing.meta, out)
     with atomic_output(out) as tmp, tmp.open("w", encoding="utf-8", newline="\n") as fh:
         fh.write("# imugen: " + json.dumps(ing.meta) + "\n")
         ing.table.to_csv(fh, index=False)
