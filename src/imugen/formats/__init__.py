@@ -41,7 +41,8 @@ from imugen.formats.source import (
     iter_sequences,
     read_truth,
 )
-from imugen.io import read_meta
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
 
 WRITERS = {
     "euroc": euroc.write,
@@ -72,11 +73,9 @@ def parse_formats(text) -> list[str]:
 
 def _navigator(truth, nav_rate_hz: float):
     """A function ``seq -> (index (M,), p_n (M, 3), q_nb (M, 4))``: free-inertial navigation."""
-    from imugen.earth import OriginFrame
     from imugen.mechanize import increments_from_rates, mechanize
 
-    o = truth.meta["origin"]
-    frame = OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=truth.meta["earth"])
+    frame = ttruth.origin_frame(truth.meta)
     every = max(1, round(1.0 / (truth.dt * nav_rate_hz)))
 
     def nav(seq: Sequence):
@@ -134,7 +133,7 @@ def export(
         raise InputError("--nav-rate-hz", f"must be a positive number, got {nav_rate_hz!r}")
     truth = read_truth(truth_path)
     route = route or Path(truth_path).resolve().parent.name
-    grade = grade or (read_meta(shard_paths[0]).get("grade") or {}).get("name", "imu")
+    grade = grade or (tshard.read_meta(shard_paths[0]).get("grade") or {}).get("name", "imu")
     nav, every = _navigator(truth, nav_rate_hz)
     only = None if sequences is None else {int(s) for s in sequences}
     start_ns = 0

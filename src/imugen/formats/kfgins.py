@@ -20,18 +20,17 @@ import numpy as np
 import yaml
 
 from imugen import rotations as rot
-from imugen.earth import OriginFrame
 from imugen.errors import InputError
 from imugen.formats.common import write_rows
 from imugen.formats.convert import dcm_ned_frd, enu_to_ned, euler_ned_frd, flu_to_frd
 from imugen.formats.source import INCREMENT_COLUMNS, Sequence, TruthArrays
+from imugen.tables import truth as ttruth
 
 DEG = 180.0 / math.pi
 
 
-def _frame(truth: TruthArrays) -> OriginFrame:
-    o = truth.meta["origin"]
-    return OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=truth.meta["earth"])
+def _frame(truth: TruthArrays):
+    return ttruth.origin_frame(truth.meta)
 
 
 def nav_rows(truth: TruthArrays, sow0: float = 0.0, week: int = 0) -> np.ndarray:

@@ -2,8 +2,9 @@
 
 Every format writer sees the same two objects: :class:`TruthArrays` (the route's truth, in
 memory once: ``K`` rows of float64) and, per sequence, :class:`Sequence` (its measured IMU
-columns, ``K`` rows, and its labels row). Shards are streamed sequence by sequence, so an
-export holds one sequence in memory whatever the number of sequences.
+columns, ``K`` rows, its labels row and the shard's metadata). Files are read only through the
+contract layer (:mod:`imugen.tables`); shards are streamed sequence by sequence, so an export
+holds one sequence in memory whatever the number of sequences.
 """
 
 from __future__ import annotations
@@ -13,17 +14,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
-import pyarrow.parquet as pq
 
-from imugen import columns as col
-from imugen.errors import InputError
-from imugen.io import read_meta
+from imugen.tables import SEQUENCE
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
 
-SEQUENCE = "sequence"
-RATE_COLUMNS = (*col.GYRO, *col.ACCEL)
-INCREMENT_COLUMNS = (*col.DTHETA, *col.DV)
-BIAS_COLUMNS = (*(f"gyro_bias_{a}_radps" for a in "xyz"), *(f"accel_bias_{a}_mps2" for a in "xyz"))
+RATE_COLUMNS = tshard.RATES
+INCREMENT_COLUMNS = tshard.INCREMENTS
+BIAS_COLUMNS = tshard.BIAS
 
 
 @dataclass
@@ -51,24 +49,9 @@ class TruthArrays:
 
 
 def read_truth(path) -> TruthArrays:
-    """Read a truth Parquet whole (it is one route: a few tens of MB)."""
-    meta = read_meta(path)
-    df = pd.read_parquet(path)
-
-    def a(names):
-        return df[list(names)].to_numpy(np.float64)
-
-    return TruthArrays(
-        df[col.TIME].to_numpy(np.float64),
-        a(col.POS),
-        a(col.VEL),
-        a(col.QUAT),
-        a(col.GYRO),
-        a(col.ACCEL),
-        a(col.DTHETA),
-        a(col.DV),
-        meta,
-    )
+    """Read a truth table whole (it is one route: a few tens of MB)."""
+    t = ttruth.read(path)
+    return TruthArrays(t.time_s, t.p_n, t.v_n, t.q_nb, t.omega_ib_b, t.f_b, t.dtheta, t.dv, t.meta)
 
 
 @dataclass
@@ -87,48 +70,18 @@ class Sequence:
         return np.column_stack([self.data[n] for n in names])
 
 
-def _labels_path(shard: Path) -> Path:
-    return shard.with_name(shard.name[: -len(".parquet")] + ".labels.parquet")
-
-
 def iter_sequences(shard_paths, K: int, only=None) -> Iterator[Sequence]:
     """Yield every sequence of the shards (file order), one at a time.
 
     ``only``: optional set of sequence ids to keep.
     """
     for p in map(Path, shard_paths):
-        meta = read_meta(p)
-        pf = pq.ParquetFile(p)
-        names = [
-            c
-            for c in pf.schema_arrow.names
-            if c in RATE_COLUMNS or c in INCREMENT_COLUMNS or c in BIAS_COLUMNS
-        ]
-        lp = _labels_path(p)
-        if not lp.exists():
-            raise InputError(lp, "labels sidecar missing (incomplete shard?)")
-        lab = pd.read_parquet(lp).set_index(SEQUENCE)
-        n = pf.metadata.num_rows
-        if n % K:
-            raise InputError(p, f"holds {n} rows: not whole sequences of the truth's {K} samples")
-        buf = {c: np.empty(K) for c in names}
-        fill, cur = 0, None
-        for rb in pf.iter_batches(batch_size=1 << 16, columns=[SEQUENCE, *names]):
-            seq = rb.column(0).to_numpy()
-            cols = [rb.column(i + 1).to_numpy() for i in range(len(names))]
-            pos = 0
-            while pos < len(seq):
-                m = min(K - fill, len(seq) - pos)
-                if fill == 0:
-                    cur = int(seq[pos])
-                if not (seq[pos : pos + m] == cur).all():
-                    raise InputError(p, "rows are not grouped by sequence with one row per sample")
-                for c, v in zip(names, cols, strict=True):
-                    buf[c][fill : fill + m] = v[pos : pos + m]
-                fill += m
-                pos += m
-                if fill == K:
-                    fill = 0
-                    if only is None or cur in only:
-                        row = lab.loc[cur].to_dict() if cur in lab.index else {}
-                        yield Sequence(cur, buf, row, meta)
+        meta = tshard.read_meta(p)
+        have = set(tshard.column_names(p))
+        names = [c for c in (*RATE_COLUMNS, *INCREMENT_COLUMNS, *BIAS_COLUMNS) if c in have]
+        labels = tshard.read_labels(p, meta).set_index(SEQUENCE)
+        for sid, block in tshard.iter_sequences(p, names, K, np.float64):
+            if only is not None and sid not in only:
+                continue
+            row = labels.loc[sid].to_dict() if sid in labels.index else {}
+            yield Sequence(sid, dict(zip(names, block, strict=True)), row, meta)
