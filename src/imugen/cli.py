@@ -179,6 +179,15 @@ def _cmd_export_mat(a) -> int:
     return 0
 
 
+def _cmd_serve(a) -> int:
+    try:
+        from imugen.web.app import serve
+    except ImportError:
+        raise InputError("imugen serve", "needs Flask: pip install -e '.[web]'") from None
+    serve(a.workdir, host=a.host, port=a.port, repo=a.repo)
+    return 0
+
+
 def _cmd_closure(a) -> int:
     from imugen.closure import closure
 
@@ -300,6 +309,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mat-version", choices=["auto", "5", "7.3"], default="auto")
     p.add_argument("-o", "--output", required=True, help=".mat path")
     p.set_defaults(func=_cmd_export_mat)
+
+    p = sub.add_parser("serve", help="local web page: upload a route, pick grades, run, download")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765)")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only)",
+    )
+    p.add_argument(
+        "--workdir", default="imugen-runs", help="folder of the runs (default ./imugen-runs)"
+    )
+    p.add_argument("--repo", help="project folder with the Snakefile (default: found)")
+    p.set_defaults(func=_cmd_serve)
 
     p = sub.add_parser("allan", help="Allan deviation of a static shard against its grade")
     p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")
