@@ -46,3 +46,8 @@ rule all:
             route=ROUTES,
             grade=GRADES if config["exports"]["mat"] else [],
         ),
+        expand(
+            "results/{route}/datasets/{grade}",
+            route=ROUTES,
+            grade=GRADES if config["exports"]["formats"] else [],
+        ),

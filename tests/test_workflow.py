@@ -235,3 +235,13 @@ def test_lint_only_the_documented_conda_lint(tmp_path):
     lints = re.findall(r"^\s+\* (.+?):$", text, flags=re.M)
     assert lints, text[-2000:]
     assert set(lints) == {"Specify a conda environment or container for each rule."}
+
+
+def test_export_formats_planned_per_route_and_grade(tmp_path):
+    cfg = {**TINY, "exports": {"mat": False, "formats": ["tum", "euroc"]}}
+    write_config(tmp_path, cfg)
+    jobs = planned_jobs(tmp_path)
+    assert jobs.get("export_formats") == len(cfg["routes"]) * len(cfg["grades"])
+    write_config(tmp_path, {**cfg, "exports": {"mat": False, "formats": ["kitti"]}})
+    proc = snakemake(tmp_path, "-n", "-j1")
+    assert proc.returncode != 0 and "kitti" in proc.stdout + proc.stderr
