@@ -198,6 +198,12 @@ def _cmd_export_mat(a) -> int:
     return 0
 
 
+def _cmd_serve(a) -> int:
+    try:
+        from imugen.web.app import serve
+    except ImportError:
+        raise InputError("imugen serve", "needs Flask: pip install -e '.[web]'") from None
+    serve(a.workdir, host=a.host, port=a.port, repo=a.repo)
 def _cmd_export(a) -> int:
     from imugen.formats import export
 
@@ -407,6 +413,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help=".mat path")
     p.set_defaults(func=_cmd_export_mat)
 
+    p = sub.add_parser("serve", help="local web page: upload a route, pick grades, run, download")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765)")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only)",
+    )
+    p.add_argument(
+        "--workdir", default="imugen-runs", help="folder of the runs (default ./imugen-runs)"
+    )
+    p.add_argument("--repo", help="project folder with the Snakefile (default: found)")
+    p.set_defaults(func=_cmd_serve)
     p = sub.add_parser(
         "export", help="shards -> EuRoC, TUM, TLIO, RoNIN, KF-GINS or ROS 2 bag datasets"
     )
