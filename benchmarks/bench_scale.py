@@ -195,10 +195,7 @@ def normals_per_sample(truth_path: Path, grade: str) -> float:
 
     tr = S.ArrayTruth.read(truth_path)
     tr.K = min(tr.K, 2 * S.CHUNK)
-    g, M, seed, shard, en, temp, gp, ap = S._prepare(
-        tr, grade, 1, 1, 0, "increments", "ranges", None, None, None
-    )
-    return float(S._loop(tr, g, M, seed, shard, en, temp, gp, ap, "increments", False, Null()))
+    return float(S._loop(S._plan(tr, grade, 1, 1, 0), Null()))
 
 
 def mech_rate(truth_path: Path, batch: int = 16, repeats: int = 3) -> float:

@@ -55,12 +55,10 @@ def normals_rate(dtype=np.float64, seconds=2.0, shape=(S.CHUNK, 3)) -> float:
 
 def injection(grade, M, K, rate_hz=100.0):
     tr = S.StaticTruth((K - 1) / rate_hz, rate_hz)
-    g, M, seed, shard, en, temp, gp, ap = S._prepare(
-        tr, grade, M, 1, 0, "increments", "ranges", None, None, None
-    )
-    S._loop(tr, g, 2, seed, shard, en, temp, gp, ap, "increments", False, _Null())  # compile
+    S._loop(S._plan(tr, grade, 2, 1, 0), _Null())  # compile
+    plan = S._plan(tr, grade, M, 1, 0)
     t0 = time.perf_counter()
-    nps = S._loop(tr, g, M, seed, shard, en, temp, gp, ap, "increments", False, _Null())
+    nps = S._loop(plan, _Null())
     el = time.perf_counter() - t0
     return M * tr.K / el, nps, el
 

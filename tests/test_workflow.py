@@ -17,6 +17,7 @@ import pytest
 import yaml
 
 from imugen.io import read_meta
+from imugen.tables.shard import route_id
 
 REPO = Path(__file__).resolve().parents[1]
 ROUTE = REPO / "resources" / "example_route.kml"
@@ -170,10 +171,13 @@ def test_short_last_shard_keeps_sequence_ids_unique(done, tmp_path):
     proc = snakemake(wd, "-j2", "results/paper/metrics/mine.parquet")
     assert proc.returncode == 0, proc.stderr[-3000:]
     shards = sorted((wd / "results" / "paper" / "imu" / "mine").glob("shard-*[0-9].parquet"))
-    ids = [pd.read_parquet(p, columns=["sequence"]).sequence.unique().tolist() for p in shards]
+    base = route_id("paper") << 31  # ids route_id << 31 | index (the workflow passes --route)
+    ids = [
+        (pd.read_parquet(p, columns=["sequence"]).sequence.unique() - base).tolist() for p in shards
+    ]
     assert ids == [[0, 1], [2, 3], [4]]
     metrics = pd.read_parquet(wd / "results" / "paper" / "metrics" / "mine.parquet")
-    assert sorted(metrics.sequence) == [0, 1, 2, 3, 4]
+    assert sorted(metrics.sequence - base) == [0, 1, 2, 3, 4]
 
 
 def test_figure_option_reruns_only_figures(done, tmp_path):

@@ -88,6 +88,7 @@ def _cmd_simulate(a) -> int:
         static_earth=a.earth,
         shard_size=a.shard_size,
         route=a.route,
+        increments=a.increments,
     )
     print(
         f"{a.output}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
@@ -256,7 +257,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--draw", choices=["ranges", "nominal"], default="ranges")
     p.add_argument("--terms", help="comma-separated error terms to keep (default: all)")
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
-    p.add_argument("--series", action="store_true", help="also write true bias/SF series")
+    p.add_argument(
+        "--series",
+        action="store_true",
+        help="also write the true bias, scale-factor and effective-error series",
+    )
+    p.add_argument(
+        "--increments",
+        choices=["compensated", "raw"],
+        default="compensated",
+        help="increment semantics: compensated (rotation vector; body frame frozen at the "
+        "interval start, sculling included) or raw (plain integrals of rate and specific force)",
+    )
     p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
     p.add_argument("--grades-file", help="YAML file with custom grades")
     p.add_argument(

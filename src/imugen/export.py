@@ -41,6 +41,10 @@ true_gyro_bias_radps   K x 3 x S  single*  rad/s   true slow gyro bias (if ``ser
 true_gyro_sf           K x 3 x S  single*  1       true gyro scale-factor error (if ``series``)
 true_accel_bias_mps2   K x 3 x S  single*  m/s^2   true slow accel bias (if ``series``)
 true_accel_sf          K x 3 x S  single*  1       true accel scale-factor error (if ``series``)
+err_dtheta_rad         K x 3 x S  single*  rad     effective error of imu_dtheta_rad (if ``series``)
+err_dv_mps             K x 3 x S  single*  m/s     effective error of imu_dv_mps (if ``series``)
+err_gyro_radps         K x 3 x S  single*  rad/s   effective error of imu_gyro_radps (if ``series``)
+err_accel_mps2         K x 3 x S  single*  m/s^2   effective error of imu_accel_mps2 (if ``series``)
 sequence_id            S x 1      int64    1       global sequence id (``route_id << 31 | index``)
 labels                 struct              SI      one S x 1 field per labels column (drawn
                                                    parameters; the unit is in the field name)
@@ -52,13 +56,17 @@ info                   struct                      metadata, below
 
 ``*`` as stored in the shards (single by default, double for shards written with
 ``dtype="float64"``). Increments on row ``k`` belong to the interval ending at ``t(k)``; row 1
-(MATLAB indexing) of every increment series is zero.
+(MATLAB indexing) of every increment series is zero. The effective error is everything the
+sensor adds except white noise and quantization (``imu = true + err + white + quantization``).
+``info.increment_semantics`` is ``compensated`` (the truth's increments: ``imu_dv_mps -
+truth_dv_mps`` is the total error) or ``raw`` (plain integrals of rate and specific force).
 
 ``info`` fields: ``format`` ("imugen-mat"), ``format_version``, ``imugen_version``, ``route``,
 ``grade``, ``grade_id``, ``grade_description``, ``seed``, ``origin`` (struct ``lat_deg``,
 ``lon_deg``, ``alt_m``: WGS-84 geodetic origin of the ENU frame), ``earth`` ("flat" or
 "wgs84"), ``rate_hz``, ``dt_s``, ``samples`` (K), ``sequences`` (S), ``epochs`` (E, 0 without
-navigation), ``mat_version`` ("5" or "7.3"), ``layout``, ``frames``, ``increments`` (text), and
+navigation), ``mat_version`` ("5" or "7.3"), ``layout``, ``frames``, ``increments`` (text),
+``increment_semantics``, and
 ``units`` (struct: variable name -> unit string).
 
 Frames: ``n`` is local East-North-Up with the axes of the topocentric frame at the route
@@ -479,6 +487,7 @@ def export_mat(
         "layout": LAYOUT,
         "frames": FRAMES,
         "increments": INCREMENTS,
+        "increment_semantics": str(first_meta.get("increments", "compensated")),
         "units": units,
     }
 

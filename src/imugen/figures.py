@@ -1,7 +1,7 @@
 """Figures of a route's results: the paper's Figure 8, 3-D tracks, error growth, IMU signals.
 
 Every function reads the stage files (truth, navigation errors, metrics, IMU shards; formats
-in :mod:`imugen.columns`, :mod:`imugen.navigate`, :mod:`imugen.evaluate`), draws one figure
+in :mod:`imugen.tables`), draws one figure
 with Matplotlib (object API, Agg renderer, no display, no global pyplot state), writes it
 atomically as ``<out_stem>.<ext>`` for each requested format and returns the paths written.
 

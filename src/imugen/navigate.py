@@ -4,12 +4,17 @@ Each sequence starts from the true initial state (position, velocity, attitude a
 no initial-alignment error) and is mechanized with :mod:`imugen.mechanize` on the shard's
 angle/velocity increments (or, when the shard holds rates only, on increments formed from
 them by :func:`imugen.mechanize.increments_from_rates`), in the Earth model of the truth.
-Sequences are streamed from the shard in batches, so memory is bounded by the batch size.
+Raw increments (shard metadata ``increments: raw``: plain integrals of rate and specific
+force) first get the two-sample coning/sculling correction
+(:func:`imugen.mechanize.compensate_raw`). Sequences are streamed from the shard in batches,
+so memory is bounded by the batch size.
 
-Output (Parquet, one row per sequence and evaluation epoch; epochs every
-``round(rate / eval_rate_hz)`` samples from ``t_0``): ``sequence``, ``time_s``, position
-error ``err_e_m``, ``err_n_m``, ``err_u_m`` (navigation minus truth, metres) and attitude
-error ``err_att_rad`` (angle of the rotation from the true to the computed attitude).
+Output: the navigation error table of :mod:`imugen.tables.nav` (``sequence``, ``time_s``,
+``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``), one row per sequence and evaluation
+epoch (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
+
+:func:`navigate_arrays` does the same for increments held in memory (no files): the loop of
+a user who corrects increments and wants to see the navigation errors.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import pandas as pd
 
 from imugen import __version__
 from imugen.errors import InputError
-from imugen.mechanize import increments_from_rates, mechanize
+from imugen.mechanize import compensate_raw, increments_from_rates, mechanize
 from imugen.rotations import log_quat, quat_conj, quat_mul
 from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
@@ -32,10 +37,47 @@ BATCH_BYTES = 64 << 20
 """Budget of the float64 increment buffers of one batch (both sensors): with the reused
 buffers it bounds a navigate job's memory whatever the shard's size and the IMU rate."""
 
+NAV_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT]
+
 
 def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
     """Sequences per batch so that two ``(batch, samples, 3)`` float64 buffers fit ``budget``."""
     return int(max(1, min(256, budget // (2 * 3 * 8 * max(int(samples), 1)))))
+
+
+class _Navigator:
+    """Mechanizes batches of increments against one truth and tabulates their errors."""
+
+    def __init__(self, truth: ttruth.Truth, eval_rate_hz: float):
+        self.t = truth.time_s
+        self.K = truth.K
+        self.dt = truth.dt
+        self.every = max(1, round(truth.rate_hz / eval_rate_hz))
+        self.frame = truth.origin_frame()
+        self.p_true = truth.p_n
+        self.q_true = truth.q_nb
+        self.x0 = (self.p_true[0], truth.v_n[0], self.q_true[0])
+
+    def errors(self, seq_ids, dth, dvb) -> pd.DataFrame:
+        """Errors of increments ``dth``, ``dvb`` (b, K-1, 3) (compensated, row 0 dropped)."""
+        p0, v0, q0 = self.x0
+        nav = mechanize(dth, dvb, self.dt, p0, v0, q0, self.frame, every=self.every,
+                        outputs=("p", "q"))  # fmt: skip
+        idx = nav.index
+        err = nav.p_n - self.p_true[idx][None]
+        dq = quat_mul(quat_conj(self.q_true[idx])[None], nav.q_nb)
+        att = np.linalg.norm(log_quat(dq), axis=-1)
+        n_seq, n_ep = err.shape[:2]
+        return pd.DataFrame(
+            {
+                SEQUENCE: np.repeat(np.asarray(seq_ids, np.int64), n_ep),
+                TIME: np.tile(self.t[idx], n_seq),
+                tnav.ERR_POS[0]: err[..., 0].ravel(),
+                tnav.ERR_POS[1]: err[..., 1].ravel(),
+                tnav.ERR_POS[2]: err[..., 2].ravel(),
+                tnav.ERR_ATT: att.ravel(),
+            }
+        )
 
 
 def navigate(
@@ -52,17 +94,10 @@ def navigate(
     """
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     smeta = tshard.read_meta(shard_path)
-    truth = ttruth.read(truth_path, columns=[TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT])
-    t = truth.time_s
-    K = truth.K
-    dt = truth.dt
-    every = max(1, round(truth.rate_hz / eval_rate_hz))
-    frame = truth.origin_frame()
-    p_true = truth.p_n
-    q_true = truth.q_nb
-    p0, v0, q0 = p_true[0], truth.v_n[0], q_true[0]
-
+    nav = _Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS), eval_rate_hz)
+    K = nav.K
     columns, kind = tshard.measurement(shard_path)
+    raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
     n = smeta.get("samples_per_sequence")
     if n is not None and n != K:
         raise InputError(shard_path, f"has {n} samples per sequence where the truth has {K}")
@@ -73,30 +108,103 @@ def navigate(
     frames = []
     for seq_ids, a, b in tshard.iter_blocks(shard_path, columns, K, int(batch), skip):
         if kind == "increments":
-            dth, dvb = a, b
+            dth, dvb = compensate_raw(a, b) if raw else (a, b)
         else:
-            dth, dvb = increments_from_rates(a, b, dt)
-        nav = mechanize(dth, dvb, dt, p0, v0, q0, frame, every=every, outputs=("p", "q"))
-        idx = nav.index
-        err = nav.p_n - p_true[idx][None]
-        dq = quat_mul(quat_conj(q_true[idx])[None], nav.q_nb)
-        att = np.linalg.norm(log_quat(dq), axis=-1)
-        n_seq, n_ep = err.shape[:2]
-        frames.append(
-            pd.DataFrame(
-                {
-                    SEQUENCE: np.repeat(seq_ids.astype(np.int64), n_ep),
-                    TIME: np.tile(t[idx], n_seq),
-                    tnav.ERR_POS[0]: err[..., 0].ravel(),
-                    tnav.ERR_POS[1]: err[..., 1].ravel(),
-                    tnav.ERR_POS[2]: err[..., 2].ravel(),
-                    tnav.ERR_ATT: att.ravel(),
-                }
-            )
-        )
+            dth, dvb = increments_from_rates(a, b, nav.dt)
+        frames.append(nav.errors(seq_ids, dth, dvb))
     if not frames:
         raise InputError(shard_path, "holds no sequences")
     return pd.concat(frames, ignore_index=True)
+
+
+def _as_increments(increments, K: int):
+    """``(dtheta, dv, ids, semantics or None)`` float64 (S, K-1, 3) from the accepted forms."""
+    semantics = None
+    ids = None
+    meta = getattr(increments, "meta", None)
+    if meta is not None and hasattr(increments, "data"):  # imugen.simulate.Shard
+        semantics = tshard.increment_kind(meta)
+        ids = increments.labels[SEQUENCE].to_numpy()
+        increments = increments.data
+    if isinstance(increments, dict):
+        if "dtheta" not in increments or "dv" not in increments:
+            raise InputError("increments", "a dict needs 'dtheta' and 'dv' arrays")
+        dth, dv = increments["dtheta"], increments["dv"]
+    elif isinstance(increments, tuple | list) and len(increments) == 2:
+        dth, dv = increments
+    else:
+        a = np.asarray(increments, dtype=np.float64)
+        if a.shape[-1] != 6:
+            raise InputError("increments", f"expected (..., 6) or (dtheta, dv), got {a.shape}")
+        dth, dv = a[..., :3], a[..., 3:]
+    out = []
+    for name, x in (("dtheta", dth), ("dv", dv)):
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 2:
+            x = x[None]
+        if x.ndim != 3 or x.shape[-1] != 3 or x.shape[1] not in (K, K - 1):
+            raise InputError(
+                "increments", f"{name} must be (S, K, 3) or (S, K-1, 3) with K = {K}, got {x.shape}"
+            )
+        if x.shape[1] == K:  # rows aligned with the truth: row 0 is the empty interval
+            x = x[:, 1:]
+        if not np.all(np.isfinite(x)):
+            raise InputError("increments", f"{name} holds non-finite values")
+        out.append(np.array(x, dtype=np.float64, order="C"))  # a copy: never alter the caller's
+    if out[0].shape != out[1].shape:
+        raise InputError("increments", f"dtheta {out[0].shape} and dv {out[1].shape} differ")
+    return out[0], out[1], ids, semantics
+
+
+def navigate_arrays(
+    truth,
+    increments,
+    *,
+    semantics: str | None = None,
+    eval_rate_hz: float = 1.0,
+    sequence_ids=None,
+) -> pd.DataFrame:
+    """Navigate increments held in memory against a truth; no files written.
+
+    Parameters
+    ----------
+    truth : path or imugen.tables.truth.Truth
+        Truth file (or one already read with :func:`imugen.tables.truth.read`).
+    increments : (dtheta, dv), dict, ndarray or imugen.simulate.Shard
+        Angle [rad] and velocity [m/s] increments, each ``(S, K, 3)`` with rows aligned with
+        the truth (row 0, the empty interval, is ignored) or ``(S, K-1, 3)``; ``(K, 3)`` for one
+        sequence. A dict with ``"dtheta"``, ``"dv"`` (``Shard.data``), an ``(S, K, 6)`` array
+        (dtheta then dv), or an in-memory shard from :func:`imugen.simulate.simulate`.
+    semantics : {"compensated", "raw"}, optional
+        Increment semantics; raw increments get the two-sample coning/sculling correction.
+        Default: the shard's, else compensated.
+    eval_rate_hz : float
+        Error epochs per second (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
+    sequence_ids : array of int, optional
+        Ids of the ``S`` sequences in the result (default the shard's, else ``0 .. S-1``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The navigation error table (:mod:`imugen.tables.nav`): ``sequence``, ``time_s``,
+        ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``.
+    """
+    if not isinstance(truth, ttruth.Truth):
+        truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS)
+    nav = _Navigator(truth, eval_rate_hz)
+    dth, dv, ids, kind = _as_increments(increments, nav.K)
+    kind = semantics or kind or "compensated"
+    if kind not in tshard.INCREMENT_KINDS:
+        raise InputError("semantics", f"must be compensated or raw, got {kind!r}")
+    if sequence_ids is not None:
+        ids = np.asarray(sequence_ids, np.int64)
+    if ids is None:
+        ids = np.arange(len(dth), dtype=np.int64)
+    if len(ids) != len(dth):
+        raise InputError("sequence_ids", f"{len(ids)} ids for {len(dth)} sequences")
+    if kind == "raw":
+        compensate_raw(dth, dv)  # in place, on the copies
+    return nav.errors(ids, dth, dv)
 
 
 def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = None) -> Path:
@@ -114,6 +222,7 @@ def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = Non
         "route": smeta.get("route"),
         "eval_rate_hz": eval_rate_hz,
         "increments": smeta.get("increments", "compensated"),
+        "derived": smeta.get("derived"),
         "error": "navigation minus truth, ENU of the route origin",
     }
     tnav.write(df, meta, out)

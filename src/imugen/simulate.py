@@ -2,16 +2,23 @@
 
 Randomness
 ----------
-A shard's root is ``SeedSequence(seed, spawn_key=(grade_id, shard))``. Sequence ``j`` of the
-shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(grade_id, shard, j,
-stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one per
-stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate random
-walk and bias-instability normals. So a shard's data never depends on how many shards exist or
-on the order they run; raising N only adds shards; sequence ``j`` of a shard does not depend
-on ``M`` (a larger shard only appends sequences); switching a term off leaves the other terms'
-realizations unchanged; and the chunking of time cannot change the numbers (NumPy fills normals
-sequentially). Bit-identity across machines holds for the same NumPy bit-generator algorithms
-(PCG64, ``standard_normal``) -- the NumPy version is recorded in the metadata.
+A route is named by its id ``route_id = int.from_bytes(sha256(name.encode("utf-8"))[:4],
+"big")`` (:func:`imugen.tables.shard.route_id`; the name is ``--route``, else the truth
+metadata's ``route``, else the truth file's folder name, see :func:`route_name`). A shard's
+root is ``SeedSequence(seed, spawn_key=(route_id, grade_id, shard))``. Sequence ``j`` of the
+shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(route_id, grade_id,
+shard, j, stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one
+per stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate
+random walk and bias-instability normals. So no two (route, grade, sequence) share a draw (up
+to a collision of 32-bit route ids: probability ``n^2 / 2^33`` for ``n`` routes); a shard's
+data never depends on how many shards or routes exist or on the order they run; raising N
+only adds shards; sequence ``j`` of a shard does not depend on ``M`` (a larger shard only
+appends sequences); switching a term off leaves the other terms' realizations unchanged; and
+the chunking of time cannot change the numbers (NumPy fills normals sequentially).
+Bit-identity across machines holds for the same NumPy bit-generator algorithms (PCG64,
+``standard_normal``) -- the NumPy version is recorded in the metadata. The shard's bytes do
+not depend on how the truth path was spelled: the metadata names the truth by file name and
+SHA-256.
 
 Per-sequence parameters (see :func:`imugen.sensors.draw_sensor`)
 -----------------------------------------------------------------
@@ -21,20 +28,15 @@ temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationa
 
 Output (one shard = one Parquet file + a labels sidecar)
 --------------------------------------------------------
-Rows sorted by ``sequence`` then time, one per (sequence, IMU sample):
-``sequence`` int32 (global id ``shard * shard_size + j``, ``shard_size`` the experiment's
-sequences per shard, by default this shard's ``M``), ``time_s`` float64, then
-``dtheta_{x,y,z}_rad``, ``dv_{x,y,z}_mps`` (``outputs="increments"``, default; row k holds
-the interval ending at ``t_k``, row 0 of each sequence is zero as in the truth table) and/or
-``gyro_{x,y,z}_radps``, ``accel_{x,y,z}_mps2`` (``outputs="rates"``). Measurements are float32
-by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is a
-white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives 6e-8 rad
-per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is available.
-``series=True`` adds the true slow bias (turn-on + in-run + RRW + temperature, at ``t_k``)
-and scale-factor error of each axis (``gyro_bias_x_radps``, ``gyro_sf_x``, ...).
+The layout, ids and columns are those of :mod:`imugen.tables.shard` (``sequence`` int64
+``route_id << 31 | (shard * shard_size + j)``, ``time_s``, increments and/or rates, with
+``series=True`` the true bias, scale-factor and effective-error series). Measurements are
+float32 by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is
+a white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives
+6e-8 rad per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is
+available. Increments are ``compensated`` (the truth's) or ``raw`` (plain integrals of rate
+and specific force, :meth:`Truth.raw_chunk`), recorded as ``increments`` in the metadata.
 Row groups are written as time chunks are produced (bounded buffer, never the whole shard).
-The labels sidecar ``<stem>.labels.parquet`` holds one row per sequence with every drawn
-parameter (SI units in the column names). Both files carry JSON metadata under ``b"imugen"``.
 """
 
 from __future__ import annotations
@@ -98,6 +100,11 @@ class Truth(ABC):
     def chunk(self, k0: int, L: int):
         """``(time_s (L,), omega_ib_b (L,3), f_b (L,3), dtheta (L,3), dv (L,3))``, float64."""
 
+    @abstractmethod
+    def raw_chunk(self, k0: int, L: int):
+        """Raw increments ``(int omega_ib_b dt (L,3), int f_b dt (L,3))`` of the intervals
+        ending at samples ``k0 .. k0+L-1`` (row 0 zero), float64."""
+
 
 class ArrayTruth(Truth):
     """Truth held as arrays (rows ``k``: sample at ``t_k``; increments of the interval ending there).
@@ -128,10 +135,21 @@ class ArrayTruth(Truth):
         ) + 1e-12 * abs(self.time[-1]):
             raise InputError(source, "time_s is not a uniform grid")
         self.meta = dict(meta or {})
+        self._raw = None
 
     def chunk(self, k0, L):
         s = slice(k0, k0 + L)
         return self.time[s], self.w[s], self.f[s], self.dth[s], self.dv[s]
+
+    def raw_chunk(self, k0, L):
+        """4-point quadrature of the rate samples (:func:`imugen.mechanize.interval_integrals`:
+        exact for cubics, local error ``O(dt^5)``), computed once for the whole truth."""
+        if self._raw is None:
+            from imugen.mechanize import interval_integrals
+
+            self._raw = (interval_integrals(self.w, self.dt), interval_integrals(self.f, self.dt))
+        s = slice(k0, k0 + L)
+        return self._raw[0][s], self._raw[1][s]
 
     @classmethod
     def from_frame(cls, df: pd.DataFrame, meta=None, source="<frame>") -> ArrayTruth:
@@ -249,6 +267,15 @@ class StaticTruth(Truth):
             dv[0] = 0.0
         t = np.arange(k0, k0 + L, dtype=np.float64) * self.dt
         return t, w, f, dth, dv
+
+    def raw_chunk(self, k0, L):
+        """Constant rates: the plain integrals are exactly ``omega dt`` and ``f_b dt``."""
+        a = np.tile(self.omega * self.dt, (L, 1))
+        b = np.tile(self.f_b * self.dt, (L, 1))
+        if k0 == 0:
+            a[0] = 0.0
+            b[0] = 0.0
+        return a, b
 
 
 # --- temperature profiles ---------------------------------------------------------------------------
@@ -443,56 +470,53 @@ def _first_id(shard: int, M: int, shard_size) -> int:
     return shard * size
 
 
-def _prepare(
-    truth,
-    grade,
-    sequences,
-    seed,
-    shard,
-    outputs,
-    draw,
-    terms,
-    temperature,
-    grades_file,
-    shard_size=None,
-    rid=0,
-):
-    grade = get_grade(grade, grades_file)
-    M = _check_int("--sequences", sequences, 1)
-    seed = _check_int("--seed", seed, 0)
-    shard = _check_int("--shard", shard, 0)
-    if outputs not in OUTPUTS:
-        raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
-    if draw not in DRAWS:
-        raise InputError("--draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
-    _first_id(shard, M, shard_size)
-    enabled = enabled_terms(grade, terms)
-    temp = temperature_profile(temperature)
-    nominal = draw == "nominal"
-    gp, ap = [], []
-    for j in range(M):
-        rng = _rng(seed, rid, grade.id, shard, j, "params")
-        gp.append(draw_sensor(grade.gyro, rng, enabled["gyro"], nominal))
-        ap.append(draw_sensor(grade.accel, rng, enabled["accel"], nominal))
-    return grade, M, seed, shard, enabled, temp, gp, ap
+@dataclass
+class _Plan:
+    """Everything one shard's generation needs, validated once (shared by simulate and run)."""
+
+    truth: Truth
+    grade: Grade
+    M: int
+    seed: int
+    shard: int
+    rid: int
+    ids: np.ndarray
+    enabled: dict
+    temp: object
+    gp: list
+    ap: list
+    outputs: str
+    series: bool
+    raw: bool
+    names: list
+    meta: dict
+
+    def labels(self) -> pd.DataFrame:
+        """One row per sequence: ids, provenance and every drawn parameter."""
+        M = self.M
+        d = {
+            SEQUENCE: self.ids,
+            "route_id": np.full(M, self.rid, np.int64),
+            "shard": np.full(M, self.shard, np.int32),
+            "index": np.arange(M, dtype=np.int32),
+            "seed": np.full(M, self.seed, np.int64),
+            "grade_id": np.full(M, self.grade.id, np.int32),
+        }
+        d.update(SensorParams.stack(self.gp).labels("gyro", "radps"))
+        d.update(SensorParams.stack(self.ap).labels("accel", "mps2"))
+        return pd.DataFrame(d)
 
 
-def _labels(grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, ids, rid):
-    d = {
-        SEQUENCE: ids,
-        "route_id": np.full(M, rid, np.int64),
-        "shard": np.full(M, shard, np.int32),
-        "index": np.arange(M, dtype=np.int32),
-        "seed": np.full(M, seed, np.int64),
-        "grade_id": np.full(M, grade.id, np.int32),
-    }
-    d.update(gpar.labels("gyro", "radps"))
-    d.update(apar.labels("accel", "mps2"))
-    return pd.DataFrame(d)
+def _loop(plan: _Plan, sink):
+    """Generate every sequence in time chunks and hand each chunk to ``sink.put``.
 
-
-def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, rid):
-    """Generate every sequence in time chunks and hand each chunk to ``sink.put``."""
+    With ``plan.raw`` the sensor integrates the plain integrals of rate and specific force
+    (raw increments) instead of the truth's compensated increments."""
+    truth, M, seed, shard, rid = plan.truth, plan.M, plan.seed, plan.shard, plan.rid
+    grade, temp, gp, ap, outputs, series = (
+        plan.grade, plan.temp, plan.gp, plan.ap, plan.outputs, plan.series,
+    )  # fmt: skip
+    raw = plan.raw
     K, dt = truth.K, truth.dt
     want_inc = outputs in ("increments", "both")
     want_rate = outputs in ("rates", "both")
@@ -534,6 +558,8 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
         for k0 in range(0, K, CHUNK):
             L = min(CHUNK, K - k0)
             t, w_b, f_b, dth, dv = truth.chunk(k0, L)
+            if raw:
+                dth, dv = truth.raw_chunk(k0, L)
             dT = None
             if temp is not None:
                 # time since turn-on of the sample before the chunk and of each sample
@@ -603,25 +629,53 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
     return normals / M if M else 0
 
 
-def _meta(
-    grade,
+def _plan(
     truth,
-    M,
+    grade,
+    sequences,
     seed,
     shard,
-    enabled,
-    outputs,
-    draw,
-    temperature,
-    series,
-    dtype,
-    first,
-    route,
-    rid,
-):
-    """The shard metadata block (the writer adds format, units and the labels file name)."""
-    ids = tshard.sequence_ids(rid, [first, first + M - 1])
-    return {
+    *,
+    outputs="increments",
+    draw="ranges",
+    terms=None,
+    temperature=None,
+    series=False,
+    static_s=None,
+    rate_hz=100.0,
+    static_earth="flat",
+    static_origin=DEFAULT_STATIC_ORIGIN,
+    grades_file=None,
+    shard_size=None,
+    route=None,
+    increments="compensated",
+    dtype="float32",
+) -> _Plan:
+    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
+    route = route_name(truth, tr, route)
+    rid = tshard.route_id(route)
+    grade = get_grade(grade, grades_file)
+    M = _check_int("--sequences", sequences, 1)
+    seed = _check_int("--seed", seed, 0)
+    shard = _check_int("--shard", shard, 0)
+    if outputs not in OUTPUTS:
+        raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
+    if draw not in DRAWS:
+        raise InputError("--draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
+    if increments not in tshard.INCREMENT_KINDS:
+        kinds = ", ".join(tshard.INCREMENT_KINDS)
+        raise InputError("--increments", f"must be one of {kinds}, got {increments!r}")
+    first = _first_id(shard, M, shard_size)
+    enabled = enabled_terms(grade, terms)
+    temp = temperature_profile(temperature)
+    nominal = draw == "nominal"
+    gp, ap = [], []
+    for j in range(M):
+        rng = _rng(seed, rid, grade.id, shard, j, "params")
+        gp.append(draw_sensor(grade.gyro, rng, enabled["gyro"], nominal))
+        ap.append(draw_sensor(grade.accel, rng, enabled["accel"], nominal))
+    ids = tshard.sequence_ids(rid, first + np.arange(M))
+    meta = {
         "format": tshard.FORMAT,
         "format_version": tshard.FORMAT_VERSION,
         "code_version": __version__,
@@ -646,7 +700,7 @@ def _meta(
         "shard": shard,
         "sequences": M,
         "first_index": first,
-        "sequence_ids": [int(ids[0]), int(ids[1])],
+        "sequence_ids": [int(ids[0]), int(ids[-1])],
         "sequence_id": "route_id << 31 | index, index = shard * shard_size + j",
         "spawn_key": [rid, grade.id, shard],
         "sequence_spawn_key": "(route_id, grade_id, shard, index_in_shard, stream)",
@@ -655,18 +709,24 @@ def _meta(
         "draw": draw,
         "terms": {k: sorted(v) for k, v in enabled.items()},
         "outputs": outputs,
+        "increments": increments,
         "series": bool(series),
         "dtype": np.dtype(dtype).name,
         "chunk": CHUNK,
-        "rate_hz": 1.0 / truth.dt,
-        "dt_s": truth.dt,
-        "samples_per_sequence": truth.K,
-        "truth": truth.meta,
+        "rate_hz": 1.0 / tr.dt,
+        "dt_s": tr.dt,
+        "samples_per_sequence": tr.K,
+        "truth": tr.meta,
         "temperature": temperature,
         "rows": "sorted by sequence then time; increments on row k are the interval ending at "
         "t_k; row 0 of each sequence is zero",
         "derived": None,
     }
+    names = tshard.groups(outputs, series)
+    return _Plan(
+        tr, grade, M, seed, shard, rid, ids, enabled, temp, gp, ap, outputs, bool(series),
+        increments == "raw", names, meta,
+    )  # fmt: skip
 
 
 def simulate(
@@ -688,6 +748,7 @@ def simulate(
     grades_file=None,
     shard_size=None,
     route=None,
+    increments="compensated",
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
@@ -718,49 +779,23 @@ def simulate(
     route : str, optional
         Route name; its :func:`~imugen.tables.shard.route_id` enters every spawn key and the
         sequence ids. Default :func:`route_name`.
+    increments : {"compensated", "raw"}
+        Increment semantics (:mod:`imugen.tables.shard`): the truth's compensated increments,
+        or plain integrals of rate and specific force (``Truth.raw_chunk``).
     """
-    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
-    route = route_name(truth, tr, route)
-    rid = tshard.route_id(route)
-    grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
-        tr,
-        grade,
-        sequences,
-        seed,
-        shard,
-        outputs,
-        draw,
-        terms,
-        temperature,
-        grades_file,
-        rid=rid,
-    )
-    first = _first_id(shard, M, shard_size)
-    names = tshard.groups(outputs, series)
-    sink = _MemorySink(M, tr.K, names)
-    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, rid)
-    gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
+    plan = _plan(
+        truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
+        temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
+        static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
+        shard_size=shard_size, route=route, increments=increments, dtype=np.float64,
+    )  # fmt: skip
+    tr = plan.truth
+    sink = _MemorySink(plan.M, tr.K, plan.names)
+    _loop(plan, sink)
     time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
-    meta = _meta(
-        grade,
-        tr,
-        M,
-        seed,
-        shard,
-        enabled,
-        outputs,
-        draw,
-        temperature,
-        series,
-        np.float64,
-        first,
-        route,
-        rid,
-    )
-    meta["units"] = tshard.units(names)
-    ids = tshard.sequence_ids(rid, first + np.arange(M))
-    labels = _labels(grade, M, seed, shard, gpar, apar, ids, rid)
-    return Shard(time_s, sink.data, labels, gpar, apar, meta)
+    meta = {**plan.meta, "units": tshard.units(plan.names)}
+    gpar, apar = SensorParams.stack(plan.gp), SensorParams.stack(plan.ap)
+    return Shard(time_s, sink.data, plan.labels(), gpar, apar, meta)
 
 
 def run(
@@ -785,6 +820,7 @@ def run(
     static_origin=DEFAULT_STATIC_ORIGIN,
     shard_size=None,
     route=None,
+    increments="compensated",
 ) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically.
 
@@ -801,60 +837,15 @@ def run(
     """
     if out is None:
         raise InputError("-o", "an output path is required")
-    out = Path(out)
     if dtype not in ("float32", "float64"):
         raise InputError("--dtype", f"must be float32 or float64, got {dtype!r}")
-    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
-    route = route_name(truth, tr, route)
-    rid = tshard.route_id(route)
-    grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
-        tr,
-        grade,
-        sequences,
-        seed,
-        shard,
-        outputs,
-        draw,
-        terms,
-        temperature,
-        grades_file,
-        rid=rid,
-    )
-    first = _first_id(shard, M, shard_size)
-    names = tshard.groups(outputs, series)
-    meta = _meta(
-        grade,
-        tr,
-        M,
-        seed,
-        shard,
-        enabled,
-        outputs,
-        draw,
-        temperature,
-        series,
-        dtype,
-        first,
-        route,
-        rid,
-    )
-    ids = tshard.sequence_ids(rid, first + np.arange(M))
-    with tshard.writer(out, meta, names, dtype, compression=compression) as w:
-        _loop(
-            tr,
-            grade,
-            M,
-            seed,
-            shard,
-            enabled,
-            temp,
-            gp,
-            ap,
-            outputs,
-            series,
-            _WriterSink(w, ids),
-            rid,
-        )
-        gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
-        w.labels = _labels(grade, M, seed, shard, gpar, apar, ids, rid)
+    plan = _plan(
+        truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
+        temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
+        static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
+        shard_size=shard_size, route=route, increments=increments, dtype=dtype,
+    )  # fmt: skip
+    with tshard.writer(out, plan.meta, plan.names, dtype, compression=compression) as w:
+        _loop(plan, _WriterSink(w, plan.ids))
+        w.labels = plan.labels()
     return tshard.read_meta(out)

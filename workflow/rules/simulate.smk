@@ -31,13 +31,14 @@ rule simulate:
         dtype=SIM["dtype"],
         outputs=SIM["outputs"],
         series="--series" if SIM["series"] else "",
+        increments=SIM["increments"],
         shard=lambda wc: int(wc.shard),
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
         "imugen simulate {input.truth:q} -o {output.shard:q} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
-        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
+        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
         "> {log:q} 2>&1"
 
 

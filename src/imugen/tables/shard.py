@@ -414,3 +414,98 @@ def iter_blocks(path, columns, samples: int, batch: int, skip: int = 0):
         raise InputError(path, f"holds {k} stray rows: not whole sequences of {K}")
     if n:
         yield ids[:n], bufs[0][:n], bufs[1][:n]
+
+
+# --- derived shards ------------------------------------------------------------------------
+def _groups_of(data, K: int, S: int, source) -> dict:
+    """``{group: (S, K, 3) float64}`` from (dtheta, dv), a dict of groups or an (S, K, 6) array."""
+    if isinstance(data, dict):
+        items = dict(data)
+    elif isinstance(data, tuple | list) and len(data) == 2:
+        items = {"dtheta": data[0], "dv": data[1]}
+    else:
+        a = np.asarray(data, dtype=np.float64)
+        if a.shape[-1] != 6:
+            raise InputError(source, f"expected (S, K, 6) or (dtheta, dv), got {a.shape}")
+        items = {"dtheta": a[..., :3], "dv": a[..., 3:]}
+    unknown = [g for g in items if g not in GROUPS]
+    if unknown:
+        raise InputError(source, f"unknown column group(s) {', '.join(unknown)}")
+    out = {}
+    for g, x in items.items():
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 2:
+            x = x[None]
+        if x.ndim != 3 or x.shape[0] != S or x.shape[2] != 3 or x.shape[1] not in (K, K - 1):
+            raise InputError(
+                source, f"{g} must be ({S}, {K}, 3) or ({S}, {K - 1}, 3), got {x.shape}"
+            )
+        if x.shape[1] == K - 1:  # no row for t_0: the empty interval is zero
+            x = np.concatenate([np.zeros((S, 1, 3)), x], axis=1)
+        if not np.all(np.isfinite(x)):
+            raise InputError(source, f"{g} holds non-finite values")
+        out[g] = x
+    if not ({"dtheta", "dv"} <= set(out) or {"gyro", "accel"} <= set(out)):
+        raise InputError(source, "give both dtheta and dv (or both gyro and accel)")
+    return out
+
+
+def write_like(path, data, like, *, semantics: str | None = None, dtype="float32", note=None):
+    """Write corrected measurements as a valid shard, metadata derived from shard ``like``.
+
+    Parameters
+    ----------
+    path : path
+        Output shard (its labels sidecar is written beside it).
+    data : (dtheta, dv), dict or ndarray
+        The new measurements of every sequence of ``like``, in its order: ``(dtheta, dv)``
+        each ``(S, K, 3)`` (rows aligned with the shard; or ``(S, K-1, 3)`` without the empty
+        row of ``t_0``), a dict of column groups (``"dtheta"``, ``"dv"``, ``"gyro"``,
+        ``"accel"``, ...; see :data:`GROUPS`) or an ``(S, K, 6)`` array (dtheta then dv).
+    like : path
+        The shard the data were derived from: ids, times, labels and metadata are taken from
+        it; the metadata's ``derived`` records the origin (file name, SHA-256) and ``note``.
+    semantics : {"compensated", "raw"}, optional
+        Increment semantics of ``data`` (default that of ``like``).
+    dtype : {"float32", "float64"}
+
+    Returns
+    -------
+    Path
+    """
+    from imugen.tables.truth import checksum
+
+    like = Path(like)
+    meta = read_meta(like)
+    K = int(meta.get("samples_per_sequence") or 0)
+    tbl = read(like, [SEQUENCE, TIME])
+    n = tbl.num_rows
+    if K <= 0 or n % K:
+        raise InputError(like, f"holds {n} rows: not whole sequences of {K} samples")
+    S = n // K
+    seq = tbl.column(SEQUENCE).to_numpy().reshape(S, K)
+    ids = seq[:, 0].astype(np.int64)
+    time_s = tbl.column(TIME).to_numpy()[:K].astype(np.float64)
+    groups_ = _groups_of(data, K, S, "data")
+    semantics = semantics or increment_kind(meta)
+    if semantics not in INCREMENT_KINDS:
+        raise InputError("semantics", f"must be compensated or raw, got {semantics!r}")
+    if dtype not in ("float32", "float64"):
+        raise InputError("dtype", f"must be float32 or float64, got {dtype!r}")
+    inc = "dtheta" in groups_
+    rate = "gyro" in groups_
+    new = {
+        **meta,
+        "outputs": "both" if inc and rate else ("increments" if inc else "rates"),
+        "increments": semantics,
+        "series": False,
+        "dtype": np.dtype(dtype).name,
+        "derived": {
+            "from": like.name,
+            "from_sha256": checksum(like),
+            "groups": sorted(groups_),
+            "note": note,
+        },
+    }
+    labels = read_labels(like, meta)
+    return write(path, time_s, groups_, ids, labels, new, dtype)
