@@ -52,6 +52,10 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
 
 
+onsuccess:
+    run_summary()
+
+
 rule all:
     default_target: True
     input:
