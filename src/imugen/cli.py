@@ -204,6 +204,8 @@ def _cmd_serve(a) -> int:
     except ImportError:
         raise InputError("imugen serve", "needs Flask: pip install -e '.[web]'") from None
     serve(a.workdir, host=a.host, port=a.port, repo=a.repo)
+
+
 def _cmd_export(a) -> int:
     from imugen.formats import export
 

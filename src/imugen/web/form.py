@@ -132,6 +132,7 @@ def validate(cfg: dict, repo: Path) -> None:
         where = ".".join(str(p) for p in err.absolute_path) or "configuration"
         raise InputError(where, " ".join(err.message.split())[:300])
 
+
 def form_values(schema: dict, form) -> dict:
     """A submitted form as ``{field name: value}`` (lists for grades and multi fields)."""
     multi = {"grades"} | {
