@@ -129,7 +129,7 @@ def test_duplicates_and_clock_rules(tmp_path):
     [
         ([(1, -1230), (1, 2)], "point 1: longitude -1230 deg is outside"),
         ([(1, 2), (95, 2)], "point 2: latitude 95"),
-        ([(1, 2), (float("nan"), 2)], "point 2: latitude is nan"),
+        ([(1, 2), (float("nan"), 2)], "point 2: lat/lon .*not a finite number: .nan."),
         ([(1, 2, 1e7), (1.1, 2)], "height 1e\\+07 m"),
         ([(1, 2)], "at least two"),
         ([(1, 2), (1, 2), (1, 2)], "fewer than two distinct points"),

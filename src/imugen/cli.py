@@ -1,7 +1,8 @@
 """Command line: ``imugen <stage> ...``, a thin dispatcher onto the stages' functions.
 
 A user's mistake (bad file, bad option) prints one line ``imugen: error: FILE: problem``
-and exits with status 2; no traceback, no partial output.
+and exits with status 2; no traceback, no partial output. Control characters that a file
+could smuggle into a message (terminal escapes, carriage returns) are printed escaped.
 """
 
 from __future__ import annotations
@@ -13,6 +14,13 @@ import sys
 from imugen import __version__
 from imugen.clean import VEHICLE_LIMITS
 from imugen.errors import InputError
+
+
+def _printable(text: str) -> str:
+    """``text`` with non-printable characters escaped (``\\x1b``), so a message stays one line."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
 def _add_ingest_options(p: argparse.ArgumentParser) -> None:
@@ -41,7 +49,7 @@ def _cmd_ingest(a) -> int:
         gaps=a.gaps,
     )
     for w in ing.warnings:
-        print(f"imugen: warning: {a.src}: {w}", file=sys.stderr)
+        print(_printable(f"imugen: warning: {a.src}: {w}"), file=sys.stderr)
     m = ing.meta
     print(
         f"{a.output}: path {m['path']!r}, {m['points_out']} points, "
@@ -489,7 +497,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except InputError as exc:
-        print(f"imugen: error: {exc}", file=sys.stderr)
+        print(_printable(f"imugen: error: {exc}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("imugen: interrupted", file=sys.stderr)

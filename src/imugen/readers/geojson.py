@@ -101,11 +101,11 @@ def _walk(obj, name: str | None, times, out: list, counts: dict, source: Path) -
         counts["other"] += 1
 
 
-def read_geojson(path: str | Path) -> list[RoutePath]:
+def read_geojson(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
     """Read every LineString (and line of a MultiLineString) of a GeoJSON file."""
     path = Path(path)
     try:
-        doc = json.loads(path.read_bytes())
+        doc = json.loads(path.read_bytes() if data is None else data)
     except (ValueError, RecursionError) as exc:
         raise InputError(path, f"is not valid GeoJSON ({type(exc).__name__}: {exc})") from None
     out: list[RoutePath] = []

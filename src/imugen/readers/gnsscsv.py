@@ -115,10 +115,10 @@ def _col(names: list[str], aliases: tuple[str, ...]) -> int | None:
     return None
 
 
-def read_gnss_csv(path: str | Path) -> list[RoutePath]:
+def read_gnss_csv(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
     """Read a NavSatFix dump, hemisphere-lettered or NUL-padded CSV as one candidate path."""
     path = Path(path)
-    data = path.read_bytes()
+    data = path.read_bytes() if data is None else data
     warnings: list[str] = []
     if data.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16 with a byte-order mark
         try:

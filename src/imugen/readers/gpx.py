@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imugen import limits
 from imugen.errors import InputError
 from imugen.route import RoutePath, parse_iso_time, parse_number
 from imugen.xmlsafe import local, parse_xml
@@ -49,11 +50,10 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
         try:
             lat[i] = parse_number(p.get("lat", ""))
             lon[i] = parse_number(p.get("lon", ""))
-        except ValueError:
+        except ValueError as exc:
             raise InputError(
                 source,
-                f"{where} point {i + 1}: lat/lon attributes are missing or not numbers "
-                f"(lat={p.get('lat')!r}, lon={p.get('lon')!r})",
+                f"{where} point {i + 1}: lat/lon attributes are missing or not numbers ({exc})",
             ) from None
         ele = _text(p, "ele")
         if ele:
@@ -61,18 +61,14 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
                 alt[i] = parse_number(ele)
                 have_ele += 1
                 missing[i] = False
-            except ValueError:
-                raise InputError(
-                    source, f"{where} point {i + 1}: <ele> {ele!r} is not a number"
-                ) from None
+            except ValueError as exc:
+                raise InputError(source, f"{where} point {i + 1}: <ele>: {exc}") from None
         when = _text(p, "time")
         if when:
             try:
                 t[i] = parse_iso_time(when)
-            except ValueError:
-                raise InputError(
-                    source, f"{where} point {i + 1}: <time> {when!r} is not ISO-8601"
-                ) from None
+            except ValueError as exc:
+                raise InputError(source, f"{where} point {i + 1}: <time>: {exc}") from None
     notes = []
     trusted = have_ele > 0
     if have_ele == 0:
@@ -93,8 +89,8 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
     )
 
 
-def read_gpx(path: str | Path) -> list[RoutePath]:
-    """Read all track segments and routes of a GPX file.
+def read_gpx(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
+    """Read all track segments and routes of a GPX file (``data``: its bytes, if already read).
 
     Returns
     -------
@@ -102,13 +98,14 @@ def read_gpx(path: str | Path) -> list[RoutePath]:
         One per non-empty ``trkseg`` and per non-empty ``rte``, in document order.
     """
     path = Path(path)
-    root = parse_xml(path.read_bytes(), path)
+    root = parse_xml(limits.read_input(path) if data is None else data, path)
     if local(root.tag) != "gpx":
         raise InputError(path, f"is not GPX: the root element is <{local(root.tag)}>, not <gpx>")
     out: list[RoutePath] = []
     n_wpt = len(_children(root, "wpt"))
     for ti, trk in enumerate(_children(root, "trk"), start=1):
         tname = _text(trk, "name") or f"track {ti}"
+        limits.check(path, "name_chars", len(tname), f"track {ti} <name>")
         segs = [s for s in _children(trk, "trkseg") if _children(s, "trkpt")]
         for si, seg in enumerate(segs, start=1):
             name = tname if len(segs) == 1 else f"{tname} / segment {si}"
@@ -117,6 +114,7 @@ def read_gpx(path: str | Path) -> list[RoutePath]:
         pts = _children(rte, "rtept")
         if pts:
             name = _text(rte, "name") or f"route {ri}"
+            limits.check(path, "name_chars", len(name), f"route {ri} <name>")
             out.append(_points(pts, f"route {name!r}", path, name, "rte"))
     if not out:
         extra = f" (it holds {n_wpt} waypoints, which are not a path)" if n_wpt else ""

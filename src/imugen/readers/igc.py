@@ -63,10 +63,10 @@ def _b_record(line: str) -> tuple[float, float, float, bool, float, float]:
     )
 
 
-def read_igc(path: str | Path) -> list[RoutePath]:
+def read_igc(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
     """Read the B records of an IGC file as one candidate path."""
     path = Path(path)
-    text = path.read_bytes().decode("ascii", errors="replace")
+    text = (path.read_bytes() if data is None else data).decode("ascii", errors="replace")
     date = None
     recs = []
     bad = 0

@@ -87,10 +87,10 @@ def _date_unix(field: str) -> float:
     return dt.timestamp()
 
 
-def read_nmea(path: str | Path) -> list[RoutePath]:
+def read_nmea(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
     """Read the GGA/RMC fixes of an NMEA 0183 log as one candidate path."""
     path = Path(path)
-    text = path.read_bytes().decode("ascii", errors="replace")
+    text = (path.read_bytes() if data is None else data).decode("ascii", errors="replace")
     bad_sum = unparsable = no_fix = other = 0
     epochs: list[dict] = []
     for raw in text.splitlines():
