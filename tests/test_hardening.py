@@ -287,11 +287,13 @@ def test_csv_dialects_are_read(name, tmp_path):
         assert list(p.alt_m) == [1600.5, 1601.5] and any("decimal comma" in n for n in p.notes)
 
 
-def test_utf16_without_bom_gets_a_hint(tmp_path):
+def test_utf16_without_bom_is_cleaned_and_said(tmp_path):
+    # NUL bytes between ASCII characters (UTF-16 without a byte-order mark, or NUL-padded
+    # fields) are removed with a warning by the GNSS CSV reader rather than refused
     src = tmp_path / "u.csv"
-    src.write_bytes("lat,lon\n1,2\n".encode("utf-16-le"))
-    with pytest.raises(InputError, match="UTF-16 needs a byte-order mark"):
-        read_route_file(src)
+    src.write_bytes("lat,lon\n1,2\n1.001,2\n".encode("utf-16-le"))
+    (p,) = read_route_file(src)
+    assert p.n_points == 2 and any("NUL" in w for w in p.warnings)
 
 
 # --- a numba cache that cannot be written -------------------------------------------------------
