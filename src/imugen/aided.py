@@ -569,8 +569,19 @@ def _kernel(
                 dx[i] = 0.0
             _dcm(q0, q1, q2, q3, C)
             gate = opt[O_GATE]
-            # corrected angular rate of the last interval (lever-arm velocity)
-            if ke > 0:
+            # corrected angular rate at t_ke (lever-arm velocity), extrapolated from the
+            # mean rates of the last two intervals (second order)
+            if ke > 1:
+                wbx = ((1.5 * dth[s, ke, 0] - 0.5 * dth[s, ke - 1, 0]) / dt - x[X_BG]) / (
+                    1.0 + x[X_SG]
+                )
+                wby = ((1.5 * dth[s, ke, 1] - 0.5 * dth[s, ke - 1, 1]) / dt - x[X_BG + 1]) / (
+                    1.0 + x[X_SG + 1]
+                )
+                wbz = ((1.5 * dth[s, ke, 2] - 0.5 * dth[s, ke - 1, 2]) / dt - x[X_BG + 2]) / (
+                    1.0 + x[X_SG + 2]
+                )
+            elif ke > 0:
                 wbx = (dth[s, ke, 0] / dt - x[X_BG]) / (1.0 + x[X_SG])
                 wby = (dth[s, ke, 1] / dt - x[X_BG + 1]) / (1.0 + x[X_SG + 1])
                 wbz = (dth[s, ke, 2] / dt - x[X_BG + 2]) / (1.0 + x[X_SG + 2])
@@ -584,9 +595,10 @@ def _kernel(
             cwx = wby * lz - wbz * ly
             cwy = wbz * lx - wbx * lz
             cwz = wbx * ly - wby * lx
-            cw0 = C[0, 0] * cwx + C[0, 1] * cwy + C[0, 2] * cwz
-            cw1 = C[1, 0] * cwx + C[1, 1] * cwy + C[1, 2] * cwz
-            cw2 = C[2, 0] * cwx + C[2, 1] * cwy + C[2, 2] * cwz
+            # C ((w_ib - C^T Omega) x l) = C (w_ib x l) - Omega x (C l)
+            cw0 = C[0, 0] * cwx + C[0, 1] * cwy + C[0, 2] * cwz - (w1 * cl2 - w2 * cl1)
+            cw1 = C[1, 0] * cwx + C[1, 1] * cwy + C[1, 2] * cwz - (w2 * cl0 - w0 * cl2)
+            cw2 = C[2, 0] * cwx + C[2, 1] * cwy + C[2, 2] * cwz - (w0 * cl1 - w1 * cl0)
             gnss_ok = ok[s, jj]
             if gnss_ok:
                 L = lat[s] if opt[O_LATENCY] != 0.0 else 0.0
