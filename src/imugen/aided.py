@@ -790,11 +790,13 @@ class AidedResult:
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
     """An :class:`Initial` from explicit values (S rows each; biases default 0)."""
     p = np.atleast_2d(np.asarray(p_n, float))
-    S = len(p)
+    v = np.atleast_2d(np.asarray(v_n, float))
+    q = np.atleast_2d(np.asarray(q_nb, float))
+    P0 = np.asarray(P0, float)
+    S = max(len(p), len(v), len(q), len(P0) if P0.ndim == 3 else 1)
     x0 = np.zeros((S, NX))
     x0[:, X_P : X_P + 3] = p
-    x0[:, X_V : X_V + 3] = v_n
-    q = np.atleast_2d(np.asarray(q_nb, float))
+    x0[:, X_V : X_V + 3] = v
     x0[:, X_Q : X_Q + 4] = q / np.linalg.norm(q, axis=1, keepdims=True)
     if gyro_bias is not None:
         x0[:, X_BG : X_BG + 3] = gyro_bias
