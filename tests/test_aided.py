@@ -252,3 +252,85 @@ def test_moving_start_alignment_within_its_covariance(flat_car):
     assert z2 < chi2.ppf(0.995, 3 * M)
     yaw_err = np.abs(psi[:, 2])
     assert np.all(yaw_err < 4 * sd[:, 2])
+
+
+def car_shard(df, grade, M, seed, terms=TERMS, receiver="standalone"):
+    t, p, v, q, w = arrays(df)
+    sh = SIM.simulate(df, grade, sequences=M, seed=seed, draw="nominal", terms=terms, series=True)
+    gn = G.simulate_gnss(
+        t, p, v, q, w, receiver, sequences=M, seed=seed, draw="nominal", lever_arm_b_m=LEVER
+    )
+    return sh, gn
+
+
+def test_zupt_fires_only_at_stops_and_nhc_bounds_outage_drift(flat_car):
+    from imugen import scenarios as SC
+
+    M = 20
+    _, p, v, _, _ = arrays(flat_car)
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    sh, gn = car_shard(flat_car, "consumer", M, 21)
+    tun = A.Tuning.from_grade("consumer")
+    # 60 s outage at t = 100 s (the car keeps driving round the rectangle)
+    sc = SC.apply(gn, [{"kind": "outage", "start_s": 100.0, "duration_s": 60.0}])
+    end = int(np.searchsorted(gn.time_s, 160.0 - 1e-9)) - 1
+    err = {}
+    for nhc in (False, True):
+        opts = A.Options(nhc=nhc, zupt=True)
+        res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, sc.gnss, tun, opts)
+        e = res.p_n[:, end] - p[res.index[end]]
+        err[nhc] = np.hypot(e[:, 0], e[:, 1])
+        # ZUPT only where the car is (nearly) still: the route starts and ends at rest; a
+        # vibration-free IMU cannot tell a crawl from a stop, the speed gate (GNSS speed below
+        # 0.2 m/s, noise 0.05 m/s per axis) does
+        z = (res.flags & A.F_ZUPT) != 0
+        speed = np.linalg.norm(v[res.index], axis=1)
+        assert np.all(speed[np.any(z, axis=0)] < 0.35)
+        assert np.any(z[:, speed < 1e-6])
+        # the filter's own sigma covers the error at the end of the outage (3 sigma, 2-D)
+        sd = np.hypot(res.sd[:, end, 0], res.sd[:, end, 1])
+        assert np.mean(err[nhc] < 3 * sd) > 0.9
+    # the constraint removes most of the lateral drift of a consumer IMU
+    assert np.median(err[True]) < 0.5 * np.median(err[False]), (err[True], err[False])
+
+
+def test_scale_factors_converge_to_labels(flat_car):
+    M = 30
+    terms = ["turn_on_bias", "white_noise", "scale_factor"]
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    sh, gn = car_shard(flat_car, "industrial", M, 31, terms=terms, receiver="sbas")
+    tun = A.Tuning.from_grade("industrial")
+    tun = replace(tun, gyro_bias_q=tun.gyro_bias_q * 0, accel_bias_q=tun.accel_bias_q * 0)
+    opts = A.Options(scale_factors=True, nhc=True)
+    Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
+    res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, gn, tun, opts, tuning_T=Tm)
+    i = res.names.index("dsg_x")
+    e = np.concatenate([res.gyro_sf[:, -1] - sh.gyro.sf, res.accel_sf[:, -1] - sh.accel.sf], -1)
+    z2 = np.sum((e / res.sd[:, -1, i : i + 6]) ** 2, axis=0)  # per component, over M runs
+    assert np.all(z2 < chi2.ppf(0.999, M)), z2 / M
+    # the heading gyro's scale factor is observable on a car turning 4 x 90 deg per lap
+    assert np.all(res.sd[:, -1, i + 2] < 0.8 * tun.gyro_sf_sd[2])
+
+
+def test_innovation_gate_rejects_a_spoofed_jump(flat_car):
+    from imugen import scenarios as SC
+
+    M = 6
+    _, p, _, _, _ = arrays(flat_car)
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    sh, gn = car_shard(flat_car, "industrial", M, 41)
+    tun = A.Tuning.from_grade("industrial")
+    sc = SC.apply(
+        gn, [{"kind": "spoof_step", "start_s": 100.0, "duration_s": 30.0, "offset_m": 50.0}]
+    )
+    m = (gn.time_s >= 100.0) & (gn.time_s < 130.0)
+    for gate, expect_small in ((0.0, False), (5.0, True)):
+        res = A.run(
+            sh.data["dtheta"], sh.data["dv"], 0.01, frame, sc.gnss, tun, A.Options(gate_sigma=gate)
+        )
+        e = np.linalg.norm(res.p_n[:, m] - p[res.index[m]], axis=-1).max(axis=1)
+        rej = (res.flags[:, m] & A.F_REJECT) != 0
+        if expect_small:
+            assert np.all(e < 5.0) and np.mean(rej) > 0.9, (e, np.mean(rej))
+        else:
+            assert np.all(e > 12.0) and not np.any(rej), e

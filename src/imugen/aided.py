@@ -21,8 +21,9 @@ Error state (estimate minus truth), ``n = 15 (+3) (+6)``
     ``N_a`` (ARW, VRW) and the bias random-walk densities.
 
 Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
-    * GNSS position of the antenna ``p + C l_b (+ b_gnss) - v latency``; velocity
-      ``v + C (omega x l_b)``. With GNSS bias states, the reported sigma is split between the
+    * GNSS position of the antenna ``p + C l_b (+ b_gnss)`` and velocity ``v + C (omega x l_b)``
+      taken back to the fix's time of validity (``- v L + a L^2 / 2`` and ``- a L``, ``a`` the
+      acceleration of the last IMU interval, ``L`` the latency). With GNSS bias states, the reported sigma is split between the
       white part (``R``) and the modelled bias in the tuning's proportions; without them ``R``
       is the reported variance.
     * NHC (cars): body-frame lateral and vertical velocity zero, sigma ``nhc_sd_mps``.
@@ -175,7 +176,7 @@ class Options:
     zupt_sd_mps: float = 0.02
     zupt_gyro_radps: float = 0.02
     zupt_accel_mps2: float = 0.3
-    zupt_speed_mps: float = 1.0
+    zupt_speed_mps: float = 0.2
     gate_sigma: float = 0.0
     use_velocity: bool = True
     latency: bool = True
@@ -396,6 +397,7 @@ def _kernel(
             bax, bay, baz = x[X_BA], x[X_BA + 1], x[X_BA + 2]
             sgx, sgy, sgz = x[X_SG], x[X_SG + 1], x[X_SG + 2]
             sax, say, saz = x[X_SA], x[X_SA + 1], x[X_SA + 2]
+            ovx, ovy, ovz = vx, vy, vz
             for i in range(k + 1, ke + 1):
                 tx = (dth[s, i, 0] - bgx * dt) / (1.0 + sgx)
                 ty = (dth[s, i, 1] - bgy * dt) / (1.0 + sgy)
@@ -484,10 +486,10 @@ def _kernel(
                 q2 *= nq
                 q3 *= nq
             Tint = (ke - k) * dt
-            if ke > k:  # mean acceleration of the interval (latency of the GNSS velocity)
-                acx = (vx - x[X_V]) / Tint
-                acy = (vy - x[X_V + 1]) / Tint
-                acz = (vz - x[X_V + 2]) / Tint
+            if ke > k:  # acceleration of the last IMU interval (latency of the fix)
+                acx = (vx - ovx) / dt
+                acy = (vy - ovy) / dt
+                acz = (vz - ovz) / dt
             else:
                 acx, acy, acz = 0.0, 0.0, 0.0
             # --- covariance propagation P <- Phi P Phi^T + Q ---------------------------------
@@ -605,7 +607,13 @@ def _kernel(
                 va0 = vx + cw0
                 va1 = vy + cw1
                 va2 = vz + cw2
-                pred = (px + cl0 - L * va0, py + cl1 - L * va1, pz + cl2 - L * va2)
+                # antenna at t - L, second order: p - L v + L^2/2 a
+                hL = 0.5 * L * L
+                pred = (
+                    px + cl0 - L * va0 + hL * acx,
+                    py + cl1 - L * va1 + hL * acy,
+                    pz + cl2 - L * va2 + hL * acz,
+                )
                 clv = (cl0, cl1, cl2)
                 for a in range(3):
                     for i in range(n):
