@@ -252,6 +252,10 @@ def test_moving_start_alignment_within_its_covariance(flat_car):
     assert z2 < chi2.ppf(0.995, 3 * M)
     yaw_err = np.abs(psi[:, 2])
     assert np.all(yaw_err < 4 * sd[:, 2])
+    # position: the fix carried forward over the latency (5 cm at 5 m/s for this receiver)
+    dp = init.x0[:, A.X_P : A.X_P + 3] - p[k0]
+    sdp = np.sqrt(init.P0[:, [0, 1, 2], [0, 1, 2]])
+    assert np.sum((dp / sdp) ** 2) < chi2.ppf(0.995, 3 * M)
 
 
 def car_shard(df, grade, M, seed, terms=TERMS, receiver="standalone"):
@@ -298,7 +302,7 @@ def test_scale_factors_converge_to_labels(flat_car):
     M = 30
     terms = ["turn_on_bias", "white_noise", "scale_factor"]
     frame = OriginFrame.from_deg(*ORIGIN, model="flat")
-    sh, gn = car_shard(flat_car, "industrial", M, 31, terms=terms, receiver="sbas")
+    sh, gn = car_shard(flat_car, "industrial", M, 31, terms=terms, receiver="rtk")
     tun = A.Tuning.from_grade("industrial")
     tun = replace(tun, gyro_bias_q=tun.gyro_bias_q * 0, accel_bias_q=tun.accel_bias_q * 0)
     opts = A.Options(scale_factors=True, nhc=True)

@@ -872,7 +872,8 @@ def align(
       horizontal speed reaches ``speed_mps``: yaw along the GNSS velocity, pitch its climb
       angle, roll 0 (a land vehicle), sigmas ``level_sd_rad`` and ``hypot(sigma_v / speed,
       heading_sd_rad)``.
-    Position and velocity come from the fix at that epoch (lever arm removed).
+    Position and velocity come from the fix at that epoch (lever arm removed, position carried
+    forward over the latency).
 
     Sequences that never qualify start at sample K (no output).
     """
@@ -933,8 +934,10 @@ def align(
             k0[s] = idx[j0]
         C = euler_to_dcm(*rpy[s])
         lb = gnss.params.lever_arm_b_m[s]
-        p0[s] = gnss.p_n[s, j0] - C @ lb
         v0[s] = gnss.v_n[s, j0]
+        # the fix is late by the latency: carry it forward to the epoch
+        lat = float(gnss.params.latency_s[s]) if opts.latency else 0.0
+        p0[s] = gnss.p_n[s, j0] - C @ lb + lat * v0[s]
         if done:
             v0[s] = 0.0
         sd_p[s] = gnss.sigma_p_n[s, j0]
