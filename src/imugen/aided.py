@@ -256,14 +256,19 @@ def _skew(x, y, z, M):
 
 @njit(cache=True)
 def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
-    """One scalar update ``z_pred - z = h dx + noise`` (r = z_pred - z); returns accepted."""
+    """One scalar update ``z_pred - z = h dx + noise`` (r = z_pred - z); returns accepted.
+
+    ``P`` symmetric: ``P h`` is a sum of the rows named in ``nz``; the rank-one downdate is
+    applied to full rows (contiguous) and stays symmetric to rounding (re-symmetrized per epoch).
+    """
     n = P.shape[0]
     for i in range(n):
-        acc = 0.0
-        for m in range(nnz):
-            k = nz[m]
-            acc += P[i, k] * h[k]
-        PHt[i] = acc
+        PHt[i] = 0.0
+    for m in range(nnz):
+        k = nz[m]
+        f = h[k]
+        for i in range(n):
+            PHt[i] += f * P[k, i]
     s = var
     innov = r
     for m in range(nnz):
@@ -277,9 +282,8 @@ def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
         dx[i] += PHt[i] * inv * innov
     for i in range(n):
         ki = PHt[i] * inv
-        for j in range(i, n):
+        for j in range(n):
             P[i, j] -= ki * PHt[j]
-            P[j, i] = P[i, j]
     return True
 
 
@@ -540,21 +544,30 @@ def _kernel(
                 if sf_on:
                     for a in range(6):
                         qdiag[i_sg + a] = tun[s, T_QS] * Tint
-                # T = Phi P
+                # P <- Phi (Phi P)^T (= Phi P Phi^T for symmetric P): two sparse-row products
+                # with contiguous inner loops, then the transpose in between
                 for i in range(n):
                     for j in range(n):
-                        acc = 0.0
-                        for m in range(nnz[i]):
-                            c = nzc[i, m]
-                            acc += Phi[i, c] * P[c, j]
-                        T[i, j] = acc
-                # P = T Phi^T + Q
+                        T[i, j] = 0.0
+                    for m in range(nnz[i]):
+                        c = nzc[i, m]
+                        f = Phi[i, c]
+                        for j in range(n):
+                            T[i, j] += f * P[c, j]
+                for i in range(n):
+                    for j in range(n):
+                        P[i, j] = T[j, i]
+                for i in range(n):
+                    for j in range(n):
+                        T[i, j] = 0.0
+                    for m in range(nnz[i]):
+                        c = nzc[i, m]
+                        f = Phi[i, c]
+                        for j in range(n):
+                            T[i, j] += f * P[c, j]
                 for i in range(n):
                     for j in range(i, n):
-                        acc = 0.0
-                        for m in range(nnz[j]):
-                            c = nzc[j, m]
-                            acc += T[i, c] * Phi[j, c]
+                        acc = 0.5 * (T[i, j] + T[j, i])
                         P[i, j] = acc
                         P[j, i] = acc
                     P[i, i] += qdiag[i]
@@ -735,6 +748,11 @@ def _kernel(
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
             if wgs and (dx[0] != 0.0 or dx[1] != 0.0 or dx[2] != 0.0):
                 Gx, Gy, Gz = earth.gravitation_nb(prm, px, py, pz)
+            for i in range(n):
+                for j in range(i + 1, n):
+                    acc = 0.5 * (P[i, j] + P[j, i])
+                    P[i, j] = acc
+                    P[j, i] = acc
             for i in range(NX):
                 out_x[s, jj, i] = x[i]
             for i in range(n):
