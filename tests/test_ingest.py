@@ -279,3 +279,20 @@ def test_real_paper_trajectory(shared_file):
     assert ing.meta["length_3d_m"] == pytest.approx(
         np.linalg.norm(np.diff(raw, axis=0), axis=1).sum()
     )
+
+
+def test_long_candidate_lists_are_cut_with_a_count_and_a_hint(tmp_path):
+    from imugen import ingest as ing
+
+    segs = "".join(
+        f"<trkseg><trkpt lat='40' lon='{-105 + k * 1e-3}'/><trkpt lat='40.{k + 1:03d}' "
+        f"lon='{-105 + k * 1e-3}'/></trkseg>"
+        for k in range(40)
+    )
+    src = tmp_path / "many.gpx"
+    src.write_text(f"<gpx version='1.1'><trk><name>t</name>{segs}</trk></gpx>")
+    with pytest.raises(InputError) as e:
+        ing.ingest(src, path="nonexistent")
+    msg = str(e.value)
+    assert "and 32 more" in msg and "--path longest" in msg and len(msg) < 2000
+    assert msg.count("[") == ing.LIST_CANDIDATES

@@ -8,6 +8,7 @@ could smuggle into a message (terminal escapes, carriage returns) are printed es
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 
@@ -278,7 +279,15 @@ def _cmd_closure(a) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="imugen", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"imugen {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    # every subcommand's help shows each option's default (tests/test_cli.py checks that every
+    # option has help text and that defaults agree with the workflow's schema)
+    sub = parser.add_subparsers(
+        dest="command",
+        required=True,
+        parser_class=functools.partial(
+            argparse.ArgumentParser, formatter_class=argparse.ArgumentDefaultsHelpFormatter
+        ),
+    )
 
     p = sub.add_parser("ingest", help="route file -> geodetic table + local ENU (.parquet/.csv)")
     p.add_argument("src", help="KML, KMZ, GPX, CSV or E N U text file")
@@ -348,8 +357,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--static", type=float, metavar="SECONDS", help="simulate a still, level IMU")
     p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate for --static")
     p.add_argument("--earth", choices=["flat", "wgs84"], default="flat", help="for --static")
-    p.add_argument("--outputs", choices=["increments", "rates", "both"], default="increments")
-    p.add_argument("--draw", choices=["ranges", "nominal"], default="ranges")
+    p.add_argument(
+        "--outputs",
+        choices=["increments", "rates", "both"],
+        default="increments",
+        help="IMU columns written: angle/velocity increments, rate samples, or both",
+    )
+    p.add_argument(
+        "--draw",
+        choices=["ranges", "nominal"],
+        default="ranges",
+        help="error levels drawn in the grade's ranges per sequence, or nominal for all",
+    )
     p.add_argument("--terms", help="comma-separated error terms to keep (default: all)")
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
     p.add_argument(
@@ -364,7 +383,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="increment semantics: compensated (rotation vector; body frame frozen at the "
         "interval start, sculling included) or raw (plain integrals of rate and specific force)",
     )
-    p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
+    p.add_argument(
+        "--dtype",
+        choices=["float32", "float64"],
+        default="float32",
+        help="storage type of the measurement columns",
+    )
     p.add_argument("--grades-file", help="YAML file with custom grades")
     p.add_argument(
         "--route",
@@ -408,9 +432,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--metrics", action="append", metavar="GRADE=PATH", help="per-sequence RMSE")
     p.add_argument("--imu", action="append", metavar="GRADE=PATH", help="a shard per grade")
     p.add_argument("--formats", nargs="+", default=["png", "svg"], help="figure formats")
-    p.add_argument("--dpi", type=int, default=150)
+    p.add_argument("--dpi", type=int, default=150, help="raster resolution of PNG figures")
     p.add_argument("--zoom-fraction", type=float, default=0.2, help="zoom of Figure 8")
-    p.add_argument("--representative", choices=["median", "best", "worst"], default="median")
+    p.add_argument(
+        "--representative",
+        choices=["median", "best", "worst"],
+        default="median",
+        help="which sequence represents a grade in Figure 8 (by total RMSE)",
+    )
     p.set_defaults(func=_cmd_figures)
 
     p = sub.add_parser("export-mat", help="one grade's truth, IMU, labels, errors -> MATLAB .mat")
@@ -419,7 +448,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--nav", nargs="+", help="the grade's navigation-error files (optional)")
     p.add_argument("--grade", required=True, help="grade name (checked against the shards)")
     p.add_argument("--route", help="route name recorded in the file (default: truth's folder)")
-    p.add_argument("--mat-version", choices=["auto", "5", "7.3"], default="auto")
+    p.add_argument(
+        "--mat-version",
+        choices=["auto", "5", "7.3"],
+        default="auto",
+        help="MAT format: v5 while every variable is under 2 GiB (auto), else v7.3 (h5py)",
+    )
     p.add_argument("-o", "--output", required=True, help=".mat path")
     p.set_defaults(func=_cmd_export_mat)
 
@@ -487,8 +521,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_truth_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate (default 100)")
-    p.add_argument("--earth", choices=["flat", "wgs84", "auto"], default="flat")
-    p.add_argument("--vehicle", choices=["car", "aircraft", "pedestrian"], default="car")
+    p.add_argument(
+        "--earth",
+        choices=["flat", "wgs84", "auto"],
+        default="auto",
+        help="Earth model; auto picks flat when every term it drops stays below 10 %% of the "
+        "grades' error effect (as the workflow does)",
+    )
+    p.add_argument(
+        "--vehicle",
+        choices=["car", "aircraft", "pedestrian"],
+        default="car",
+        help="vehicle model of the truth motion",
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -118,15 +118,36 @@ def _describe(i: int, p: RoutePath) -> str:
     return f"[{i}] {p.name!r} ({p.kind}, {p.n_points} points, {ls}{timed})"
 
 
+LIST_CANDIDATES = 8
+"""Candidates named in a refusal (the longest ones); the rest are counted."""
+
+
+def _listing(cands: list[RoutePath]) -> str:
+    lengths = np.nan_to_num([_path_length_m(p) for p in cands], nan=-1.0)
+    order = sorted(range(len(cands)), key=lambda i: -lengths[i])
+    shown = sorted(order[:LIST_CANDIDATES])
+    text = "; ".join(_describe(i + 1, cands[i]) for i in shown)
+    rest = len(cands) - len(shown)
+    if rest:
+        text += (
+            f"; and {rest} more (the {len(shown)} longest are listed; "
+            "--path longest takes the longest, or pass a name or index)"
+        )
+    return text
+
+
 def select_path(cands: list[RoutePath], spec: str | int | None, source) -> RoutePath:
-    """Choose one candidate: the only one, or the one ``spec`` names or indexes (1-based)."""
-    listing = "; ".join(_describe(i, p) for i, p in enumerate(cands, start=1))
+    """Choose one candidate: the only one, or the one ``spec`` names or indexes (1-based).
+
+    Refusals list the first :data:`LIST_CANDIDATES` candidates (longest first) with a count of
+    the others and a hint, so the message stays one readable line whatever the file holds.
+    """
     if spec is None or spec == "":
         if len(cands) == 1:
             return cands[0]
         raise InputError(
             source,
-            f"holds {len(cands)} candidate paths; choose one with --path NAME or --path INDEX: {listing}",
+            f"holds {len(cands)} candidate paths; choose one with --path NAME or --path INDEX: {_listing(cands)}",
         )
     spec = str(spec)
     exact = [p for p in cands if p.name == spec]
@@ -137,16 +158,16 @@ def select_path(cands: list[RoutePath], spec: str | int | None, source) -> Route
         return folded[0]
     if len(exact) > 1 or len(folded) > 1:
         raise InputError(
-            source, f"several paths are named {spec!r}; use an index instead: {listing}"
+            source, f"several paths are named {spec!r}; use an index instead: {_listing(cands)}"
         )
     if spec.lstrip("+").isdigit():
         k = int(spec)
         if 1 <= k <= len(cands):
             return cands[k - 1]
         raise InputError(
-            source, f"--path {k}: there are only {len(cands)} candidate paths: {listing}"
+            source, f"--path {k}: there are only {len(cands)} candidate paths: {_listing(cands)}"
         )
-    raise InputError(source, f"no path named {spec!r}; candidates: {listing}")
+    raise InputError(source, f"no path named {spec!r}; candidates: {_listing(cands)}")
 
 
 def _first_bad(mask: np.ndarray) -> int:
