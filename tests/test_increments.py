@@ -158,3 +158,22 @@ def test_api_errors(truths, tmp_path):
     x = np.ones((1, tr.K - 1, 6)) * 1e-4
     navigate_arrays(tr, x, semantics="raw")
     assert (x == 1e-4).all()
+
+
+def test_cli_route_and_increments(truths, tmp_path):
+    from imugen import cli
+
+    tr = truths[25.0]
+    truth_path = ttruth.write(tr.frame, tr.meta, tmp_path / "r" / "truth.parquet")
+    shard = tmp_path / "s.parquet"
+    argv = ["simulate", str(truth_path), "-o", str(shard), "--grade", "tactical", "--sequences",
+            "2", "--seed", "1", "--shard", "0", "--route", "mine", "--increments", "raw"]  # fmt: skip
+    assert cli.main(argv) == 0
+    meta = tshard.read_meta(shard)
+    assert meta["increments"] == "raw" and meta["route"] == "mine"
+    out = tmp_path / "n.parquet"
+    assert cli.main(["navigate", str(truth_path), str(shard), "-o", str(out)]) == 0
+    m = tshard.read_meta(out)
+    assert m["increments"] == "raw" and m["truth"] == "truth.parquet" and "route" in m
+    with pytest.raises(SystemExit):
+        cli.main([*argv[:-1], "cooked"])

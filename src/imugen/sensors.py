@@ -41,6 +41,11 @@ saturation and quantization (last)
     The output is clipped to ``+-range`` (increments: ``+-range dt``), then quantized to the
     LSB ``q`` (increments: ``q dt``) with residual carry (``r += y; out = q round(r / q);
     r -= out``), so the quantization error does not accumulate in integrated outputs.
+effective error (optional output)
+    Everything above except the white term and quantization: ``E u + G a + s`` (rates) or
+    ``E_bar du + G da + dt (s_{k-1} + s_k) / 2`` (increments), plus the saturation excess
+    (clipped minus unclipped output), so that ``output = true + effective error + white +
+    quantization error`` holds exactly.
 
 Everything is vectorized over a batch of sequences (leading axis ``S``) in one numba kernel
 that resumes from a state array, so time can be processed in chunks. The random normals are

@@ -173,10 +173,11 @@ class ArrayTruth(Truth):
         tr = ttruth.read(path, columns=[TIME, *GYRO, *ACCEL, *DTHETA, *DV], need_meta=False)
         keep = {
             k: tr.meta[k]
-            for k in ("origin", "earth", "rate_hz", "vehicle", "source", "route")
+            for k in ("origin", "earth", "rate_hz", "vehicle", "route")
             if k in tr.meta
         }
-        # the path string is not kept: the bytes of a shard must not depend on its spelling
+        # no path strings (the truth's own ``source`` is one): a shard's bytes must not depend
+        # on how paths were spelled; the checksum names the truth and its provenance
         keep["file"] = Path(path).name
         keep["sha256"] = ttruth.checksum(path)
         return cls(tr.time_s, tr.omega_ib_b, tr.f_b, tr.dtheta, tr.dv, keep, str(path))

@@ -295,7 +295,7 @@ def increment_kind(meta: dict) -> str:
     """``"compensated"`` or ``"raw"``: the increment semantics recorded in a shard's metadata."""
     kind = meta.get("increments", "compensated")
     if kind not in INCREMENT_KINDS:
-        raise InputError("shard", f"unknown increment semantics {kind!r}")
+        raise InputError("shard metadata", f"unknown increment semantics {kind!r}")
     return kind
 
 
@@ -498,7 +498,7 @@ def write_like(path, data, like, *, semantics: str | None = None, dtype="float32
         **meta,
         "outputs": "both" if inc and rate else ("increments" if inc else "rates"),
         "increments": semantics,
-        "series": False,
+        "series": any(g not in ("dtheta", "dv", "gyro", "accel") for g in groups_),
         "dtype": np.dtype(dtype).name,
         "derived": {
             "from": like.name,
