@@ -52,6 +52,10 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
 
 
+onsuccess:
+    run_summary()
+
+
 rule all:
     default_target: True
     input:
@@ -62,4 +66,9 @@ rule all:
             "results/{route}/datasets/{grade}.mat",
             route=ROUTES,
             grade=GRADES if config["exports"]["mat"] else [],
+        ),
+        expand(
+            "results/{route}/datasets/{grade}",
+            route=ROUTES,
+            grade=GRADES if config["exports"]["formats"] else [],
         ),

@@ -277,3 +277,13 @@ def test_configfile_replaces_the_shipped_routes_and_grades(tmp_path):
     outs = dry_run_outputs(tmp_path)
     assert {p.split("/")[1] for p in outs if "/nav/" in p} == set(shipped["routes"])
     assert {p.split("/")[3] for p in outs if "/nav/" in p} == set(shipped["grades"])
+
+
+def test_export_formats_planned_per_route_and_grade(tmp_path):
+    cfg = {**TINY, "exports": {"mat": False, "formats": ["tum", "euroc"]}}
+    write_config(tmp_path, cfg)
+    jobs = planned_jobs(tmp_path)
+    assert jobs.get("export_formats") == len(cfg["routes"]) * len(cfg["grades"])
+    write_config(tmp_path, {**cfg, "exports": {"mat": False, "formats": ["kitti"]}})
+    proc = snakemake(tmp_path, "-n", "-j1")
+    assert proc.returncode != 0 and "kitti" in proc.stdout + proc.stderr

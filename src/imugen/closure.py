@@ -157,7 +157,7 @@ def closure(
     from imugen.ingest import ingest
 
     t0 = time.perf_counter()
-    ing = ingest(src, path=path, origin=origin, dt=dt)
+    ing = ingest(src, path=path, origin=origin, dt=dt, vehicle=vehicle)
     t1 = time.perf_counter()
     df, meta = truth.build_truth(
         ing.table,

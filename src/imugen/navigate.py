@@ -106,12 +106,24 @@ def navigate(
         batch = batch_size(K)
     skip = 1 if kind == "increments" else 0
     frames = []
+    from imugen.progress import Progress
+
+    total = int(smeta.get("sequences", 0)) or None
+    progress = (
+        Progress(f"navigate {shard_path.parent.name}/{shard_path.name}", total or 0)
+        if total
+        else None
+    )
+    done = 0
     for seq_ids, a, b in tshard.iter_blocks(shard_path, columns, K, int(batch), skip):
         if kind == "increments":
             dth, dvb = compensate_raw(a, b) if raw else (a, b)
         else:
             dth, dvb = increments_from_rates(a, b, nav.dt)
         frames.append(nav.errors(seq_ids, dth, dvb))
+        done += len(seq_ids)
+        if progress is not None:
+            progress.update(done)
     if not frames:
         raise InputError(shard_path, "holds no sequences")
     return pd.concat(frames, ignore_index=True)

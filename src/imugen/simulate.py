@@ -508,7 +508,7 @@ class _Plan:
         return pd.DataFrame(d)
 
 
-def _loop(plan: _Plan, sink):
+def _loop(plan: _Plan, sink, progress=None):
     """Generate every sequence in time chunks and hand each chunk to ``sink.put``.
 
     With ``plan.raw`` the sensor integrates the plain integrals of rate and specific force
@@ -627,6 +627,8 @@ def _loop(plan: _Plan, sink):
                     if want_rate:
                         outs[f"err_{s}"] = o_er[0]
             sink.put(j, k0, L, t, outs)
+        if progress is not None:
+            progress.update(j + 1)
     return normals / M if M else 0
 
 
@@ -846,7 +848,10 @@ def run(
         static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
         shard_size=shard_size, route=route, increments=increments, dtype=dtype,
     )  # fmt: skip
+    from imugen.progress import Progress
+
+    progress = Progress(f"simulate {Path(out).parent.name}/{Path(out).name}", plan.M)
     with tshard.writer(out, plan.meta, plan.names, dtype, compression=compression) as w:
-        _loop(plan, _WriterSink(w, plan.ids))
+        _loop(plan, _WriterSink(w, plan.ids), progress)
         w.labels = plan.labels()
     return tshard.read_meta(out)
