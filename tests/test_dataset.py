@@ -11,10 +11,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imugen import columns as col
 from imugen import dataset as ds
 from imugen.errors import InputError
 from imugen.io import write_parquet
+from imugen.tables import truth as col
 
 K, M = 101, 3
 BIAS = list(ds.BIAS)
@@ -33,7 +33,7 @@ def make_results(
     rng = np.random.default_rng(seed)
     frames = {}
     for r in routes:
-        truth = pd.DataFrame({c: rng.standard_normal(K) for c in col.TRUTH_COLUMNS})
+        truth = pd.DataFrame({c: rng.standard_normal(K) for c in col.COLUMNS})
         truth[col.TIME] = np.arange(K) * 0.01
         write_parquet(
             truth, {"rate_hz": 100.0}, tmp / r / "truth.parquet", row_group_size=rows_per_group

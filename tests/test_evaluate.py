@@ -4,7 +4,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import columns as col
 from imugen.evaluate import (
     grade_row,
     grade_table,
@@ -13,6 +12,7 @@ from imugen.evaluate import (
     sequence_metrics,
     write_tables,
 )
+from imugen.tables import truth as col
 
 
 def nav_table(errors: dict[int, np.ndarray]) -> pd.DataFrame:
@@ -101,7 +101,7 @@ def static_scene(tmp_path):
     g0 = OriginFrame.from_deg(*origin.values(), model="flat").g0
     K = int(DURATION_S * RATE) + 1
     t = np.arange(K) / RATE
-    truth = pd.DataFrame({c: np.zeros(K) for c in col.TRUTH_COLUMNS})
+    truth = pd.DataFrame({c: np.zeros(K) for c in col.COLUMNS})
     truth[col.TIME] = t
     truth["q_w"] = 1.0
     meta = {"rate_hz": RATE, "origin": origin, "earth": "flat"}

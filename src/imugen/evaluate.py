@@ -12,11 +12,12 @@ first one included, as the paper does):
 Relative drift (``segments``, seconds ``T``): how far the navigation drifts in ``T`` seconds
 from a correct start, the figure drift-correction papers report. For each start ``t_s`` the
 sequence is mechanized again from the TRUE position, velocity and attitude at ``t_s`` over the
-IMU's own increments of ``[t_s, t_s + T]``; the drift of that start is the 3-D position error at
-``t_s + T``. Starts slide by ``T / 2`` from ``t_0`` (``t_s = 0, T/2, T, ...`` while the segment
-fits: half-overlapping segments, each sample in two of them), so a route of duration ``D``
-gives ``floor(2 (D - T) / T) + 1`` starts and costs two extra navigations per ``T``.
-``drift_<T>s_m`` is the mean over the starts (a sequence shorter than ``T`` has none: NaN).
+IMU's own increments; the drift after ``T`` is the 3-D position error at ``t_s + T``. Starts slide
+by ``T_max / 2`` from ``t_0``, ``T_max`` the longest requested ``T`` that fits the route
+(``t_s = 0, T_max/2, T_max, ...`` while ``t_s + T_max`` fits: half-overlapping segments), and one
+mechanization of ``T_max`` per start yields every ``T``, so a route of duration ``D`` gives
+``floor(2 (D - T_max) / T_max) + 1`` starts and costs two extra navigations whatever the number
+of ``T``. ``drift_<T>s_m`` is the mean over the starts (NaN for a ``T`` longer than the route).
 With a constant accelerometer bias ``b`` alone the drift of every start is ``|b| T^2 / 2``.
 
 Per grade: the median over sequences of each value (``east_m``, ``north_m``, ``up_m``,
@@ -26,6 +27,7 @@ Per grade: the median over sequences of each value (``east_m``, ``north_m``, ``u
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 
@@ -93,7 +95,7 @@ def drift_column(T: float) -> str:
 
 
 def segment_starts(samples: int, n: int) -> np.ndarray:
-    """Start samples of the segments of ``n`` intervals in ``samples`` samples (step ``n/2``)."""
+    """Start samples of segments of ``n`` intervals in ``samples`` samples: every ``n/2``."""
     if n < 1 or n > samples - 1:
         return np.zeros(0, np.int64)
     return np.arange(0, samples - 1 - n + 1, max(1, round(n / 2)), dtype=np.int64)
@@ -129,33 +131,41 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     rates = kind == "rates"
     raw = not rates and tshard.increment_kind(tshard.read_meta(imu_path)) == "raw"
     ids_all, out = [], {drift_column(T): [] for T in segments_s}
+    ns = {T: round(T * rate) for T in segments_s}
+    fit = sorted({n for n in ns.values() if 1 <= n <= K - 1})
+    n_max = fit[-1] if fit else 0
+    starts = segment_starts(K, n_max)
+    every = math.gcd(*fit) if fit else 1  # store only the epochs some T needs
+    S = len(starts)
     batch = batch or max(1, batch_size(K) // 2)  # segments hold about twice the samples
     for ids, a, c in tshard.iter_blocks(imu_path, columns, K, batch, 0 if rates else 1):
+        ids_all.append(ids.copy())
+        if not S:
+            for T in segments_s:
+                out[drift_column(T)].append(np.full(len(ids), np.nan))
+            continue
         if rates:
             dth, dvb = increments_from_rates(a, c, dt)
         else:  # raw increments get navigation's coning/sculling correction first
             dth, dvb = compensate_raw(a, c) if raw else (a, c)
-        ids_all.append(ids.copy())
-        for T in segments_s:
-            n = round(T * rate)
-            starts = segment_starts(K, n)
-            if not len(starts):
+        rows = starts[:, None] + np.arange(n_max)
+        nav = mechanize(
+            dth[:, rows].reshape(-1, n_max, 3),
+            dvb[:, rows].reshape(-1, n_max, 3),
+            dt,
+            np.tile(p[starts], (len(ids), 1)),
+            np.tile(v[starts], (len(ids), 1)),
+            np.tile(q[starts], (len(ids), 1)),
+            frame,
+            every=every,
+            outputs=("p",),
+        )
+        pos = nav.p_n.reshape(len(ids), S, -1, 3)  # at 0, every, 2 every, ..., n_max
+        for T, n in ns.items():
+            if n not in fit:
                 out[drift_column(T)].append(np.full(len(ids), np.nan))
                 continue
-            rows = starts[:, None] + np.arange(n)
-            S = len(starts)
-            nav = mechanize(
-                dth[:, rows].reshape(-1, n, 3),
-                dvb[:, rows].reshape(-1, n, 3),
-                dt,
-                np.tile(p[starts], (len(ids), 1)),
-                np.tile(v[starts], (len(ids), 1)),
-                np.tile(q[starts], (len(ids), 1)),
-                frame,
-                every=n,
-                outputs=("p",),
-            )
-            err = nav.p_n[:, -1].reshape(len(ids), S, 3) - p[starts + n][None]
+            err = pos[:, :, n // every] - p[starts + n][None]
             out[drift_column(T)].append(np.linalg.norm(err, axis=-1).mean(axis=1))
     index = pd.Index(np.concatenate(ids_all) if ids_all else [], name="sequence")
     return pd.DataFrame({k: np.concatenate(v) if v else [] for k, v in out.items()}, index=index)
@@ -240,7 +250,7 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
     caption = (
         "RMSE of position per grade: median over sequences [5th-95th percentile], metres; "
         "Total = sqrt(E^2 + N^2 + U^2); Drift T s = mean 3-D error T s after true starts "
-        "every T/2 s."
+        "every T_max/2 s."
     )
     cols = list(human.columns)
     md = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
@@ -320,7 +330,7 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=()) -> Pa
         "nav": [str(p) for p in nav_paths],
         "distance_horizontal_m": distance,
         "segments_s": segments_s,
-        "segment_step": "T/2",
+        "segment_step": "T_max/2",
         "units": "metres; final_pct_distance in % of the horizontal distance travelled",
     }
     return tmetrics.write(metrics, meta, out)
