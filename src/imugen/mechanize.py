@@ -1,20 +1,31 @@
-"""Batched strapdown mechanization on exact angle/velocity increments (flat and wgs84).
+"""Batched strapdown mechanization on exact angle/velocity increments (flat, wgs84, geodetic).
 
-The recursion (n = Earth-fixed ENU frame of the route origin, see :mod:`imugen.earth`;
-``W = [Omega x]``, ``A(tau) = Exp(Omega tau)``, ``dt`` the sample interval):
+``flat``: the navigation frame n (ENU of the route origin) is inertial, gravity constant.
+
+``wgs84`` and ``geodetic``: n is Earth-fixed (ENU axes of the origin, or ECEF in
+``geodetic``) and turns at ``Omega`` (``W = [Omega x]``, ``A(t) = Exp(W t)``). The kernel
+integrates in the inertial frame ``I`` that coincides with n at the start of the run
+(``t = 0``, sample ``k = 0``): ``r_I = A(t) r_n``, ``v_I = A(t) (v_n + W r_n)``,
+``C_Ib = A(t) C_nb``. The normal gravitation field is symmetric about the Earth's axis, so in
+``I`` it is the same static function of position as in n (:mod:`imugen.earth`), and the
+recursion is the flat one plus gravitation:
 
 attitude (exact for exact increments)
-    ``C_{k+1} = Exp(-Omega dt) C_k Exp(dtheta_k)`` (quaternions, renormalized each step);
-velocity (exact in ``flat``; in ``wgs84`` the gravitation integral is a 3-point rule)
-    ``A(dt) (v_{k+1} + W r_{k+1}) = v_k + W r_k + C_k dv_k + J_k``,
-    ``J_k = int_0^dt A(tau) G(p(t_k + tau)) dtau
-    ~ dt/12 (5 A(dt) G_{k+1} + 8 G_k - A(-dt) G_{k-1})``;
-    ``G_{k+1}`` is evaluated at a predicted ``p_{k+1}`` (one gravity evaluation per step);
-    the implicit coupling through ``W r_{k+1}`` is solved exactly (3x3 closed form);
+    ``C_Ib,k+1 = C_Ib,k Exp(dtheta_k)`` (quaternions, renormalized each step);
+velocity
+    ``v_k+1 = v_k + C_Ib,k dv_k + J_k``, ``J_k = int G_I dt ~ dt/12 (5 G_k+1 + 8 G_k - G_k-1)``
+    (exact in ``flat``, where ``J = g dt``); ``G_k+1`` is evaluated at a predicted ``r_k+1``
+    (one gravitation evaluation per step);
 position
-    ``p_{k+1} = p_k + dt/12 (5 v_{k+1} + 8 v_k - v_{k-1})`` (Adams-Moulton, 3 points); the
-    first interval uses the same quadratic with one sample of look-ahead,
+    ``r_k+1 = r_k + dt/12 (5 v_k+1 + 8 v_k - v_k-1)`` (Adams-Moulton, 3 points); the first
+    interval uses the same quadratic with one sample of look-ahead,
     ``dt/12 (5 v_0 + 8 v_1 - v_2)``, applied once ``v_2`` is known.
+
+Outputs are converted back to n at the stored samples only (``p_n = A^T r_I - r0_n``,
+``v_n = A^T v_I - W r_n``, ``q_nb = q(A^T) q_Ib``, with ``A(t_k)`` from ``Omega k dt``), so
+the Earth's rotation costs nothing per step. The kernel state holds ``r_I - r0_n`` (the
+displacement from where the origin was at ``t = 0``), so positions keep float64 precision
+relative to the origin.
 
 Positions and velocities are accumulated with compensated (Kahan) sums, so 1 kHz over an
 hour loses nothing to float64 rounding. The time recursion is one numba kernel
@@ -22,13 +33,10 @@ hour loses nothing to float64 rounding. The time recursion is one numba kernel
 allocation per step; it resumes from a state array, so long runs can be fed in time chunks
 and outputs can be decimated (every N-th sample) or restricted to positions.
 
-numba caches the compiled kernel next to this file and keys the cache on this file only: after
-editing :mod:`imugen.earth` during development, delete ``__pycache__/*.nbi``/``*.nbc`` so the
-kernel picks up the change.
-
 :func:`increments_from_rates` turns instantaneous rate samples into increments with the
 standard second-order scheme (trapezoid + coning + sculling for linearly varying rates), and
-:func:`mechanize_rates` feeds them to the same kernel.
+:func:`mechanize_rates` feeds them to the same kernel. :func:`exact_increments` is the inverse
+of the mechanization: the exact increments of a continuous motion given in n (any model).
 """
 
 from __future__ import annotations
@@ -44,68 +52,80 @@ from imugen.jit import njit
 from imugen.rotations import quat_mul
 
 # --- state layout (one row per sequence) --------------------------------------------------------
-S_P = 0  # position p_n (3)
+# flat: n-frame quantities; wgs84/geodetic: inertial ones (module docstring)
+S_P = 0  # position p_n, or r_I - r0_n (3)
 S_PC = 3  # Kahan compensation of p (3)
-S_V = 6  # velocity v_n (3)
+S_V = 6  # velocity v_n, or v_I (3)
 S_VC = 9  # Kahan compensation of v (3)
-S_Q = 12  # quaternion q_nb (4), scalar first
-S_VP = 16  # v_{k-1} (3)
-S_G = 19  # gravitation at p_k (3) (wgs84)
-S_GP = 22  # gravitation at p_{k-1} (3) (wgs84)
+S_Q = 12  # quaternion q_nb, or q_Ib (4), scalar first
+S_VP = 16  # velocity at the previous sample (3)
+S_G = 19  # gravitation at sample k (3)
+S_GP = 22  # gravitation at sample k-1 (3)
 S_K = 25  # steps done
 S_QC = 26  # Kahan compensation of q (4)
 N_STATE = 30
 
 # --- kernel parameter vector: frame params (earth.N_PARAMS) then these ------------------------
 K_DT = earth.N_PARAMS  # dt
-K_A = K_DT + 1  # A(dt) = Exp(W dt), 9 row-major
-K_D = K_A + 9  # D = A(dt)^T - I, 9 row-major (computed without cancellation)
-K_M = K_D + 9  # M_am = (I + c W)^{-1}, c = 5 dt/12, 9
-K_MT = K_M + 9  # M_tr = (I + c W)^{-1}, c = dt/2 (first step), 9
-K_QW = K_MT + 9  # quaternion of Exp(-Omega dt) minus (1, 0, 0, 0), 4
-N_KPARAMS = K_QW + 4
-
-
-def _skew(w):
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def _inv_i_plus_cw(w, c):
-    """(I + c [w x])^-1 = (I - c W + c^2 w w^T) / (1 + c^2 |w|^2)."""
-    W = _skew(w)
-    return (np.eye(3) - c * W + c * c * np.outer(w, w)) / (1.0 + c * c * (w @ w))
+N_KPARAMS = K_DT + 1
 
 
 def kernel_params(frame: OriginFrame, dt: float) -> np.ndarray:
-    """Parameter vector of the kernel: earth parameters + dt + precomputed rotations."""
+    """Parameter vector of the kernel: earth parameters + dt."""
     prm = np.zeros(N_KPARAMS)
     prm[: earth.N_PARAMS] = frame.params()
     prm[K_DT] = dt
-    w = earth.earth_rate_n(frame)
-    wn = float(np.linalg.norm(w))
-    W = _skew(w)
-    if wn > 0.0:
-        th = wn * dt
-        s1 = math.sin(th) / wn
-        s2 = 2.0 * math.sin(th / 2.0) ** 2 / wn**2  # (1 - cos) / |w|^2
-        A = np.eye(3) + s1 * W + s2 * (W @ W)
-        D = -s1 * W + s2 * (W @ W)  # A^T - I
-        # quaternion of Exp(-Omega dt) minus identity
-        qw = np.array([-2.0 * math.sin(th / 4.0) ** 2, *(-math.sin(th / 2.0) * w / wn)])
-    else:
-        A = np.eye(3)
-        D = np.zeros((3, 3))
-        qw = np.zeros(4)
-    prm[K_A : K_A + 9] = A.ravel()
-    prm[K_D : K_D + 9] = D.ravel()
-    prm[K_M : K_M + 9] = _inv_i_plus_cw(w, 5.0 * dt / 12.0).ravel()
-    prm[K_MT : K_MT + 9] = _inv_i_plus_cw(w, dt / 2.0).ravel()
-    prm[K_QW : K_QW + 4] = qw
     return prm
 
 
+def _rot_about_axis(x, axis, c, s, omc):
+    """Rotate vectors x (..., 3) by the angle with cosine c, sine s, 1 - c = omc about axis."""
+    ax = np.cross(axis, x)
+    return x * c[..., None] + ax * s[..., None] + axis * (x @ axis)[..., None] * omc[..., None]
+
+
+def _to_inertial(p_n, v_n, q_nb, frame: OriginFrame):
+    """n-frame (p, v, q) at t = 0 -> kernel state quantities (displacement, v_I, q_Ib)."""
+    if frame.model == "flat":
+        return p_n, v_n, q_nb
+    w = earth.earth_rate_n(frame)
+    return p_n, v_n + np.cross(w, frame.r0_n + p_n), q_nb
+
+
+def nav_from_state(st: np.ndarray, prm: np.ndarray):
+    """Kernel state rows -> (p_n, v_n, q_nb) at the state's sample ``k`` (NumPy).
+
+    Parameters
+    ----------
+    st : ndarray, shape (S, N_STATE)
+    prm : ndarray, kernel parameters
+
+    Returns
+    -------
+    p_n, v_n : ndarray, shape (S, 3); q_nb : ndarray, shape (S, 4)
+    """
+    p = st[:, S_P : S_P + 3] - st[:, S_PC : S_PC + 3]
+    v = st[:, S_V : S_V + 3] - st[:, S_VC : S_VC + 3]
+    q = st[:, S_Q : S_Q + 4] - st[:, S_QC : S_QC + 4]
+    if prm[earth.P_MODEL] == 0.0:
+        return p, v, q
+    zax = prm[earth.P_OMEGA : earth.P_OMEGA + 3] / earth.OMEGA_IE
+    r0 = prm[earth.P_R0N : earth.P_R0N + 3]
+    th = -earth.OMEGA_IE * prm[K_DT] * st[:, S_K]  # rotation by A^T
+    c, s = np.cos(th), np.sin(th)
+    omc = 2.0 * np.sin(0.5 * th) ** 2
+    # p_n = A^T d + (A^T - I) r0_n
+    r0 = np.broadcast_to(r0, p.shape)
+    p_n = _rot_about_axis(p, zax, c, s, omc) + (
+        _rot_about_axis(r0, zax, 0.0 * c, s, omc) - r0 * omc[:, None]
+    )
+    v_n = _rot_about_axis(v, zax, c, s, omc) - np.cross(earth.OMEGA_IE * zax, r0 + p_n)
+    qa = np.concatenate([np.cos(0.5 * th)[:, None], np.sin(0.5 * th)[:, None] * zax], axis=1)
+    return p_n, v_n, quat_mul(qa, q)
+
+
 def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -> np.ndarray:
-    """State array (S, N_STATE) from initial position, velocity and attitude.
+    """State array (S, N_STATE) from initial position, velocity and attitude (sample k = 0).
 
     Parameters
     ----------
@@ -121,13 +141,15 @@ def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -
     v0 = np.atleast_2d(np.asarray(v0_n, dtype=float))
     q0 = np.atleast_2d(np.asarray(q0_nb, dtype=float))
     n = max(len(p0), len(v0), len(q0), S or 1)
-    st = np.zeros((n, N_STATE))
-    st[:, S_P : S_P + 3] = p0
-    st[:, S_V : S_V + 3] = v0
-    st[:, S_VP : S_VP + 3] = v0
+    p0 = np.broadcast_to(p0, (n, 3))
     q0 = q0 / np.linalg.norm(q0, axis=1, keepdims=True)
-    st[:, S_Q : S_Q + 4] = q0
-    G = earth.gravitation_n(np.broadcast_to(p0, (n, 3)), frame)
+    p, v, q = _to_inertial(p0, np.broadcast_to(v0, (n, 3)), q0, frame)
+    st = np.zeros((n, N_STATE))
+    st[:, S_P : S_P + 3] = p
+    st[:, S_V : S_V + 3] = v
+    st[:, S_VP : S_VP + 3] = v
+    st[:, S_Q : S_Q + 4] = q
+    G = earth.gravitation_n(p0, frame)
     st[:, S_G : S_G + 3] = G
     st[:, S_GP : S_GP + 3] = G
     return st
@@ -189,23 +211,50 @@ def _mv(m, o, x, y, z):
 
 
 @njit(cache=True, inline="always")
-def _lookahead_shift(prm, wgs, v0x, v0y, v0z, v1x, v1y, v1z, v2x, v2y, v2z):
-    """Shift of p1 (and p2) when the first interval gets dt/12 (5 v0 + 8 v1 - v2) instead of
-    the trapezoid, and the matching change -W shift of v1, v2 (wgs84)."""
-    c12 = prm[K_DT] / 12.0
-    dx = c12 * (-v0x + 2.0 * v1x - v2x)
-    dy = c12 * (-v0y + 2.0 * v1y - v2y)
-    dz = c12 * (-v0z + 2.0 * v1z - v2z)
-    if wgs:
-        w0 = prm[earth.P_OMEGA]
-        w1 = prm[earth.P_OMEGA + 1]
-        w2 = prm[earth.P_OMEGA + 2]
-        return dx, dy, dz, w1 * dz - w2 * dy, w2 * dx - w0 * dz, w0 * dy - w1 * dx
-    return dx, dy, dz, 0.0, 0.0, 0.0
+def _rot_axis(zx, zy, zz, c, s, omc, x, y, z):
+    """Rotate (x, y, z) about the unit axis zax by the angle (cos c, sin s, 1 - cos omc)."""
+    d = omc * (zx * x + zy * y + zz * z)
+    return (
+        c * x + s * (zy * z - zz * y) + d * zx,
+        c * y + s * (zz * x - zx * z) + d * zy,
+        c * z + s * (zx * y - zy * x) + d * zz,
+    )
 
 
 @njit(cache=True, inline="always")
-def _write(out_p, out_v, out_q, s, slot, px, py, pz, vx, vy, vz, q0, q1, q2, q3, wq):
+def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1, q2, q3, wq):
+    """Store sample ``k`` (kernel quantities, compensations already applied) in n."""
+    if prm[earth.P_MODEL] != 0.0:
+        iw = 1.0 / earth.OMEGA_IE
+        zx = prm[earth.P_OMEGA] * iw
+        zy = prm[earth.P_OMEGA + 1] * iw
+        zz = prm[earth.P_OMEGA + 2] * iw
+        th = -earth.OMEGA_IE * prm[K_DT] * k  # A(t_k)^T
+        c = math.cos(th)
+        sn = math.sin(th)
+        h = math.sin(0.5 * th)
+        omc = 2.0 * h * h
+        r0x = prm[earth.P_R0N]
+        r0y = prm[earth.P_R0N + 1]
+        r0z = prm[earth.P_R0N + 2]
+        # p_n = A^T d + (A^T - I) r0_n (no cancellation against r0_n)
+        ax, ay, az = _rot_axis(zx, zy, zz, c, sn, omc, px, py, pz)
+        bx, by, bz = _rot_axis(zx, zy, zz, 0.0, sn, omc, r0x, r0y, r0z)
+        px = ax + (bx - omc * r0x)
+        py = ay + (by - omc * r0y)
+        pz = az + (bz - omc * r0z)
+        # v_n = A^T v_I - Omega x r_n
+        ax, ay, az = _rot_axis(zx, zy, zz, c, sn, omc, vx, vy, vz)
+        rx = r0x + px
+        ry = r0y + py
+        rz = r0z + pz
+        w = earth.OMEGA_IE
+        vx = ax - w * (zy * rz - zz * ry)
+        vy = ay - w * (zz * rx - zx * rz)
+        vz = az - w * (zx * ry - zy * rx)
+        if wq:
+            ch = math.cos(0.5 * th)
+            q0, q1, q2, q3 = _qmul(ch, h * zx, h * zy, h * zz, q0, q1, q2, q3)
     if 0 <= slot < out_p.shape[1]:
         out_p[s, slot, 0] = px
         out_p[s, slot, 1] = py
@@ -231,9 +280,18 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     """
     S = dth.shape[0]
     N = dth.shape[1]
-    wgs = prm[earth.P_MODEL] != 0.0
+    rot = prm[earth.P_MODEL] != 0.0
     dt = prm[K_DT]
     c12 = dt / 12.0
+    hdt = 0.5 * dt
+    iw = 1.0 / earth.OMEGA_IE
+    zx = prm[earth.P_OMEGA] * iw
+    zy = prm[earth.P_OMEGA + 1] * iw
+    zz = prm[earth.P_OMEGA + 2] * iw
+    r0x = prm[earth.P_R0N]
+    r0y = prm[earth.P_R0N + 1]
+    r0z = prm[earth.P_R0N + 2]
+    g0dt = prm[earth.P_G0] * dt
     for s in range(S):
         # fmt: off
         (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
@@ -246,73 +304,33 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 v0x = vpx
                 v0y = vpy
                 v0z = vpz
-                p1x = px
-                p1y = py
-                p1z = pz
-            # specific-force increment resolved in n at t_k: a = C_k dv
+                p1x = px - pcx
+                p1y = py - pcy
+                p1z = pz - pcz
+            # specific-force increment resolved at t_k: a = C_k dv
             ax, ay, az = _qrot(q0, q1, q2, q3, dvb[s, i, 0], dvb[s, i, 1], dvb[s, i, 2])
-            if wgs:
-                w0 = prm[earth.P_OMEGA]
-                w1 = prm[earth.P_OMEGA + 1]
-                w2 = prm[earth.P_OMEGA + 2]
-                rx = prm[earth.P_R0N] + px
-                ry = prm[earth.P_R0N + 1] + py
-                rz = prm[earth.P_R0N + 2] + pz
-                wrx = w1 * rz - w2 * ry
-                wry = w2 * rx - w0 * rz
-                wrz = w0 * ry - w1 * rx
-                # predictor of v_{k+1}, p_{k+1} (explicit Euler for gravity, Coriolis, centrifugal)
-                wvx = w1 * vz - w2 * vy
-                wvy = w2 * vx - w0 * vz
-                wvz = w0 * vy - w1 * vx
-                cfx = w1 * wrz - w2 * wry
-                cfy = w2 * wrx - w0 * wrz
-                cfz = w0 * wry - w1 * wrx
-                sx = vx + ax + dt * (Gx - 2.0 * wvx - cfx)
-                sy = vy + ay + dt * (Gy - 2.0 * wvy - cfy)
-                sz = vz + az + dt * (Gz - 2.0 * wvz - cfz)
+            if rot:
+                # predictor of v_{k+1}, r_{k+1}; gravitation there; 3-point rule for its integral
+                sx = vx + ax + dt * Gx
+                sy = vy + ay + dt * Gy
+                sz = vz + az + dt * Gz
                 if k == 0:
-                    ppx = px + 0.5 * dt * (sx + vx)
-                    ppy = py + 0.5 * dt * (sy + vy)
-                    ppz = pz + 0.5 * dt * (sz + vz)
+                    ppx = px + hdt * (sx + vx)
+                    ppy = py + hdt * (sy + vy)
+                    ppz = pz + hdt * (sz + vz)
                 else:
                     ppx = px + c12 * (5.0 * sx + 8.0 * vx - vpx)
                     ppy = py + c12 * (5.0 * sy + 8.0 * vy - vpy)
                     ppz = pz + c12 * (5.0 * sz + 8.0 * vz - vpz)
-                Gnx, Gny, Gnz = earth.gravitation_nb(prm, ppx, ppy, ppz)
-                AGx, AGy, AGz = _mv(prm, K_A, Gnx, Gny, Gnz)
+                Gnx, Gny, Gnz = earth._gravitation_nb(r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz)
                 if k == 0:
-                    Jx = 0.5 * dt * (AGx + Gx)
-                    Jy = 0.5 * dt * (AGy + Gy)
-                    Jz = 0.5 * dt * (AGz + Gz)
+                    dvx = ax + hdt * (Gnx + Gx)
+                    dvy = ay + hdt * (Gny + Gy)
+                    dvz = az + hdt * (Gnz + Gz)
                 else:
-                    # A(-dt) G_{k-1} = A^T G_{k-1}
-                    bx = prm[K_A] * Gpx + prm[K_A + 3] * Gpy + prm[K_A + 6] * Gpz
-                    by = prm[K_A + 1] * Gpx + prm[K_A + 4] * Gpy + prm[K_A + 7] * Gpz
-                    bz = prm[K_A + 2] * Gpx + prm[K_A + 5] * Gpy + prm[K_A + 8] * Gpz
-                    Jx = c12 * (5.0 * AGx + 8.0 * Gx - bx)
-                    Jy = c12 * (5.0 * AGy + 8.0 * Gy - by)
-                    Jz = c12 * (5.0 * AGz + 8.0 * Gz - bz)
-                # D s with s = v_k + W r_k + a + J and D = A^T - I
-                dsx, dsy, dsz = _mv(
-                    prm, K_D, vx + wrx + ax + Jx, vy + wry + ay + Jy, vz + wrz + az + Jz
-                )
-                # W (c v_k + e_p): AM3 -> dt/12 (13 v_k - v_{k-1}); trapezoid -> dt v_k
-                if k == 0:
-                    hx = dt * vx
-                    hy = dt * vy
-                    hz = dt * vz
-                else:
-                    hx = c12 * (13.0 * vx - vpx)
-                    hy = c12 * (13.0 * vy - vpy)
-                    hz = c12 * (13.0 * vz - vpz)
-                ex = ax + Jx + dsx - (w1 * hz - w2 * hy)
-                ey = ay + Jy + dsy - (w2 * hx - w0 * hz)
-                ez = az + Jz + dsz - (w0 * hy - w1 * hx)
-                if k == 0:
-                    dvx, dvy, dvz = _mv(prm, K_MT, ex, ey, ez)
-                else:
-                    dvx, dvy, dvz = _mv(prm, K_M, ex, ey, ez)
+                    dvx = ax + c12 * (5.0 * Gnx + 8.0 * Gx - Gpx)
+                    dvy = ay + c12 * (5.0 * Gny + 8.0 * Gy - Gpy)
+                    dvz = az + c12 * (5.0 * Gnz + 8.0 * Gz - Gpz)
                 Gpx = Gx
                 Gpy = Gy
                 Gpz = Gz
@@ -322,7 +340,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             else:
                 dvx = ax
                 dvy = ay
-                dvz = az - prm[earth.P_G0] * dt
+                dvz = az - g0dt
             # v_{k+1} = v_k + dv (Kahan)
             ovx = vx
             ovy = vy
@@ -341,9 +359,9 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             vz = tz
             # p_{k+1} = p_k + int v (Kahan)
             if k == 0:
-                dpx = 0.5 * dt * (vx + ovx)
-                dpy = 0.5 * dt * (vy + ovy)
-                dpz = 0.5 * dt * (vz + ovz)
+                dpx = hdt * (vx + ovx)
+                dpy = hdt * (vy + ovy)
+                dpz = hdt * (vz + ovz)
             else:
                 dpx = c12 * (5.0 * vx + 8.0 * ovx - vpx)
                 dpy = c12 * (5.0 * vy + 8.0 * ovy - vpy)
@@ -360,25 +378,10 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             px = tx
             py = ty
             pz = tz
-            # attitude: q <- q_W* (x) q (x) Exp(dtheta), as q + dq with dq computed from small
+            # attitude: q <- q (x) Exp(dtheta), as q + dq with dq computed from small
             # quantities and added with a compensated sum (no systematic rounding drift)
             em0, e1, e2, e3 = _qexpm1(dth[s, i, 0], dth[s, i, 1], dth[s, i, 2])
             d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
-            if wgs:
-                f0, f1, f2, f3 = _qmul(
-                    prm[K_QW],
-                    prm[K_QW + 1],
-                    prm[K_QW + 2],
-                    prm[K_QW + 3],
-                    q0 + d0,
-                    q1 + d1,
-                    q2 + d2,
-                    q3 + d3,
-                )
-                d0 += f0
-                d1 += f1
-                d2 += f2
-                d3 += f3
             # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
             eps = (
                 ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
@@ -410,57 +413,22 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             vpy = ovy
             vpz = ovz
             if k == 1:
-                dx, dy, dz, cx, cy, cz = _lookahead_shift(
-                    prm, wgs, v0x, v0y, v0z, vpx, vpy, vpz, vx, vy, vz
-                )
+                # first interval: dt/12 (5 v0 + 8 v1 - v2) instead of the trapezoid
+                dx = c12 * (-v0x + 2.0 * vpx - vx)
+                dy = c12 * (-v0y + 2.0 * vpy - vy)
+                dz = c12 * (-v0z + 2.0 * vpz - vz)
                 px += dx
                 py += dy
                 pz += dz
-                vpx -= cx
-                vpy -= cy
-                vpz -= cz
-                vx -= cx
-                vy -= cy
-                vz -= cz
                 if every == 1:
-                    _write(
-                        out_p,
-                        out_v,
-                        out_q,
-                        s,
-                        1 - out_start,
-                        p1x + dx,
-                        p1y + dy,
-                        p1z + dz,
-                        vpx,
-                        vpy,
-                        vpz,
-                        0.0,
-                        0.0,
-                        0.0,
-                        0.0,
-                        False,
-                    )
+                    _write(out_p, out_v, out_q, s, 1 - out_start, prm, 1,
+                           p1x + dx, p1y + dy, p1z + dz, vpx - vcx, vpy - vcy, vpz - vcz,
+                           0.0, 0.0, 0.0, 0.0, False)  # fmt: skip
             k += 1
             if k % every == 0:
-                _write(
-                    out_p,
-                    out_v,
-                    out_q,
-                    s,
-                    k // every - out_start,
-                    px,
-                    py,
-                    pz,
-                    vx,
-                    vy,
-                    vz,
-                    q0,
-                    q1,
-                    q2,
-                    q3,
-                    True,
-                )
+                _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
+                       px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
+                       q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
         # fmt: off
         st[s, :25] = (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
                       q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz)
@@ -543,15 +511,18 @@ class Mechanizer:
 
     @property
     def p_n(self) -> np.ndarray:
-        return self.state[:, S_P : S_P + 3].copy()
+        """Current position in n [m], shape (S, 3)."""
+        return nav_from_state(self.state, self.prm)[0]
 
     @property
     def v_n(self) -> np.ndarray:
-        return self.state[:, S_V : S_V + 3].copy()
+        """Current velocity in n [m/s], shape (S, 3)."""
+        return nav_from_state(self.state, self.prm)[1]
 
     @property
     def q_nb(self) -> np.ndarray:
-        return self.state[:, S_Q : S_Q + 4].copy()
+        """Current attitude q_nb (scalar first), shape (S, 4)."""
+        return nav_from_state(self.state, self.prm)[2]
 
     def run(self, dtheta_b, dv_b, out_p=None, out_v=None, out_q=None, every=1, out_start=0):
         """Integrate a time chunk of increments for all sequences.
@@ -641,12 +612,13 @@ def mechanize(
     out_v = np.empty((S, M, 3)) if "v" in outputs else None
     out_q = np.empty((S, M, 4)) if "q" in outputs else None
     st = mech.state
+    p_0, v_0, q_0 = nav_from_state(st, mech.prm)
     if out_p is not None:
-        out_p[:, 0] = st[:, S_P : S_P + 3]
+        out_p[:, 0] = p_0
     if out_v is not None:
-        out_v[:, 0] = st[:, S_V : S_V + 3]
+        out_v[:, 0] = v_0
     if out_q is not None:
-        out_q[:, 0] = st[:, S_Q : S_Q + 4]
+        out_q[:, 0] = q_0
     empty3 = np.empty((0, 0, 3))
     empty4 = np.empty((0, 0, 4))
     for a in range(0, S, seq_chunk):
@@ -716,7 +688,7 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
 
     Vectorized across sequences, Python loop over time; no compensated sums (the kernel
     has them). Returns positions (S, M, 3), velocities (S, M, 3) and quaternions (S, M, 4)
-    at samples ``0, every, 2 every, ...``.
+    in n at samples ``0, every, 2 every, ...``.
     """
     dth = np.asarray(dtheta_b, dtype=float)
     dvb = np.asarray(dv_b, dtype=float)
@@ -726,14 +698,7 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     S, N = dth.shape[:2]
     st = initial_state(p0_n, v0_n, q0_nb, frame, S)
     prm = kernel_params(frame, dt)
-    wgs = frame.model == "wgs84"
-    w = earth.earth_rate_n(frame)
-    A = prm[K_A : K_A + 9].reshape(3, 3)
-    Dm = prm[K_D : K_D + 9].reshape(3, 3)
-    Mam = prm[K_M : K_M + 9].reshape(3, 3)
-    Mtr = prm[K_MT : K_MT + 9].reshape(3, 3)
-    qW = prm[K_QW : K_QW + 4]
-    r0 = frame.r0_n
+    rot = frame.model != "flat"
     g0 = frame.g0
     c12 = dt / 12.0
     p = st[:, S_P : S_P + 3].copy()
@@ -746,27 +711,27 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     P = np.empty((S, M_out, 3))
     V = np.empty((S, M_out, 3))
     Q = np.empty((S, M_out, 4))
-    P[:, 0], V[:, 0], Q[:, 0] = p, v, q
+    out = np.zeros((S, N_STATE))
+
+    def store(j, k, p_, v_, q_):
+        out[:, S_P : S_P + 3] = p_
+        out[:, S_V : S_V + 3] = v_
+        out[:, S_Q : S_Q + 4] = q_
+        out[:, S_K] = k
+        P[:, j], V[:, j], Q[:, j] = nav_from_state(out, prm)
+
+    store(0, 0, p, v, q)
     for k in range(N):
         first = k == 0
         qv = q[:, 1:]
         t = 2.0 * np.cross(qv, dvb[:, k])
         a = dvb[:, k] + q[:, :1] * t + np.cross(qv, t)
-        if wgs:
-            r = r0 + p
-            wr = np.cross(w, r)
-            s_pred = v + a + dt * (G - 2.0 * np.cross(w, v) - np.cross(w, wr))
-            if first:
-                pp = p + 0.5 * dt * (s_pred + v)
-            else:
-                pp = p + c12 * (5.0 * s_pred + 8.0 * v - vp)
+        if rot:
+            s_pred = v + a + dt * G
+            pp = p + 0.5 * dt * (s_pred + v) if first else p + c12 * (5.0 * s_pred + 8.0 * v - vp)
             Gn = earth.gravitation_n(pp, frame)
-            AG = Gn @ A.T
-            J = 0.5 * dt * (AG + G) if first else c12 * (5.0 * AG + 8.0 * G - Gp @ A)
-            ds = (v + wr + a + J) @ Dm.T
-            h = dt * v if first else c12 * (13.0 * v - vp)
-            e = a + J + ds - np.cross(w, h)
-            dvn = e @ (Mtr if first else Mam).T
+            J = 0.5 * dt * (Gn + G) if first else c12 * (5.0 * Gn + 8.0 * G - Gp)
+            dvn = a + J
             Gp, G = G, Gn
         else:
             dvn = a.copy()
@@ -777,18 +742,11 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
         if k == 1:
             d = c12 * (-vp + 2.0 * vk - v)
             p = p + d
-            if wgs:
-                c = np.cross(w, d)
-                vk = vk - c
-                v = v - c
             if every == 1:
-                P[:, 1] = p
-                V[:, 1] = vk
+                store(1, 1, p, vk, q)
         p = p + dp
         vp = vk
         d = quat_mul(q, _qexpm1_np(dth[:, k]))
-        if wgs:
-            d = d + quat_mul(np.broadcast_to(qW, q.shape), q + d)
         eps = (
             (np.sum(q * q, axis=1, keepdims=True) - 1.0)
             + 2.0 * np.sum(q * d, axis=1, keepdims=True)
@@ -797,8 +755,7 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
         d = d - 0.5 * eps * (q + d)
         q = q + d
         if (k + 1) % every == 0:
-            j = (k + 1) // every
-            P[:, j], V[:, j], Q[:, j] = p, v, q
+            store((k + 1) // every, k + 1, p, v, q)
     return P, V, Q
 
 
