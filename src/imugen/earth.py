@@ -345,6 +345,77 @@ def C_en_from_geodetic(lat_rad, lon_rad):
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
+# --- the local level at the vehicle ----------------------------------------------------------
+def local_level(r_e, v_e=None, q_eb=None):
+    """ECEF state -> geodetic position, East-North-Up velocity and attitude at the vehicle.
+
+    Parameters
+    ----------
+    r_e : ndarray, shape (..., 3)
+        ECEF position [m].
+    v_e : ndarray, shape (..., 3), optional
+        Earth-relative velocity resolved in ECEF [m/s].
+    q_eb : ndarray, shape (..., 4), optional
+        Attitude body -> ECEF (scalar first).
+
+    Returns
+    -------
+    lat_rad, lon_rad, h_m : ndarray, shape (...)
+    v_l : ndarray, shape (..., 3) or None
+        Velocity in the local ENU frame at the vehicle [m/s].
+    q_lb : ndarray, shape (..., 4) or None
+        Attitude body -> local ENU at the vehicle (``C_lb = C_le C_eb``; roll, pitch and
+        yaw relative to the local level, as in the truth's Euler angles).
+    """
+    from imugen.rotations import dcm_to_quat, quat_mul
+
+    lat, lon, h = geodetic_from_ecef(r_e)
+    C_le = C_en_from_geodetic(lat, lon)
+    v_l = None if v_e is None else np.einsum("...ij,...j->...i", C_le, v_e)
+    q_lb = None
+    if q_eb is not None:
+        q_le = dcm_to_quat(C_le.reshape(-1, 3, 3)).reshape((*C_le.shape[:-2], 4))
+        q_lb = quat_mul(q_le, np.asarray(q_eb, dtype=float))
+    return lat, lon, h, v_l, q_lb
+
+
+def errors_local_level(p_true_e, p_nav_e, v_true_e, min_speed_mps=0.1) -> np.ndarray:
+    """Position errors in the local level at the true position, plus along/cross track.
+
+    Parameters
+    ----------
+    p_true_e, p_nav_e : ndarray, shape (..., 3)
+        True and navigated ECEF positions [m] (for an origin frame, convert with
+        ``OriginFrame.ecef_from_n`` first).
+    v_true_e : ndarray, shape (..., 3)
+        True Earth-relative velocity in ECEF [m/s] (defines the track direction).
+    min_speed_mps : float
+        Below this true horizontal speed the track direction is undefined: along and cross
+        are NaN there.
+
+    Returns
+    -------
+    ndarray, shape (..., 5)
+        ``east, north, up, along, cross`` [m] of ``p_nav - p_true``: ENU at the true position;
+        along the true horizontal velocity, and across it positive to the left.
+    """
+    p_true = np.asarray(p_true_e, dtype=float)
+    lat, lon, _ = geodetic_from_ecef(p_true)
+    C = C_en_from_geodetic(lat, lon)
+    d = np.einsum("...ij,...j->...i", C, np.asarray(p_nav_e, dtype=float) - p_true)
+    v = np.einsum("...ij,...j->...i", C, np.asarray(v_true_e, dtype=float))
+    sp = np.hypot(v[..., 0], v[..., 1])
+    ok = sp >= min_speed_mps
+    with np.errstate(invalid="ignore", divide="ignore"):
+        te = np.where(ok, v[..., 0] / sp, np.nan)
+        tn = np.where(ok, v[..., 1] / sp, np.nan)
+    out = np.empty((*d.shape[:-1], 5))
+    out[..., :3] = d
+    out[..., 3] = d[..., 0] * te + d[..., 1] * tn
+    out[..., 4] = te * d[..., 1] - tn * d[..., 0]
+    return out
+
+
 # --- origin frame --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class OriginFrame:
