@@ -63,22 +63,33 @@ S_G = 19  # gravitation at sample k (3)
 S_GP = 22  # gravitation at sample k-1 (3)
 S_K = 25  # steps done
 S_QC = 26  # Kahan compensation of q (4)
-N_STATE = 30
+S_N = 30  # gravitation at the last three nodes k = j m, (j-2) m .. j m (9), newest first
+N_STATE = 39
 
 # --- kernel parameter vector: frame params (earth.N_PARAMS) then these ------------------------
 K_DT = earth.N_PARAMS  # dt
-N_KPARAMS = K_DT + 1
+K_MB = K_DT + 1  # steps per gravitation node interval m (1: exact gravitation every step)
+N_KPARAMS = K_MB + 1
+
+GRAVITY_NODE_S = 0.05
+"""Spacing of the exact gravitation evaluations in the rotating-Earth kernels [s] (see
+:func:`kernel_params`)."""
 
 
 def _skew(w):
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def kernel_params(frame: OriginFrame, dt: float) -> np.ndarray:
-    """Parameter vector of the kernel: earth parameters + dt."""
+def kernel_params(frame: OriginFrame, dt: float, node_s: float = GRAVITY_NODE_S) -> np.ndarray:
+    """Parameter vector of the kernel: earth parameters, dt, gravitation node interval.
+
+    The exact gravitation is evaluated every ``m = round(node_s / dt)`` steps (``m >= 1``)
+    and interpolated in between (module docstring); ``node_s = 0`` gives ``m = 1``.
+    """
     prm = np.zeros(N_KPARAMS)
     prm[: earth.N_PARAMS] = frame.params()
     prm[K_DT] = dt
+    prm[K_MB] = max(1, round(node_s / dt))
     return prm
 
 
@@ -156,6 +167,8 @@ def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -
     G = earth.gravitation_n(p0, frame)
     st[:, S_G : S_G + 3] = G
     st[:, S_GP : S_GP + 3] = G
+    for j in range(3):
+        st[:, S_N + 3 * j : S_N + 3 * j + 3] = G
     return st
 
 
@@ -286,6 +299,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     N = dth.shape[1]
     rot = prm[earth.P_MODEL] != 0.0
     dt = prm[K_DT]
+    m = int(prm[K_MB]) if rot else 1
     c12 = dt / 12.0
     hdt = 0.5 * dt
     iw = 1.0 / earth.OMEGA_IE
@@ -296,14 +310,127 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     r0y = prm[earth.P_R0N + 1]
     r0z = prm[earth.P_R0N + 2]
     g0dt = prm[earth.P_G0] * dt
+    # block tables: W[j, n] = T / n ((j+1)^n - j^n) / m^n, the step integrals of tau^(n-1);
+    # X[j] = sum over the remaining steps of the block of their length (position weights)
+    T = m * dt
+    W = np.empty((m, 4))
+    for j in range(m):
+        a = j / m
+        b = (j + 1) / m
+        W[j, 0] = T * (b - a)
+        W[j, 1] = T * (b * b - a * a) / 2.0
+        W[j, 2] = T * (b * b * b - a * a * a) / 3.0
+        W[j, 3] = T * (b * b * b * b - a * a * a * a) / 4.0
+    abuf = np.empty((m, 3))
+    qbuf = np.empty((m + 1, 4))
     for s in range(S):
         # fmt: off
         (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
          q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz) = st[s, :25]
+        (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z) = st[s, S_N:S_N + 9]
         # fmt: on
         qc0, qc1, qc2, qc3 = st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3]
         k = int(st[s, S_K])
-        for i in range(N):
+        i = 0
+        while i < N:
+            if m > 1 and k >= 3 * m and k % m == 0 and i + m <= N:
+                # ---- a block of m steps: attitude first (it does not depend on gravity),
+                # then the exact gravitation once at the block's predicted end, a cubic in
+                # time through it and the three previous nodes, and velocity/position
+                qbuf[0, 0] = q0 - qc0
+                qbuf[0, 1] = q1 - qc1
+                qbuf[0, 2] = q2 - qc2
+                qbuf[0, 3] = q3 - qc3
+                ex = 0.0
+                ey = 0.0
+                ez = 0.0
+                for j in range(m):
+                    ax, ay, az = _qrot(
+                        q0, q1, q2, q3, dvb[s, i + j, 0], dvb[s, i + j, 1], dvb[s, i + j, 2]
+                    )
+                    abuf[j, 0] = ax
+                    abuf[j, 1] = ay
+                    abuf[j, 2] = az
+                    wr = (m - j - 0.5) * dt
+                    ex += wr * ax
+                    ey += wr * ay
+                    ez += wr * az
+                    q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
+                        q0, q1, q2, q3, qc0, qc1, qc2, qc3,
+                        dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
+                    )  # fmt: skip
+                    qbuf[j + 1, 0] = q0 - qc0
+                    qbuf[j + 1, 1] = q1 - qc1
+                    qbuf[j + 1, 2] = q2 - qc2
+                    qbuf[j + 1, 3] = q3 - qc3
+                # predicted end position: specific force at mid-step, gravitation extrapolated
+                c6 = T * T / 6.0
+                ppx = px + T * vx + ex + c6 * (4.0 * n0x - n1x)
+                ppy = py + T * vy + ey + c6 * (4.0 * n0y - n1y)
+                ppz = pz + T * vz + ez + c6 * (4.0 * n0z - n1z)
+                gex, gey, gez = earth._gravitation_nb(r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz)
+                # cubic g(tau) = n0 + c1 tau + c2 tau^2 + c3 tau^3 through tau = -2, -1, 0, 1
+                c2x = 0.5 * (gex + n1x) - n0x
+                c2y = 0.5 * (gey + n1y) - n0y
+                c2z = 0.5 * (gez + n1z) - n0z
+                sx = 0.5 * (gex - n1x)
+                sy = 0.5 * (gey - n1y)
+                sz = 0.5 * (gez - n1z)
+                c3x = (n0x - n2x + 4.0 * c2x - 2.0 * sx) / 6.0
+                c3y = (n0y - n2y + 4.0 * c2y - 2.0 * sy) / 6.0
+                c3z = (n0z - n2z + 4.0 * c2z - 2.0 * sz) / 6.0
+                c1x = sx - c3x
+                c1y = sy - c3y
+                c1z = sz - c3z
+                for j in range(m):
+                    Jx = W[j, 0] * n0x + W[j, 1] * c1x + W[j, 2] * c2x + W[j, 3] * c3x
+                    Jy = W[j, 0] * n0y + W[j, 1] * c1y + W[j, 2] * c2y + W[j, 3] * c3y
+                    Jz = W[j, 0] * n0z + W[j, 1] * c1z + W[j, 2] * c2z + W[j, 3] * c3z
+                    ovx = vx
+                    ovy = vy
+                    ovz = vz
+                    vx, vcx = _kahan(vx, vcx, abuf[j, 0] + Jx)
+                    vy, vcy = _kahan(vy, vcy, abuf[j, 1] + Jy)
+                    vz, vcz = _kahan(vz, vcz, abuf[j, 2] + Jz)
+                    px, pcx = _kahan(px, pcx, c12 * (5.0 * vx + 8.0 * ovx - vpx))
+                    py, pcy = _kahan(py, pcy, c12 * (5.0 * vy + 8.0 * ovy - vpy))
+                    pz, pcz = _kahan(pz, pcz, c12 * (5.0 * vz + 8.0 * ovz - vpz))
+                    vpx = ovx
+                    vpy = ovy
+                    vpz = ovz
+                    k += 1
+                    if k % every == 0:
+                        _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
+                               px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
+                               qbuf[j + 1, 0], qbuf[j + 1, 1], qbuf[j + 1, 2], qbuf[j + 1, 3],
+                               True)  # fmt: skip
+                # node at the actual end: point-mass gradient across the prediction error
+                dx = (px - pcx) - ppx
+                dy = (py - pcy) - ppy
+                dz = (pz - pcz) - ppz
+                rx = r0x + ppx
+                ry = r0y + ppy
+                rz = r0z + ppz
+                ir2 = 1.0 / (rx * rx + ry * ry + rz * rz)
+                k3 = earth.GM_WGS84 * ir2 * math.sqrt(ir2)
+                rd = 3.0 * ir2 * (rx * dx + ry * dy + rz * dz)
+                gex += k3 * (rd * rx - dx)
+                gey += k3 * (rd * ry - dy)
+                gez += k3 * (rd * rz - dz)
+                # the per-step rule continues from the cubic's last two samples
+                x = 1.0 - 1.0 / m
+                Gpx = n0x + x * (c1x + x * (c2x + x * c3x))
+                Gpy = n0y + x * (c1y + x * (c2y + x * c3y))
+                Gpz = n0z + x * (c1z + x * (c2z + x * c3z))
+                Gx = gex
+                Gy = gey
+                Gz = gez
+                n2x, n2y, n2z = n1x, n1y, n1z
+                n1x, n1y, n1z = n0x, n0y, n0z
+                n0x, n0y, n0z = gex, gey, gez
+                i += m
+                continue
+            # ---- one step with the exact gravitation at the predicted end of the step
             if k == 1:
                 v0x = vpx
                 v0y = vpy
@@ -345,74 +472,23 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 dvx = ax
                 dvy = ay
                 dvz = az - g0dt
-            # v_{k+1} = v_k + dv (Kahan)
             ovx = vx
             ovy = vy
             ovz = vz
-            yx = dvx - vcx
-            yy = dvy - vcy
-            yz = dvz - vcz
-            tx = vx + yx
-            ty = vy + yy
-            tz = vz + yz
-            vcx = (tx - vx) - yx
-            vcy = (ty - vy) - yy
-            vcz = (tz - vz) - yz
-            vx = tx
-            vy = ty
-            vz = tz
-            # p_{k+1} = p_k + int v (Kahan)
+            vx, vcx = _kahan(vx, vcx, dvx)
+            vy, vcy = _kahan(vy, vcy, dvy)
+            vz, vcz = _kahan(vz, vcz, dvz)
             if k == 0:
-                dpx = hdt * (vx + ovx)
-                dpy = hdt * (vy + ovy)
-                dpz = hdt * (vz + ovz)
+                px, pcx = _kahan(px, pcx, hdt * (vx + ovx))
+                py, pcy = _kahan(py, pcy, hdt * (vy + ovy))
+                pz, pcz = _kahan(pz, pcz, hdt * (vz + ovz))
             else:
-                dpx = c12 * (5.0 * vx + 8.0 * ovx - vpx)
-                dpy = c12 * (5.0 * vy + 8.0 * ovy - vpy)
-                dpz = c12 * (5.0 * vz + 8.0 * ovz - vpz)
-            yx = dpx - pcx
-            yy = dpy - pcy
-            yz = dpz - pcz
-            tx = px + yx
-            ty = py + yy
-            tz = pz + yz
-            pcx = (tx - px) - yx
-            pcy = (ty - py) - yy
-            pcz = (tz - pz) - yz
-            px = tx
-            py = ty
-            pz = tz
-            # attitude: q <- q (x) Exp(dtheta), as q + dq with dq computed from small
-            # quantities and added with a compensated sum (no systematic rounding drift)
-            em0, e1, e2, e3 = _qexpm1(dth[s, i, 0], dth[s, i, 1], dth[s, i, 2])
-            d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
-            # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
-            eps = (
-                ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
-                + 2.0 * (q0 * d0 + q1 * d1 + q2 * d2 + q3 * d3)
-                + (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
+                px, pcx = _kahan(px, pcx, c12 * (5.0 * vx + 8.0 * ovx - vpx))
+                py, pcy = _kahan(py, pcy, c12 * (5.0 * vy + 8.0 * ovy - vpy))
+                pz, pcz = _kahan(pz, pcz, c12 * (5.0 * vz + 8.0 * ovz - vpz))
+            q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
+                q0, q1, q2, q3, qc0, qc1, qc2, qc3, dth[s, i, 0], dth[s, i, 1], dth[s, i, 2]
             )
-            h = -0.5 * eps
-            d0 += h * (q0 + d0)
-            d1 += h * (q1 + d1)
-            d2 += h * (q2 + d2)
-            d3 += h * (q3 + d3)
-            y0 = d0 - qc0
-            y1 = d1 - qc1
-            y2 = d2 - qc2
-            y3 = d3 - qc3
-            t0 = q0 + y0
-            t1 = q1 + y1
-            t2 = q2 + y2
-            t3 = q3 + y3
-            qc0 = (t0 - q0) - y0
-            qc1 = (t1 - q1) - y1
-            qc2 = (t2 - q2) - y2
-            qc3 = (t3 - q3) - y3
-            q0 = t0
-            q1 = t1
-            q2 = t2
-            q3 = t3
             vpx = ovx
             vpy = ovy
             vpz = ovz
@@ -426,9 +502,14 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 pz += dz
                 if every == 1:
                     _write(out_p, out_v, out_q, s, 1 - out_start, prm, 1,
-                           p1x + dx, p1y + dy, p1z + dz, vpx - vcx, vpy - vcy, vpz - vcz,
+                           p1x + dx, p1y + dy, p1z + dz, vpx, vpy, vpz,
                            0.0, 0.0, 0.0, 0.0, False)  # fmt: skip
             k += 1
+            i += 1
+            if rot and k % m == 0:
+                n2x, n2y, n2z = n1x, n1y, n1z
+                n1x, n1y, n1z = n0x, n0y, n0z
+                n0x, n0y, n0z = Gx, Gy, Gz
             if k % every == 0:
                 _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                        px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
@@ -436,9 +517,42 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
         # fmt: off
         st[s, :25] = (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
                       q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz)
+        st[s, S_N:S_N + 9] = (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z)
         # fmt: on
         st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3] = qc0, qc1, qc2, qc3
         st[s, S_K] = k
+
+
+@njit(cache=True, inline="always")
+def _kahan(s, c, d):
+    """Compensated s + d; returns the new sum and compensation (true sum = s - c)."""
+    y = d - c
+    t = s + y
+    return t, (t - s) - y
+
+
+@njit(cache=True, inline="always")
+def _att_step(q0, q1, q2, q3, qc0, qc1, qc2, qc3, x, y, z):
+    """q <- q (x) Exp(dtheta), as q + dq with dq computed from small quantities, renormalized
+    to first order and added with a compensated sum (no systematic rounding drift)."""
+    em0, e1, e2, e3 = _qexpm1(x, y, z)
+    d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
+    # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
+    eps = (
+        ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
+        + 2.0 * (q0 * d0 + q1 * d1 + q2 * d2 + q3 * d3)
+        + (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
+    )
+    h = -0.5 * eps
+    d0 += h * (q0 + d0)
+    d1 += h * (q1 + d1)
+    d2 += h * (q2 + d2)
+    d3 += h * (q3 + d3)
+    q0, qc0 = _kahan(q0, qc0, d0)
+    q1, qc1 = _kahan(q1, qc1, d1)
+    q2, qc2 = _kahan(q2, qc2, d2)
+    q3, qc3 = _kahan(q3, qc3, d3)
+    return q0, q1, q2, q3, qc0, qc1, qc2, qc3
 
 
 # --- Python drivers ------------------------------------------------------------------------------
@@ -752,9 +866,9 @@ def exact_increments(times, position, velocity, attitude, frame: OriginFrame, n_
 def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, every=1):
     """The same recursion as the kernel in NumPy, for benchmarks and cross-checks.
 
-    Vectorized across sequences, Python loop over time; no compensated sums (the kernel
-    has them). Returns positions (S, M, 3), velocities (S, M, 3) and quaternions (S, M, 4)
-    in n at samples ``0, every, 2 every, ...``.
+    Vectorized across sequences, Python loop over time (gravitation blocks included); no
+    compensated sums (the kernel has them). Returns positions (S, M, 3), velocities (S, M, 3)
+    and quaternions (S, M, 4) in n at samples ``0, every, 2 every, ...``.
     """
     dth = np.asarray(dtheta_b, dtype=float)
     dvb = np.asarray(dv_b, dtype=float)
@@ -765,6 +879,10 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     st = initial_state(p0_n, v0_n, q0_nb, frame, S)
     prm = kernel_params(frame, dt)
     rot = frame.model != "flat"
+    m = int(prm[K_MB]) if rot else 1
+    T = m * dt
+    tau = np.arange(m + 1) / m
+    W = np.stack([T * np.diff(tau**n) / n for n in (1, 2, 3, 4)], axis=1)  # (m, 4)
     g0 = frame.g0
     c12 = dt / 12.0
     p = st[:, S_P : S_P + 3].copy()
@@ -773,6 +891,7 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     q = st[:, S_Q : S_Q + 4].copy()
     G = st[:, S_G : S_G + 3].copy()
     Gp = G.copy()
+    nodes = [G.copy(), G.copy(), G.copy()]  # newest first
     M_out = N // every + 1
     P = np.empty((S, M_out, 3))
     V = np.empty((S, M_out, 3))
@@ -786,12 +905,60 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
         out[:, S_K] = k
         P[:, j], V[:, j], Q[:, j] = nav_from_state(out, prm)
 
-    store(0, 0, p, v, q)
-    for k in range(N):
-        first = k == 0
+    def resolve(q, dv):
         qv = q[:, 1:]
-        t = 2.0 * np.cross(qv, dvb[:, k])
-        a = dvb[:, k] + q[:, :1] * t + np.cross(qv, t)
+        t = 2.0 * np.cross(qv, dv)
+        return dv + q[:, :1] * t + np.cross(qv, t)
+
+    def att(q, dth_k):
+        d = quat_mul(q, _qexpm1_np(dth_k))
+        eps = (
+            (np.sum(q * q, axis=1, keepdims=True) - 1.0)
+            + 2.0 * np.sum(q * d, axis=1, keepdims=True)
+            + np.sum(d * d, axis=1, keepdims=True)
+        )
+        return q + (d - 0.5 * eps * (q + d))
+
+    store(0, 0, p, v, q)
+    k = 0
+    while k < N:
+        if m > 1 and k >= 3 * m and k % m == 0 and k + m <= N:
+            n0, n1, n2 = nodes
+            a = np.empty((m, S, 3))
+            qs = [q]
+            for j in range(m):
+                a[j] = resolve(q, dvb[:, k + j])
+                q = att(q, dth[:, k + j])
+                qs.append(q)
+            e = np.einsum("j,jsi->si", (m - np.arange(m) - 0.5) * dt, a)
+            pp = p + T * v + e + T * T / 6.0 * (4.0 * n0 - n1)
+            ge = earth.gravitation_n(pp, frame)
+            c2 = 0.5 * (ge + n1) - n0
+            sv = 0.5 * (ge - n1)
+            c3 = (n0 - n2 + 4.0 * c2 - 2.0 * sv) / 6.0
+            c1 = sv - c3
+            for j in range(m):
+                J = W[j, 0] * n0 + W[j, 1] * c1 + W[j, 2] * c2 + W[j, 3] * c3
+                vk = v
+                v = v + (a[j] + J)
+                p = p + c12 * (5.0 * v + 8.0 * vk - vp)
+                vp = vk
+                if (k + j + 1) % every == 0:
+                    store((k + j + 1) // every, k + j + 1, p, v, qs[j + 1])
+            d = p - pp
+            r = frame.r0_n + pp
+            ir2 = 1.0 / np.sum(r * r, axis=1, keepdims=True)
+            k3 = earth.GM_WGS84 * ir2 * np.sqrt(ir2)
+            rd = 3.0 * ir2 * np.sum(r * d, axis=1, keepdims=True)
+            ge = ge + k3 * (rd * r - d)
+            x = 1.0 - 1.0 / m
+            Gp = n0 + x * (c1 + x * (c2 + x * c3))
+            G = ge
+            nodes = [ge, n0, n1]
+            k += m
+            continue
+        first = k == 0
+        a = resolve(q, dvb[:, k])
         if rot:
             s_pred = v + a + dt * G
             pp = p + 0.5 * dt * (s_pred + v) if first else p + c12 * (5.0 * s_pred + 8.0 * v - vp)
@@ -812,16 +979,12 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
                 store(1, 1, p, vk, q)
         p = p + dp
         vp = vk
-        d = quat_mul(q, _qexpm1_np(dth[:, k]))
-        eps = (
-            (np.sum(q * q, axis=1, keepdims=True) - 1.0)
-            + 2.0 * np.sum(q * d, axis=1, keepdims=True)
-            + np.sum(d * d, axis=1, keepdims=True)
-        )
-        d = d - 0.5 * eps * (q + d)
-        q = q + d
-        if (k + 1) % every == 0:
-            store((k + 1) // every, k + 1, p, v, q)
+        q = att(q, dth[:, k])
+        k += 1
+        if rot and k % m == 0:
+            nodes = [G, nodes[0], nodes[1]]
+        if k % every == 0:
+            store(k // every, k, p, v, q)
     return P, V, Q
 
 
