@@ -28,7 +28,7 @@ import pytest
 from imugen import earth as E
 from imugen import mechanize as M
 from imugen.closure import attitude_angle
-from imugen.rotations import dcm_to_quat, quat_to_dcm
+from imugen.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
 
 A, B = E.A_WGS84, E.B_WGS84
 C2 = A * A - B * B
@@ -379,3 +379,56 @@ def test_local_level_reports_at_the_vehicle():
     z_l = quat_to_dcm(q_lb)[:, :, 2]
     assert np.all(z_l[:, 2] > math.cos(math.radians(0.2)))
     np.testing.assert_allclose(np.linalg.norm(q_lb, axis=1), 1.0, atol=1e-15)
+
+
+def test_gravitation_nodes_interpolation_bound():
+    """The kernels' cubic-in-time gravitation between exact nodes every T = 0.05 s: error
+    <= T^4/24 max|d^4G/dt^4| ~ T^4/24 |Gamma| snap, |Gamma| <= 2 GM / r^3 = 3.1e-6 s^-2."""
+    fr = E.OriginFrame.from_deg(45.0, 7.0, 300.0, model="wgs84")
+    w = E.earth_rate_n(fr)
+    T = M.GRAVITY_NODE_S
+    for amp, om in ((1.0, 2 * math.pi), (0.0, 0.0)):  # a 1 Hz, 1 m weave; a straight line
+        t = np.arange(0.0, 20.0, T / 20)
+        p = np.stack([60.0 * t, amp * np.sin(om * t), 5.0 * t], axis=1)
+        g = np.einsum("mij,mj->mi", exp_dcm(w[None, :] * t[:, None]), E.gravitation_n(p, fr))
+        nodes = g[::20]
+        err = 0.0
+        for j in range(3, len(nodes) - 1):  # interval [node j, node j+1] from j-2 .. j+1
+            n2, n1, n0, ge = nodes[j - 2], nodes[j - 1], nodes[j], nodes[j + 1]
+            c2 = 0.5 * (ge + n1) - n0
+            sv = 0.5 * (ge - n1)
+            c3 = (n0 - n2 + 4 * c2 - 2 * sv) / 6
+            c1 = sv - c3
+            tau = np.arange(20)[:, None] / 20
+            approx = n0 + tau * (c1 + tau * (c2 + tau * c3))
+            err = max(err, float(np.max(np.abs(approx - g[20 * j : 20 * j + 20]))))
+        snap = amp * om**4
+        bound = T**4 / 24 * 3.1e-6 * snap * 1.01 + 3e-14  # + rounding of the node values
+        print(f"weave {amp} m: interpolation error {err:.2e} m/s^2, bound {bound:.2e}")
+        assert err <= bound
+        if snap:
+            assert err > 0.3 * bound  # the bound is tight, not vacuous
+
+
+def test_gravitation_nodes_against_exact_every_step():
+    """Kernel with nodes every 0.05 s against the exact gravitation at every step: the 429 km
+    flight's climb at 100 Hz (smooth: agrees to 1e-9 m) and its closure."""
+    rt = flight_429km()
+    dt = 0.01
+    t = 300.0 + np.arange(0.0, 120.0 + 1e-9, dt)
+    r, v, _ = rt.kinematics(t)
+    q = rt.attitude(t)
+    dth, dv = M.exact_increments(t, rt.position, rt.velocity, rt.attitude, GEO)
+    every = 100
+    out = {}
+    for node_s in (M.GRAVITY_NODE_S, 0.0):
+        mech = M.Mechanizer(GEO, dt, r[0], v[0], q[0])
+        mech.prm = M.kernel_params(GEO, dt, node_s)
+        p = np.empty((1, len(t[::every]), 3))
+        p[:, 0] = r[0]
+        mech.run(dth[None], dv[None], out_p=p, every=every)
+        out[node_s] = p[0]
+        err = E.errors_local_level(r[::every], p[0], v[::every])
+        assert np.max(np.linalg.norm(err[:, :3], axis=1)) <= 1e-6
+    assert int(M.kernel_params(GEO, dt)[M.K_MB]) == 5
+    assert np.max(np.abs(out[M.GRAVITY_NODE_S] - out[0.0])) < 1e-9
