@@ -333,9 +333,11 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
         # fmt: on
         qc0, qc1, qc2, qc3 = st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3]
         k = int(st[s, S_K])
+        km = k % m  # phases of k (no integer division per step)
+        kw = k % every
         i = 0
         while i < N:
-            if m > 1 and k >= 3 * m and k % m == 0 and i + m <= N:
+            if km == 0 and m > 1 and k >= 3 * m and i + m <= N:
                 # ---- a block of m steps: attitude first (it does not depend on gravity),
                 # then the exact gravitation once at the block's predicted end, a cubic in
                 # time through it and the three previous nodes, and velocity/position
@@ -411,7 +413,10 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                     wx = nx
                     wy = ny
                     wz = nz
-                    if j < m - 1 and (k + j + 1) % every == 0:
+                    kw += 1
+                    if kw == every:
+                        kw = 0
+                    if j < m - 1 and kw == 0:
                         tj = (j + 1) * dt
                         _write(out_p, out_v, out_q, s, (k + j + 1) // every - out_start, prm,
                                k + j + 1,
@@ -430,7 +435,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 vy, vcy = _kahan(vy, vcy, wy)
                 vz, vcz = _kahan(vz, vcz, wz)
                 k += m
-                if k % every == 0:
+                if kw == 0:
                     _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                            px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
                            qbuf[m, 0], qbuf[m, 1], qbuf[m, 2], qbuf[m, 3], True)  # fmt: skip
@@ -533,11 +538,17 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                            0.0, 0.0, 0.0, 0.0, False)  # fmt: skip
             k += 1
             i += 1
-            if rot and k % m == 0:
+            km += 1
+            if km == m:
+                km = 0
+            kw += 1
+            if kw == every:
+                kw = 0
+            if rot and km == 0:
                 n2x, n2y, n2z = n1x, n1y, n1z
                 n1x, n1y, n1z = n0x, n0y, n0z
                 n0x, n0y, n0z = Gx, Gy, Gz
-            if k % every == 0:
+            if kw == 0:
                 _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                        px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
                        q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
