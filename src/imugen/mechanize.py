@@ -312,19 +312,23 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     r0y = prm[earth.P_R0N + 1]
     r0z = prm[earth.P_R0N + 2]
     g0dt = prm[earth.P_G0] * dt
-    # block tables: W[j, n] = T / n ((j+1)^n - j^n) / m^n, the step integrals of tau^(n-1);
-    # X[j] = sum over the remaining steps of the block of their length (position weights)
+    # block tables for a cubic gravitation g(tau) = sum_n c_n tau^n, tau = (t - t_k0) / T:
+    # WC[j, n] = int_0^(j dt) tau^n dt = T (j/m)^(n+1) / (n+1), its velocity change after j
+    # steps; QC[j, n], the matching position change by the 3-point rule (module docstring)
     T = m * dt
-    W = np.empty((m, 4))
-    for j in range(m):
-        a = j / m
-        b = (j + 1) / m
-        W[j, 0] = T * (b - a)
-        W[j, 1] = T * (b * b - a * a) / 2.0
-        W[j, 2] = T * (b * b * b - a * a * a) / 3.0
-        W[j, 3] = T * (b * b * b * b - a * a * a * a) / 4.0
-    abuf = np.empty((m, 3))
+    WC = np.zeros((m + 1, 4))
+    QC = np.zeros((m + 1, 4))
+    for j in range(1, m + 1):
+        x = j / m
+        for n in range(4):
+            WC[j, n] = T * x ** (n + 1) / (n + 1)
+            wm = WC[j - 2, n] if j >= 2 else 0.0
+            QC[j, n] = QC[j - 1, n] + c12 * (5.0 * WC[j, n] + 8.0 * WC[j - 1, n] - wm)
+    abuf = np.empty((m + 1, 3))  # A_j: sums of the resolved specific-force increments
+    pbuf = np.empty((m + 1, 3))  # QA_j: their position effect
     qbuf = np.empty((m + 1, 4))
+    abuf[0] = 0.0
+    pbuf[0] = 0.0
     for s in range(S):
         # fmt: off
         (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
@@ -341,24 +345,43 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 # ---- a block of m steps: attitude first (it does not depend on gravity),
                 # then the exact gravitation once at the block's predicted end, a cubic in
                 # time through it and the three previous nodes, and velocity/position
+                # specific force: running sums A_j and their 3-point position effect QA_j
+                # (relative to the block start; v_k-1 - v_k enters the first step)
                 qbuf[0, 0] = q0 - qc0
                 qbuf[0, 1] = q1 - qc1
                 qbuf[0, 2] = q2 - qc2
                 qbuf[0, 3] = q3 - qc3
-                ex = 0.0
-                ey = 0.0
-                ez = 0.0
+                bx = vpx - vx  # A_(j-1), starting with v_(k-1) - v_k
+                by = vpy - vy
+                bz = vpz - vz
+                Ax = 0.0
+                Ay = 0.0
+                Az = 0.0
+                Px = 0.0
+                Py = 0.0
+                Pz = 0.0
                 for j in range(m):
                     ax, ay, az = _qrot(
                         q0, q1, q2, q3, dvb[s, i + j, 0], dvb[s, i + j, 1], dvb[s, i + j, 2]
                     )
-                    abuf[j, 0] = ax
-                    abuf[j, 1] = ay
-                    abuf[j, 2] = az
-                    wr = (m - j - 0.5) * dt
-                    ex += wr * ax
-                    ey += wr * ay
-                    ez += wr * az
+                    nx = Ax + ax
+                    ny = Ay + ay
+                    nz = Az + az
+                    Px += c12 * (5.0 * nx + 8.0 * Ax - bx)
+                    Py += c12 * (5.0 * ny + 8.0 * Ay - by)
+                    Pz += c12 * (5.0 * nz + 8.0 * Az - bz)
+                    bx = Ax
+                    by = Ay
+                    bz = Az
+                    Ax = nx
+                    Ay = ny
+                    Az = nz
+                    abuf[j + 1, 0] = Ax
+                    abuf[j + 1, 1] = Ay
+                    abuf[j + 1, 2] = Az
+                    pbuf[j + 1, 0] = Px
+                    pbuf[j + 1, 1] = Py
+                    pbuf[j + 1, 2] = Pz
                     q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
                         q0, q1, q2, q3, qc0, qc1, qc2, qc3,
                         dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
@@ -367,11 +390,12 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                     qbuf[j + 1, 1] = q1 - qc1
                     qbuf[j + 1, 2] = q2 - qc2
                     qbuf[j + 1, 3] = q3 - qc3
-                # predicted end position: specific force at mid-step, gravitation extrapolated
-                c6 = T * T / 6.0
-                ppx = px + T * vx + ex + c6 * (4.0 * n0x - n1x)
-                ppy = py + T * vy + ey + c6 * (4.0 * n0y - n1y)
-                ppz = pz + T * vz + ez + c6 * (4.0 * n0z - n1z)
+                # predicted end position: gravitation extrapolated linearly from the nodes
+                e0 = QC[m, 0] + QC[m, 1]
+                e1 = QC[m, 1]
+                ppx = px + T * vx + Px + e0 * n0x - e1 * n1x
+                ppy = py + T * vy + Py + e0 * n0y - e1 * n1y
+                ppz = pz + T * vz + Pz + e0 * n0z - e1 * n1z
                 gex, gey, gez = earth._gravitation_nb(r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz)
                 # cubic g(tau) = n0 + c1 tau + c2 tau^2 + c3 tau^3 through tau = -2, -1, 0, 1
                 c2x = 0.5 * (gex + n1x) - n0x
@@ -386,54 +410,71 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 c1x = sx - c3x
                 c1y = sy - c3y
                 c1z = sz - c3z
-                # velocity and position relative to the block start (small numbers, plain sums;
-                # one compensated sum per block)
-                ux = vpx - vx  # v_{k-1} - v_k
-                uy = vpy - vy
-                uz = vpz - vz
-                wx = 0.0  # v_{k+j} - v_k
-                wy = 0.0
-                wz = 0.0
-                dpx = 0.0  # p_{k+j} - p_k - j dt v_k
-                dpy = 0.0
-                dpz = 0.0
-                for j in range(m):
-                    Jx = W[j, 0] * n0x + W[j, 1] * c1x + W[j, 2] * c2x + W[j, 3] * c3x
-                    Jy = W[j, 0] * n0y + W[j, 1] * c1y + W[j, 2] * c2y + W[j, 3] * c3y
-                    Jz = W[j, 0] * n0z + W[j, 1] * c1z + W[j, 2] * c2z + W[j, 3] * c3z
-                    nx = wx + (abuf[j, 0] + Jx)
-                    ny = wy + (abuf[j, 1] + Jy)
-                    nz = wz + (abuf[j, 2] + Jz)
-                    dpx += c12 * (5.0 * nx + 8.0 * wx - ux)
-                    dpy += c12 * (5.0 * ny + 8.0 * wy - uy)
-                    dpz += c12 * (5.0 * nz + 8.0 * wz - uz)
-                    ux = wx
-                    uy = wy
-                    uz = wz
-                    wx = nx
-                    wy = ny
-                    wz = nz
-                    kw += 1
-                    if kw == every:
-                        kw = 0
-                    if j < m - 1 and kw == 0:
-                        tj = (j + 1) * dt
-                        _write(out_p, out_v, out_q, s, (k + j + 1) // every - out_start, prm,
-                               k + j + 1,
-                               (px - pcx) + (tj * vx + dpx), (py - pcy) + (tj * vy + dpy),
-                               (pz - pcz) + (tj * vz + dpz),
-                               (vx - vcx) + wx, (vy - vcy) + wy, (vz - vcz) + wz,
-                               qbuf[j + 1, 0], qbuf[j + 1, 1], qbuf[j + 1, 2], qbuf[j + 1, 3],
-                               True)  # fmt: skip
-                vpx = vx + ux
-                vpy = vy + uy
-                vpz = vz + uz
-                px, pcx = _kahan(px, pcx, T * vx + dpx)
-                py, pcy = _kahan(py, pcy, T * vy + dpy)
-                pz, pcz = _kahan(pz, pcz, T * vz + dpz)
-                vx, vcx = _kahan(vx, vcx, wx)
-                vy, vcy = _kahan(vy, vcy, wy)
-                vz, vcz = _kahan(vz, vcz, wz)
+                # samples inside the block that are stored
+                jw = every - kw
+                while jw < m:
+                    tj = jw * dt
+                    _write(out_p, out_v, out_q, s, (k + jw) // every - out_start, prm, k + jw,
+                           (px - pcx) + (tj * vx + pbuf[jw, 0]
+                                         + (QC[jw, 0] * n0x + QC[jw, 1] * c1x
+                                            + QC[jw, 2] * c2x + QC[jw, 3] * c3x)),
+                           (py - pcy) + (tj * vy + pbuf[jw, 1]
+                                         + (QC[jw, 0] * n0y + QC[jw, 1] * c1y
+                                            + QC[jw, 2] * c2y + QC[jw, 3] * c3y)),
+                           (pz - pcz) + (tj * vz + pbuf[jw, 2]
+                                         + (QC[jw, 0] * n0z + QC[jw, 1] * c1z
+                                            + QC[jw, 2] * c2z + QC[jw, 3] * c3z)),
+                           (vx - vcx) + (abuf[jw, 0] + (WC[jw, 0] * n0x + WC[jw, 1] * c1x
+                                                        + WC[jw, 2] * c2x + WC[jw, 3] * c3x)),
+                           (vy - vcy) + (abuf[jw, 1] + (WC[jw, 0] * n0y + WC[jw, 1] * c1y
+                                                        + WC[jw, 2] * c2y + WC[jw, 3] * c3y)),
+                           (vz - vcz) + (abuf[jw, 2] + (WC[jw, 0] * n0z + WC[jw, 1] * c1z
+                                                        + WC[jw, 2] * c2z + WC[jw, 3] * c3z)),
+                           qbuf[jw, 0], qbuf[jw, 1], qbuf[jw, 2], qbuf[jw, 3], True)  # fmt: skip
+                    jw += every
+                kw += m
+                while kw >= every:
+                    kw -= every
+                # end of the block: one compensated sum each for position and velocity
+                j = m - 1
+                vpx = vx + (
+                    abuf[j, 0] + (WC[j, 0] * n0x + WC[j, 1] * c1x + WC[j, 2] * c2x + WC[j, 3] * c3x)
+                )
+                vpy = vy + (
+                    abuf[j, 1] + (WC[j, 0] * n0y + WC[j, 1] * c1y + WC[j, 2] * c2y + WC[j, 3] * c3y)
+                )
+                vpz = vz + (abuf[j, 2] + (WC[j, 0] * n0z + WC[j, 1] * c1z + WC[j, 2] * c2z
+                                          + WC[j, 3] * c3z))  # fmt: skip
+                px, pcx = _kahan(
+                    px,
+                    pcx,
+                    T * vx
+                    + (Px + (QC[m, 0] * n0x + QC[m, 1] * c1x + QC[m, 2] * c2x + QC[m, 3] * c3x)),
+                )
+                py, pcy = _kahan(
+                    py,
+                    pcy,
+                    T * vy
+                    + (Py + (QC[m, 0] * n0y + QC[m, 1] * c1y + QC[m, 2] * c2y + QC[m, 3] * c3y)),
+                )
+                pz, pcz = _kahan(
+                    pz,
+                    pcz,
+                    T * vz
+                    + (Pz + (QC[m, 0] * n0z + QC[m, 1] * c1z + QC[m, 2] * c2z + QC[m, 3] * c3z)),
+                )
+                vx, vcx = _kahan(
+                    vx,
+                    vcx,
+                    Ax + (WC[m, 0] * n0x + WC[m, 1] * c1x + WC[m, 2] * c2x + WC[m, 3] * c3x),
+                )
+                vy, vcy = _kahan(
+                    vy,
+                    vcy,
+                    Ay + (WC[m, 0] * n0y + WC[m, 1] * c1y + WC[m, 2] * c2y + WC[m, 3] * c3y),
+                )
+                vz, vcz = _kahan(vz, vcz, Az + (WC[m, 0] * n0z + WC[m, 1] * c1z + WC[m, 2] * c2z
+                                                + WC[m, 3] * c3z))  # fmt: skip
                 k += m
                 if kw == 0:
                     _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
