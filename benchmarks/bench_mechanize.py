@@ -84,13 +84,13 @@ def compile_times() -> dict:
     return out
 
 
-def build_scene(rate_hz: float, model: str):
+def build_scene(scene: Path, rate_hz: float, model: str):
     """Truth table and frame; ``geodetic`` is the ``wgs84`` truth expressed in ECEF (the body
     increments are the same)."""
     from imugen import truth
     from imugen.ingest import ingest
 
-    ing = ingest(PAPER, dt=1.0, origin=ORIGIN)
+    ing = ingest(scene, dt=1.0, origin=ORIGIN)
     tm = "wgs84" if model == "geodetic" else model
     df, meta = truth.build_truth(ing.table, ing.meta, rate_hz=rate_hz, earth=tm, verbose=False)
     o = meta["origin"]
@@ -317,17 +317,15 @@ def main(argv=None):
     ap.add_argument("--pyins-reps", type=int, default=5)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
-    global PAPER
-    PAPER = args.scene
-    if not PAPER.exists():
-        sys.exit(f"scene file missing: {PAPER}")
+    if not args.scene.exists():
+        sys.exit(f"scene file missing: {args.scene}")
     res = {"machine": {"cpu_count": os.cpu_count(), "threads": 1}}
     print("compile times (fresh numba cache, then cached) ...", flush=True)
     res["compile"] = compile_times()
     print(json.dumps(res["compile"]), flush=True)
     steps = None if args.numpy_steps == "all" else int(args.numpy_steps)
     for model in args.earth.split(","):
-        df, frame = build_scene(args.rate_hz, model)
+        df, frame = build_scene(args.scene, args.rate_hz, model)
         print(
             f"[{model}] numba kernel, {args.sequences} sequences x {len(df) - 1} steps ...",
             flush=True,

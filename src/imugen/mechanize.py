@@ -220,16 +220,7 @@ def _qrot(qw, qx, qy, qz, vx, vy, vz):
     )
 
 
-@njit(cache=True, inline="always")
-def _mv(m, o, x, y, z):
-    return (
-        m[o] * x + m[o + 1] * y + m[o + 2] * z,
-        m[o + 3] * x + m[o + 4] * y + m[o + 5] * z,
-        m[o + 6] * x + m[o + 7] * y + m[o + 8] * z,
-    )
-
-
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rot_axis(zx, zy, zz, c, s, omc, x, y, z):
     """Rotate (x, y, z) about the unit axis zax by the angle (cos c, sin s, 1 - cos omc)."""
     d = omc * (zx * x + zy * y + zz * z)
@@ -240,7 +231,7 @@ def _rot_axis(zx, zy, zz, c, s, omc, x, y, z):
     )
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1, q2, q3, wq):
     """Store sample ``k`` (kernel quantities, compensations already applied) in n."""
     if prm[earth.P_MODEL] != 0.0:
