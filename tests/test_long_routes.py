@@ -432,3 +432,29 @@ def test_gravitation_nodes_against_exact_every_step():
         assert np.max(np.linalg.norm(err[:, :3], axis=1)) <= 1e-6
     assert int(M.kernel_params(GEO, dt)[M.K_MB]) == 5
     assert np.max(np.abs(out[M.GRAVITY_NODE_S] - out[0.0])) < 1e-9
+
+
+def test_geodetic_and_origin_frame_kernels_agree():
+    """The same increments from the same state: ECEF kernel vs origin-ENU kernel (wgs84), and
+    the attitude relative to the local level at the vehicle from either."""
+    from imugen.rotations import quat_mul
+
+    rt = flight_429km()
+    dt = 0.02
+    t = 200.0 + np.arange(0.0, 300.0 + 1e-9, dt)
+    r, v, _ = rt.kinematics(t)
+    q = rt.attitude(t)
+    dth, dv = M.exact_increments(t, rt.position, rt.velocity, rt.attitude, GEO)
+    fr = E.OriginFrame.from_deg(45.6, 8.7, 200.0, model="wgs84")
+    C = fr.C_en
+    q_ne = dcm_to_quat(C)
+    geo = M.mechanize(dth, dv, dt, r[0], v[0], q[0], GEO, every=50)
+    enu = M.mechanize(
+        dth, dv, dt, fr.n_from_ecef(r[0]), C @ v[0], quat_mul(q_ne, q[0]), fr, every=50
+    )
+    np.testing.assert_allclose(fr.ecef_from_n(enu.p_n), geo.p_n, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(enu.v_n @ C, geo.v_n, rtol=0, atol=1e-10)
+    _, _, _, v_l, q_lb = E.local_level(geo.p_n, geo.v_n, geo.q_nb)
+    C_lb = fr.C_ln(enu.p_n) @ quat_to_dcm(enu.q_nb)
+    np.testing.assert_allclose(quat_to_dcm(q_lb), C_lb, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(v_l, np.einsum("mij,mj->mi", fr.C_ln(enu.p_n), enu.v_n), atol=1e-9)
