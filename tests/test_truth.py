@@ -79,7 +79,7 @@ def test_still_level_reads_plus_g_and_earth_rate(earth):
     # exact increments of a constant rate and a constant body force (closed form):
     # dtheta = w dt; dv = f dt + 1/2 w x f dt^2 + 1/6 w x (w x f) dt^3
     dt = 0.1
-    fb = np.array([0, 0, g0])
+    fb = f_n
     dv = fb * dt + 0.5 * np.cross(expect_w, fb) * dt**2
     dv += np.cross(expect_w, np.cross(expect_w, fb)) * dt**3 / 6
     np.testing.assert_allclose(

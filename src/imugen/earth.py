@@ -404,14 +404,17 @@ def errors_local_level(p_true_e, p_nav_e, v_true_e, min_speed_mps=0.1) -> np.nda
 # --- origin frame --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class OriginFrame:
-    """The navigation frame ``n``: ENU axes at the route origin, and the Earth model.
+    """The navigation frame ``n`` and the Earth model.
+
+    ENU axes at the route origin (``flat``, ``wgs84``), or ECEF (``geodetic``: ``C_en = I``,
+    ``r0_e = 0``; the origin then only names the scene's reference point).
 
     Attributes
     ----------
     lat0_rad, lon0_rad, h0_m : float
         Geodetic origin (WGS-84).
     model : str
-        ``"flat"`` or ``"wgs84"``.
+        ``"flat"``, ``"wgs84"`` or ``"geodetic"``.
     """
 
     lat0_rad: float

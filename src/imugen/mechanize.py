@@ -675,7 +675,8 @@ class Mechanizer:
     Parameters
     ----------
     frame : OriginFrame
-        Origin and Earth model (``frame.model`` is ``"flat"`` or ``"wgs84"``).
+        Origin and Earth model (``"flat"``, ``"wgs84"`` or ``"geodetic"``; in ``geodetic`` the
+        navigation coordinates are ECEF: position, Earth-relative velocity, ``q_eb``).
     dt : float
         Sample interval [s].
     p0_n, v0_n : ndarray, shape (3,) or (S, 3)
