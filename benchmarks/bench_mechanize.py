@@ -14,12 +14,14 @@ Measured, single thread (the numbers are per core):
   ``--pyins-python`` (a separate virtualenv); skipped with a message when unavailable;
 * compile time of the kernel in a fresh process with an empty numba cache, and the start-up
   time of a second process that loads the cached kernel;
-* zero-error closure of the kernel (flat and wgs84) and of pyins (wgs84) on the same truth;
+* the ``geodetic`` kernel (ECEF navigation coordinates) on the same truth expressed in ECEF;
+* zero-error closure of the kernel (every model) and of pyins (wgs84) on the same truth;
+* rates per wall-clock second and per CPU second of the process (the machine is shared);
 * peak resident memory.
 
 Usage::
 
-    python benchmarks/bench_mechanize.py [--sequences 1000] [--numpy-steps all]
+    python benchmarks/bench_mechanize.py [--scene FILE] [--sequences 1000] [--numpy-steps all]
         [--pyins-python /work/pyinsvenv/bin/python] [--json results.json]
 """
 
@@ -45,6 +47,7 @@ import numpy as np  # noqa: E402
 from imugen import columns as col  # noqa: E402
 from imugen import earth as E  # noqa: E402
 from imugen import mechanize as M  # noqa: E402
+from imugen import rotations as rot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT.parent / "shared" / "data" / "trajectories" / "seed_reference_trajectory_enu.txt"
@@ -81,14 +84,25 @@ def compile_times() -> dict:
     return out
 
 
-def build_scene(rate_hz: float, model: str):
+def build_scene(scene: Path, rate_hz: float, model: str):
+    """Truth table and frame; ``geodetic`` is the ``wgs84`` truth expressed in ECEF (the body
+    increments are the same)."""
     from imugen import truth
     from imugen.ingest import ingest
 
-    ing = ingest(PAPER, dt=1.0, origin=ORIGIN)
-    df, meta = truth.build_truth(ing.table, ing.meta, rate_hz=rate_hz, earth=model, verbose=False)
+    ing = ingest(scene, dt=1.0, origin=ORIGIN)
+    tm = "wgs84" if model == "geodetic" else model
+    df, meta = truth.build_truth(ing.table, ing.meta, rate_hz=rate_hz, earth=tm, verbose=False)
     o = meta["origin"]
     frame = E.OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=model)
+    if model == "geodetic":
+        n = frame.with_model("wgs84")
+        C = n.C_en
+        df = df.copy()
+        df[list(col.POS)] = n.ecef_from_n(df[list(col.POS)].to_numpy())
+        df[list(col.VEL)] = df[list(col.VEL)].to_numpy() @ C
+        q_en = rot.dcm_to_quat(C.T)
+        df[list(col.QUAT)] = rot.quat_mul(q_en[None, :], df[list(col.QUAT)].to_numpy())
     return df, frame
 
 
@@ -99,6 +113,7 @@ def run_numba(df, frame, S, chunk, every, rng):
     V = df[list(col.VEL)].to_numpy()
     Q = df[list(col.QUAT)].to_numpy()
     dt = float(df[col.TIME].iloc[1] - df[col.TIME].iloc[0])
+    cpu0 = time.process_time()
     N = len(dth0)
     M_out = N // every + 1
     out = np.zeros((S, M_out, 3))  # touched once, reused
@@ -112,6 +127,7 @@ def run_numba(df, frame, S, chunk, every, rng):
     # warm-up (loads the cached kernel)
     M.Mechanizer(frame, dt, P[0], V[0], Q[0], 1).run(dth0[None, :10], dv0[None, :10])
     t_kernel = 0.0
+    c_kernel = 0.0
     t0 = time.perf_counter()
     q_end = None
     for a in range(0, S, chunk):
@@ -122,11 +138,14 @@ def run_numba(df, frame, S, chunk, every, rng):
         mech = M.Mechanizer(frame, dt, P[0], V[0], Q[0], n)
         out[a:b, 0] = P[0]
         t1 = time.perf_counter()
+        c1 = time.process_time()
         mech.run(buf_t[:n], buf_v[:n], out_p=out[a:b], every=every)
         t_kernel += time.perf_counter() - t1
+        c_kernel += time.process_time() - c1
         if a == 0:
             q_end = mech.q_nb[0]
     t_total = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
     idx = np.arange(0, N + 1, every)
     err = np.linalg.norm(out[0] - P[idx], axis=1)
     dq = _quat_mul(_quat_conj(Q[-1]), q_end)
@@ -136,7 +155,11 @@ def run_numba(df, frame, S, chunk, every, rng):
         "kernel_s": t_kernel,
         "total_s": t_total,
         "msps_kernel": S * N / t_kernel / 1e6,
+        "kernel_cpu_s": c_kernel,
+        "msps_kernel_cpu": S * N / c_kernel / 1e6,
         "msps_total": S * N / t_total / 1e6,
+        "cpu_s": cpu,
+        "load_avg_1min": os.getloadavg()[0],
         "closure_final_m": float(np.linalg.norm(out[0, -1] - P[N])) if N % every == 0 else None,
         "closure_max_1hz_m": float(err.max()),
         "closure_att_final_rad": float(2 * np.arcsin(min(1.0, np.linalg.norm(dq[1:])))),
@@ -156,14 +179,17 @@ def run_numpy(df, frame, S, steps, every):
     dth = np.broadcast_to(dth0[:N], (S, N, 3))
     dv = np.broadcast_to(dv0[:N], (S, N, 3))
     t0 = time.perf_counter()
+    c0 = time.process_time()
     Pn, _, _ = M.mechanize_numpy(dth, dv, dt, P[0], V[0], Q[0], frame, every=every)
     el = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     idx = np.arange(0, N + 1, every)
     return {
         "samples": N,
         "sequences": S,
         "seconds": el,
         "msps": S * N / el / 1e6,
+        "msps_cpu": S * N / cpu / 1e6,
         "closure_max_1hz_m": float(np.max(np.linalg.norm(Pn[0] - P[idx], axis=1))),
         "peak_rss_mb": peak_rss_mb(),
     }
@@ -213,19 +239,19 @@ PYINS_SCRIPT = textwrap.dedent("""
     pva = pd.Series(np.hstack([d["lla0"], d["vel0"], rph0]),
                     index=["lat", "lon", "alt", "VN", "VE", "VD", "roll", "pitch", "heading"],
                     name=0.0)
-    tj = time.perf_counter(); strapdown.Integrator(pva).integrate(inc.iloc[:10]); tj = time.perf_counter() - tj
+    tj = time.process_time(); strapdown.Integrator(pva).integrate(inc.iloc[:10]); tj = time.process_time() - tj
     best = []
     for _ in range(reps):
         integ = strapdown.Integrator(pva)
-        t0 = time.perf_counter(); traj = integ.integrate(inc); best.append(time.perf_counter() - t0)
+        t0 = time.process_time(); traj = integ.integrate(inc); best.append(time.process_time() - t0)
     # the numba core alone (no pandas), same arrays
     lla = np.empty((n + 1, 3)); vel = np.empty((n + 1, 3)); mat = np.empty((n + 1, 3, 3))
     core = []
     for _ in range(reps):
         lla[0] = d["lla0"]; vel[0] = d["vel0"]; mat[0] = d["C0"]
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         integrate(np.full(n, dt), lla, vel, mat, np.ascontiguousarray(th), np.ascontiguousarray(dv), 0, True)
-        core.append(time.perf_counter() - t0)
+        core.append(time.process_time() - t0)
     end = traj[["lat", "lon", "alt"]].to_numpy()[-1]
     err = transform.compute_lla_difference(end, d["lla_end"])
     C_end = transform.mat_from_rph(traj[["roll", "pitch", "heading"]].to_numpy()[-1])
@@ -279,10 +305,11 @@ def run_pyins(df, frame, python, reps):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sequences", type=int, default=1000)
+    ap.add_argument("--scene", type=Path, default=PAPER, help="the paper's ENU trajectory file")
     ap.add_argument("--chunk", type=int, default=50, help="sequences per kernel call")
     ap.add_argument("--every", type=int, default=100, help="store every N-th position")
     ap.add_argument("--rate-hz", type=float, default=100.0)
-    ap.add_argument("--earth", default="flat,wgs84")
+    ap.add_argument("--earth", default="flat,wgs84,geodetic")
     ap.add_argument(
         "--numpy-steps", default="all", help="time steps for the NumPy version ('all' or a number)"
     )
@@ -290,21 +317,20 @@ def main(argv=None):
     ap.add_argument("--pyins-reps", type=int, default=5)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
-    if not PAPER.exists():
-        sys.exit(f"scene file missing: {PAPER}")
+    if not args.scene.exists():
+        sys.exit(f"scene file missing: {args.scene}")
     res = {"machine": {"cpu_count": os.cpu_count(), "threads": 1}}
     print("compile times (fresh numba cache, then cached) ...", flush=True)
     res["compile"] = compile_times()
     print(json.dumps(res["compile"]), flush=True)
-    rng = np.random.default_rng(1)
     steps = None if args.numpy_steps == "all" else int(args.numpy_steps)
     for model in args.earth.split(","):
-        df, frame = build_scene(args.rate_hz, model)
+        df, frame = build_scene(args.scene, args.rate_hz, model)
         print(
             f"[{model}] numba kernel, {args.sequences} sequences x {len(df) - 1} steps ...",
             flush=True,
         )
-        r = run_numba(df, frame, args.sequences, args.chunk, args.every, rng)
+        r = run_numba(df, frame, args.sequences, args.chunk, args.every, np.random.default_rng(1))
         res[f"numba_{model}"] = r
         print(json.dumps(r), flush=True)
         print(f"[{model}] NumPy, {args.sequences} sequences ...", flush=True)
@@ -321,11 +347,13 @@ def main(argv=None):
     for key, val in res.items():
         if key.startswith("numba_"):
             print(
-                f"  {key:14s} kernel {val['msps_kernel']:7.2f}  incl. input prep "
-                f"{val['msps_total']:6.2f}  closure final {val['closure_final_m']:.2e} m"
+                f"  {key:15s} kernel {val['msps_kernel']:7.2f} (per CPU second "
+                f"{val['msps_kernel_cpu']:6.2f})  incl. input prep "
+                f"{val['msps_total']:6.2f}  closure final {val['closure_final_m']:.2e} m  "
+                f"(CPU {val['cpu_s']:.1f} s, load {val['load_avg_1min']:.1f})"
             )
         elif key.startswith("numpy_"):
-            print(f"  {key:14s} {val['msps']:7.2f}")
+            print(f"  {key:15s} {val['msps']:7.2f} (per CPU second {val['msps_cpu']:.2f})")
         elif key.startswith("pyins") and "skipped" not in val:
             print(
                 f"  {key:14s} Integrator.integrate {val['msps_integrate']:.2f}  numba core "

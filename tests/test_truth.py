@@ -60,7 +60,11 @@ def test_still_level_reads_plus_g_and_earth_rate(earth):
     lat0 = np.radians(ORIGIN[0])
     g0 = float(ea.normal_gravity(lat0, ORIGIN[2]))
     f = _arr(tr, col.ACCEL)
-    np.testing.assert_allclose(f, np.tile([0, 0, g0], (len(f), 1)), rtol=0, atol=1e-12)
+    # body axes = ENU at the origin; in wgs84 the normal plumb line leans north off the
+    # ellipsoid (-8.14e-9 h sin 2 lat m/s^2), so a level IMU at h0 reads that too
+    f_n = -ea.gravity_n(np.zeros(3), ea.OriginFrame.from_deg(*ORIGIN, model=earth))
+    assert np.linalg.norm(f_n) == pytest.approx(g0, rel=1e-15)
+    np.testing.assert_allclose(f, np.tile(f_n, (len(f), 1)), rtol=0, atol=1e-12)
     w = _arr(tr, col.GYRO)
     C = rot.quat_to_dcm(_arr(tr, col.QUAT))
     if earth == "flat":
@@ -75,7 +79,7 @@ def test_still_level_reads_plus_g_and_earth_rate(earth):
     # exact increments of a constant rate and a constant body force (closed form):
     # dtheta = w dt; dv = f dt + 1/2 w x f dt^2 + 1/6 w x (w x f) dt^3
     dt = 0.1
-    fb = np.array([0, 0, g0])
+    fb = f_n
     dv = fb * dt + 0.5 * np.cross(expect_w, fb) * dt**2
     dv += np.cross(expect_w, np.cross(expect_w, fb)) * dt**3 / 6
     np.testing.assert_allclose(

@@ -1,22 +1,28 @@
-"""Earth models: WGS-84 constants, normal gravity, the route-origin frame, Earth rate.
+"""Earth models: WGS-84 constants, the exact normal gravity field, navigation frames, Earth rate.
 
-Two fidelities share one Earth-fixed Cartesian navigation frame ``n`` whose axes are the
-East-North-Up axes at the route origin ``(lat0, lon0, h0)``; a position ``p_n`` is the ENU
-coordinate (metres) of a point relative to the origin.
+Three fidelities. In ``flat`` and ``wgs84`` the navigation frame ``n`` is Earth-fixed with the
+East-North-Up axes of the route origin ``(lat0, lon0, h0)``; a position ``p_n`` is the ENU
+coordinate (metres) of a point relative to the origin. In ``geodetic`` the navigation
+coordinates are ECEF (``C_en = I``, origin at the Earth's centre): valid at any distance,
+across the antimeridian and over the poles; :func:`local_level` reports position, velocity and
+attitude in the East-North-Up frame at the vehicle.
 
 ``flat``
     ``n`` is taken as inertial; gravity is the constant ``g_n = (0, 0, -g0)`` with ``g0`` the
     WGS-84 normal gravity at the origin; Earth rate 0.
-``wgs84``
-    ``n`` rotates with the Earth at ``omega_ie_n = Omega (0, cos lat0, sin lat0)``. Gravity
-    ``g_n(p_n)`` is WGS-84 normal gravity (Somigliana with the second-order height term) of
-    the point's own geodetic latitude and height, directed along minus the ellipsoid normal at
-    the point (centrifugal included, no deflection of the vertical). The gravitation (mass
-    attraction only) is ``G_n = g_n + Omega x (Omega x r_n)`` with ``r_n = r0_n + p_n``.
+``wgs84``, ``geodetic``
+    ``n`` rotates with the Earth at ``omega_ie_n = Omega C_en e_z``. Gravity is the exact
+    normal field of the WGS-84 level ellipsoid (gradient of the closed-form normal potential
+    in ellipsoidal harmonic coordinates, NIMA TR8350.2 ch. 4; no series in height, north
+    component of the curved plumb line included; no deflection of the vertical of the real
+    Earth). The gravitation (mass attraction only) is ``G_n = g_n + Omega x (Omega x r_n)``
+    with ``r_n = r0_n + p_n``; it is symmetric about the Earth's axis, so it is the same
+    function of position in any frame sharing that axis (the inertial frame of the
+    mechanization included).
 
-The NumPy functions (``gravity_n``, ``gravitation_n``) and the numba scalar functions used
-inside kernels (``gravity_nb``, ``gravitation_nb``) perform the same operations in the same
-order, so truth generation and mechanization see the same field.
+The scalar numba field (``_gravitation_nb``, used inside kernels) is also what the array
+functions (``gravity_n``, ``gravitation_n``, ``gravity_e``) evaluate, so truth generation and
+mechanization see the same field bit for bit.
 
 ``choose_earth_model`` implements ``--earth auto``: it estimates the position effect of every
 term ``flat`` drops and of the chosen sensor grade over the scene, picks ``flat`` when all
@@ -59,10 +65,10 @@ M_WGS84 = OMEGA_IE**2 * A_WGS84**2 * B_WGS84 / GM_WGS84
 R_MEAN = math.sqrt(A_WGS84 * B_WGS84)
 """A mean Earth radius for budgets [m] (not used by the physics)."""
 
-MODELS = ("flat", "wgs84")
+MODELS = ("flat", "wgs84", "geodetic")
 
 # Layout of the parameter vector handed to numba kernels (``OriginFrame.params``).
-P_MODEL = 0  # 0.0 flat, 1.0 wgs84
+P_MODEL = 0  # 0.0 flat, 1.0 wgs84, 2.0 geodetic
 P_G0 = 1  # normal gravity at the origin [m/s^2]
 P_OMEGA = 2  # omega_ie_n, 3 values (zeros in flat)
 P_CEN = 5  # C_en (ECEF -> n), 9 values row-major
@@ -71,12 +77,140 @@ P_R0N = 17  # r0_n = C_en r0_e [m], 3 values
 N_PARAMS = 20
 
 
-# --- normal gravity -------------------------------------------------------------------------
-def normal_gravity(lat_rad, h_m):
-    """WGS-84 normal gravity magnitude with the second-order height correction.
+# --- normal gravity: the exact field of the level ellipsoid ---------------------------------
+E_LIN = math.sqrt(A_WGS84**2 - B_WGS84**2)
+"""Linear eccentricity E = sqrt(a^2 - b^2) [m] (focal distance of the ellipsoidal coordinates)."""
 
-    ``g = gamma(lat) * (1 - 2/a (1 + f + m - 2 f sin^2 lat) h + 3 h^2 / a^2)`` with Somigliana's
-    ``gamma(lat) = gamma_e (1 + k sin^2 lat) / sqrt(1 - e^2 sin^2 lat)``.
+# Series in eps^2 = (E/u)^2 of the Legendre functions of the second kind used by the normal
+# potential (Heiskanen & Moritz 1967, ch. 2; NIMA TR8350.2, 3rd ed., ch. 4):
+#   q(u)  = 1/2 [(1 + 3 u^2/E^2) atan(E/u) - 3 u/E] = eps^3 sum_m c_m eps^(2m-2),
+#   q'(u) = 3 (1 + u^2/E^2) (1 - u/E atan(E/u)) - 1  = eps^2 sum_m d_m eps^(2m-2),
+# c_m = (-1)^(m+1) 2m / ((2m+1)(2m+3)), d_m = (-1)^(m+1) 6 / ((2m+1)(2m+3)). The closed forms
+# cancel catastrophically (q ~ 7e-5 from terms ~ 36); 9 terms reach float64 precision for
+# eps^2 <= 0.012, i.e. u >= 4,700 km: every point within 1,500 km of the surface.
+_NSER = 9
+_C_Q = tuple((-1.0) ** (m + 1) * 2.0 * m / ((2 * m + 1) * (2 * m + 3)) for m in range(1, _NSER + 1))
+_D_Q = tuple((-1.0) ** (m + 1) * 6.0 / ((2 * m + 1) * (2 * m + 3)) for m in range(1, _NSER + 1))
+
+
+def _q_series(eps2):
+    """(q / eps^3, q' / eps^2) of the series above (Python floats; for the constants)."""
+    a = 0.0
+    b = 0.0
+    for c, d in zip(reversed(_C_Q), reversed(_D_Q), strict=True):
+        a = a * eps2 + c
+        b = b * eps2 + d
+    return a, b
+
+
+_EP = E_LIN / B_WGS84  # second eccentricity e' = E / b
+Q0_WGS84 = _EP**3 * _q_series(_EP**2)[0]
+"""q0 = q(u = b), the normal potential's constant (TR8350.2: 7.334625e-5)."""
+_OMA2_Q0 = OMEGA_IE**2 * A_WGS84**2 / Q0_WGS84  # Omega^2 a^2 / q0
+_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8 = _C_Q
+_D0, _D1, _D2, _D3, _D4, _D5, _D6, _D7, _D8 = _D_Q
+_E2L = E_LIN * E_LIN
+
+
+@njit(cache=True, inline="always")
+def _gravitation_nb(rx, ry, rz, zx, zy, zz):
+    """Gravitation (mass attraction only) of the WGS-84 level ellipsoid, exact.
+
+    The gradient of the normal gravitational potential in ellipsoidal harmonic coordinates
+    ``(u, beta)``, ``V = GM/E atan(E/u) + 1/2 Omega^2 a^2 q/q0 (sin^2 beta - 1/3)``, written
+    in Cartesian form. The field is symmetric about the Earth's axis, so it needs only the
+    geocentric position ``r`` and the axis' unit vector ``zax`` in any common frame (ECEF,
+    the route-origin ENU frame, or an inertial frame whose z is the Earth's axis): with
+    ``z = zax . r``, ``p^2 = |r|^2 - z^2`` the result is ``a r + (c - a) z zax``.
+
+    Returns ``(Gx, Gy, Gz)`` [m/s^2] in the frame of ``r``.
+    """
+    r2 = rx * rx + ry * ry + rz * rz
+    z = zx * rx + zy * ry + zz * rz
+    z2 = z * z
+    p2 = r2 - z2
+    s = r2 - _E2L
+    u2 = 0.5 * (s + math.sqrt(s * s + 4.0 * _E2L * z2))  # u^2 of the point
+    iu = 1.0 / math.sqrt(u2)
+    iu2 = iu * iu
+    u = u2 * iu
+    e2 = _E2L * iu2  # eps^2
+    # 9 terms, Estrin's scheme (short dependency chain)
+    e4 = e2 * e2
+    e8 = e4 * e4
+    qs = (
+        (_C0 + _C1 * e2)
+        + e4 * (_C2 + _C3 * e2)
+        + e8 * ((_C4 + _C5 * e2) + e4 * (_C6 + _C7 * e2) + e8 * _C8)
+    )
+    ds = (
+        (_D0 + _D1 * e2)
+        + e4 * (_D2 + _D3 * e2)
+        + e8 * ((_D4 + _D5 * e2) + e4 * (_D6 + _D7 * e2) + e8 * _D8)
+    )
+    sb2 = z2 * iu2  # sin^2 beta
+    w2 = u2 + _E2L
+    dd = u2 + _E2L * sb2  # u^2 + E^2 sin^2 beta
+    iwd = 1.0 / (w2 * dd)
+    iw2 = dd * iwd
+    idd = w2 * iwd
+    # dV/du = -(GM + 1/2 Omega^2 a^2 E q'/q0 (sin^2 beta - 1/3)) / (u^2 + E^2),
+    # q' = eps^2 ds, E eps^2 = E^3/u^2
+    vu = -(GM_WGS84 + 0.5 * _OMA2_Q0 * _E2L * E_LIN * iu2 * ds * (sb2 - 1.0 / 3.0)) * iw2
+    # dV/dbeta = sin(beta) cos(beta) bt, bt = Omega^2 a^2 q/q0, q = eps^3 qs
+    bt = _OMA2_Q0 * _E2L * E_LIN * iu2 * iu * qs
+    ca = (vu * u - z2 * bt * iu2) * idd  # along r - z zax (equatorial part)
+    cz = (vu * w2 * iu + p2 * bt * iw2) * idd  # along z zax
+    cd = (cz - ca) * z
+    return ca * rx + cd * zx, ca * ry + cd * zy, ca * rz + cd * zz
+
+
+@njit(cache=True)
+def _gravity_e_batch_nb(r_e, out, centrifugal):
+    w2 = OMEGA_IE * OMEGA_IE if centrifugal else 0.0
+    for i in range(r_e.shape[0]):
+        x = r_e[i, 0]
+        y = r_e[i, 1]
+        gx, gy, gz = _gravitation_nb(x, y, r_e[i, 2], 0.0, 0.0, 1.0)
+        out[i, 0] = gx + w2 * x
+        out[i, 1] = gy + w2 * y
+        out[i, 2] = gz
+
+
+def gravitation_e(r_e) -> np.ndarray:
+    """Exact gravitation (mass attraction) of the WGS-84 level ellipsoid in ECEF.
+
+    Parameters
+    ----------
+    r_e : ndarray, shape (..., 3)
+        ECEF position [m], valid for points within 1,500 km of the surface.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``G_e`` [m/s^2].
+    """
+    return _batch_e(r_e, False)
+
+
+def gravity_e(r_e) -> np.ndarray:
+    """Exact normal gravity (gravitation + centrifugal ``Omega^2 (x, y, 0)``) in ECEF, (..., 3)."""
+    return _batch_e(r_e, True)
+
+
+def _batch_e(r_e, centrifugal):
+    r = np.asarray(r_e, dtype=float)
+    flat = np.ascontiguousarray(r.reshape(-1, 3))
+    out = np.empty_like(flat)
+    _gravity_e_batch_nb(flat, out, centrifugal)
+    return out.reshape(r.shape)
+
+
+def normal_gravity(lat_rad, h_m):
+    """Magnitude of WGS-84 normal gravity at geodetic latitude and height, exact.
+
+    On the ellipsoid it equals Somigliana's ``gamma_e (1 + k sin^2 lat) / sqrt(1 - e^2 sin^2
+    lat)``; off it, the norm of :func:`gravity_e` (no series in the height).
 
     Parameters
     ----------
@@ -90,29 +224,15 @@ def normal_gravity(lat_rad, h_m):
     float or ndarray
         Normal gravity [m/s^2].
     """
+    lat, h = np.broadcast_arrays(np.asarray(lat_rad, dtype=float), np.asarray(h_m, dtype=float))
+    g = np.linalg.norm(gravity_e(ecef_from_geodetic(lat, np.zeros_like(lat), h)), axis=-1)
+    return g if g.ndim else float(g)
+
+
+def somigliana(lat_rad):
+    """Somigliana's closed form of normal gravity on the ellipsoid [m/s^2] (an oracle)."""
     s2 = np.sin(lat_rad) ** 2
-    return _normal_gravity_s2(s2, np.asarray(h_m, dtype=float))
-
-
-def _normal_gravity_s2(s2, h):
-    gamma = GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2_WGS84 * s2)
-    corr = (
-        1.0
-        - 2.0 / A_WGS84 * (1.0 + F_WGS84 + M_WGS84 - 2.0 * F_WGS84 * s2) * h
-        + 3.0 * h * h / (A_WGS84 * A_WGS84)
-    )
-    return gamma * corr
-
-
-@njit(cache=True)
-def _normal_gravity_s2_nb(s2, h):
-    gamma = GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / math.sqrt(1.0 - E2_WGS84 * s2)
-    corr = (
-        1.0
-        - 2.0 / A_WGS84 * (1.0 + F_WGS84 + M_WGS84 - 2.0 * F_WGS84 * s2) * h
-        + 3.0 * h * h / (A_WGS84 * A_WGS84)
-    )
-    return gamma * corr
+    return GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2_WGS84 * s2)
 
 
 # --- geodetic <-> ECEF --------------------------------------------------------------------------
@@ -170,30 +290,6 @@ def _geodetic_parts(x, y, z):
     return sl, cl, clon, slon, h
 
 
-@njit(cache=True)
-def _geodetic_parts_nb(x, y, z):
-    p = math.sqrt(x * x + y * y)
-    su = z * A_WGS84
-    cu = p * B_WGS84
-    ir = 1.0 / math.sqrt(su * su + cu * cu)
-    su = su * ir
-    cu = cu * ir
-    num = z + EP2_WGS84 * B_WGS84 * su * su * su
-    den = p - E2_WGS84 * A_WGS84 * cu * cu * cu
-    ir = 1.0 / math.sqrt(num * num + den * den)
-    sl = num * ir
-    cl = den * ir
-    h = p * cl + z * sl - A_WGS84 * math.sqrt(1.0 - E2_WGS84 * sl * sl)
-    if p > 0.0:
-        ip = 1.0 / p
-        clon = x * ip
-        slon = y * ip
-    else:
-        clon = 1.0
-        slon = 0.0
-    return sl, cl, clon, slon, h
-
-
 def geodetic_from_ecef(r_e):
     """ECEF -> geodetic (WGS-84), Bowring's method.
 
@@ -234,17 +330,91 @@ def C_en_from_geodetic(lat_rad, lon_rad):
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
+# --- the local level at the vehicle ----------------------------------------------------------
+def local_level(r_e, v_e=None, q_eb=None):
+    """ECEF state -> geodetic position, East-North-Up velocity and attitude at the vehicle.
+
+    Parameters
+    ----------
+    r_e : ndarray, shape (..., 3)
+        ECEF position [m].
+    v_e : ndarray, shape (..., 3), optional
+        Earth-relative velocity resolved in ECEF [m/s].
+    q_eb : ndarray, shape (..., 4), optional
+        Attitude body -> ECEF (scalar first).
+
+    Returns
+    -------
+    lat_rad, lon_rad, h_m : ndarray, shape (...)
+    v_l : ndarray, shape (..., 3) or None
+        Velocity in the local ENU frame at the vehicle [m/s].
+    q_lb : ndarray, shape (..., 4) or None
+        Attitude body -> local ENU at the vehicle (``C_lb = C_le C_eb``; roll, pitch and
+        yaw relative to the local level, as in the truth's Euler angles).
+    """
+    from imugen.rotations import dcm_to_quat, quat_mul
+
+    lat, lon, h = geodetic_from_ecef(r_e)
+    C_le = C_en_from_geodetic(lat, lon)
+    v_l = None if v_e is None else np.einsum("...ij,...j->...i", C_le, v_e)
+    q_lb = None
+    if q_eb is not None:
+        q_le = dcm_to_quat(C_le.reshape(-1, 3, 3)).reshape((*C_le.shape[:-2], 4))
+        q_lb = quat_mul(q_le, np.asarray(q_eb, dtype=float))
+    return lat, lon, h, v_l, q_lb
+
+
+def errors_local_level(p_true_e, p_nav_e, v_true_e, min_speed_mps=0.1) -> np.ndarray:
+    """Position errors in the local level at the true position, plus along/cross track.
+
+    Parameters
+    ----------
+    p_true_e, p_nav_e : ndarray, shape (..., 3)
+        True and navigated ECEF positions [m] (for an origin frame, convert with
+        ``OriginFrame.ecef_from_n`` first).
+    v_true_e : ndarray, shape (..., 3)
+        True Earth-relative velocity in ECEF [m/s] (defines the track direction).
+    min_speed_mps : float
+        Below this true horizontal speed the track direction is undefined: along and cross
+        are NaN there.
+
+    Returns
+    -------
+    ndarray, shape (..., 5)
+        ``east, north, up, along, cross`` [m] of ``p_nav - p_true``: ENU at the true position;
+        along the true horizontal velocity, and across it positive to the left.
+    """
+    p_true = np.asarray(p_true_e, dtype=float)
+    lat, lon, _ = geodetic_from_ecef(p_true)
+    C = C_en_from_geodetic(lat, lon)
+    d = np.einsum("...ij,...j->...i", C, np.asarray(p_nav_e, dtype=float) - p_true)
+    v = np.einsum("...ij,...j->...i", C, np.asarray(v_true_e, dtype=float))
+    sp = np.hypot(v[..., 0], v[..., 1])
+    ok = sp >= min_speed_mps
+    with np.errstate(invalid="ignore", divide="ignore"):
+        te = np.where(ok, v[..., 0] / sp, np.nan)
+        tn = np.where(ok, v[..., 1] / sp, np.nan)
+    out = np.empty((*d.shape[:-1], 5))
+    out[..., :3] = d
+    out[..., 3] = d[..., 0] * te + d[..., 1] * tn
+    out[..., 4] = te * d[..., 1] - tn * d[..., 0]
+    return out
+
+
 # --- origin frame --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class OriginFrame:
-    """The navigation frame ``n``: ENU axes at the route origin, and the Earth model.
+    """The navigation frame ``n`` and the Earth model.
+
+    ENU axes at the route origin (``flat``, ``wgs84``), or ECEF (``geodetic``: ``C_en = I``,
+    ``r0_e = 0``; the origin then only names the scene's reference point).
 
     Attributes
     ----------
     lat0_rad, lon0_rad, h0_m : float
         Geodetic origin (WGS-84).
     model : str
-        ``"flat"`` or ``"wgs84"``.
+        ``"flat"``, ``"wgs84"`` or ``"geodetic"``.
     """
 
     lat0_rad: float
@@ -267,12 +437,16 @@ class OriginFrame:
 
     @property
     def C_en(self) -> np.ndarray:
-        """Rotation ECEF -> n, shape (3, 3)."""
+        """Rotation ECEF -> n, shape (3, 3) (the identity in ``geodetic``)."""
+        if self.model == "geodetic":
+            return np.eye(3)
         return C_en_from_geodetic(self.lat0_rad, self.lon0_rad)
 
     @property
     def r0_e(self) -> np.ndarray:
-        """Origin in ECEF [m], shape (3,)."""
+        """Origin of the navigation coordinates in ECEF [m], shape (3,) (zero in ``geodetic``)."""
+        if self.model == "geodetic":
+            return np.zeros(3)
         return ecef_from_geodetic(self.lat0_rad, self.lon0_rad, self.h0_m)
 
     @property
@@ -288,7 +462,7 @@ class OriginFrame:
     def params(self) -> np.ndarray:
         """Flat float64 parameter vector for numba kernels (layout ``P_*`` in this module)."""
         out = np.zeros(N_PARAMS)
-        out[P_MODEL] = 0.0 if self.model == "flat" else 1.0
+        out[P_MODEL] = float(MODELS.index(self.model))
         out[P_G0] = self.g0
         out[P_OMEGA : P_OMEGA + 3] = earth_rate_n(self)
         out[P_CEN : P_CEN + 9] = self.C_en.ravel()
@@ -329,44 +503,25 @@ def earth_rate_n(frame: OriginFrame) -> np.ndarray:
     """Earth rotation rate resolved in n, shape (3,) [rad/s]; zeros in ``flat``."""
     if frame.model == "flat":
         return np.zeros(3)
-    return OMEGA_IE * np.array([0.0, math.cos(frame.lat0_rad), math.sin(frame.lat0_rad)])
+    return OMEGA_IE * frame.C_en[:, 2].copy()
 
 
 def gravity_n(p_n, frame: OriginFrame) -> np.ndarray:
-    """Gravity (gravitation + centrifugal) at ENU positions, resolved in n.
+    """Normal gravity (gravitation + centrifugal) at navigation-frame positions, resolved in n.
 
     Parameters
     ----------
-    p_n : ndarray, shape (N, 3) or (3,)
-        Position relative to the origin [m].
+    p_n : ndarray, shape (..., 3)
+        Position in the frame's navigation coordinates [m] (ENU relative to the origin, or
+        ECEF in ``geodetic``).
     frame : OriginFrame
 
     Returns
     -------
     ndarray, same shape as ``p_n``
-        ``g_n`` [m/s^2]; ``(0, 0, -g0)`` everywhere in ``flat``.
+        ``g_n`` [m/s^2], the exact field of the level ellipsoid; ``(0, 0, -g0)`` in ``flat``.
     """
-    p_n = np.asarray(p_n, dtype=float)
-    out = np.zeros(p_n.shape)
-    if frame.model == "flat":
-        out[..., 2] = -frame.g0
-        return out
-    C = frame.C_en
-    r0 = frame.r0_e
-    px, py, pz = p_n[..., 0], p_n[..., 1], p_n[..., 2]
-    # r_e = r0_e + C_en^T p_n, written out term by term (same order as the numba version)
-    x = r0[0] + (C[0, 0] * px + C[1, 0] * py + C[2, 0] * pz)
-    y = r0[1] + (C[0, 1] * px + C[1, 1] * py + C[2, 1] * pz)
-    z = r0[2] + (C[0, 2] * px + C[1, 2] * py + C[2, 2] * pz)
-    sl, cl, clon, slon, h = _geodetic_parts(x, y, z)
-    g = _normal_gravity_s2(sl * sl, h)
-    ux = cl * clon
-    uy = cl * slon
-    uz = sl
-    out[..., 0] = -g * (C[0, 0] * ux + C[0, 1] * uy + C[0, 2] * uz)
-    out[..., 1] = -g * (C[1, 0] * ux + C[1, 1] * uy + C[1, 2] * uz)
-    out[..., 2] = -g * (C[2, 0] * ux + C[2, 1] * uy + C[2, 2] * uz)
-    return out
+    return _batch_n(p_n, frame, False)
 
 
 def gravitation_n(p_n, frame: OriginFrame) -> np.ndarray:
@@ -374,72 +529,52 @@ def gravitation_n(p_n, frame: OriginFrame) -> np.ndarray:
 
     Equal to ``gravity_n`` in ``flat`` (no Earth rate).
     """
-    p_n = np.asarray(p_n, dtype=float)
-    g = gravity_n(p_n, frame)
-    if frame.model == "flat":
-        return g
-    w = earth_rate_n(frame)
-    r0 = frame.r0_n
-    rx = r0[0] + p_n[..., 0]
-    ry = r0[1] + p_n[..., 1]
-    rz = r0[2] + p_n[..., 2]
-    # c = w x r ; w x c
-    cx = w[1] * rz - w[2] * ry
-    cy = w[2] * rx - w[0] * rz
-    cz = w[0] * ry - w[1] * rx
-    g[..., 0] += w[1] * cz - w[2] * cy
-    g[..., 1] += w[2] * cx - w[0] * cz
-    g[..., 2] += w[0] * cy - w[1] * cx
-    return g
+    return _batch_n(p_n, frame, True)
 
 
-@njit(cache=True)
-def gravity_nb(prm, px, py, pz):
-    """Numba scalar twin of :func:`gravity_n`; ``prm`` from ``OriginFrame.params()``.
+def _batch_n(p_n, frame, gravitation):
+    p = np.asarray(p_n, dtype=float)
+    flat = np.ascontiguousarray(p.reshape(-1, 3))
+    out = np.empty_like(flat)
+    _gravity_batch_nb(frame.params(), flat, out, gravitation)
+    return out.reshape(p.shape)
 
-    Returns the tuple ``(gx, gy, gz)`` [m/s^2].
+
+@njit(cache=True, inline="always")
+def gravitation_nb(prm, px, py, pz):
+    """Numba scalar gravitation at navigation position ``p``; ``prm`` from ``OriginFrame.params()``.
+
+    Returns the tuple ``(Gx, Gy, Gz)`` [m/s^2] resolved in n; ``(0, 0, -g0)`` in ``flat``.
     """
     if prm[P_MODEL] == 0.0:
         return 0.0, 0.0, -prm[P_G0]
-    c0 = prm[P_CEN]
-    c1 = prm[P_CEN + 1]
-    c2 = prm[P_CEN + 2]
-    c3 = prm[P_CEN + 3]
-    c4 = prm[P_CEN + 4]
-    c5 = prm[P_CEN + 5]
-    c6 = prm[P_CEN + 6]
-    c7 = prm[P_CEN + 7]
-    c8 = prm[P_CEN + 8]
-    x = prm[P_R0E] + (c0 * px + c3 * py + c6 * pz)
-    y = prm[P_R0E + 1] + (c1 * px + c4 * py + c7 * pz)
-    z = prm[P_R0E + 2] + (c2 * px + c5 * py + c8 * pz)
-    sl, cl, clon, slon, h = _geodetic_parts_nb(x, y, z)
-    g = _normal_gravity_s2_nb(sl * sl, h)
-    ux = cl * clon
-    uy = cl * slon
-    uz = sl
-    gx = -g * (c0 * ux + c1 * uy + c2 * uz)
-    gy = -g * (c3 * ux + c4 * uy + c5 * uz)
-    gz = -g * (c6 * ux + c7 * uy + c8 * uz)
-    return gx, gy, gz
+    iw = 1.0 / OMEGA_IE
+    return _gravitation_nb(
+        prm[P_R0N] + px,
+        prm[P_R0N + 1] + py,
+        prm[P_R0N + 2] + pz,
+        prm[P_OMEGA] * iw,
+        prm[P_OMEGA + 1] * iw,
+        prm[P_OMEGA + 2] * iw,
+    )
 
 
-@njit(cache=True)
-def gravitation_nb(prm, px, py, pz):
-    """Numba scalar twin of :func:`gravitation_n`; returns ``(Gx, Gy, Gz)`` [m/s^2]."""
-    gx, gy, gz = gravity_nb(prm, px, py, pz)
+@njit(cache=True, inline="always")
+def gravity_nb(prm, px, py, pz):
+    """Numba scalar twin of :func:`gravity_n`; returns ``(gx, gy, gz)`` [m/s^2]."""
+    gx, gy, gz = gravitation_nb(prm, px, py, pz)
     if prm[P_MODEL] == 0.0:
         return gx, gy, gz
+    # + centrifugal -Omega x (Omega x r) = Omega^2 r - (Omega . r) Omega
     w0 = prm[P_OMEGA]
     w1 = prm[P_OMEGA + 1]
     w2 = prm[P_OMEGA + 2]
     rx = prm[P_R0N] + px
     ry = prm[P_R0N + 1] + py
     rz = prm[P_R0N + 2] + pz
-    cx = w1 * rz - w2 * ry
-    cy = w2 * rx - w0 * rz
-    cz = w0 * ry - w1 * rx
-    return gx + (w1 * cz - w2 * cy), gy + (w2 * cx - w0 * cz), gz + (w0 * cy - w1 * cx)
+    wr = w0 * rx + w1 * ry + w2 * rz
+    ww = OMEGA_IE * OMEGA_IE
+    return gx + (ww * rx - wr * w0), gy + (ww * ry - wr * w1), gz + (ww * rz - wr * w2)
 
 
 @njit(cache=True)
@@ -452,14 +587,6 @@ def _gravity_batch_nb(prm, p_n, out, gravitation):
         out[i, 0] = a
         out[i, 1] = b
         out[i, 2] = c
-
-
-def gravity_n_numba(p_n, frame: OriginFrame, gravitation: bool = False) -> np.ndarray:
-    """Evaluate the numba scalar gravity (or gravitation) on an (N, 3) array (for tests)."""
-    p = np.ascontiguousarray(np.asarray(p_n, dtype=float).reshape(-1, 3))
-    out = np.empty_like(p)
-    _gravity_batch_nb(frame.params(), p, out, gravitation)
-    return out.reshape(np.shape(p_n))
 
 
 # --- earth model budget (--earth auto) ---------------------------------------------------------

@@ -1,20 +1,31 @@
-"""Batched strapdown mechanization on exact angle/velocity increments (flat and wgs84).
+"""Batched strapdown mechanization on exact angle/velocity increments (flat, wgs84, geodetic).
 
-The recursion (n = Earth-fixed ENU frame of the route origin, see :mod:`imugen.earth`;
-``W = [Omega x]``, ``A(tau) = Exp(Omega tau)``, ``dt`` the sample interval):
+``flat``: the navigation frame n (ENU of the route origin) is inertial, gravity constant.
+
+``wgs84`` and ``geodetic``: n is Earth-fixed (ENU axes of the origin, or ECEF in
+``geodetic``) and turns at ``Omega`` (``W = [Omega x]``, ``A(t) = Exp(W t)``). The kernel
+integrates in the inertial frame ``I`` that coincides with n at the start of the run
+(``t = 0``, sample ``k = 0``): ``r_I = A(t) r_n``, ``v_I = A(t) (v_n + W r_n)``,
+``C_Ib = A(t) C_nb``. The normal gravitation field is symmetric about the Earth's axis, so in
+``I`` it is the same static function of position as in n (:mod:`imugen.earth`), and the
+recursion is the flat one plus gravitation:
 
 attitude (exact for exact increments)
-    ``C_{k+1} = Exp(-Omega dt) C_k Exp(dtheta_k)`` (quaternions, renormalized each step);
-velocity (exact in ``flat``; in ``wgs84`` the gravitation integral is a 3-point rule)
-    ``A(dt) (v_{k+1} + W r_{k+1}) = v_k + W r_k + C_k dv_k + J_k``,
-    ``J_k = int_0^dt A(tau) G(p(t_k + tau)) dtau
-    ~ dt/12 (5 A(dt) G_{k+1} + 8 G_k - A(-dt) G_{k-1})``;
-    ``G_{k+1}`` is evaluated at a predicted ``p_{k+1}`` (one gravity evaluation per step);
-    the implicit coupling through ``W r_{k+1}`` is solved exactly (3x3 closed form);
+    ``C_Ib,k+1 = C_Ib,k Exp(dtheta_k)`` (quaternions, renormalized each step);
+velocity
+    ``v_k+1 = v_k + C_Ib,k dv_k + J_k``, ``J_k = int G_I dt ~ dt/12 (5 G_k+1 + 8 G_k - G_k-1)``
+    (exact in ``flat``, where ``J = g dt``); ``G_k+1`` is evaluated at a predicted ``r_k+1``
+    (one gravitation evaluation per step);
 position
-    ``p_{k+1} = p_k + dt/12 (5 v_{k+1} + 8 v_k - v_{k-1})`` (Adams-Moulton, 3 points); the
-    first interval uses the same quadratic with one sample of look-ahead,
+    ``r_k+1 = r_k + dt/12 (5 v_k+1 + 8 v_k - v_k-1)`` (Adams-Moulton, 3 points); the first
+    interval uses the same quadratic with one sample of look-ahead,
     ``dt/12 (5 v_0 + 8 v_1 - v_2)``, applied once ``v_2`` is known.
+
+Outputs are converted back to n at the stored samples only (``p_n = A^T r_I - r0_n``,
+``v_n = A^T v_I - W r_n``, ``q_nb = q(A^T) q_Ib``, with ``A(t_k)`` from ``Omega k dt``), so
+the Earth's rotation costs nothing per step. The kernel state holds ``r_I - r0_n`` (the
+displacement from where the origin was at ``t = 0``), so positions keep float64 precision
+relative to the origin.
 
 Positions and velocities are accumulated with compensated (Kahan) sums, so 1 kHz over an
 hour loses nothing to float64 rounding. The time recursion is one numba kernel
@@ -22,13 +33,10 @@ hour loses nothing to float64 rounding. The time recursion is one numba kernel
 allocation per step; it resumes from a state array, so long runs can be fed in time chunks
 and outputs can be decimated (every N-th sample) or restricted to positions.
 
-numba caches the compiled kernel next to this file and keys the cache on this file only: after
-editing :mod:`imugen.earth` during development, delete ``__pycache__/*.nbi``/``*.nbc`` so the
-kernel picks up the change.
-
 :func:`increments_from_rates` turns instantaneous rate samples into increments with the
 standard second-order scheme (trapezoid + coning + sculling for linearly varying rates), and
-:func:`mechanize_rates` feeds them to the same kernel.
+:func:`mechanize_rates` feeds them to the same kernel. :func:`exact_increments` is the inverse
+of the mechanization: the exact increments of a continuous motion given in n (any model).
 """
 
 from __future__ import annotations
@@ -41,71 +49,100 @@ import numpy as np
 from imugen import earth
 from imugen.earth import OriginFrame
 from imugen.jit import njit
-from imugen.rotations import quat_mul
+from imugen.rotations import exp_dcm, quat_mul, quat_to_dcm, relative_rotation_vector
 
 # --- state layout (one row per sequence) --------------------------------------------------------
-S_P = 0  # position p_n (3)
+# flat: n-frame quantities; wgs84/geodetic: inertial ones (module docstring)
+S_P = 0  # position p_n, or r_I - r0_n (3)
 S_PC = 3  # Kahan compensation of p (3)
-S_V = 6  # velocity v_n (3)
+S_V = 6  # velocity v_n, or v_I (3)
 S_VC = 9  # Kahan compensation of v (3)
-S_Q = 12  # quaternion q_nb (4), scalar first
-S_VP = 16  # v_{k-1} (3)
-S_G = 19  # gravitation at p_k (3) (wgs84)
-S_GP = 22  # gravitation at p_{k-1} (3) (wgs84)
+S_Q = 12  # quaternion q_nb, or q_Ib (4), scalar first
+S_VP = 16  # velocity at the previous sample (3)
+S_G = 19  # gravitation at sample k (3)
+S_GP = 22  # gravitation at sample k-1 (3)
 S_K = 25  # steps done
 S_QC = 26  # Kahan compensation of q (4)
-N_STATE = 30
+S_N = 30  # gravitation at the last three nodes k = j m, (j-2) m .. j m (9), newest first
+N_STATE = 39
 
 # --- kernel parameter vector: frame params (earth.N_PARAMS) then these ------------------------
 K_DT = earth.N_PARAMS  # dt
-K_A = K_DT + 1  # A(dt) = Exp(W dt), 9 row-major
-K_D = K_A + 9  # D = A(dt)^T - I, 9 row-major (computed without cancellation)
-K_M = K_D + 9  # M_am = (I + c W)^{-1}, c = 5 dt/12, 9
-K_MT = K_M + 9  # M_tr = (I + c W)^{-1}, c = dt/2 (first step), 9
-K_QW = K_MT + 9  # quaternion of Exp(-Omega dt) minus (1, 0, 0, 0), 4
-N_KPARAMS = K_QW + 4
+K_MB = K_DT + 1  # steps per gravitation node interval m (1: exact gravitation every step)
+N_KPARAMS = K_MB + 1
+
+GRAVITY_NODE_S = 0.05
+_K3 = earth.GM_WGS84 / earth.R_MEAN**3  # point-mass gravity gradient scale [1/s^2]
+_IG2 = (earth.R_MEAN**2 / earth.GM_WGS84) ** 2  # 1 / |G|^2 at the mean radius
+"""Spacing of the exact gravitation evaluations in the rotating-Earth kernels [s] (see
+:func:`kernel_params`)."""
 
 
 def _skew(w):
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def _inv_i_plus_cw(w, c):
-    """(I + c [w x])^-1 = (I - c W + c^2 w w^T) / (1 + c^2 |w|^2)."""
-    W = _skew(w)
-    return (np.eye(3) - c * W + c * c * np.outer(w, w)) / (1.0 + c * c * (w @ w))
+def kernel_params(frame: OriginFrame, dt: float, node_s: float = GRAVITY_NODE_S) -> np.ndarray:
+    """Parameter vector of the kernel: earth parameters, dt, gravitation node interval.
 
-
-def kernel_params(frame: OriginFrame, dt: float) -> np.ndarray:
-    """Parameter vector of the kernel: earth parameters + dt + precomputed rotations."""
+    The exact gravitation is evaluated every ``m = round(node_s / dt)`` steps (``m >= 1``)
+    and interpolated in between (module docstring); ``node_s = 0`` gives ``m = 1``.
+    """
     prm = np.zeros(N_KPARAMS)
     prm[: earth.N_PARAMS] = frame.params()
     prm[K_DT] = dt
-    w = earth.earth_rate_n(frame)
-    wn = float(np.linalg.norm(w))
-    W = _skew(w)
-    if wn > 0.0:
-        th = wn * dt
-        s1 = math.sin(th) / wn
-        s2 = 2.0 * math.sin(th / 2.0) ** 2 / wn**2  # (1 - cos) / |w|^2
-        A = np.eye(3) + s1 * W + s2 * (W @ W)
-        D = -s1 * W + s2 * (W @ W)  # A^T - I
-        # quaternion of Exp(-Omega dt) minus identity
-        qw = np.array([-2.0 * math.sin(th / 4.0) ** 2, *(-math.sin(th / 2.0) * w / wn)])
-    else:
-        A = np.eye(3)
-        D = np.zeros((3, 3))
-        qw = np.zeros(4)
-    prm[K_A : K_A + 9] = A.ravel()
-    prm[K_D : K_D + 9] = D.ravel()
-    prm[K_M : K_M + 9] = _inv_i_plus_cw(w, 5.0 * dt / 12.0).ravel()
-    prm[K_MT : K_MT + 9] = _inv_i_plus_cw(w, dt / 2.0).ravel()
-    prm[K_QW : K_QW + 4] = qw
+    prm[K_MB] = max(1, round(node_s / dt))
     return prm
 
 
+def _rot_about_axis(x, axis, c, s, omc):
+    """Rotate vectors x (..., 3) by the angle with cosine c, sine s, 1 - c = omc about axis."""
+    ax = np.cross(axis, x)
+    return x * c[..., None] + ax * s[..., None] + axis * (x @ axis)[..., None] * omc[..., None]
+
+
+def _to_inertial(p_n, v_n, q_nb, frame: OriginFrame):
+    """n-frame (p, v, q) at t = 0 -> kernel state quantities (displacement, v_I, q_Ib)."""
+    if frame.model == "flat":
+        return p_n, v_n, q_nb
+    w = earth.earth_rate_n(frame)
+    return p_n, v_n + np.cross(w, frame.r0_n + p_n), q_nb
+
+
+def nav_from_state(st: np.ndarray, prm: np.ndarray):
+    """Kernel state rows -> (p_n, v_n, q_nb) at the state's sample ``k`` (NumPy).
+
+    Parameters
+    ----------
+    st : ndarray, shape (S, N_STATE)
+    prm : ndarray, kernel parameters
+
+    Returns
+    -------
+    p_n, v_n : ndarray, shape (S, 3); q_nb : ndarray, shape (S, 4)
+    """
+    p = st[:, S_P : S_P + 3] - st[:, S_PC : S_PC + 3]
+    v = st[:, S_V : S_V + 3] - st[:, S_VC : S_VC + 3]
+    q = st[:, S_Q : S_Q + 4] - st[:, S_QC : S_QC + 4]
+    if prm[earth.P_MODEL] == 0.0:
+        return p, v, q
+    zax = prm[earth.P_OMEGA : earth.P_OMEGA + 3] / earth.OMEGA_IE
+    r0 = prm[earth.P_R0N : earth.P_R0N + 3]
+    th = -earth.OMEGA_IE * prm[K_DT] * st[:, S_K]  # rotation by A^T
+    c, s = np.cos(th), np.sin(th)
+    omc = 2.0 * np.sin(0.5 * th) ** 2
+    # p_n = A^T d + (A^T - I) r0_n
+    r0 = np.broadcast_to(r0, p.shape)
+    p_n = _rot_about_axis(p, zax, c, s, omc) + (
+        _rot_about_axis(r0, zax, 0.0 * c, s, omc) - r0 * omc[:, None]
+    )
+    v_n = _rot_about_axis(v, zax, c, s, omc) - np.cross(earth.OMEGA_IE * zax, r0 + p_n)
+    qa = np.concatenate([np.cos(0.5 * th)[:, None], np.sin(0.5 * th)[:, None] * zax], axis=1)
+    return p_n, v_n, quat_mul(qa, q)
+
+
 def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -> np.ndarray:
-    """State array (S, N_STATE) from initial position, velocity and attitude.
+    """State array (S, N_STATE) from initial position, velocity and attitude (sample k = 0).
 
     Parameters
     ----------
@@ -121,15 +158,19 @@ def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -
     v0 = np.atleast_2d(np.asarray(v0_n, dtype=float))
     q0 = np.atleast_2d(np.asarray(q0_nb, dtype=float))
     n = max(len(p0), len(v0), len(q0), S or 1)
-    st = np.zeros((n, N_STATE))
-    st[:, S_P : S_P + 3] = p0
-    st[:, S_V : S_V + 3] = v0
-    st[:, S_VP : S_VP + 3] = v0
+    p0 = np.broadcast_to(p0, (n, 3))
     q0 = q0 / np.linalg.norm(q0, axis=1, keepdims=True)
-    st[:, S_Q : S_Q + 4] = q0
-    G = earth.gravitation_n(np.broadcast_to(p0, (n, 3)), frame)
+    p, v, q = _to_inertial(p0, np.broadcast_to(v0, (n, 3)), q0, frame)
+    st = np.zeros((n, N_STATE))
+    st[:, S_P : S_P + 3] = p
+    st[:, S_V : S_V + 3] = v
+    st[:, S_VP : S_VP + 3] = v
+    st[:, S_Q : S_Q + 4] = q
+    G = earth.gravitation_n(p0, frame)
     st[:, S_G : S_G + 3] = G
     st[:, S_GP : S_GP + 3] = G
+    for j in range(3):
+        st[:, S_N + 3 * j : S_N + 3 * j + 3] = G
     return st
 
 
@@ -179,33 +220,51 @@ def _qrot(qw, qx, qy, qz, vx, vy, vz):
     )
 
 
-@njit(cache=True, inline="always")
-def _mv(m, o, x, y, z):
+@njit(cache=True)
+def _rot_axis(zx, zy, zz, c, s, omc, x, y, z):
+    """Rotate (x, y, z) about the unit axis zax by the angle (cos c, sin s, 1 - cos omc)."""
+    d = omc * (zx * x + zy * y + zz * z)
     return (
-        m[o] * x + m[o + 1] * y + m[o + 2] * z,
-        m[o + 3] * x + m[o + 4] * y + m[o + 5] * z,
-        m[o + 6] * x + m[o + 7] * y + m[o + 8] * z,
+        c * x + s * (zy * z - zz * y) + d * zx,
+        c * y + s * (zz * x - zx * z) + d * zy,
+        c * z + s * (zx * y - zy * x) + d * zz,
     )
 
 
-@njit(cache=True, inline="always")
-def _lookahead_shift(prm, wgs, v0x, v0y, v0z, v1x, v1y, v1z, v2x, v2y, v2z):
-    """Shift of p1 (and p2) when the first interval gets dt/12 (5 v0 + 8 v1 - v2) instead of
-    the trapezoid, and the matching change -W shift of v1, v2 (wgs84)."""
-    c12 = prm[K_DT] / 12.0
-    dx = c12 * (-v0x + 2.0 * v1x - v2x)
-    dy = c12 * (-v0y + 2.0 * v1y - v2y)
-    dz = c12 * (-v0z + 2.0 * v1z - v2z)
-    if wgs:
-        w0 = prm[earth.P_OMEGA]
-        w1 = prm[earth.P_OMEGA + 1]
-        w2 = prm[earth.P_OMEGA + 2]
-        return dx, dy, dz, w1 * dz - w2 * dy, w2 * dx - w0 * dz, w0 * dy - w1 * dx
-    return dx, dy, dz, 0.0, 0.0, 0.0
-
-
-@njit(cache=True, inline="always")
-def _write(out_p, out_v, out_q, s, slot, px, py, pz, vx, vy, vz, q0, q1, q2, q3, wq):
+@njit(cache=True)
+def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1, q2, q3, wq):
+    """Store sample ``k`` (kernel quantities, compensations already applied) in n."""
+    if prm[earth.P_MODEL] != 0.0:
+        iw = 1.0 / earth.OMEGA_IE
+        zx = prm[earth.P_OMEGA] * iw
+        zy = prm[earth.P_OMEGA + 1] * iw
+        zz = prm[earth.P_OMEGA + 2] * iw
+        th = -earth.OMEGA_IE * prm[K_DT] * k  # A(t_k)^T
+        c = math.cos(th)
+        sn = math.sin(th)
+        h = math.sin(0.5 * th)
+        omc = 2.0 * h * h
+        r0x = prm[earth.P_R0N]
+        r0y = prm[earth.P_R0N + 1]
+        r0z = prm[earth.P_R0N + 2]
+        # p_n = A^T d + (A^T - I) r0_n (no cancellation against r0_n)
+        ax, ay, az = _rot_axis(zx, zy, zz, c, sn, omc, px, py, pz)
+        bx, by, bz = _rot_axis(zx, zy, zz, 0.0, sn, omc, r0x, r0y, r0z)
+        px = ax + (bx - omc * r0x)
+        py = ay + (by - omc * r0y)
+        pz = az + (bz - omc * r0z)
+        # v_n = A^T v_I - Omega x r_n
+        ax, ay, az = _rot_axis(zx, zy, zz, c, sn, omc, vx, vy, vz)
+        rx = r0x + px
+        ry = r0y + py
+        rz = r0z + pz
+        w = earth.OMEGA_IE
+        vx = ax - w * (zy * rz - zz * ry)
+        vy = ay - w * (zz * rx - zx * rz)
+        vz = az - w * (zx * ry - zy * rx)
+        if wq:
+            ch = math.cos(0.5 * th)
+            q0, q1, q2, q3 = _qmul(ch, h * zx, h * zy, h * zz, q0, q1, q2, q3)
     if 0 <= slot < out_p.shape[1]:
         out_p[s, slot, 0] = px
         out_p[s, slot, 1] = py
@@ -231,88 +290,242 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     """
     S = dth.shape[0]
     N = dth.shape[1]
-    wgs = prm[earth.P_MODEL] != 0.0
+    rot = prm[earth.P_MODEL] != 0.0
     dt = prm[K_DT]
+    m = int(prm[K_MB]) if rot else 1
     c12 = dt / 12.0
+    hdt = 0.5 * dt
+    iw = 1.0 / earth.OMEGA_IE
+    zx = prm[earth.P_OMEGA] * iw
+    zy = prm[earth.P_OMEGA + 1] * iw
+    zz = prm[earth.P_OMEGA + 2] * iw
+    r0x = prm[earth.P_R0N]
+    r0y = prm[earth.P_R0N + 1]
+    r0z = prm[earth.P_R0N + 2]
+    g0dt = prm[earth.P_G0] * dt
+    # block tables for a cubic gravitation g(tau) = sum_n c_n tau^n, tau = (t - t_k0) / T:
+    # WC[j, n] = int_0^(j dt) tau^n dt = T (j/m)^(n+1) / (n+1), its velocity change after j
+    # steps; QC[j, n], the matching position change by the 3-point rule (module docstring)
+    T = m * dt
+    WC = np.zeros((m + 1, 4))
+    QC = np.zeros((m + 1, 4))
+    for j in range(1, m + 1):
+        x = j / m
+        for n in range(4):
+            WC[j, n] = T * x ** (n + 1) / (n + 1)
+            wm = WC[j - 2, n] if j >= 2 else 0.0
+            QC[j, n] = QC[j - 1, n] + c12 * (5.0 * WC[j, n] + 8.0 * WC[j - 1, n] - wm)
+    abuf = np.empty((m + 1, 3))  # A_j: sums of the resolved specific-force increments
+    pbuf = np.empty((m + 1, 3))  # QA_j: their position effect
+    qbuf = np.empty((m + 1, 4))
+    abuf[0] = 0.0
+    pbuf[0] = 0.0
     for s in range(S):
         # fmt: off
         (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
          q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz) = st[s, :25]
+        (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z) = st[s, S_N:S_N + 9]
         # fmt: on
         qc0, qc1, qc2, qc3 = st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3]
         k = int(st[s, S_K])
-        for i in range(N):
+        km = k % m  # phases of k (no integer division per step)
+        kw = k % every
+        i = 0
+        while i < N:
+            if km == 0 and m > 1 and k >= 3 * m and i + m <= N:
+                # ---- a block of m steps: attitude first (it does not depend on gravity),
+                # then the exact gravitation once at the block's predicted end, a cubic in
+                # time through it and the three previous nodes, and velocity/position
+                # specific force: running sums A_j and their 3-point position effect QA_j
+                # (relative to the block start; v_k-1 - v_k enters the first step)
+                qbuf[0, 0] = q0 - qc0
+                qbuf[0, 1] = q1 - qc1
+                qbuf[0, 2] = q2 - qc2
+                qbuf[0, 3] = q3 - qc3
+                bx = vpx - vx  # A_(j-1), starting with v_(k-1) - v_k
+                by = vpy - vy
+                bz = vpz - vz
+                Ax = 0.0
+                Ay = 0.0
+                Az = 0.0
+                Px = 0.0
+                Py = 0.0
+                Pz = 0.0
+                for j in range(m):
+                    ax, ay, az = _qrot(
+                        q0, q1, q2, q3, dvb[s, i + j, 0], dvb[s, i + j, 1], dvb[s, i + j, 2]
+                    )
+                    nx = Ax + ax
+                    ny = Ay + ay
+                    nz = Az + az
+                    Px += c12 * (5.0 * nx + 8.0 * Ax - bx)
+                    Py += c12 * (5.0 * ny + 8.0 * Ay - by)
+                    Pz += c12 * (5.0 * nz + 8.0 * Az - bz)
+                    bx = Ax
+                    by = Ay
+                    bz = Az
+                    Ax = nx
+                    Ay = ny
+                    Az = nz
+                    abuf[j + 1, 0] = Ax
+                    abuf[j + 1, 1] = Ay
+                    abuf[j + 1, 2] = Az
+                    pbuf[j + 1, 0] = Px
+                    pbuf[j + 1, 1] = Py
+                    pbuf[j + 1, 2] = Pz
+                    q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
+                        q0, q1, q2, q3, qc0, qc1, qc2, qc3,
+                        dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
+                    )  # fmt: skip
+                    qbuf[j + 1, 0] = q0 - qc0
+                    qbuf[j + 1, 1] = q1 - qc1
+                    qbuf[j + 1, 2] = q2 - qc2
+                    qbuf[j + 1, 3] = q3 - qc3
+                # predicted end position: gravitation extrapolated linearly from the nodes
+                e0 = QC[m, 0] + QC[m, 1]
+                e1 = QC[m, 1]
+                ppx = px + T * vx + Px + e0 * n0x - e1 * n1x
+                ppy = py + T * vy + Py + e0 * n0y - e1 * n1y
+                ppz = pz + T * vz + Pz + e0 * n0z - e1 * n1z
+                gex, gey, gez = earth._gravitation_nb(r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz)
+                # cubic g(tau) = n0 + c1 tau + c2 tau^2 + c3 tau^3 through tau = -2, -1, 0, 1
+                c2x = 0.5 * (gex + n1x) - n0x
+                c2y = 0.5 * (gey + n1y) - n0y
+                c2z = 0.5 * (gez + n1z) - n0z
+                sx = 0.5 * (gex - n1x)
+                sy = 0.5 * (gey - n1y)
+                sz = 0.5 * (gez - n1z)
+                c3x = (n0x - n2x + 4.0 * c2x - 2.0 * sx) / 6.0
+                c3y = (n0y - n2y + 4.0 * c2y - 2.0 * sy) / 6.0
+                c3z = (n0z - n2z + 4.0 * c2z - 2.0 * sz) / 6.0
+                c1x = sx - c3x
+                c1y = sy - c3y
+                c1z = sz - c3z
+                # samples inside the block that are stored
+                jw = every - kw
+                while jw < m:
+                    tj = jw * dt
+                    _write(out_p, out_v, out_q, s, (k + jw) // every - out_start, prm, k + jw,
+                           (px - pcx) + (tj * vx + pbuf[jw, 0]
+                                         + (QC[jw, 0] * n0x + QC[jw, 1] * c1x
+                                            + QC[jw, 2] * c2x + QC[jw, 3] * c3x)),
+                           (py - pcy) + (tj * vy + pbuf[jw, 1]
+                                         + (QC[jw, 0] * n0y + QC[jw, 1] * c1y
+                                            + QC[jw, 2] * c2y + QC[jw, 3] * c3y)),
+                           (pz - pcz) + (tj * vz + pbuf[jw, 2]
+                                         + (QC[jw, 0] * n0z + QC[jw, 1] * c1z
+                                            + QC[jw, 2] * c2z + QC[jw, 3] * c3z)),
+                           (vx - vcx) + (abuf[jw, 0] + (WC[jw, 0] * n0x + WC[jw, 1] * c1x
+                                                        + WC[jw, 2] * c2x + WC[jw, 3] * c3x)),
+                           (vy - vcy) + (abuf[jw, 1] + (WC[jw, 0] * n0y + WC[jw, 1] * c1y
+                                                        + WC[jw, 2] * c2y + WC[jw, 3] * c3y)),
+                           (vz - vcz) + (abuf[jw, 2] + (WC[jw, 0] * n0z + WC[jw, 1] * c1z
+                                                        + WC[jw, 2] * c2z + WC[jw, 3] * c3z)),
+                           qbuf[jw, 0], qbuf[jw, 1], qbuf[jw, 2], qbuf[jw, 3], True)  # fmt: skip
+                    jw += every
+                kw += m
+                while kw >= every:
+                    kw -= every
+                # end of the block: one compensated sum each for position and velocity
+                j = m - 1
+                vpx = vx + (
+                    abuf[j, 0] + (WC[j, 0] * n0x + WC[j, 1] * c1x + WC[j, 2] * c2x + WC[j, 3] * c3x)
+                )
+                vpy = vy + (
+                    abuf[j, 1] + (WC[j, 0] * n0y + WC[j, 1] * c1y + WC[j, 2] * c2y + WC[j, 3] * c3y)
+                )
+                vpz = vz + (abuf[j, 2] + (WC[j, 0] * n0z + WC[j, 1] * c1z + WC[j, 2] * c2z
+                                          + WC[j, 3] * c3z))  # fmt: skip
+                px, pcx = _kahan(
+                    px,
+                    pcx,
+                    T * vx
+                    + (Px + (QC[m, 0] * n0x + QC[m, 1] * c1x + QC[m, 2] * c2x + QC[m, 3] * c3x)),
+                )
+                py, pcy = _kahan(
+                    py,
+                    pcy,
+                    T * vy
+                    + (Py + (QC[m, 0] * n0y + QC[m, 1] * c1y + QC[m, 2] * c2y + QC[m, 3] * c3y)),
+                )
+                pz, pcz = _kahan(
+                    pz,
+                    pcz,
+                    T * vz
+                    + (Pz + (QC[m, 0] * n0z + QC[m, 1] * c1z + QC[m, 2] * c2z + QC[m, 3] * c3z)),
+                )
+                vx, vcx = _kahan(
+                    vx,
+                    vcx,
+                    Ax + (WC[m, 0] * n0x + WC[m, 1] * c1x + WC[m, 2] * c2x + WC[m, 3] * c3x),
+                )
+                vy, vcy = _kahan(
+                    vy,
+                    vcy,
+                    Ay + (WC[m, 0] * n0y + WC[m, 1] * c1y + WC[m, 2] * c2y + WC[m, 3] * c3y),
+                )
+                vz, vcz = _kahan(vz, vcz, Az + (WC[m, 0] * n0z + WC[m, 1] * c1z + WC[m, 2] * c2z
+                                                + WC[m, 3] * c3z))  # fmt: skip
+                k += m
+                if kw == 0:
+                    _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
+                           px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
+                           qbuf[m, 0], qbuf[m, 1], qbuf[m, 2], qbuf[m, 3], True)  # fmt: skip
+                # node at the actual end: point-mass gradient across the prediction error
+                dx = (px - pcx) - ppx
+                dy = (py - pcy) - ppy
+                dz = (pz - pcz) - ppz
+                # Gamma d ~ GM/R^3 (3 G (G.d) / |G|^2 - d): radial direction from G itself,
+                # radius and |G| at their means (a few 1e-3 of a correction of ~1e-12 m/s^2)
+                gd = _IG2 * (gex * dx + gey * dy + gez * dz)
+                gex += _K3 * (3.0 * gd * gex - dx)
+                gey += _K3 * (3.0 * gd * gey - dy)
+                gez += _K3 * (3.0 * gd * gez - dz)
+                # the per-step rule continues from the cubic's last two samples
+                x = 1.0 - 1.0 / m
+                Gpx = n0x + x * (c1x + x * (c2x + x * c3x))
+                Gpy = n0y + x * (c1y + x * (c2y + x * c3y))
+                Gpz = n0z + x * (c1z + x * (c2z + x * c3z))
+                Gx = gex
+                Gy = gey
+                Gz = gez
+                n2x, n2y, n2z = n1x, n1y, n1z
+                n1x, n1y, n1z = n0x, n0y, n0z
+                n0x, n0y, n0z = gex, gey, gez
+                i += m
+                continue
+            # ---- one step with the exact gravitation at the predicted end of the step
             if k == 1:
                 v0x = vpx
                 v0y = vpy
                 v0z = vpz
-                p1x = px
-                p1y = py
-                p1z = pz
-            # specific-force increment resolved in n at t_k: a = C_k dv
+                p1x = px - pcx
+                p1y = py - pcy
+                p1z = pz - pcz
+            # specific-force increment resolved at t_k: a = C_k dv
             ax, ay, az = _qrot(q0, q1, q2, q3, dvb[s, i, 0], dvb[s, i, 1], dvb[s, i, 2])
-            if wgs:
-                w0 = prm[earth.P_OMEGA]
-                w1 = prm[earth.P_OMEGA + 1]
-                w2 = prm[earth.P_OMEGA + 2]
-                rx = prm[earth.P_R0N] + px
-                ry = prm[earth.P_R0N + 1] + py
-                rz = prm[earth.P_R0N + 2] + pz
-                wrx = w1 * rz - w2 * ry
-                wry = w2 * rx - w0 * rz
-                wrz = w0 * ry - w1 * rx
-                # predictor of v_{k+1}, p_{k+1} (explicit Euler for gravity, Coriolis, centrifugal)
-                wvx = w1 * vz - w2 * vy
-                wvy = w2 * vx - w0 * vz
-                wvz = w0 * vy - w1 * vx
-                cfx = w1 * wrz - w2 * wry
-                cfy = w2 * wrx - w0 * wrz
-                cfz = w0 * wry - w1 * wrx
-                sx = vx + ax + dt * (Gx - 2.0 * wvx - cfx)
-                sy = vy + ay + dt * (Gy - 2.0 * wvy - cfy)
-                sz = vz + az + dt * (Gz - 2.0 * wvz - cfz)
+            if rot:
+                # predictor of v_{k+1}, r_{k+1}; gravitation there; 3-point rule for its integral
+                sx = vx + ax + dt * Gx
+                sy = vy + ay + dt * Gy
+                sz = vz + az + dt * Gz
                 if k == 0:
-                    ppx = px + 0.5 * dt * (sx + vx)
-                    ppy = py + 0.5 * dt * (sy + vy)
-                    ppz = pz + 0.5 * dt * (sz + vz)
+                    ppx = px + hdt * (sx + vx)
+                    ppy = py + hdt * (sy + vy)
+                    ppz = pz + hdt * (sz + vz)
                 else:
                     ppx = px + c12 * (5.0 * sx + 8.0 * vx - vpx)
                     ppy = py + c12 * (5.0 * sy + 8.0 * vy - vpy)
                     ppz = pz + c12 * (5.0 * sz + 8.0 * vz - vpz)
-                Gnx, Gny, Gnz = earth.gravitation_nb(prm, ppx, ppy, ppz)
-                AGx, AGy, AGz = _mv(prm, K_A, Gnx, Gny, Gnz)
+                Gnx, Gny, Gnz = earth._gravitation_nb(r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz)
                 if k == 0:
-                    Jx = 0.5 * dt * (AGx + Gx)
-                    Jy = 0.5 * dt * (AGy + Gy)
-                    Jz = 0.5 * dt * (AGz + Gz)
+                    dvx = ax + hdt * (Gnx + Gx)
+                    dvy = ay + hdt * (Gny + Gy)
+                    dvz = az + hdt * (Gnz + Gz)
                 else:
-                    # A(-dt) G_{k-1} = A^T G_{k-1}
-                    bx = prm[K_A] * Gpx + prm[K_A + 3] * Gpy + prm[K_A + 6] * Gpz
-                    by = prm[K_A + 1] * Gpx + prm[K_A + 4] * Gpy + prm[K_A + 7] * Gpz
-                    bz = prm[K_A + 2] * Gpx + prm[K_A + 5] * Gpy + prm[K_A + 8] * Gpz
-                    Jx = c12 * (5.0 * AGx + 8.0 * Gx - bx)
-                    Jy = c12 * (5.0 * AGy + 8.0 * Gy - by)
-                    Jz = c12 * (5.0 * AGz + 8.0 * Gz - bz)
-                # D s with s = v_k + W r_k + a + J and D = A^T - I
-                dsx, dsy, dsz = _mv(
-                    prm, K_D, vx + wrx + ax + Jx, vy + wry + ay + Jy, vz + wrz + az + Jz
-                )
-                # W (c v_k + e_p): AM3 -> dt/12 (13 v_k - v_{k-1}); trapezoid -> dt v_k
-                if k == 0:
-                    hx = dt * vx
-                    hy = dt * vy
-                    hz = dt * vz
-                else:
-                    hx = c12 * (13.0 * vx - vpx)
-                    hy = c12 * (13.0 * vy - vpy)
-                    hz = c12 * (13.0 * vz - vpz)
-                ex = ax + Jx + dsx - (w1 * hz - w2 * hy)
-                ey = ay + Jy + dsy - (w2 * hx - w0 * hz)
-                ez = az + Jz + dsz - (w0 * hy - w1 * hx)
-                if k == 0:
-                    dvx, dvy, dvz = _mv(prm, K_MT, ex, ey, ez)
-                else:
-                    dvx, dvy, dvz = _mv(prm, K_M, ex, ey, ez)
+                    dvx = ax + c12 * (5.0 * Gnx + 8.0 * Gx - Gpx)
+                    dvy = ay + c12 * (5.0 * Gny + 8.0 * Gy - Gpy)
+                    dvz = az + c12 * (5.0 * Gnz + 8.0 * Gz - Gpz)
                 Gpx = Gx
                 Gpy = Gy
                 Gpz = Gz
@@ -322,151 +535,94 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             else:
                 dvx = ax
                 dvy = ay
-                dvz = az - prm[earth.P_G0] * dt
-            # v_{k+1} = v_k + dv (Kahan)
+                dvz = az - g0dt
             ovx = vx
             ovy = vy
             ovz = vz
-            yx = dvx - vcx
-            yy = dvy - vcy
-            yz = dvz - vcz
-            tx = vx + yx
-            ty = vy + yy
-            tz = vz + yz
-            vcx = (tx - vx) - yx
-            vcy = (ty - vy) - yy
-            vcz = (tz - vz) - yz
-            vx = tx
-            vy = ty
-            vz = tz
-            # p_{k+1} = p_k + int v (Kahan)
+            vx, vcx = _kahan(vx, vcx, dvx)
+            vy, vcy = _kahan(vy, vcy, dvy)
+            vz, vcz = _kahan(vz, vcz, dvz)
             if k == 0:
-                dpx = 0.5 * dt * (vx + ovx)
-                dpy = 0.5 * dt * (vy + ovy)
-                dpz = 0.5 * dt * (vz + ovz)
+                px, pcx = _kahan(px, pcx, hdt * (vx + ovx))
+                py, pcy = _kahan(py, pcy, hdt * (vy + ovy))
+                pz, pcz = _kahan(pz, pcz, hdt * (vz + ovz))
             else:
-                dpx = c12 * (5.0 * vx + 8.0 * ovx - vpx)
-                dpy = c12 * (5.0 * vy + 8.0 * ovy - vpy)
-                dpz = c12 * (5.0 * vz + 8.0 * ovz - vpz)
-            yx = dpx - pcx
-            yy = dpy - pcy
-            yz = dpz - pcz
-            tx = px + yx
-            ty = py + yy
-            tz = pz + yz
-            pcx = (tx - px) - yx
-            pcy = (ty - py) - yy
-            pcz = (tz - pz) - yz
-            px = tx
-            py = ty
-            pz = tz
-            # attitude: q <- q_W* (x) q (x) Exp(dtheta), as q + dq with dq computed from small
-            # quantities and added with a compensated sum (no systematic rounding drift)
-            em0, e1, e2, e3 = _qexpm1(dth[s, i, 0], dth[s, i, 1], dth[s, i, 2])
-            d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
-            if wgs:
-                f0, f1, f2, f3 = _qmul(
-                    prm[K_QW],
-                    prm[K_QW + 1],
-                    prm[K_QW + 2],
-                    prm[K_QW + 3],
-                    q0 + d0,
-                    q1 + d1,
-                    q2 + d2,
-                    q3 + d3,
-                )
-                d0 += f0
-                d1 += f1
-                d2 += f2
-                d3 += f3
-            # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
-            eps = (
-                ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
-                + 2.0 * (q0 * d0 + q1 * d1 + q2 * d2 + q3 * d3)
-                + (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
+                px, pcx = _kahan(px, pcx, c12 * (5.0 * vx + 8.0 * ovx - vpx))
+                py, pcy = _kahan(py, pcy, c12 * (5.0 * vy + 8.0 * ovy - vpy))
+                pz, pcz = _kahan(pz, pcz, c12 * (5.0 * vz + 8.0 * ovz - vpz))
+            q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
+                q0, q1, q2, q3, qc0, qc1, qc2, qc3, dth[s, i, 0], dth[s, i, 1], dth[s, i, 2]
             )
-            h = -0.5 * eps
-            d0 += h * (q0 + d0)
-            d1 += h * (q1 + d1)
-            d2 += h * (q2 + d2)
-            d3 += h * (q3 + d3)
-            y0 = d0 - qc0
-            y1 = d1 - qc1
-            y2 = d2 - qc2
-            y3 = d3 - qc3
-            t0 = q0 + y0
-            t1 = q1 + y1
-            t2 = q2 + y2
-            t3 = q3 + y3
-            qc0 = (t0 - q0) - y0
-            qc1 = (t1 - q1) - y1
-            qc2 = (t2 - q2) - y2
-            qc3 = (t3 - q3) - y3
-            q0 = t0
-            q1 = t1
-            q2 = t2
-            q3 = t3
             vpx = ovx
             vpy = ovy
             vpz = ovz
             if k == 1:
-                dx, dy, dz, cx, cy, cz = _lookahead_shift(
-                    prm, wgs, v0x, v0y, v0z, vpx, vpy, vpz, vx, vy, vz
-                )
+                # first interval: dt/12 (5 v0 + 8 v1 - v2) instead of the trapezoid
+                dx = c12 * (-v0x + 2.0 * vpx - vx)
+                dy = c12 * (-v0y + 2.0 * vpy - vy)
+                dz = c12 * (-v0z + 2.0 * vpz - vz)
                 px += dx
                 py += dy
                 pz += dz
-                vpx -= cx
-                vpy -= cy
-                vpz -= cz
-                vx -= cx
-                vy -= cy
-                vz -= cz
                 if every == 1:
-                    _write(
-                        out_p,
-                        out_v,
-                        out_q,
-                        s,
-                        1 - out_start,
-                        p1x + dx,
-                        p1y + dy,
-                        p1z + dz,
-                        vpx,
-                        vpy,
-                        vpz,
-                        0.0,
-                        0.0,
-                        0.0,
-                        0.0,
-                        False,
-                    )
+                    _write(out_p, out_v, out_q, s, 1 - out_start, prm, 1,
+                           p1x + dx, p1y + dy, p1z + dz, vpx, vpy, vpz,
+                           0.0, 0.0, 0.0, 0.0, False)  # fmt: skip
             k += 1
-            if k % every == 0:
-                _write(
-                    out_p,
-                    out_v,
-                    out_q,
-                    s,
-                    k // every - out_start,
-                    px,
-                    py,
-                    pz,
-                    vx,
-                    vy,
-                    vz,
-                    q0,
-                    q1,
-                    q2,
-                    q3,
-                    True,
-                )
+            i += 1
+            km += 1
+            if km == m:
+                km = 0
+            kw += 1
+            if kw == every:
+                kw = 0
+            if rot and km == 0:
+                n2x, n2y, n2z = n1x, n1y, n1z
+                n1x, n1y, n1z = n0x, n0y, n0z
+                n0x, n0y, n0z = Gx, Gy, Gz
+            if kw == 0:
+                _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
+                       px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
+                       q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
         # fmt: off
         st[s, :25] = (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
                       q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz)
+        st[s, S_N:S_N + 9] = (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z)
         # fmt: on
         st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3] = qc0, qc1, qc2, qc3
         st[s, S_K] = k
+
+
+@njit(cache=True, inline="always")
+def _kahan(s, c, d):
+    """Compensated s + d; returns the new sum and compensation (true sum = s - c)."""
+    y = d - c
+    t = s + y
+    return t, (t - s) - y
+
+
+@njit(cache=True, inline="always")
+def _att_step(q0, q1, q2, q3, qc0, qc1, qc2, qc3, x, y, z):
+    """q <- q (x) Exp(dtheta), as q + dq with dq computed from small quantities, renormalized
+    to first order and added with a compensated sum (no systematic rounding drift)."""
+    em0, e1, e2, e3 = _qexpm1(x, y, z)
+    d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
+    # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
+    eps = (
+        ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
+        + 2.0 * (q0 * d0 + q1 * d1 + q2 * d2 + q3 * d3)
+        + (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
+    )
+    h = -0.5 * eps
+    d0 += h * (q0 + d0)
+    d1 += h * (q1 + d1)
+    d2 += h * (q2 + d2)
+    d3 += h * (q3 + d3)
+    q0, qc0 = _kahan(q0, qc0, d0)
+    q1, qc1 = _kahan(q1, qc1, d1)
+    q2, qc2 = _kahan(q2, qc2, d2)
+    q3, qc3 = _kahan(q3, qc3, d3)
+    return q0, q1, q2, q3, qc0, qc1, qc2, qc3
 
 
 # --- Python drivers ------------------------------------------------------------------------------
@@ -519,7 +675,8 @@ class Mechanizer:
     Parameters
     ----------
     frame : OriginFrame
-        Origin and Earth model (``frame.model`` is ``"flat"`` or ``"wgs84"``).
+        Origin and Earth model (``"flat"``, ``"wgs84"`` or ``"geodetic"``; in ``geodetic`` the
+        navigation coordinates are ECEF: position, Earth-relative velocity, ``q_eb``).
     dt : float
         Sample interval [s].
     p0_n, v0_n : ndarray, shape (3,) or (S, 3)
@@ -543,15 +700,18 @@ class Mechanizer:
 
     @property
     def p_n(self) -> np.ndarray:
-        return self.state[:, S_P : S_P + 3].copy()
+        """Current position in n [m], shape (S, 3)."""
+        return nav_from_state(self.state, self.prm)[0]
 
     @property
     def v_n(self) -> np.ndarray:
-        return self.state[:, S_V : S_V + 3].copy()
+        """Current velocity in n [m/s], shape (S, 3)."""
+        return nav_from_state(self.state, self.prm)[1]
 
     @property
     def q_nb(self) -> np.ndarray:
-        return self.state[:, S_Q : S_Q + 4].copy()
+        """Current attitude q_nb (scalar first), shape (S, 4)."""
+        return nav_from_state(self.state, self.prm)[2]
 
     def run(self, dtheta_b, dv_b, out_p=None, out_v=None, out_q=None, every=1, out_start=0):
         """Integrate a time chunk of increments for all sequences.
@@ -641,12 +801,13 @@ def mechanize(
     out_v = np.empty((S, M, 3)) if "v" in outputs else None
     out_q = np.empty((S, M, 4)) if "q" in outputs else None
     st = mech.state
+    p_0, v_0, q_0 = nav_from_state(st, mech.prm)
     if out_p is not None:
-        out_p[:, 0] = st[:, S_P : S_P + 3]
+        out_p[:, 0] = p_0
     if out_v is not None:
-        out_v[:, 0] = st[:, S_V : S_V + 3]
+        out_v[:, 0] = v_0
     if out_q is not None:
-        out_q[:, 0] = st[:, S_Q : S_Q + 4]
+        out_q[:, 0] = q_0
     empty3 = np.empty((0, 0, 3))
     empty4 = np.empty((0, 0, 4))
     for a in range(0, S, seq_chunk):
@@ -797,13 +958,75 @@ def mechanize_rates(omega_ib_b, f_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, 
     return mechanize(dtheta, dv, dt, p0_n, v0_n, q0_nb, frame, **kw)
 
 
+# --- exact increments of a continuous motion (the inverse of the mechanization) ---------------
+def exact_increments(times, position, velocity, attitude, frame: OriginFrame, n_gauss=4):
+    """Exact angle and velocity increments of a continuous motion in n (any Earth model).
+
+    ``dtheta_k = Log(C_k^T Exp(Omega dt) C_k+1)`` and
+    ``dv_k = C_k^T [(A(dt) - I) (v_k+1 + W r_k+1) + (v_k+1 - v_k) + W (p_k+1 - p_k)
+    - int_0^dt A(tau) G_n(p(t_k + tau)) dtau]``, the gravitation integral by ``n_gauss``-node
+    Gauss-Legendre quadrature on the continuous position (``A(tau) = Exp(W tau)``, ``W`` the
+    Earth rate in n, ``r = r0_n + p``); in ``flat`` this is ``C_k^T (v_k+1 - v_k - g dt)``.
+    For ``geodetic`` frames n is ECEF: pass ECEF position, Earth-relative velocity and the
+    attitude body -> ECEF.
+
+    Parameters
+    ----------
+    times : ndarray, shape (K,)
+        Sample times [s], uniformly spaced (the kernel's ``dt`` must be their mean spacing).
+    position, velocity : callable
+        ``t (m,) -> (m, 3)``: position [m] and Earth-relative velocity [m/s] in n.
+    attitude : callable
+        ``t (m,) -> (m, 4)``: ``q_nb`` (scalar first, continuous in sign).
+    frame : OriginFrame
+    n_gauss : int
+        Quadrature nodes per interval.
+
+    Returns
+    -------
+    dtheta_b, dv_b : ndarray, shape (K-1, 3)
+        Increments of the intervals ``[t_k, t_k+1]``.
+    """
+    t = np.asarray(times, dtype=float)
+    K = len(t)
+    # the mean spacing: t[1] - t[0] carries the rounding of t[0] (3.6e-12 relative at
+    # t ~ 5,000 s, dt = 0.05 s), which would bias every gravitation integral
+    dt = float(t[-1] - t[0]) / (K - 1)
+    w = earth.earth_rate_n(frame)
+    r0 = frame.r0_n
+    xg, wg = np.polynomial.legendre.leggauss(n_gauss)
+    tau = 0.5 * dt * (xg + 1.0)
+    wq = 0.5 * dt * wg
+    A_nodes = exp_dcm(w[None, :] * tau[:, None])  # (n_gauss, 3, 3)
+    # A(dt) - I = a S + b S^2, S = [w dt x], without cancellation (|w dt| < 1e-3)
+    S = _skew(w * dt)
+    th2 = float(w @ w) * dt * dt
+    A_m_I = (1.0 - th2 / 6.0 + th2 * th2 / 120.0) * S + (0.5 - th2 / 24.0 + th2 * th2 / 720.0) * (
+        S @ S
+    )
+    dth = np.empty((K - 1, 3))
+    dvb = np.empty((K - 1, 3))
+    for a in range(0, K - 1, 1 << 16):
+        b = min(K - 1, a + (1 << 16))
+        ta, tb = t[a:b], t[a + 1 : b + 1]
+        pa, pb = position(ta), position(tb)
+        va, vb = velocity(ta), velocity(tb)
+        qa, qb = attitude(ta), attitude(tb)
+        dth[a:b] = relative_rotation_vector(qa, qb, w, dt)
+        dV = (vb - va) + (vb + np.cross(w, r0 + pb)) @ A_m_I.T + np.cross(w, pb - pa)
+        for j in range(n_gauss):
+            dV -= wq[j] * (earth.gravitation_n(position(ta + tau[j]), frame) @ A_nodes[j].T)
+        dvb[a:b] = np.einsum("mji,mj->mi", quat_to_dcm(qa), dV)
+    return dth, dvb
+
+
 # --- pure NumPy reference (vectorized across sequences, Python loop over time) -----------------
 def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, every=1):
     """The same recursion as the kernel in NumPy, for benchmarks and cross-checks.
 
-    Vectorized across sequences, Python loop over time; no compensated sums (the kernel
-    has them). Returns positions (S, M, 3), velocities (S, M, 3) and quaternions (S, M, 4)
-    at samples ``0, every, 2 every, ...``.
+    Vectorized across sequences, Python loop over time (gravitation blocks included); no
+    compensated sums (the kernel has them). Returns positions (S, M, 3), velocities (S, M, 3)
+    and quaternions (S, M, 4) in n at samples ``0, every, 2 every, ...``.
     """
     dth = np.asarray(dtheta_b, dtype=float)
     dvb = np.asarray(dv_b, dtype=float)
@@ -813,14 +1036,11 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     S, N = dth.shape[:2]
     st = initial_state(p0_n, v0_n, q0_nb, frame, S)
     prm = kernel_params(frame, dt)
-    wgs = frame.model == "wgs84"
-    w = earth.earth_rate_n(frame)
-    A = prm[K_A : K_A + 9].reshape(3, 3)
-    Dm = prm[K_D : K_D + 9].reshape(3, 3)
-    Mam = prm[K_M : K_M + 9].reshape(3, 3)
-    Mtr = prm[K_MT : K_MT + 9].reshape(3, 3)
-    qW = prm[K_QW : K_QW + 4]
-    r0 = frame.r0_n
+    rot = frame.model != "flat"
+    m = int(prm[K_MB]) if rot else 1
+    T = m * dt
+    tau = np.arange(m + 1) / m
+    W = np.stack([T * np.diff(tau**n) / n for n in (1, 2, 3, 4)], axis=1)  # (m, 4)
     g0 = frame.g0
     c12 = dt / 12.0
     p = st[:, S_P : S_P + 3].copy()
@@ -829,31 +1049,77 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     q = st[:, S_Q : S_Q + 4].copy()
     G = st[:, S_G : S_G + 3].copy()
     Gp = G.copy()
+    nodes = [G.copy(), G.copy(), G.copy()]  # newest first
     M_out = N // every + 1
     P = np.empty((S, M_out, 3))
     V = np.empty((S, M_out, 3))
     Q = np.empty((S, M_out, 4))
-    P[:, 0], V[:, 0], Q[:, 0] = p, v, q
-    for k in range(N):
-        first = k == 0
+    out = np.zeros((S, N_STATE))
+
+    def store(j, k, p_, v_, q_):
+        out[:, S_P : S_P + 3] = p_
+        out[:, S_V : S_V + 3] = v_
+        out[:, S_Q : S_Q + 4] = q_
+        out[:, S_K] = k
+        P[:, j], V[:, j], Q[:, j] = nav_from_state(out, prm)
+
+    def resolve(q, dv):
         qv = q[:, 1:]
-        t = 2.0 * np.cross(qv, dvb[:, k])
-        a = dvb[:, k] + q[:, :1] * t + np.cross(qv, t)
-        if wgs:
-            r = r0 + p
-            wr = np.cross(w, r)
-            s_pred = v + a + dt * (G - 2.0 * np.cross(w, v) - np.cross(w, wr))
-            if first:
-                pp = p + 0.5 * dt * (s_pred + v)
-            else:
-                pp = p + c12 * (5.0 * s_pred + 8.0 * v - vp)
+        t = 2.0 * np.cross(qv, dv)
+        return dv + q[:, :1] * t + np.cross(qv, t)
+
+    def att(q, dth_k):
+        d = quat_mul(q, _qexpm1_np(dth_k))
+        eps = (
+            (np.sum(q * q, axis=1, keepdims=True) - 1.0)
+            + 2.0 * np.sum(q * d, axis=1, keepdims=True)
+            + np.sum(d * d, axis=1, keepdims=True)
+        )
+        return q + (d - 0.5 * eps * (q + d))
+
+    store(0, 0, p, v, q)
+    k = 0
+    while k < N:
+        if m > 1 and k >= 3 * m and k % m == 0 and k + m <= N:
+            n0, n1, n2 = nodes
+            a = np.empty((m, S, 3))
+            qs = [q]
+            for j in range(m):
+                a[j] = resolve(q, dvb[:, k + j])
+                q = att(q, dth[:, k + j])
+                qs.append(q)
+            e = np.einsum("j,jsi->si", (m - np.arange(m) - 0.5) * dt, a)
+            pp = p + T * v + e + T * T / 6.0 * (4.0 * n0 - n1)
+            ge = earth.gravitation_n(pp, frame)
+            c2 = 0.5 * (ge + n1) - n0
+            sv = 0.5 * (ge - n1)
+            c3 = (n0 - n2 + 4.0 * c2 - 2.0 * sv) / 6.0
+            c1 = sv - c3
+            for j in range(m):
+                J = W[j, 0] * n0 + W[j, 1] * c1 + W[j, 2] * c2 + W[j, 3] * c3
+                vk = v
+                v = v + (a[j] + J)
+                p = p + c12 * (5.0 * v + 8.0 * vk - vp)
+                vp = vk
+                if (k + j + 1) % every == 0:
+                    store((k + j + 1) // every, k + j + 1, p, v, qs[j + 1])
+            d = p - pp
+            gd = _IG2 * np.sum(ge * d, axis=1, keepdims=True)
+            ge = ge + _K3 * (3.0 * gd * ge - d)
+            x = 1.0 - 1.0 / m
+            Gp = n0 + x * (c1 + x * (c2 + x * c3))
+            G = ge
+            nodes = [ge, n0, n1]
+            k += m
+            continue
+        first = k == 0
+        a = resolve(q, dvb[:, k])
+        if rot:
+            s_pred = v + a + dt * G
+            pp = p + 0.5 * dt * (s_pred + v) if first else p + c12 * (5.0 * s_pred + 8.0 * v - vp)
             Gn = earth.gravitation_n(pp, frame)
-            AG = Gn @ A.T
-            J = 0.5 * dt * (AG + G) if first else c12 * (5.0 * AG + 8.0 * G - Gp @ A)
-            ds = (v + wr + a + J) @ Dm.T
-            h = dt * v if first else c12 * (13.0 * v - vp)
-            e = a + J + ds - np.cross(w, h)
-            dvn = e @ (Mtr if first else Mam).T
+            J = 0.5 * dt * (Gn + G) if first else c12 * (5.0 * Gn + 8.0 * G - Gp)
+            dvn = a + J
             Gp, G = G, Gn
         else:
             dvn = a.copy()
@@ -864,28 +1130,16 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
         if k == 1:
             d = c12 * (-vp + 2.0 * vk - v)
             p = p + d
-            if wgs:
-                c = np.cross(w, d)
-                vk = vk - c
-                v = v - c
             if every == 1:
-                P[:, 1] = p
-                V[:, 1] = vk
+                store(1, 1, p, vk, q)
         p = p + dp
         vp = vk
-        d = quat_mul(q, _qexpm1_np(dth[:, k]))
-        if wgs:
-            d = d + quat_mul(np.broadcast_to(qW, q.shape), q + d)
-        eps = (
-            (np.sum(q * q, axis=1, keepdims=True) - 1.0)
-            + 2.0 * np.sum(q * d, axis=1, keepdims=True)
-            + np.sum(d * d, axis=1, keepdims=True)
-        )
-        d = d - 0.5 * eps * (q + d)
-        q = q + d
-        if (k + 1) % every == 0:
-            j = (k + 1) // every
-            P[:, j], V[:, j], Q[:, j] = p, v, q
+        q = att(q, dth[:, k])
+        k += 1
+        if rot and k % m == 0:
+            nodes = [G, nodes[0], nodes[1]]
+        if k % every == 0:
+            store(k // every, k, p, v, q)
     return P, V, Q
 
 
