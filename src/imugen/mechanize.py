@@ -338,10 +338,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 # time through it and the three previous nodes, and velocity/position
                 # specific force: running sums A_j and their 3-point position effect QA_j
                 # (relative to the block start; v_k-1 - v_k enters the first step)
-                qbuf[0, 0] = q0 - qc0
-                qbuf[0, 1] = q1 - qc1
-                qbuf[0, 2] = q2 - qc2
-                qbuf[0, 3] = q3 - qc3
+                inner = every - kw < m  # samples to store inside the block (buffers needed)
                 bx = vpx - vx  # A_(j-1), starting with v_(k-1) - v_k
                 by = vpy - vy
                 bz = vpz - vz
@@ -367,20 +364,21 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                     Ax = nx
                     Ay = ny
                     Az = nz
-                    abuf[j + 1, 0] = Ax
-                    abuf[j + 1, 1] = Ay
-                    abuf[j + 1, 2] = Az
-                    pbuf[j + 1, 0] = Px
-                    pbuf[j + 1, 1] = Py
-                    pbuf[j + 1, 2] = Pz
                     q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
                         q0, q1, q2, q3, qc0, qc1, qc2, qc3,
                         dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
                     )  # fmt: skip
-                    qbuf[j + 1, 0] = q0 - qc0
-                    qbuf[j + 1, 1] = q1 - qc1
-                    qbuf[j + 1, 2] = q2 - qc2
-                    qbuf[j + 1, 3] = q3 - qc3
+                    if inner:
+                        abuf[j + 1, 0] = Ax
+                        abuf[j + 1, 1] = Ay
+                        abuf[j + 1, 2] = Az
+                        pbuf[j + 1, 0] = Px
+                        pbuf[j + 1, 1] = Py
+                        pbuf[j + 1, 2] = Pz
+                        qbuf[j + 1, 0] = q0 - qc0
+                        qbuf[j + 1, 1] = q1 - qc1
+                        qbuf[j + 1, 2] = q2 - qc2
+                        qbuf[j + 1, 3] = q3 - qc3
                 # predicted end position: gravitation extrapolated linearly from the nodes
                 e0 = QC[m, 0] + QC[m, 1]
                 e1 = QC[m, 1]
@@ -429,12 +427,12 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 # end of the block: one compensated sum each for position and velocity
                 j = m - 1
                 vpx = vx + (
-                    abuf[j, 0] + (WC[j, 0] * n0x + WC[j, 1] * c1x + WC[j, 2] * c2x + WC[j, 3] * c3x)
+                    bx + (WC[j, 0] * n0x + WC[j, 1] * c1x + WC[j, 2] * c2x + WC[j, 3] * c3x)
                 )
                 vpy = vy + (
-                    abuf[j, 1] + (WC[j, 0] * n0y + WC[j, 1] * c1y + WC[j, 2] * c2y + WC[j, 3] * c3y)
+                    by + (WC[j, 0] * n0y + WC[j, 1] * c1y + WC[j, 2] * c2y + WC[j, 3] * c3y)
                 )
-                vpz = vz + (abuf[j, 2] + (WC[j, 0] * n0z + WC[j, 1] * c1z + WC[j, 2] * c2z
+                vpz = vz + (bz + (WC[j, 0] * n0z + WC[j, 1] * c1z + WC[j, 2] * c2z
                                           + WC[j, 3] * c3z))  # fmt: skip
                 px, pcx = _kahan(
                     px,
@@ -470,7 +468,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 if kw == 0:
                     _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                            px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
-                           qbuf[m, 0], qbuf[m, 1], qbuf[m, 2], qbuf[m, 3], True)  # fmt: skip
+                           q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
                 # node at the actual end: point-mass gradient across the prediction error
                 dx = (px - pcx) - ppx
                 dy = (py - pcy) - ppy
