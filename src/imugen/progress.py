@@ -1,7 +1,9 @@
 """Progress of long jobs: detailed lines to the job's log, a short form to the console.
 
-A job's stderr goes to its log (the workflow redirects it); every ``every_s`` seconds and at the
-end :class:`Progress` writes ``label: done/total unit, rate, elapsed, left`` there. When the
+A job's stderr goes to its log (the workflow redirects it); every ``every_s`` seconds, and at the
+end of a job that lasted at least that long, :class:`Progress` writes ``label: done/total unit,
+rate, elapsed, left`` there (a short job prints nothing, so its only stderr line is its result
+or its one-line error). When the
 environment names a console file descriptor (``IMUGEN_CONSOLE_FD``, set by the workflow's rules
 to a copy of Snakemake's own stderr taken before the redirection), a short line goes there too,
 at most every ``console_s`` seconds and at the end, so a person watching ``snakemake`` sees long
@@ -61,10 +63,13 @@ class Progress:
         self.done = int(done)
         now = time.monotonic()
         final = self.done >= self.total
-        if final or now - self.last_log >= self.every_s:
+        long_job = now - self.t0 >= self.every_s
+        if (final and long_job) or now - self.last_log >= self.every_s:
             print(self.line(now), file=sys.stderr, flush=True)
             self.last_log = now
-        if self.console is not None and (final or now - self.last_console >= self.console_s):
+        if self.console is not None and (
+            (final and long_job) or now - self.last_console >= self.console_s
+        ):
             pct = 100.0 * self.done / self.total if self.total else 100.0
             self.console.write(
                 f"  {self.label}: {pct:.0f} % ({self.line(now).split(', ', 1)[1]})\n"

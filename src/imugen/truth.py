@@ -1083,7 +1083,9 @@ def run(
     """Read the ENU Parquet, build the truth, write it atomically; returns the metadata."""
     enu, meta = read_enu(enu_path)
     try:
-        df, tmeta = build_truth(enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, **kw)
+        df, tmeta = build_truth(
+            enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, verbose=False, **kw
+        )
     except InputError as exc:
         if exc.source is None:
             raise InputError(enu_path, exc.message) from None
@@ -1091,4 +1093,8 @@ def run(
     tmeta["source"] = str(enu_path)
     tmeta["route_source"] = meta.get("source")
     ttable.write(df, tmeta, out_path)
+    # the auto Earth budget is printed once the truth is written (a failed job prints only its
+    # one-line error)
+    for line in (tmeta.get("earth_budget") or {}).get("lines", []):
+        print(line, file=sys.stderr)
     return tmeta
