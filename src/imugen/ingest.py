@@ -100,6 +100,9 @@ def _path_length_m(p: RoutePath) -> float:
     return float(_GEOD.line_length(p.lon_deg[ok], p.lat_deg[ok]))
 
 
+_LISTED = 20  # candidates listed in a refusal (the message stays one readable line)
+
+
 def _describe(i: int, p: RoutePath) -> str:
     length = _path_length_m(p)
     ls = (
@@ -108,12 +111,15 @@ def _describe(i: int, p: RoutePath) -> str:
         else (f"{length / 1000:.2f} km" if length >= 1000 else f"{length:.0f} m")
     )
     timed = ", timed" if p.time_unix_s is not None else ""
-    return f"[{i}] {p.name!r} ({p.kind}, {p.n_points} points, {ls}{timed})"
+    return f"[{i}] {limits.shorten(p.name)!r} ({p.kind}, {p.n_points} points, {ls}{timed})"
 
 
 def select_path(cands: list[RoutePath], spec: str | int | None, source) -> RoutePath:
     """Choose one candidate: the only one, or the one ``spec`` names or indexes (1-based)."""
-    listing = "; ".join(_describe(i, p) for i, p in enumerate(cands, start=1))
+    shown = cands[:_LISTED]
+    listing = "; ".join(_describe(i, p) for i, p in enumerate(shown, start=1))
+    if len(cands) > len(shown):
+        listing += f"; ... and {len(cands) - len(shown)} more"
     if spec is None or spec == "":
         if len(cands) == 1:
             return cands[0]
