@@ -316,3 +316,15 @@ def test_numba_cache_write_failure_does_not_fail(tmp_path):
     r = subprocess.run([sys.executable, str(mod)], capture_output=True, text=True, env=env,
                        preexec_fn=small_files, timeout=120)  # fmt: skip
     assert r.returncode == 0 and r.stdout.strip() == "45.0", r.stderr
+
+
+def test_candidate_listing_is_bounded(tmp_path, capsys):
+    marks = "".join(
+        f"<Placemark><name>p{i}</name><LineString><coordinates>2,1 2.001,1</coordinates>"
+        "</LineString></Placemark>"
+        for i in range(500)
+    )
+    src = tmp_path / "many.kml"
+    src.write_text(f"<kml>{marks}</kml>")
+    line = assert_refused(src, tmp_path, "holds 500 candidate paths", capsys=capsys)
+    assert "[8] 'p7'" in line and "[9]" not in line and "and 492 more" in line

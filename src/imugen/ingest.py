@@ -107,6 +107,8 @@ def _path_length_m(p: RoutePath) -> float:
     return float(_GEOD.line_length(p.lon_deg[ok], p.lat_deg[ok]))
 
 
+
+
 def _describe(i: int, p: RoutePath) -> str:
     length = _path_length_m(p)
     ls = (
@@ -115,7 +117,7 @@ def _describe(i: int, p: RoutePath) -> str:
         else (f"{length / 1000:.2f} km" if length >= 1000 else f"{length:.0f} m")
     )
     timed = ", timed" if p.time_unix_s is not None else ""
-    return f"[{i}] {p.name!r} ({p.kind}, {p.n_points} points, {ls}{timed})"
+    return f"[{i}] {limits.shorten(p.name)!r} ({p.kind}, {p.n_points} points, {ls}{timed})"
 
 
 LIST_CANDIDATES = 8

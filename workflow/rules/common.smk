@@ -2,18 +2,36 @@
 import json
 import math
 import shlex
+import sys
 from pathlib import Path
 
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
+
+# the checks below use this checkout's package (the jobs call the installed `imugen`)
+sys.path.insert(0, str(Path(workflow.basedir) / "src"))
+from imugen import preflight
+from imugen.errors import InputError
 
 
 validate(config, "../schemas/config.schema.yaml")
+# Before any job: no NaN/inf, custom grades valid, the run within the memory and disk budgets
+# (estimates in the message; see src/imugen/preflight.py). Jobs re-reading this file on a
+# cluster node skip the budget (it was checked where the run was started).
+try:
+    preflight.check_values(config)
+    if workflow.is_main_process and not workflow.dryrun:
+        preflight.check_budget(config)
+except InputError as exc:
+    raise WorkflowError(f"imugen: error: {exc}") from None
 
 ROUTES = sorted(config["routes"])
 GRADES = list(config["grades"])
 SIM = config["simulate"]
 N_SEQ = SIM["sequences"]
 PER_SHARD = SIM["sequences_per_shard"]
+# shard-000 ... shard-999, then shard-1000, ...: at least three digits, no other leading
+# zeros, so adding shards never renames existing ones
 SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
 FIG = config["figures"]
 
@@ -21,7 +39,7 @@ FIG = config["figures"]
 wildcard_constraints:
     route="|".join(ROUTES),
     grade="|".join(GRADES),
-    shard=r"\d{3}",
+    shard=r"\d\d\d|[1-9]\d\d\d+",
 
 
 def stage_code(*modules):
