@@ -90,6 +90,16 @@ def ingest_opts(wildcards):
     return " ".join(opts)
 
 
+def ingest_clean_opts(wildcards):
+    """`imugen ingest` options of the cleaning and gap rules for this route."""
+    r = config["routes"][wildcards.route]
+    opts = ["--vehicle", shlex.quote(str(r.get("vehicle", "car")))]
+    if r.get("max_gap_s") is not None:
+        opts += ["--max-gap-s", repr(float(r["max_gap_s"]))]
+    opts += ["--gaps", shlex.quote(str(r.get("gaps", "split")))]
+    return " ".join(opts)
+
+
 def auto_grades():
     """`--grade` options of the truth: the configured preset grades decide `--earth auto`."""
     names = [g for g in GRADES if not is_custom(g)]

@@ -3,23 +3,13 @@
 # carries their report to the second.
 
 
-def ingest_clean_opts(wildcards):
-    """`imugen ingest` options of the cleaning and gap rules for this route."""
-    r = config["routes"][wildcards.route]
-    opts = ["--vehicle", shlex.quote(str(r.get("vehicle", "car")))]
-    if r.get("max_gap_s") is not None:
-        opts += ["--max-gap-s", repr(float(r["max_gap_s"]))]
-    opts += ["--gaps", shlex.quote(str(r.get("gaps", "split")))]
-    return " ".join(opts)
-
-
 rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
         code=stage_code(
             "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
             "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
-            "readers/gnsscsv", "readers/babel", "clean", "segments",
+            "readers/gnsscsv", "readers/babel", "clean", "segments", "limits",
         ),
     output:
         "results/{route}/route.csv",

@@ -166,7 +166,11 @@ def export(
         if "tlio" in formats:
             from imugen.dataset import split
 
-            parts = split([(r, s) for r, s, _ in keys], seed=split_seed, by="sequence")
+            try:
+                parts = split([(r, s) for r, s, _ in keys], seed=split_seed, by="sequence")
+            except InputError:  # too few sequences for three non-empty parts
+                log(f"imugen: warning: {len(keys)} sequences: every one in TLIO's train list")
+                parts = {"train": [(r, s) for r, s, _ in keys], "val": [], "test": []}
             names = {(r, s): n for r, s, n in keys}
             for part, ks in parts.items():
                 (tmp / "tlio" / f"{part}_list.txt").write_text("".join(f"{names[k]}\n" for k in ks))
