@@ -160,7 +160,10 @@ def _seconds_list(text: str) -> list[float]:
 def _cmd_evaluate(a) -> int:
     from imugen.evaluate import run
 
-    run(a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu)
+    run(
+        a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu,
+        aided_paths=a.aided,
+    )  # fmt: skip
     return 0
 
 
@@ -449,6 +452,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="relative drift after T seconds from true starts (needs --imu), e.g. 30,60,120",
     )
     p.add_argument("--imu", nargs="+", default=[], help="IMU shards of the grade (for --segments)")
+    p.add_argument(
+        "--aided", nargs="+", default=[], help="aided error tables of the grade (imugen aid)"
+    )
     p.set_defaults(func=_cmd_evaluate)
 
     p = sub.add_parser("tables", help="per-grade metrics -> RMSE table (CSV, MD, TeX, HTML)")
