@@ -23,6 +23,7 @@ numbers), nor the shard size, nor the other sequences.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -71,6 +72,7 @@ class AidParams:
     nhc: bool | None = None
     zupt: bool = True
     gate_sigma: float = 0.0
+    align_speed_mps: float = 5.0
     eval_rate_hz: float = 1.0
     seed: int | None = None
     grade: str | None = None
@@ -90,6 +92,8 @@ class AidParams:
                 raise InputError(
                     "scenarios.draw", f"unknown kind {k!r}; one of {', '.join(SC.KINDS)}"
                 )
+        if not self.align_speed_mps > 0:
+            raise InputError("--align-speed", "must be > 0 m/s")
         if self.eval_rate_hz <= 0:
             raise InputError("--eval-rate-hz", "must be > 0")
 
@@ -285,11 +289,16 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
     every = max(1, round(truth.rate_hz / params.eval_rate_hz))
     batch = batch or batch_size(K)
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
+    never = 0
     for ids, a, c in tshard.iter_blocks(shard_path, columns, K, int(batch), 0):
         ids = ids.copy()
         dth, dvb = _increments(a, c, kind, raw, truth.dt)
         scen = gnss_for(truth, ids, params, seed)
-        res = A.run(dth, dvb, truth.dt, frame, scen.gnss, tun, opts)
+        T = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver)
+        init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
+                       speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
+        never += int(np.sum(init.k0 >= K))
+        res = A.run(dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T)
         gnss_rows.append(tgnss.frame(ids, scen))
         lab = scen.gnss.labels.copy()
         lab[SEQUENCE] = ids  # global int64 ids (the receiver's labels count from ``first``)
@@ -298,6 +307,13 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
         aided_rows.append(aided_errors(truth, ids, res, scen, every))
     if not gnss_rows:
         raise InputError(shard_path, "holds no sequences")
+    if never:
+        warnings.warn(
+            f"{shard_path}: {never} sequence(s) never aligned (not still at the start, and no "
+            f"fix at >= {params.align_speed_mps:g} m/s): no aided rows for them; lower "
+            "aided.align_speed_mps (--align-speed)",
+            stacklevel=2,
+        )
     rec = G.get_receiver(params.receiver)
     meta = {
         "imugen_version": __version__,
@@ -313,6 +329,8 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
         "scenario_draw": list(params.draw_kinds),
         "options": asdict(opts),
         "tuning_level": params.tuning_level,
+        "align_speed_mps": params.align_speed_mps,
+        "never_aligned": never,
         "eval_rate_hz": params.eval_rate_hz,
         "error": "filter minus truth, ENU of the route origin",
     }

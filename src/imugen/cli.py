@@ -137,7 +137,8 @@ def _cmd_aid(a) -> int:
         receiver=a.receiver, rate_hz=a.gnss_rate_hz, draw=a.gnss_draw, lever_arm_b_m=lever,
         lever_arm_sd_m=a.lever_arm_sd, settle_s=a.settle_s, tuning_level=a.tuning_level,
         gnss_bias_states=not a.no_gnss_bias_states, scale_factors=a.scale_factors, nhc=a.nhc,
-        zupt=not a.no_zupt, gate_sigma=a.gate_sigma, eval_rate_hz=a.eval_rate_hz, seed=a.seed,
+        zupt=not a.no_zupt, gate_sigma=a.gate_sigma, align_speed_mps=a.align_speed,
+        eval_rate_hz=a.eval_rate_hz, seed=a.seed,
         grade=a.grade, **parse_scenarios(a.scenario),
     )  # fmt: skip
     run(a.truth, a.shard, a.gnss_out, a.output, params)
@@ -434,6 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--no-zupt", action="store_true", help="no zero-velocity updates")
     p.add_argument("--gate-sigma", type=float, default=0.0, help="innovation gate (0: off)")
+    p.add_argument(
+        "--align-speed", type=float, default=5.0, help="GNSS speed of a moving alignment, m/s"
+    )
     p.add_argument("--eval-rate-hz", type=float, default=1.0, help="evaluation epochs per second")
     p.add_argument("--seed", type=int, help="root seed (default: the shard's)")
     p.add_argument("--grade", help="grade of the filter tuning (default: the shard's)")

@@ -157,4 +157,5 @@ def aid_opts(wildcards):
     if not AIDED["zupt"]:
         opts.append("--no-zupt")
     opts.append(f"--gate-sigma {float(AIDED['gate_sigma'])!r}")
+    opts.append(f"--align-speed {float(AIDED['align_speed_mps'])!r}")
     return " ".join(opts)
