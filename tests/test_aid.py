@@ -62,8 +62,9 @@ def test_gnss_file_matches_truth_and_labels(scene):
     assert np.all(g["state"].to_numpy()[inside] == 1) and np.all(
         g["state"].to_numpy()[~inside] == 0
     )
-    assert np.all(g["fix"].to_numpy()[inside] == 0) and g.loc[inside, list(tgnss.P)].isna().all(
-        None
+    assert (
+        np.all(g["fix"].to_numpy()[inside] == 0)
+        and np.isnan(g.loc[inside, list(tgnss.P)].to_numpy()).all()
     )
     # measured - true error = true antenna (zero lever arm: the IMU) at the time of validity
     for sid, rows in g[~inside & (g["fix"] > 0)].groupby("sequence"):

@@ -302,7 +302,8 @@ def display_table(table: pd.DataFrame) -> pd.DataFrame:
                     f"{_fmt(r[c])} [{_fmt(r[stem + '_p05_m'])}-{_fmt(r[stem + '_p95_m'])}]"
                 )
         if "time_to_10m_s" in table.columns:
-            row["To 10 m (s)"] = _fmt(r["time_to_10m_s"])
+            v = r["time_to_10m_s"]
+            row["To 10 m (s)"] = "never" if v == np.inf else _fmt(v)
         if r.get("free_inertial_meaningless"):
             row["grade"] = f"{r['grade']} (free-inertial meaningless)"
         rows.append(row)
