@@ -191,3 +191,28 @@ def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True, "receiver": "galileo"}})
     proc = W.snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "galileo" in proc.stdout + proc.stderr
+
+
+def test_aided_metrics_on_a_constructed_table():
+    """Closed-form table: a no-fix run at the start (not an outage), then GNSS, then a 30 s
+    outage whose East error grows as 0.5 t (crosses 10 m at 20 s), then GNSS again."""
+    t = np.arange(0.0, 80.0)
+    since = np.where(t < 3, np.nan, 0.0)
+    out = (t >= 40) & (t < 70)
+    since[out] = t[out] - 39.0  # last fix at 39 s
+    e = np.where(out, 0.5 * since, 1.0)
+    e[t < 3] = 100.0  # before the first fix: ignored by every figure
+    used = (~out & (t >= 3)).astype(np.int8)
+    rows = []
+    for sid, k in ((7, 1.0), (9, 2.0)):
+        rows.append(pd.DataFrame({
+            "sequence": sid, "time_s": t, "err_e_m": k * e, "err_n_m": 0.0, "err_u_m": 0.0,
+            "err_att_rad": 0.0, "sd_e_m": 1.0, "sd_n_m": 1.0, "sd_u_m": 1.0,
+            "gnss_used": used, "state": out.astype(np.int8), "since_fix_s": since,
+        }))  # fmt: skip
+    m = EV.aided_metrics(pd.concat(rows, ignore_index=True))
+    np.testing.assert_allclose(m.loc[[7, 9], "aided_total_m"], [1.0, 2.0])
+    np.testing.assert_allclose(m.loc[[7, 9], "aided_nees_pos"], [1 / 3, 4 / 3])
+    np.testing.assert_allclose(m.loc[[7, 9], "outage_30s_end_m"], [15.0, 30.0])
+    np.testing.assert_allclose(m.loc[[7, 9], "time_to_10m_s"], [21.0, 11.0])  # first > 10 m
+    assert [c for c in m.columns if c.startswith("outage_")] == ["outage_30s_end_m"]
