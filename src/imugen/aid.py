@@ -9,9 +9,11 @@ For every sequence of the shard (streamed in batches, memory bounded as in
 2. the loosely-coupled error-state filter (:func:`imugen.aided.run`) runs on the shard's
    increments (raw ones get navigation's coning/sculling correction; rates are integrated as
    navigation does) with its tuning from the grade's figures (``tuning_level``) and the
-   receiver's nominal figures, aligned by :func:`imugen.aided.align`;
-3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels) and the
-   aided errors at the evaluation epochs (:mod:`imugen.tables.aided`) are written.
+   receiver's nominal figures, aligned by :func:`imugen.aided.align` (moving starts at
+   ``align_speed_mps``);
+3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels; streamed
+   one row group per batch) and the aided errors at the evaluation epochs
+   (:mod:`imugen.tables.aided`, small: kept until the end) are written.
 
 Randomness: sequence ``i`` (its index in the route, ``shard * shard_size + j``) of route id
 ``r`` draws its receiver, its scenario and the jamming noise from ``SeedSequence([seed, r, i],
@@ -261,8 +263,12 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int)
     return pd.DataFrame(rows)
 
 
-def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
-    """Run the stage on one shard in memory: ``(gnss rows, labels, intervals, aided rows, meta)``."""
+def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, sink=None):
+    """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
+
+    ``sink(meta, df)``, when given, receives the GNSS rows batch by batch (and ``gnss rows`` is
+    then None), so a shard's GNSS table never sits whole in memory.
+    """
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     truth = ttruth.read(truth_path, columns=AID_TRUTH_COLUMNS)
     smeta = tshard.read_meta(shard_path)
@@ -288,6 +294,25 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
     every = max(1, round(truth.rate_hz / params.eval_rate_hz))
     batch = batch or batch_size(K)
+    rec = G.get_receiver(params.receiver)
+    meta = {
+        "imugen_version": __version__,
+        "truth": truth_path.name,
+        "truth_sha256": ttruth.checksum(truth_path),
+        "shard": shard_path.name,
+        "grade": sgrade,
+        "route": smeta.get("route"),
+        "seed": seed,
+        "receiver": rec.name,
+        "rate_hz": float(params.rate_hz or rec.rate_hz),
+        "scenarios": [asdict(iv) for iv in params.intervals_parsed],
+        "scenario_draw": list(params.draw_kinds),
+        "options": asdict(opts),
+        "tuning_level": params.tuning_level,
+        "align_speed_mps": params.align_speed_mps,
+        "eval_rate_hz": params.eval_rate_hz,
+        "error": "filter minus truth, ENU of the route origin",
+    }
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
     never = 0
     for ids, a, c in tshard.iter_blocks(shard_path, columns, K, int(batch), 0):
@@ -299,13 +324,16 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
                        speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
         never += int(np.sum(init.k0 >= K))
         res = A.run(dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T)
-        gnss_rows.append(tgnss.frame(ids, scen))
+        if sink is None:
+            gnss_rows.append(tgnss.frame(ids, scen))
+        else:
+            sink(meta, tgnss.frame(ids, scen))
         lab = scen.gnss.labels.copy()
         lab[SEQUENCE] = ids  # global int64 ids (the receiver's labels count from ``first``)
         labels.append(lab)
         intervals.append(scen.intervals)
         aided_rows.append(aided_errors(truth, ids, res, scen, every))
-    if not gnss_rows:
+    if not aided_rows:
         raise InputError(shard_path, "holds no sequences")
     if never:
         warnings.warn(
@@ -314,28 +342,9 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None):
             "aided.align_speed_mps (--align-speed)",
             stacklevel=2,
         )
-    rec = G.get_receiver(params.receiver)
-    meta = {
-        "imugen_version": __version__,
-        "truth": truth_path.name,
-        "truth_sha256": ttruth.checksum(truth_path),
-        "shard": shard_path.name,
-        "grade": sgrade,
-        "route": smeta.get("route"),
-        "seed": seed,
-        "receiver": rec.name,
-        "rate_hz": float(scen.gnss.labels["gnss_rate_hz"].iloc[0]),
-        "scenarios": [asdict(iv) for iv in params.intervals_parsed],
-        "scenario_draw": list(params.draw_kinds),
-        "options": asdict(opts),
-        "tuning_level": params.tuning_level,
-        "align_speed_mps": params.align_speed_mps,
-        "never_aligned": never,
-        "eval_rate_hz": params.eval_rate_hz,
-        "error": "filter minus truth, ENU of the route origin",
-    }
+    meta["never_aligned"] = never
     return (
-        pd.concat(gnss_rows, ignore_index=True),
+        pd.concat(gnss_rows, ignore_index=True) if sink is None else None,
         pd.concat(labels, ignore_index=True),
         pd.concat(intervals, ignore_index=True),
         pd.concat(aided_rows, ignore_index=True),
@@ -347,9 +356,14 @@ def run(truth, shard, out_gnss, out_nav, params: AidParams | None = None, *, bat
     """Run the stage on one shard and write the GNSS table (with sidecars) and the aided
     error table atomically. Returns ``(out_gnss, out_nav)`` paths."""
     params = params or AidParams()
-    g, lab, ivs, nav, meta = aid(truth, shard, params, batch=batch)
-    tgnss.write(g, lab, ivs, {**meta, "stage": "aid-gnss"}, out_gnss)
-    taided.write(nav, {**meta, "stage": "aid", "gnss": Path(out_gnss).name}, out_nav)
+    with tgnss.writer(out_gnss) as w:
+
+        def sink(meta, df):
+            w.meta = {**meta, "stage": "aid-gnss"}
+            w.put(df)
+
+        _, w.labels, w.intervals, nav, meta = aid(truth, shard, params, batch=batch, sink=sink)
+        taided.write(nav, {**meta, "stage": "aid", "gnss": Path(out_gnss).name}, out_nav)
     return Path(out_gnss), Path(out_nav)
 
 

@@ -23,14 +23,19 @@ not the kind's). Metadata (JSON under ``b"imugen"``): ``stage``, ``receiver``, `
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from imugen.errors import InputError
+from imugen.io import atomic_output, with_meta, write_parquet
 from imugen.io import read_meta as read_meta
-from imugen.io import write_parquet
 from imugen.tables._parquet import SEQUENCE, TIME, read_table
 
 ENU = "enu"
@@ -99,6 +104,38 @@ def write(df: pd.DataFrame, labels: pd.DataFrame, intervals: pd.DataFrame, meta:
     write_parquet(labels, meta, labels_path(out))
     write_parquet(intervals, meta, intervals_path(out))
     return write_parquet(df, meta, out)
+
+
+@contextmanager
+def writer(out, meta: dict | None = None) -> Iterator[SimpleNamespace]:
+    """Stream the table batch by batch: ``w.put(df)`` appends rows (one row group each); set
+    ``w.labels`` and ``w.intervals`` before the block ends. ``w.meta`` (settable until the
+    first ``put``) goes to the file and its sidecars. Everything is written atomically when
+    the block succeeds (sidecars first), nothing when it fails."""
+    w = SimpleNamespace(meta=dict(meta or {}), labels=None, intervals=None, rows=0)
+    with atomic_output(out) as tmp:
+        pw = None
+
+        def put(df: pd.DataFrame) -> None:
+            nonlocal pw
+            m = {**w.meta, "units": UNITS}
+            t = with_meta(pa.Table.from_pandas(df[list(COLUMNS)], preserve_index=False), m)
+            if pw is None:
+                pw = pq.ParquetWriter(tmp, t.schema)
+            pw.write_table(t)
+            w.rows += len(df)
+
+        w.put = put
+        try:
+            yield w
+        finally:
+            if pw is not None:
+                pw.close()
+        if pw is None or w.labels is None or w.intervals is None:
+            raise InputError(out, "no GNSS rows or labels to write")
+        m = {**w.meta, "units": UNITS}
+        write_parquet(w.labels, m, labels_path(out))
+        write_parquet(w.intervals, m, intervals_path(out))
 
 
 def read(path, columns=None, filters=None) -> pd.DataFrame:
