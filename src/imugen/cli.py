@@ -125,6 +125,27 @@ def _cmd_navigate(a) -> int:
     return 0
 
 
+def _cmd_aid(a) -> int:
+    from imugen.aid import AidParams, parse_scenarios, run
+
+    try:
+        lever = [float(x) for x in a.lever_arm.split(",")]
+    except ValueError:
+        lever = []
+    if len(lever) != 3:
+        raise InputError("--lever-arm", f"expected X,Y,Z in metres, got {a.lever_arm!r}")
+    params = AidParams(
+        receiver=a.receiver, rate_hz=a.gnss_rate_hz, draw=a.gnss_draw, lever_arm_b_m=lever,
+        lever_arm_sd_m=a.lever_arm_sd, settle_s=a.settle_s, tuning_level=a.tuning_level,
+        gnss_bias_states=not a.no_gnss_bias_states, scale_factors=a.scale_factors, nhc=a.nhc,
+        zupt=not a.no_zupt, gate_sigma=a.gate_sigma, align_speed_mps=a.align_speed,
+        eval_rate_hz=a.eval_rate_hz, seed=a.seed,
+        grade=a.grade, **parse_scenarios(a.scenario),
+    )  # fmt: skip
+    run(a.truth, a.shard, a.gnss_out, a.output, params)
+    return 0
+
+
 def _seconds_list(text: str) -> list[float]:
     """``"30,60,120"`` -> ``[30.0, 60.0, 120.0]`` (argparse type of ``--segments``)."""
     try:
@@ -141,7 +162,10 @@ def _seconds_list(text: str) -> list[float]:
 def _cmd_evaluate(a) -> int:
     from imugen.evaluate import run
 
-    run(a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu)
+    run(
+        a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu,
+        aided_paths=a.aided,
+    )  # fmt: skip
     return 0
 
 
@@ -405,6 +429,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-rate-hz", type=float, default=1.0, help="evaluation epochs per second")
     p.set_defaults(func=_cmd_navigate)
 
+    p = sub.add_parser("aid", help="shard + GNSS with scenarios -> aided (GNSS/INS) nav errors")
+    p.add_argument("truth", help="truth Parquet")
+    p.add_argument("shard", help="shard Parquet written by `imugen simulate`")
+    p.add_argument("--gnss-out", required=True, help="GNSS epochs Parquet (+ .labels/.intervals)")
+    p.add_argument("-o", "--output", required=True, help="aided navigation-error Parquet")
+    p.add_argument("--receiver", default="standalone", help="phone, standalone, sbas or rtk")
+    p.add_argument("--gnss-rate-hz", type=float, help="epoch rate (default: the receiver's)")
+    p.add_argument("--gnss-draw", default="ranges", choices=["ranges", "nominal"])
+    p.add_argument("--lever-arm", default="0,0,0", metavar="X,Y,Z", help="antenna, body frame, m")
+    p.add_argument("--lever-arm-sd", type=float, default=0.0, help="per-axis spread drawn, m")
+    p.add_argument(
+        "--scenario",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="KIND:DURATION@START[,param=value] declared; outage:DURATION drawn per sequence; "
+        "KIND drawn with the documented distributions (repeatable)",
+    )
+    p.add_argument("--settle-s", type=float, default=60.0, help="earliest start of a draw, s")
+    p.add_argument("--tuning-level", default="upper", choices=["nominal", "upper"])
+    p.add_argument("--no-gnss-bias-states", action="store_true", help="no receiver-bias states")
+    p.add_argument("--scale-factors", action="store_true", help="estimate scale factors")
+    p.add_argument(
+        "--nhc",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="non-holonomic constraint (default: on for a car truth)",
+    )
+    p.add_argument("--no-zupt", action="store_true", help="no zero-velocity updates")
+    p.add_argument("--gate-sigma", type=float, default=0.0, help="innovation gate (0: off)")
+    p.add_argument(
+        "--align-speed", type=float, default=5.0, help="GNSS speed of a moving alignment, m/s"
+    )
+    p.add_argument("--eval-rate-hz", type=float, default=1.0, help="evaluation epochs per second")
+    p.add_argument("--seed", type=int, help="root seed (default: the shard's)")
+    p.add_argument("--grade", help="grade of the filter tuning (default: the shard's)")
+    p.set_defaults(func=_cmd_aid)
+
     p = sub.add_parser("evaluate", help="navigation errors of one grade -> per-sequence RMSE")
     p.add_argument("truth", help="truth Parquet")
     p.add_argument("nav", nargs="+", help="navigation-error Parquet files of the grade")
@@ -418,6 +480,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="relative drift after T seconds from true starts (needs --imu), e.g. 30,60,120",
     )
     p.add_argument("--imu", nargs="+", default=[], help="IMU shards of the grade (for --segments)")
+    p.add_argument(
+        "--aided", nargs="+", default=[], help="aided error tables of the grade (imugen aid)"
+    )
     p.set_defaults(func=_cmd_evaluate)
 
     p = sub.add_parser("tables", help="per-grade metrics -> RMSE table (CSV, MD, TeX, HTML)")

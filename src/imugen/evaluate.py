@@ -20,6 +20,26 @@ mechanization of ``T_max`` per start yields every ``T``, so a route of duration 
 of ``T``. ``drift_<T>s_m`` is the mean over the starts (NaN for a ``T`` longer than the route).
 With a constant accelerometer bias ``b`` alone the drift of every start is ``|b| T^2 / 2``.
 
+Aided navigation (``aided``, the error tables of ``imugen aid``, :mod:`imugen.tables.aided`),
+per sequence:
+
+- ``aided_total_m``: RMSE (sqrt(E^2 + N^2 + U^2) of the per-axis RMSE) over the epochs where the
+  filter used a GNSS fix and no scenario was active: the figure "with GNSS";
+- ``aided_nees_pos``: mean over those epochs of ``sum_i (err_i / sd_i)^2 / 3`` with the filter's
+  reported sigmas (about 1 for a consistent filter; per-axis, correlations ignored);
+- ``outage_<D>s_end_m``: horizontal error at the last epoch of an outage of ``D`` s (the last
+  epoch before GNSS returns; ``D`` the time since the last fix, rounded to the second); NaN for
+  a sequence without such an outage (mean when it has several);
+- ``time_to_10m_s``: time from the last fix to the first evaluation epoch of the sequence's
+  first outage where the horizontal error exceeds 10 m (resolution: the evaluation step);
+  infinite when it never does.
+
+Meaningless free-inertial figures: a grade whose median final 3-D free-inertial error exceeds
+:data:`MEANINGLESS_EARTH_FRACTION` of the Earth radius, or :data:`MEANINGLESS_EXTENT_FACTOR`
+times the scene's extent (diagonal of the truth's ENU bounding box), is flagged
+(``free_inertial_meaningless`` in rmse.csv, and a warning recommending the aided figures):
+the error then describes a solution that left the planet or the map, not the IMU.
+
 Per grade: the median over sequences of each value (``east_m``, ``north_m``, ``up_m``,
 ``total_m``, ``drift_<T>s_m``, ...) with its 5th and 95th percentiles (``*_p05_m``,
 ``*_p95_m``).
@@ -40,6 +60,57 @@ from imugen.tables import truth as ttruth
 
 ERR = tnav.ERR_POS
 AXES = tmetrics.AXES
+EARTH_RADIUS_M = 6_371_000.0
+MEANINGLESS_EARTH_FRACTION = 0.1
+"""Flag when the median final free-inertial error exceeds this fraction of the Earth radius."""
+MEANINGLESS_EXTENT_FACTOR = 100.0
+"""... or this multiple of the scene's extent (diagonal of the ENU bounding box of the truth)."""
+TIME_TO_M = 10.0
+"""Horizontal error threshold of ``time_to_10m_s`` (m)."""
+
+
+def outage_column(D: float) -> str:
+    """Name of the error at the end of an outage of ``D`` seconds: ``outage_60s_end_m``."""
+    return f"outage_{D:g}s_end_m"
+
+
+def aided_metrics(aided: pd.DataFrame) -> pd.DataFrame:
+    """Per-sequence aided figures (module docstring) from an aided error table (index ``sequence``)."""
+    from imugen.tables import aided as taided
+
+    a = aided.sort_values(["sequence", "time_s"], kind="stable")
+    seqs = np.sort(a["sequence"].unique())
+    out = pd.DataFrame(index=pd.Index(seqs, name="sequence"))
+    on = a[(a[taided.GNSS_USED] == 1) & (a[taided.STATE] == 0)]
+    ms = on[list(ERR)].pow(2).groupby(on["sequence"]).mean()
+    out["aided_total_m"] = np.sqrt(ms.sum(axis=1)).reindex(seqs)
+    z2 = (on[list(ERR)].to_numpy() / on[list(taided.SD_POS)].to_numpy()) ** 2
+    out["aided_nees_pos"] = (
+        pd.Series(z2.sum(axis=1) / 3.0, index=on.index).groupby(on["sequence"]).mean()
+    ).reindex(seqs)
+    h = np.hypot(a[ERR[0]].to_numpy(), a[ERR[1]].to_numpy())
+    nofix = a[taided.SINCE_FIX].to_numpy() > 0
+    seq = a["sequence"].to_numpy()
+    # runs without a fix that started after a fix (since_fix_s finite): end = last row of a run
+    nxt_same = np.r_[seq[1:] == seq[:-1], False]
+    nxt_nofix = np.r_[nofix[1:], False]
+    end = nofix & ~(nxt_same & nxt_nofix)
+    ends = pd.DataFrame(
+        {"sequence": seq[end], "D": np.round(a[taided.SINCE_FIX].to_numpy()[end]), "h": h[end]}
+    )
+    for D, grp in ends.groupby("D"):
+        out[outage_column(float(D))] = grp.groupby("sequence")["h"].mean().reindex(seqs)
+    # time to exceed 10 m in the first outage of each sequence
+    start = nofix & ~np.r_[False, (seq[1:] == seq[:-1]) & nofix[:-1]]
+    run_id = np.cumsum(start)
+    first_run = pd.Series(run_id).where(nofix).groupby(seq).transform("min").to_numpy()
+    inrun = nofix & (run_id == first_run)
+    over = inrun & (h > TIME_TO_M)
+    tt = pd.Series(a[taided.SINCE_FIX].to_numpy()[over]).groupby(seq[over]).min()
+    has = pd.Series(inrun).groupby(seq).any().reindex(seqs)
+    out["time_to_10m_s"] = np.where(has.to_numpy(), np.inf, np.nan)
+    out.loc[tt.index, "time_to_10m_s"] = tt.to_numpy()
+    return out
 
 
 def sequence_metrics(nav: pd.DataFrame, distance_m: float) -> pd.DataFrame:
@@ -171,17 +242,25 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     return pd.DataFrame({k: np.concatenate(v) if v else [] for k, v in out.items()}, index=index)
 
 
+_OPTIONAL = ("drift_", "aided_", "outage_", "time_to_")
+
+
 def grade_row(grade: str, metrics: pd.DataFrame) -> dict:
     """Median and 5-95 % of each per-sequence value, for one grade."""
     row: dict = {"grade": grade, "sequences": len(metrics)}
     stats = dict(_STATS)
-    stats.update({c: c for c in metrics.columns if c.startswith("drift_")})
+    stats.update({c: c for c in metrics.columns if c.startswith(_OPTIONAL)})
     for name, col in stats.items():
         v = metrics[col].to_numpy(dtype=float)
-        v = v[np.isfinite(v)] if col.startswith("drift_") else v
-        p05, p50, p95 = np.percentile(v, [5, 50, 95]) if len(v) else (np.nan,) * 3
-        stem = name[:-2] if name.endswith("_m") else name
-        unit = "_m" if name.endswith("_m") else ""
+        if col == "time_to_10m_s":  # inf = never: order statistics, no interpolation
+            v = v[~np.isnan(v)]
+            q = np.percentile(v, [5, 50, 95], method="inverted_cdf") if len(v) else [np.nan] * 3
+            p05, p50, p95 = q
+        else:
+            v = v[np.isfinite(v)] if col.startswith(_OPTIONAL) else v
+            p05, p50, p95 = np.percentile(v, [5, 50, 95]) if len(v) else (np.nan,) * 3
+        unit = next((u for u in ("_m", "_s") if name.endswith(u)), "")
+        stem = name[: len(name) - len(unit)]
         row[name] = p50
         row[f"{stem}_p05{unit}"] = p05
         row[f"{stem}_p95{unit}"] = p95
@@ -225,6 +304,18 @@ def display_table(table: pd.DataFrame) -> pd.DataFrame:
                 row[f"Drift {stem[6:-1]} s (m)"] = (
                     f"{_fmt(r[c])} [{_fmt(r[stem + '_p05_m'])}-{_fmt(r[stem + '_p95_m'])}]"
                 )
+        for c in table.columns:
+            if c == "aided_total_m" or (c.startswith("outage_") and c.endswith("_end_m")):
+                stem = c[: -len("_m")]
+                label = "Aided total" if c == "aided_total_m" else f"Outage {stem[7:-5]} s end"
+                row[f"{label} (m)"] = (
+                    f"{_fmt(r[c])} [{_fmt(r[stem + '_p05_m'])}-{_fmt(r[stem + '_p95_m'])}]"
+                )
+        if "time_to_10m_s" in table.columns:
+            v = r["time_to_10m_s"]
+            row["To 10 m (s)"] = "never" if v == np.inf else _fmt(v)
+        if r.get("free_inertial_meaningless"):
+            row["grade"] = f"{r['grade']} (free-inertial meaningless)"
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -289,11 +380,19 @@ def horizontal_distance_m(truth_path) -> float:
     return float(np.hypot(np.diff(e), np.diff(n)).sum())
 
 
-def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=()) -> Path:
+def extent_m(truth_path) -> float:
+    """Diagonal of the truth's ENU bounding box, metres (the scene's extent)."""
+    pos = ttruth.read_arrow(truth_path, columns=list(ttruth.POS))
+    span = [float(np.ptp(pos.column(c).to_numpy())) for c in ttruth.POS]
+    return float(np.sqrt(np.sum(np.square(span))))
+
+
+def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided_paths=()) -> Path:
     """Per-sequence metrics of one grade's navigation shards -> Parquet (index ``sequence``).
 
     With ``segments_s``, the relative drift of every sequence of ``imu_paths`` (the grade's IMU
-    shards, which must hold the same sequences as the navigation files) is added.
+    shards, which must hold the same sequences as the navigation files) is added; with
+    ``aided_paths`` (the grade's aided error tables), the aided figures (module docstring).
     """
     from imugen.errors import InputError
 
@@ -323,9 +422,18 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=()) -> Pa
             warnings.warn(
                 f"{grade}: no segment of {short} s fits the route: drift is NaN", stacklevel=2
             )
+    if aided_paths:
+        from imugen.tables import aided as taided
+
+        aid = pd.concat([aided_metrics(taided.read(p)) for p in aided_paths])
+        if not aid.index.is_unique or not set(aid.index) <= set(metrics.index):
+            raise InputError(grade, "the aided tables do not hold the sequences of the navigation")
+        metrics = metrics.join(aid)
     meta = {
         "stage": "evaluate",
         "grade": grade,
+        "extent_m": extent_m(truth),
+        "aided": [str(p) for p in aided_paths],
         "truth": str(truth),
         "nav": [str(p) for p in nav_paths],
         "distance_horizontal_m": distance,
@@ -340,6 +448,30 @@ def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
     """Gather per-grade metrics files into the RMSE table (CSV, Markdown, LaTeX, HTML)."""
     rows = []
     for p in metrics_paths:
-        grade = tmetrics.read_meta(p)["grade"]
-        rows.append(grade_row(grade, tmetrics.read(p).set_index("sequence")))
+        meta = tmetrics.read_meta(p)
+        row = grade_row(meta["grade"], tmetrics.read(p).set_index("sequence"))
+        row["free_inertial_meaningless"] = meaningless(row["final_3d_m"], meta.get("extent_m"))
+        if row["free_inertial_meaningless"]:
+            has_aided = "aided_total_m" in row
+            warnings.warn(
+                f"{meta['grade']}: median final free-inertial error {row['final_3d_m']:.3g} m "
+                f"exceeds {MEANINGLESS_EARTH_FRACTION:.0%} of the Earth radius or "
+                f"{MEANINGLESS_EXTENT_FACTOR:g} x the scene's extent: its free-inertial figures "
+                "say nothing about the IMU; "
+                + (
+                    "use the aided figures (aided_total_m, outage_*_end_m)"
+                    if has_aided
+                    else "turn on gnss.enabled and use the aided figures"
+                ),
+                stacklevel=2,
+            )
+        rows.append(row)
     return write_tables(grade_table(rows), out_csv)
+
+
+def meaningless(final_3d_m: float, extent: float | None) -> bool:
+    """True when a free-inertial error has left the planet or the scene (module docstring)."""
+    lim = MEANINGLESS_EARTH_FRACTION * EARTH_RADIUS_M
+    if extent is not None and extent > 0:
+        lim = min(lim, MEANINGLESS_EXTENT_FACTOR * float(extent))
+    return bool(np.isfinite(final_3d_m) and final_3d_m > lim)

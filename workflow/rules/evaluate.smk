@@ -9,6 +9,7 @@ rule evaluate:
         truth="results/{route}/truth.parquet",
         nav=shard_paths("nav"),
         imu=shard_paths("imu") if SEGMENTS else [],
+        aided=shard_paths("aided") if AID_ON else [],
         code=stage_code("evaluate", "navigate", "mechanize", "earth", "rotations"),
     output:
         "results/{route}/metrics/{grade}.parquet",
@@ -16,11 +17,12 @@ rule evaluate:
         segments=(
             "--segments " + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
         ),
+        aided="--aided" if AID_ON else "",
     log:
         "logs/{route}/evaluate/{grade}.log",
     shell:
         "imugen evaluate {input.truth:q} {input.nav:q} -o {output:q} --grade {wildcards.grade} "
-        "{params.segments} {input.imu:q} > {log:q} 2>&1"
+        "{params.segments} {input.imu:q} {params.aided} {input.aided:q} > {log:q} 2>&1"
 
 
 rule tables:

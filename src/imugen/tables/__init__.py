@@ -7,12 +7,14 @@ on the atomic writes of :mod:`imugen.io`); no stage parses another's file by han
 - :mod:`~imugen.tables.truth`: truth motion and ideal IMU at the IMU rate;
 - :mod:`~imugen.tables.shard`: measured IMU shard, its labels sidecar, optional series;
 - :mod:`~imugen.tables.nav`: navigation errors per sequence and epoch;
-- :mod:`~imugen.tables.metrics`: per-sequence RMSE and final errors.
+- :mod:`~imugen.tables.metrics`: per-sequence RMSE and final errors;
+- :mod:`~imugen.tables.gnss`: GNSS epochs of ``imugen aid`` with receiver and scenario labels;
+- :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors.
 
 ``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them.
 """
 
-from imugen.tables import enu, metrics, nav, shard, truth
+from imugen.tables import aided, enu, gnss, metrics, nav, shard, truth
 from imugen.tables._parquet import SEQUENCE, TIME
 
-__all__ = ["SEQUENCE", "TIME", "enu", "metrics", "nav", "shard", "truth"]
+__all__ = ["SEQUENCE", "TIME", "aided", "enu", "gnss", "metrics", "nav", "shard", "truth"]
