@@ -9,8 +9,8 @@ import yaml
 
 from imugen.errors import InputError
 
-SECTIONS = ("truth", "simulate", "navigate", "allan", "exports", "figures")
-"""Configuration sections offered on the page (every key the schema gives them)."""
+SKIP = ("routes", "grades")
+"""Top-level keys the page builds itself (the uploaded route, the grade checkboxes)."""
 ROUTE_KEYS = ("vehicle", "path", "dt_s", "origin")
 
 
@@ -53,9 +53,10 @@ def _field(name: str, spec: dict) -> Field | None:
         return Field(
             name, "multi", name.split(".")[-1], help_, list(d or []), spec["items"]["enum"]
         )
-    if "array" in types:  # origin: three numbers
-        return Field(name, "text", name.split(".")[-1], help_ + " (comma-separated)", d)
-    return None
+    items = spec.get("items", {})
+    if "array" in types and items.get("type") in ("number", "integer"):  # e.g. origin, outages
+        return Field(name, "numbers", name.split(".")[-1], help_ + " (comma-separated)", d)
+    return None  # arrays of objects (declared scenario intervals): config files only
 
 
 def route_fields(schema: dict) -> list[Field]:
@@ -64,10 +65,10 @@ def route_fields(schema: dict) -> list[Field]:
 
 
 def section_fields(schema: dict) -> dict[str, list[Field]]:
+    """Every object section of the schema but routes and grades, with its fields."""
     out = {}
-    for sec in SECTIONS:
-        spec = schema["properties"].get(sec)
-        if not spec:
+    for sec, spec in schema["properties"].items():
+        if sec in SKIP or "properties" not in spec:
             continue
         fields = [_field(f"{sec}.{k}", v) for k, v in spec.get("properties", {}).items()]
         out[sec] = [f for f in fields if f is not None]
@@ -88,8 +89,8 @@ def _coerce(f: Field, form) -> object:
             return int(raw)
         if f.kind == "number":
             return float(raw)
-        if f.name == "route.origin":
-            return [float(x) for x in raw.split(",")]
+        if f.kind == "numbers":
+            return [float(x) for x in raw.split(",") if x.strip()]
         if f.name == "route.path" and raw.isdigit():
             return int(raw)
     except ValueError:
