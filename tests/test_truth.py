@@ -234,7 +234,7 @@ def test_speed_profile_limits(vehicle):
     assert v.max() <= vp.cruise_mps * (1 + tol)
     assert np.abs(a).max() <= vp.accel_mps2 * (1 + tol)
     assert np.abs(j).max() <= vp.jerk_mps3 * (1 + tol)
-    lat = truth._curvature(G, np.clip(s, 0, L)) * v**2
+    lat = truth.profile.curvature(G, np.clip(s, 0, L)) * v**2
     assert lat.max() <= vp.lat_accel_mps2 * 1.01 + 1e-9
     # plausible total time: no faster than cruising all along, no slower than a few times
     assert L / vp.cruise_mps < T < 4 * L / vp.cruise_mps + 60
@@ -257,7 +257,7 @@ def test_untimed_truth_starts_and_ends_at_rest():
 def test_right_angle_corner_radius_is_corner_length():
     vp = truth.VEHICLES["car"]
     G, L, _ = truth.fit_path(np.array([[0, 0, 0], [300, 0, 0], [300, 300, 0.0]]), vp)
-    k = truth._curvature(G, np.linspace(0, L, 100_001))
+    k = truth.profile.curvature(G, np.linspace(0, L, 100_001))
     assert 0.8 * vp.corner_m < 1 / k.max() < 1.5 * vp.corner_m
 
 
@@ -468,3 +468,37 @@ def test_run_writes_parquet_atomically(tmp_path):
     assert md["earth"] in ("flat", "wgs84") and md["earth_budget"]["lines"]
     assert md["rate_hz"] == 20 and md["vehicle"] == "car" and m["source"] == str(enu_path)
     assert [p.name for p in out.parent.iterdir()] == ["truth.parquet"]
+
+
+def test_auto_budget_takes_custom_grades(tmp_path):
+    """A custom grade (FILE.yaml:NAME, Grade or figures) decides `--earth auto` like a preset:
+    a navigation-grade custom part needs wgs84 on a route where consumer is flat."""
+    from imugen import grades
+    from imugen.earth import GradeFigures
+
+    f = tmp_path / "g.yaml"
+    f.write_text(
+        "grades:\n"
+        "  nav_mine:\n"
+        "    id: 1201\n"
+        "    gyro:\n"
+        "      turn_on_bias: {value: 0.003, unit: deg_per_h, kind: one_sigma, source: test}\n"
+        "    accel:\n"
+        "      turn_on_bias: {value: 0.01, unit: mg, kind: one_sigma, source: test}\n"
+    )
+    t = np.arange(0, 601, 1.0)
+    enu = np.column_stack([15 * t, 0 * t, 0 * t])
+    kw = {"rate_hz": 1, "earth": "auto", "verbose": False}
+    _, m_cons = _build(enu, t, grade="consumer", **kw)
+    assert m_cons["earth"] == "flat"
+    spec = f"{f}:nav_mine"
+    for g in (spec, grades.get_grade(spec), truth.budget.grade_figures(spec)):
+        _, m = _build(enu, t, grade=g, **kw)
+        assert m["earth"] == "wgs84", m["earth_budget"]["lines"]
+        assert m["earth_budget"]["grade"] == "nav_mine"
+        assert m["earth_budget"]["grades_considered"] == [g if isinstance(g, str) else "nav_mine"]
+    # the most demanding of several decides; figures with no error at all never pick flat
+    _, m = _build(enu, t, grade=["consumer", spec], **kw)
+    assert m["earth"] == "wgs84" and m["earth_budget"]["grade"] == "nav_mine"
+    _, m = _build(enu, t, grade=GradeFigures(name="perfect"), **kw)
+    assert m["earth"] == "wgs84"

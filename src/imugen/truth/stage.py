@@ -1,0 +1,32 @@
+"""The ``imugen truth`` stage: read the ENU table, build the truth, write it."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from imugen.errors import InputError
+from imugen.io import read_meta, write_parquet
+from imugen.truth.build import build_truth
+
+
+def read_enu(path) -> tuple[pd.DataFrame, dict]:
+    """Read an ENU Parquet written by ``imugen ingest`` (table and metadata)."""
+    meta = read_meta(path)
+    return pd.read_parquet(path), meta
+
+
+def run(
+    enu_path, out_path, *, rate_hz: float = 100.0, earth: str = "flat", vehicle: str = "car", **kw
+) -> dict:
+    """Read the ENU Parquet, build the truth, write it atomically; returns the metadata."""
+    enu, meta = read_enu(enu_path)
+    try:
+        df, tmeta = build_truth(enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, **kw)
+    except InputError as exc:
+        if exc.source is None:
+            raise InputError(enu_path, exc.message) from None
+        raise
+    tmeta["source"] = str(enu_path)
+    tmeta["route_source"] = meta.get("source")
+    write_parquet(df, tmeta, out_path)
+    return tmeta
