@@ -13,12 +13,13 @@ from imugen import __version__
 from imugen import columns as col
 from imugen import earth as ea
 from imugen.errors import InputError
-from imugen.truth.attitude import EarthField, attitude_pass
+from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.increments import imu_pass
 from imugen.truth.profile import PathMotion, speed_profile
-from imugen.truth.vehicles import VEHICLES, VehicleParams
+from imugen.truth.report import plausibility, report_lines
+from imugen.truth.vehicles import VehicleParams, vehicle_params
 
 CHUNK = 1 << 16  # samples per evaluation chunk
 
@@ -36,6 +37,7 @@ class TruthOptions:
     lat_accel_mps2: float | None = None
     jerk_mps3: float | None = None
     hold_speed_mps: tuple | None = None
+    vehicle_params: dict | None = None  # VehicleParams fields to override
     auto_fraction: float = 0.1
     extra: dict = field(default_factory=dict)
 
@@ -102,6 +104,17 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
         motion = PathMotion(G, s_pp, L)
         timing = {"timed": False, "source": "speed profile", **rep}
     return motion, fit, timing
+
+
+def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
+    """The ground-vehicle attitude of the motion; heights from the input points of a timed
+    route (their own noise), else from the smoothed path."""
+    if motion.kind != "timed":
+        return GroundAttitude(motion, E, vp)
+    y = enu[list(col.ENU)].to_numpy(dtype=float)
+    h = y[:, 2] if E.flat else E.frame.geodetic_from_n(y)[2]
+    noise_up = float(fit["noise_estimate_m"][2])
+    return GroundAttitude(motion, E, vp, (enu[col.TIME].to_numpy(float), h), noise_up)
 
 
 def _column_slices() -> dict:
@@ -172,8 +185,6 @@ def build_truth(
     (DataFrame, dict)
         Truth table (float64) and its metadata.
     """
-    if vehicle not in VEHICLES:
-        raise InputError("--vehicle", f"unknown vehicle {vehicle!r}; one of {sorted(VEHICLES)}")
     if earth not in ("flat", "wgs84", "auto"):
         raise InputError("--earth", f"unknown Earth model {earth!r}; flat, wgs84 or auto")
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
@@ -182,7 +193,7 @@ def build_truth(
     if unknown:
         raise TypeError(f"unknown options {sorted(unknown)}")
     opts = TruthOptions(grade=grade, **options)
-    vp = VEHICLES[vehicle]
+    vp = vehicle_params(vehicle, opts.vehicle_params)
     if opts.hold_speed_mps is not None:
         vp = replace(vp, hold_speed_mps=tuple(opts.hold_speed_mps))
     lat0, lon0, h0 = _origin(meta)
@@ -204,18 +215,26 @@ def build_truth(
             for line in budget.lines:
                 print(line, file=sys.stderr)
     E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+    ground = _ground(motion, E, vp, enu, fit)
 
     ci = _column_slices()
     out = np.zeros((K, len(col.TRUTH_COLUMNS)))
     out[:, col.TRUTH_COLUMNS.index(col.TIME)] = times
-    f_n, stats = attitude_pass(out, ci, motion, times, E, vp, chunk)
+    f_n, stats = attitude_pass(out, ci, motion, times, E, vp, chunk, ground)
     imu_pass(out, ci, f_n, E, motion, times, dt, chunk)
     del f_n
     if not np.all(np.isfinite(out)):
         raise InputError(None, "truth generation produced non-finite values (report this route)")
 
     df = pd.DataFrame(out, columns=list(col.TRUTH_COLUMNS), copy=False)
+    airborne = stats.pop("airborne")
     stats["speed_max_mps"] = float(np.linalg.norm(out[:, ci["vel"]], axis=1).max())
+    y_in = enu[list(col.ENU)].to_numpy(dtype=float)
+    t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
+    plaus = plausibility(df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne)
+    if verbose:
+        for line in report_lines(plaus):
+            print(line, file=sys.stderr)
     tmeta = {
         "stage": "truth",
         "imugen_version": __version__,
@@ -232,6 +251,8 @@ def build_truth(
         "fit": fit,
         "timing": timing,
         "motion": stats,
+        "ground_attitude": ground.report,
+        "plausibility": plaus,
         "conventions": "n = ENU of the origin, b = FLU; C_nb = Rz(yaw) Ry(-pitch) Rx(roll) "
         "relative to the local level at the vehicle; quaternion scalar first; increments on the "
         "row ending their interval (row 0 zeros)",

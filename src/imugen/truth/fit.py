@@ -89,9 +89,10 @@ class _PenalizedSpline:
     """Quintic B-spline with knots at the data sites; minimizes residual^2 + lam*int(f''')^2.
 
     ``ties``: list of (i0, i1) coefficient ranges forced equal (constant stretches).
+    ``weights``: per-site weights of the squared residuals (default 1).
     """
 
-    def __init__(self, x, ties=()):
+    def __init__(self, x, ties=(), weights=None):
         x = np.asarray(x, float)
         k = K_SPLINE
         self.x0 = x[0]
@@ -102,6 +103,9 @@ class _PenalizedSpline:
         n = len(self.tau) - k - 1
         self.n = n
         B = BSpline.design_matrix(u, self.tau, k).tocsc()
+        self.sw = None if weights is None else np.sqrt(np.asarray(weights, float))
+        if self.sw is not None:
+            B = (sp.diags(self.sw) @ B).tocsc()
         # tie matrix: c_full = M c_red
         keep = np.ones(n, dtype=bool)
         rows, cols_ = [], []
@@ -137,13 +141,17 @@ class _PenalizedSpline:
         G = Bq.T @ sp.diags(wq) @ Bq
         return D.T @ G @ D
 
+    def _w(self, y):
+        return y if self.sw is None else self.sw * y
+
     def solve(self, lam, y):
         lu = splu((self.BtB + lam * self.P).tocsc())
-        return lu.solve(self.B.T @ y)
+        return lu.solve(self.B.T @ self._w(y))
 
     def rms(self, lam, y):
+        """RMS of the (weighted) residuals."""
         c = self.solve(lam, y)
-        return float(np.sqrt(np.mean((self.B @ c - y) ** 2)))
+        return float(np.sqrt(np.mean((self.B @ c - self._w(y)) ** 2)))
 
     def lam_for_rms(self, y, target, lo=-6.0, hi=12.0):
         """log10 lambda (normalized time) whose RMS residual equals ``target``.
@@ -188,19 +196,25 @@ class TimedMotion:
     def position(self, t):
         return self.d[0](t)
 
+    def velocity(self, t):
+        return self.d[1](t)
+
     def eval(self, t):
         """(p, v, a, j), each shape (m, 3), at times ``t`` (m,)."""
         return tuple(s(t) for s in self.d)
 
 
 def _find_stops(t, y, noise_m, vp: VehicleParams):
-    """Index ranges (i0, i1) of input points that are stops.
+    """Index ranges (i0, i1) of input points that are stops, from the horizontal motion.
 
-    A point is still when the points within ``stop_min_s / 2`` of it span a box of diagonal
+    ``y`` holds the horizontal coordinates (N, 2) and ``noise_m`` their noise (GNSS heights
+    are noisier and step at stops: they do not decide). A point is still when the points within ``stop_min_s / 2`` of it span a box of diagonal
     at most ``2 r`` with ``r = max(stop_radius_m, 3 * noise_m)``; runs of still points (and
     their windows) lasting at least ``stop_min_s`` whose points all lie within ``r`` of the
     run's median and whose net displacement (median of the first third to median of the last
-    third) is below ``r / 2`` and ``stop_speed_mps`` times the duration are stops.
+    third) is below ``r / 2`` and ``stop_speed_mps`` times the duration are stops; so is
+    the interval between two consecutive fixes at least ``stop_min_s`` apart that moved less
+    than that (sparse fixes). Overlapping stops are merged.
     """
     n = len(t)
     if n < 3:
@@ -226,7 +240,21 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
         net = np.linalg.norm(np.median(pts[-third:], axis=0) - np.median(pts[:third], axis=0))
         if net <= min(0.5 * r, vp.stop_speed_mps * dur):
             stops.append((int(i0), int(i1)))
-    return stops
+    # sparse fixes: two consecutive fixes at least stop_min_s apart that moved less than r
+    # (and than stop_speed_mps on average) bracket a stop the window above cannot see
+    step = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    dt = np.diff(t)
+    pairs = np.flatnonzero(
+        (dt >= vp.stop_min_s) & (step <= np.minimum(0.5 * r, vp.stop_speed_mps * dt))
+    )
+    stops += [(int(i), int(i) + 1) for i in pairs]
+    merged = []
+    for i0, i1 in sorted(stops):
+        if merged and i0 <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], i1))
+        else:
+            merged.append((i0, i1))
+    return merged
 
 
 def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
@@ -263,7 +291,7 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
     spline = ps.bspline(coef)
     stop_list = []
     if stops:
-        stop_list = _find_stops(t, y, norm, vp)
+        stop_list = _find_stops(t, y[:, :2], float(np.hypot(sig[0], sig[1])), vp)
         if stop_list:
             # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
             ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
@@ -345,3 +373,61 @@ def fit_path(y, vp: VehicleParams, corner_m=None):
         "length_m": L,
     }
     return G, L, report
+
+
+# ------------------------------------------------------------------------------------------
+# height against horizontal distance (road grade)
+# ------------------------------------------------------------------------------------------
+def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
+    """Height against horizontal distance, smoothed at the height noise.
+
+    Points are binned by distance (``bin_m``; a stop's points fall into one bin, so height
+    noise or a height step at a stop is averaged, never a slope), and a quintic penalized
+    smoothing spline (penalty on the third derivative) is fitted to the bin means weighted by
+    their counts; its smoothing makes the count-weighted RMS residual equal to ``noise_m``
+    (discrepancy principle, the noise of one point), and is at least that of a bandwidth of
+    ``smooth_m`` (GNSS heights step and wander; quantized heights have no noise to measure).
+
+    Parameters
+    ----------
+    s : ndarray, shape (N,)
+        Horizontal distance travelled [m] (non-decreasing).
+    h : ndarray, shape (N,)
+        Height [m].
+    noise_m : float
+        White-noise level of ``h`` [m].
+    bin_m : float
+        Bin width [m].
+    smooth_m : float
+        Least smoothing length [m].
+    floor_m : float
+        Smallest residual target [m].
+
+    Returns
+    -------
+    (BSpline or None, dict)
+        ``H(s)`` (None when fewer than 6 bins: level) and a report.
+    """
+    s = np.asarray(s, float)
+    h = np.asarray(h, float)
+    b = np.floor((s - s[0]) / bin_m).astype(np.int64)
+    _, inv, cnt = np.unique(b, return_inverse=True, return_counts=True)
+    sm = np.bincount(inv, s) / cnt
+    hm = np.bincount(inv, h) / cnt
+    if len(sm) < 6:
+        return None, {"bins": len(sm), "method": "level (too short)"}
+    ps = _PenalizedSpline(sm, weights=cnt)
+    target = max(float(noise_m), floor_m)
+    lam = max(10.0 ** ps.lam_for_rms(hm, target), (smooth_m / ps.scale) ** 6)
+    H = ps.bspline(ps.solve(lam, hm))
+    res = H(sm) - hm
+    report = {
+        "method": "quintic penalized smoothing spline of binned height against distance",
+        "bins": len(sm),
+        "bin_m": bin_m,
+        "smooth_m": smooth_m,
+        "lambda_normalized": lam,
+        "noise_m": float(noise_m),
+        "rms_residual_m": float(np.sqrt(np.sum(cnt * res**2) / np.sum(cnt))),
+    }
+    return H, report

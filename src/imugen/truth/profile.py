@@ -30,6 +30,9 @@ class PathMotion:
     def position(self, t):
         return self.G[0](self._s(t))
 
+    def velocity(self, t):
+        return self.G[1](self._s(t)) * self.S[1](t)[:, None]
+
     def eval(self, t):
         s = self._s(t)
         sd, sdd, sddd = (self.S[i](t)[:, None] for i in (1, 2, 3))

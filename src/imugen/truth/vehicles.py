@@ -1,25 +1,59 @@
-"""Vehicle classes of the truth: defaults and physical limits (SI units).
+"""Vehicle classes of the truth: motion models, defaults and physical limits (SI units).
 
-See :mod:`imugen.truth` for the role of each field.
+Every field can be overridden per truth (``build_truth(..., vehicle_params={...})``, CLI
+``imugen truth --vehicle-param NAME=VALUE``). Roles:
+
+* ``attitude``: ``"ground"`` (heading from the horizontal velocity, pitch from the road grade,
+  roll zero or the lean of a coordinated turn) or ``"coordinated"`` (aircraft: ground model
+  below ``airborne_speed_mps``, coordinated flight above).
+* speed profile of untimed paths: ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``,
+  ``jerk_mps3``, ``corner_m`` (corner-rounding length of the polyline).
+* ground attitude: ``max_curvature_1pm`` (the heading turns at most ``speed x
+  max_curvature``: no turning on the spot), ``heading_smooth_m`` (Gaussian smoothing of the
+  heading along the distance: how fast a turn sets in), ``max_pitch_rad`` (bound of the pitch taken from
+  the grade), ``lean`` (bicycle: roll = ``atan(v^2 kappa / g)``), ``max_roll_rad`` (bound of
+  that lean), ``grade_bin_m`` (bin of the height-against-distance fit),
+  ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
+  vertical curves, not at a GNSS height step).
+* coordinated flight: ``hold_speed_mps``, ``hold_perp`` (attitude held below these speed and
+  perpendicular-force thresholds), ``airborne_speed_mps`` (blend from ground to flight
+  between 0.8x and 1x this horizontal speed).
+* fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
+  ``fit_floor_m``.
+* plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
+  ``max_accel_mps2`` and the attitude bounds above.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields, replace
+
+from imugen.errors import InputError
 
 
 @dataclass(frozen=True)
 class VehicleParams:
-    """Defaults of a vehicle type (SI units). See the module docstring for their roles."""
+    """Model and limits of a vehicle class (SI units, radians); see the module docstring."""
 
-    attitude: str  # "level" (roll 0) or "coordinated" (body z along specific force)
+    attitude: str
     cruise_mps: float
     accel_mps2: float
     lat_accel_mps2: float
     jerk_mps3: float
     corner_m: float
+    max_curvature_1pm: float
+    max_pitch_rad: float
+    max_roll_rad: float = 0.0
+    lean: bool = False
+    grade_bin_m: float = 0.5
+    heading_smooth_m: float = 2.0
+    grade_smooth_m: float = 20.0
+    max_speed_mps: float = 70.0
+    max_accel_mps2: float = 8.0
+    airborne_speed_mps: float = math.inf
     hold_speed_mps: tuple = (0.2, 1.0)
-    hold_perp: tuple = (0.05, 0.1)  # |r_perp| thresholds: cos(pitch) (level) or m/s^2 (aircraft)
+    hold_perp: tuple = (0.05, 0.1)  # |r_perp| thresholds [m/s^2] of coordinated flight
     stop_speed_mps: float = 0.2
     stop_min_s: float = 2.0
     stop_radius_m: float = 1.0
@@ -28,23 +62,50 @@ class VehicleParams:
 
 
 VEHICLES = {
-    # car: 50 km/h cruise, 0.2 g longitudinal, 0.3 g lateral, 1 m/s^3 comfort jerk; heading
-    # held below 0.2 m/s, fully along the velocity above 1 m/s (GNSS tracks swing the velocity
-    # direction at walking pace; a car cannot turn on the spot)
-    "car": VehicleParams("level", 13.9, 2.0, 3.0, 1.0, 10.0),
-    # pedestrian: 5 km/h, gentle accelerations, corners rounded over ~1 m
+    # car: 50 km/h cruise, 0.2 g longitudinal, 0.3 g lateral, 1 m/s^3 comfort jerk; turning
+    # radius >= 5 m; road grade within +-20 deg (steepest public roads ~35 %); roll 0;
+    # plausible up to 250 km/h and 0.8 g
+    "car": VehicleParams(
+        "ground", 13.9, 2.0, 3.0, 1.0, 10.0, max_curvature_1pm=0.2, max_pitch_rad=0.35
+    ),
+    # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
+    "bicycle": VehicleParams(
+        "ground",
+        5.5,
+        1.0,
+        2.5,
+        1.0,
+        3.0,
+        max_curvature_1pm=1.0 / 3.0,
+        max_pitch_rad=0.35,
+        max_roll_rad=0.785,
+        lean=True,
+        heading_smooth_m=3.0,
+        grade_smooth_m=10.0,
+        max_speed_mps=25.0,
+        max_accel_mps2=5.0,
+    ),
+    # pedestrian: 5 km/h, gentle accelerations, corners rounded over ~1 m; turns on a 0.5 m
+    # radius at least; slopes up to 35 deg (stairs); plausible up to a 12 m/s sprint
     "pedestrian": VehicleParams(
-        "level",
+        "ground",
         1.4,
         0.5,
         0.5,
         1.0,
         1.0,
+        max_curvature_1pm=2.0,
+        max_pitch_rad=0.61,
+        heading_smooth_m=0.5,
+        grade_smooth_m=5.0,
+        max_speed_mps=12.0,
+        max_accel_mps2=5.0,
         hold_speed_mps=(0.1, 0.5),
         stop_speed_mps=0.1,
         stop_radius_m=1.0,
     ),
-    # aircraft: 70 m/s, 0.3 g longitudinal, 0.5 g lateral (~27 deg bank), 2 m/s^3
+    # aircraft: 70 m/s, 0.3 g longitudinal, 0.5 g lateral (~27 deg bank), 2 m/s^3; on the
+    # ground (below 25 m/s) a taxiing vehicle: radius >= 10 m, pitch within 5 deg
     "aircraft": VehicleParams(
         "coordinated",
         70.0,
@@ -52,6 +113,14 @@ VEHICLES = {
         5.0,
         2.0,
         300.0,
+        max_curvature_1pm=0.1,
+        max_pitch_rad=0.087,
+        heading_smooth_m=5.0,
+        grade_smooth_m=50.0,
+        max_roll_rad=1.05,
+        max_speed_mps=300.0,
+        max_accel_mps2=30.0,
+        airborne_speed_mps=25.0,
         hold_speed_mps=(0.5, 2.0),
         hold_perp=(0.3, 1.0),
         stop_speed_mps=0.5,
@@ -59,3 +128,34 @@ VEHICLES = {
         fit_tol_max_m=20.0,
     ),
 }
+
+
+def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams:
+    """The vehicle class ``vehicle`` with fields replaced by ``overrides`` (validated)."""
+    if vehicle not in VEHICLES:
+        raise InputError("--vehicle", f"unknown vehicle {vehicle!r}; one of {sorted(VEHICLES)}")
+    vp = VEHICLES[vehicle]
+    if not overrides:
+        return vp
+    known = {f.name: f for f in fields(VehicleParams)}
+    new = {}
+    for name, value in overrides.items():
+        if name not in known or name == "attitude":
+            raise InputError("--vehicle-param", f"unknown vehicle parameter {name!r}")
+        old = getattr(vp, name)
+        try:
+            if isinstance(old, tuple):
+                value = tuple(float(x) for x in value)
+                ok = len(value) == 2 and 0 <= value[0] < value[1]
+            elif isinstance(old, bool):
+                value = value if isinstance(value, bool) else str(value).lower() == "true"
+                ok = True
+            else:
+                value = float(value)
+                ok = value >= 0 if name == "max_roll_rad" else value > 0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError("--vehicle-param", f"{name}: invalid value {value!r}")
+        new[name] = value
+    return replace(vp, **new)
