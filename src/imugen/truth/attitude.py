@@ -305,18 +305,14 @@ _GL = np.polynomial.legendre.leggauss(4)
 
 @njit(cache=True)
 def _rate_limit(d, step):
-    """Mean of the forward and backward passes of a slope limiter: ``|x[j+1] - x[j]| <=
-    step``; symmetric (no lag), and the mean of two step-limited sequences is step-limited."""
+    """Slope limiter ``|x[j+1] - x[j]| <= step`` following ``d`` forward: where the path
+    turns faster (a reversal through a stop), the heading turns as the vehicle moves on."""
     n = d.shape[0]
     f = np.empty(n)
-    b = np.empty(n)
     f[0] = d[0]
     for j in range(1, n):
         f[j] = min(max(d[j], f[j - 1] - step), f[j - 1] + step)
-    b[n - 1] = d[n - 1]
-    for j in range(n - 2, -1, -1):
-        b[j] = min(max(d[j], b[j + 1] - step), b[j + 1] + step)
-    return 0.5 * (f + b)
+    return f
 
 
 def soft_bound(x, m):
@@ -360,8 +356,8 @@ class GroundAttitude:
     """Attitude of a ground vehicle against the horizontal distance travelled ``s``.
 
     * heading ``Psi(s)``: the direction of the horizontal velocity (local level) at distance
-      nodes ``ds = 0.1 / max_curvature`` apart, unwrapped, slope-limited to
-      ``|dPsi/ds| <= max_curvature`` (symmetric limiter), Gaussian-smoothed (sigma
+      nodes ``ds = max(0.1 / max_curvature, 0.1 m)`` apart, unwrapped, slope-limited to
+      ``|dPsi/ds| <= max_curvature`` (forward: no anticipation of a turn), Gaussian-smoothed (sigma
       ``heading_smooth_m``)
       and represented by a variation-diminishing quintic B-spline: the yaw rate
       ``Psi'(s) v_h`` never exceeds ``v_h max_curvature`` (no turning on the spot; a reversal
@@ -395,7 +391,7 @@ class GroundAttitude:
         L = float(sg[-1])
         self.length_m = L
         k = vp.max_curvature_1pm
-        ds = 0.1 / k
+        ds = max(0.1 / k, 0.1)
         ns = math.ceil(L / ds)
         if ns > 2_000_000:
             ns = 2_000_000
@@ -441,12 +437,9 @@ class GroundAttitude:
 
     def distance_steps(self, motion, t):
         """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre
-        quadrature of the local-level horizontal speed), shape (len(t) - 1,) [m]."""
+        quadrature of the horizontal speed in n), shape (len(t) - 1,) [m]."""
         tq, wq = _gl_nodes(t)
-        tq = tq.ravel()
-        v = motion.velocity(tq)
-        if not self.E.flat:
-            _, v, _ = self.E.local(motion.position(tq), v)
+        v = motion.velocity(tq.ravel())
         vh = np.hypot(v[:, 0], v[:, 1]).reshape(wq.shape)
         return np.sum(wq * vh, axis=1)
 
@@ -454,11 +447,11 @@ class GroundAttitude:
         """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,
         velocity and acceleration in n (m,3)."""
         vp = self.vp
-        C_ln, v_l, w_nl = self.E.local(p, v)
-        a_l = np.einsum("mij,mj->mi", C_ln, a) - np.cross(w_nl, v_l)
-        vh = np.hypot(v_l[:, 0], v_l[:, 1])
+        C_ln, _, w_nl = self.E.local(p, v)
+        # ds/dt: horizontal speed in n (the distance s is its integral)
+        vh = np.hypot(v[:, 0], v[:, 1])
         vh_d = np.divide(
-            v_l[:, 0] * a_l[:, 0] + v_l[:, 1] * a_l[:, 1], vh, out=np.zeros_like(vh), where=vh > 0
+            v[:, 0] * a[:, 0] + v[:, 1] * a[:, 1], vh, out=np.zeros_like(vh), where=vh > 0
         )
         s = np.clip(s, 0.0, self.length_m)
         psi = self.Psi(s)

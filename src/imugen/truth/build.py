@@ -169,13 +169,15 @@ def build_truth(
     rate_hz : float
         IMU rate; samples at ``t0 + k / rate_hz`` over the route.
     earth : {"flat", "wgs84", "auto"}
-        Earth model (``auto``: budget printed to stderr and stored in the metadata).
+        Earth model (``auto``: budget stored in the metadata).
     vehicle : str
         A key of :data:`imugen.truth.VEHICLES`.
     grade : str, Grade, GradeFigures or a list of them, optional
         Sensor grade(s) for the ``auto`` budget (default ``consumer``): preset names,
         ``FILE.yaml:NAME`` custom grades, grade objects or budget figures; with several, any
         grade whose budget needs ``wgs84`` makes the truth ``wgs84``.
+    verbose : bool
+        Print the ``auto`` budget and the plausibility report to stderr.
     **options
         Fields of :class:`TruthOptions` (``fit_tol_m``, ``stops``, ``corner_m``,
         ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``, ``jerk_mps3``, ``hold_speed_mps``).
@@ -211,9 +213,6 @@ def build_truth(
     if earth == "auto":
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)
         model = budget.model
-        if verbose:
-            for line in budget.lines:
-                print(line, file=sys.stderr)
     E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
     ground = _ground(motion, E, vp, enu, fit)
 
@@ -232,9 +231,6 @@ def build_truth(
     y_in = enu[list(col.ENU)].to_numpy(dtype=float)
     t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
     plaus = plausibility(df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne)
-    if verbose:
-        for line in report_lines(plaus):
-            print(line, file=sys.stderr)
     tmeta = {
         "stage": "truth",
         "imugen_version": __version__,
@@ -258,4 +254,13 @@ def build_truth(
         "row ending their interval (row 0 zeros)",
         "units": {c: col.UNITS[c] for c in col.TRUTH_COLUMNS},
     }
+    if verbose:
+        for line in messages(tmeta):
+            print(line, file=sys.stderr)
     return df, tmeta
+
+
+def messages(tmeta: dict) -> list[str]:
+    """Lines for stderr of a truth's metadata: its Earth budget and plausibility report."""
+    budget = tmeta.get("earth_budget")
+    return (budget["lines"] if budget else []) + report_lines(tmeta["plausibility"])

@@ -207,11 +207,11 @@ class TimedMotion:
 def _find_stops(t, y, noise_m, vp: VehicleParams):
     """Index ranges (i0, i1) of input points that are stops, from the horizontal motion.
 
-    ``y`` holds the horizontal coordinates (N, 2) and ``noise_m`` their noise (GNSS heights
-    are noisier and step at stops: they do not decide). A point is still when the points within ``stop_min_s / 2`` of it span a box of diagonal
+    ``y`` holds the coordinates that decide (N, d): horizontal for ground vehicles (GNSS
+    heights are noisier and step at stops), 3-D for aircraft; ``noise_m`` is their noise. A point is still when the points within ``stop_min_s / 2`` of it span a box of diagonal
     at most ``2 r`` with ``r = max(stop_radius_m, 3 * noise_m)``; runs of still points (and
-    their windows) lasting at least ``stop_min_s`` whose points all lie within ``r`` of the
-    run's median and whose net displacement (median of the first third to median of the last
+    their windows), trimmed to their longest stretch within ``r`` of their median, lasting
+    at least ``stop_min_s`` whose points all lie within ``r`` of the run's median and whose net displacement (median of the first third to median of the last
     third) is below ``r / 2`` and ``stop_speed_mps`` times the duration are stops; so is
     the interval between two consecutive fixes at least ``stop_min_s`` apart that moved less
     than that (sparse fixes). Overlapping stops are merged.
@@ -230,6 +230,16 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
     edges = np.flatnonzero(np.diff(np.r_[0, mark.astype(np.int8), 0]))
     stops = []
     for i0, i1 in zip(edges[::2], edges[1::2] - 1, strict=True):
+        for _ in range(3):  # trim the run to its longest stretch within r of its median
+            if i1 <= i0:
+                break
+            pts = y[i0 : i1 + 1]
+            near = np.linalg.norm(pts - np.median(pts, axis=0), axis=1) <= r
+            if near.all() or not near.any():
+                break
+            e = np.flatnonzero(np.diff(np.r_[0, near.astype(np.int8), 0]))
+            j = int(np.argmax(e[1::2] - e[::2]))
+            i0, i1 = i0 + int(e[2 * j]), i0 + int(e[2 * j + 1]) - 1
         dur = t[i1] - t[i0]
         if i1 <= i0 or dur < vp.stop_min_s:
             continue
@@ -291,7 +301,10 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
     spline = ps.bspline(coef)
     stop_list = []
     if stops:
-        stop_list = _find_stops(t, y[:, :2], float(np.hypot(sig[0], sig[1])), vp)
+        # ground vehicles stop horizontally (heights step at stops); aircraft also climb
+        # vertically, so their stops are 3-D
+        d = 2 if vp.attitude == "ground" else 3
+        stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp)
         if stop_list:
             # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
             ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]

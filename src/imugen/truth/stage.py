@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import sys
+
 import pandas as pd
 
 from imugen.errors import InputError
 from imugen.io import read_meta, write_parquet
-from imugen.truth.build import build_truth
+from imugen.truth.build import build_truth, messages
 
 
 def read_enu(path) -> tuple[pd.DataFrame, dict]:
@@ -18,8 +20,10 @@ def read_enu(path) -> tuple[pd.DataFrame, dict]:
 def run(
     enu_path, out_path, *, rate_hz: float = 100.0, earth: str = "flat", vehicle: str = "car", **kw
 ) -> dict:
-    """Read the ENU Parquet, build the truth, write it atomically; returns the metadata."""
+    """Read the ENU Parquet, build the truth, write it atomically, then print the Earth
+    budget and the plausibility report (stderr); returns the metadata."""
     enu, meta = read_enu(enu_path)
+    kw["verbose"] = False
     try:
         df, tmeta = build_truth(enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, **kw)
     except InputError as exc:
@@ -29,4 +33,6 @@ def run(
     tmeta["source"] = str(enu_path)
     tmeta["route_source"] = meta.get("source")
     write_parquet(df, tmeta, out_path)
+    for line in messages(tmeta):
+        print(line, file=sys.stderr)
     return tmeta
