@@ -9,8 +9,9 @@ chosen per axis by the *discrepancy principle*: the RMS residual equals the posi
 estimated from the data itself (robust scale of the residuals of predicting every point from
 its neighbours, :func:`noise_estimate`), bounded by ``[fit_floor_m,
 fit_tol_max_m]``; ``fit_tol_m`` overrides it by a 3-D RMS tolerance. Input stretches of at
-least ``stop_min_s`` whose points stay within ``stop_radius_m`` (or 3x the noise) of their
-median and barely move overall (see :func:`_find_stops`) are *stops*: the spline is
+least ``stop_min_s`` whose horizontal positions (3-D for aircraft) stay within
+``stop_radius_m`` (or 3x the noise) of their median and barely move overall, and intervals
+between sparse fixes that barely moved (see :func:`imugen.truth.fit._find_stops`), are *stops*: the spline is
 constrained to be exactly constant there (its B-spline coefficients over the stop are tied),
 so velocity, acceleration, jerk and snap vanish at the stop's edges and the stop is a real stop.
 
@@ -25,17 +26,27 @@ acceleration bound and the non-negative speed; ``s(t)`` is a C^3 piecewise quart
 the filtering lifts the lateral acceleration above the limit, the limit is lowered there and
 the profile rebuilt. Position is ``G(s(t))``; derivatives by the chain rule.
 
-Attitude
---------
-Body x along the velocity; body z along the component perpendicular to x of a reference
-vector ``r``: the local geodetic up at the vehicle for cars and pedestrians (roll 0, pitch =
-climb angle, level relative to the local level in ``wgs84``), the specific force for aircraft
-(coordinated turn, no sideslip; loops and vertical flight work because nothing is measured
-in Euler angles). Rates come analytically from velocity, acceleration, jerk and the
-derivative of ``r``. When the speed is below ``hold_speed_mps[0]`` (or ``r`` is nearly
-parallel to the velocity) the attitude is held; between the two thresholds of a quintic
-smoothstep weight ``w`` it is ``q_hold * Exp(w Log(q_hold^-1 q_target))`` (C^2 in time),
-with the analytic rate ``w' phi + w J_r(w phi) J_r^-1(phi) omega_target``.
+Attitude (per vehicle class, :mod:`imugen.truth.vehicles`)
+----------------------------------------------------------
+*Ground vehicles* (car, bicycle, pedestrian; an aircraft below its take-off speed): the
+attitude is a function of the horizontal distance travelled ``s``
+(:class:`imugen.truth.attitude.GroundAttitude`): heading ``Psi(s)`` along the horizontal
+velocity, its slope bounded by ``max_curvature_1pm`` (the yaw rate ``Psi'(s) v_h`` never
+exceeds speed x max curvature: no turning on the spot; a reversal through a stop is a U-turn
+on the vehicle's radius, never a branch flip); pitch from the grade of the height profile
+against distance, smoothed at the height noise and over at least ``grade_smooth_m``,
+bounded by ``max_pitch_rad``; roll zero, or for a bicycle the lean of a coordinated turn.
+Where the vehicle does not move, ``s`` and the whole attitude are exactly constant. Rates
+are the Euler-angle rates plus the transport rate of the local level, exact.
+
+*Aircraft in flight*: body x along the velocity, body z along the specific force's component
+perpendicular to it (coordinated turn, no sideslip; loops and vertical flight work because
+nothing is measured in Euler angles); rates analytic from velocity, acceleration and jerk;
+held below ``hold_speed_mps`` by ``q_hold Exp(w Log(q_hold^-1 q_target))``. Between 0.8 and 1
+x ``airborne_speed_mps`` the ground and flight attitudes are blended the same way, with the
+exact rate of the blend.
+
+Every truth carries a plausibility report (:mod:`imugen.truth.report`).
 
 Ideal IMU (per :mod:`imugen.earth` and the issue-3 spec)
 ---------------------------------------------------------
