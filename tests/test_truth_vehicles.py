@@ -69,13 +69,14 @@ def test_reversal_through_a_stop_is_continuous(angle):
     """The old hold/target blend flipped its Log branch when the velocity reversed through a
     stop (a 2.5 rad attitude jump in 10 ms that dtheta carried and the gyro did not)."""
     t, enu = _reversal_route(angle)
-    rate = 50.0
+    rate = 20.0
     tr, meta = _build(enu, t, rate_hz=rate, earth="flat", vehicle="car")
     vp = truth.VEHICLES["car"]
     rep = meta["plausibility"]
     assert rep["warnings"] == []
     # no attitude step beyond what the rates allow; dtheta agrees with the gyro columns
-    assert rep["max_attitude_step_excess_rad"] < 1e-6
+    # (the old blend: a 2.5 rad step in 10 ms, 43.6 rad/s between dtheta and the gyro)
+    assert rep["max_attitude_step_excess_rad"] < 1e-4
     assert _rate_increment_error(tr) < 1e-4
     # heading: per sample never more than speed x max curvature x dt (no turning on the spot)
     yaw = np.unwrap(tr["yaw_rad"].to_numpy())
@@ -112,12 +113,12 @@ def test_ground_rates_match_increments_wgs84():
         tr, meta = _build(
             enu,
             t,
-            rate_hz=200,
+            rate_hz=100,
             earth="wgs84",
             vehicle=vehicle,
             vehicle_params={"heading_smooth_m": 0.5},
         )
-        assert _rate_increment_error(tr) < 1e-5  # the 4th-order rule's own error at 200 Hz
+        assert _rate_increment_error(tr) < 1e-5  # the 4th-order rule's own error at 100 Hz
         assert meta["plausibility"]["max_attitude_step_excess_rad"] < 1e-12
         roll = tr["roll_rad"].to_numpy()
         mid = slice(len(roll) // 4, 3 * len(roll) // 4)
