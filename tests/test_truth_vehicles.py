@@ -219,6 +219,26 @@ def test_report_flags_an_attitude_jump_and_turning_on_the_spot():
     assert "disagree" in text and "turning on the spot" in text
 
 
+def test_cli_prints_the_report_after_writing_and_stores_it(tmp_path, cli):
+    from imugen.io import read_meta
+
+    t, enu = _reversal_route(90.0)
+    df, meta = truth.enu_table(enu, t, ORIGIN)
+    src = tmp_path / "enu.parquet"
+    truth.write_parquet(df, meta, src)
+    out = tmp_path / "truth.parquet"
+    proc = cli(
+        "truth", src, "-o", out, "--rate-hz", 10, "--vehicle", "bicycle",
+        "--vehicle-param", "max_roll_rad=0.5", check=0,
+    )  # fmt: skip
+    assert "truth plausibility:" in proc.stderr
+    m = read_meta(out)
+    assert m["vehicle"] == "bicycle" and m["vehicle_params"]["max_roll_rad"] == 0.5
+    assert m["plausibility"]["warnings"] == [] and m["plausibility"]["time_moving_s"] > 30
+    bad = cli("truth", src, "-o", tmp_path / "x.parquet", "--vehicle-param", "lean=maybe")
+    assert bad.returncode == 2 and not (tmp_path / "x.parquet").exists()
+
+
 # ------------------------------------------------------------------------------------------
 # real tracks
 # ------------------------------------------------------------------------------------------

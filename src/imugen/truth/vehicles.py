@@ -148,8 +148,9 @@ def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams
                 value = tuple(float(x) for x in value)
                 ok = len(value) == 2 and 0 <= value[0] < value[1]
             elif isinstance(old, bool):
-                value = value if isinstance(value, bool) else str(value).lower() == "true"
-                ok = True
+                text = str(value).lower()
+                ok = text in ("true", "false", "1", "0")
+                value = text in ("true", "1")
             else:
                 value = float(value)
                 ok = value >= 0 if name == "max_roll_rad" else value > 0
@@ -158,4 +159,7 @@ def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams
         if not ok:
             raise InputError("--vehicle-param", f"{name}: invalid value {value!r}")
         new[name] = value
-    return replace(vp, **new)
+    vp = replace(vp, **new)
+    if vp.lean and not vp.max_roll_rad > 0:
+        raise InputError("--vehicle-param", "a leaning vehicle needs max_roll_rad > 0")
+    return vp
