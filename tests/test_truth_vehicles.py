@@ -186,6 +186,22 @@ def test_aircraft_taxi_takeoff_and_turn():
     assert np.abs(_arr(tr, col.ACCEL)[steady, 1]).max() < 0.05
 
 
+def test_slow_glider_circling_high_is_flying():
+    """A glider thermalling at 20 m/s (below the take-off speed) but high above the route's
+    lowest point flies coordinated turns: bank atan(v^2 / (R g))."""
+    V, R = 20.0, 100.0
+    t = np.arange(0.0, 120.0, 1.0)
+    w = V / R
+    enu = np.column_stack([R * np.sin(w * t), R * (1 - np.cos(w * t)), 2.0 * t])
+    tr, meta = _build(enu, t, rate_hz=20, earth="flat", vehicle="aircraft")
+    tt = tr[col.TIME].to_numpy()
+    high = (tt > 40) & (tt < 110)
+    bank = math.atan(V * V / (R * 9.80665))
+    np.testing.assert_allclose(np.abs(tr["roll_rad"].to_numpy()[high]), bank, atol=0.01)
+    assert meta["plausibility"]["time_airborne_s"] > 90
+    assert meta["plausibility"]["max_attitude_step_excess_rad"] < 1e-6
+
+
 def test_vehicle_params_override_and_refusals():
     t, enu = _reversal_route(180.0)
     tr, meta = _build(enu, t, rate_hz=10, vehicle="car", vehicle_params={"max_curvature_1pm": 0.05})

@@ -42,8 +42,9 @@ are the Euler-angle rates plus the transport rate of the local level, exact.
 *Aircraft in flight*: body x along the velocity, body z along the specific force's component
 perpendicular to it (coordinated turn, no sideslip; loops and vertical flight work because
 nothing is measured in Euler angles); rates analytic from velocity, acceleration and jerk;
-held below ``hold_speed_mps`` by ``q_hold Exp(w Log(q_hold^-1 q_target))``. Between 0.8 and 1
-x ``airborne_speed_mps`` the ground and flight attitudes are blended the same way, with the
+held below ``hold_speed_mps`` by ``q_hold Exp(w Log(q_hold^-1 q_target))``. Between the
+ground (slow and low) and flight (fast, or high above the route's lowest point: see
+``airborne_speed_mps``, ``airborne_height_m``) the attitudes are blended the same way, with the
 exact rate of the blend.
 
 Every truth carries a plausibility report (:mod:`imugen.truth.report`).

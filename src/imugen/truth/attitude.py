@@ -142,8 +142,9 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
     Fills position, velocity, ``q_nb`` and ``omega_nb_b`` (rate of b relative to n, without
     the Earth rate) of the truth table ``out`` (K, columns) whose column slices are ``ci``.
     Ground vehicles take the :class:`GroundAttitude` ``ground``; aircraft blend it with
-    coordinated flight by the weight ``beta`` of the speed (quintic smoothstep
-    from 0.8 to 1 x ``airborne_speed_mps``).
+    coordinated flight by the weight ``beta = 1 - (1 - b_v)(1 - b_h)``: quintic smoothsteps
+    of the speed (0.8 to 1 x ``airborne_speed_mps``) and of the height above the route's
+    lowest point (0.5 to 1 x ``airborne_height_m``).
 
     Returns
     -------
@@ -164,6 +165,7 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
     if ground is not None and air:
         q_g = np.empty((K, 4))
         w_g = np.empty((K, 3))
+        h_low = float(motion.position(np.linspace(motion.t0, motion.t1, 20001))[:, 2].min())
     acc_ss, acc_max, jerk_max = 0.0, 0.0, 0.0
     s_prev = 0.0
     for k0 in range(0, K, chunk):
@@ -193,9 +195,11 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
         s_prev = float(s[-1])
         C, w = ground.attitude(s, p, v, a)
         if air:
-            b, db = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
-            beta[k0:k1] = b
-            beta_d[k0:k1] = db * spd_d
+            # airborne: fast, or well above the lowest point of the route (a slow glider)
+            bs, dbs = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
+            bh, dbh = _smoothstep(p[:, 2] - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m)
+            beta[k0:k1] = 1.0 - (1.0 - bs) * (1.0 - bh)
+            beta_d[k0:k1] = dbs * spd_d * (1.0 - bh) + dbh * v[:, 2] * (1.0 - bs)
             q_g[k0:k1] = rot.dcm_to_quat(C)
             w_g[k0:k1] = w
         else:

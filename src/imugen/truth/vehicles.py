@@ -5,7 +5,7 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
 
 * ``attitude``: ``"ground"`` (heading from the horizontal velocity, pitch from the road grade,
   roll zero or the lean of a coordinated turn) or ``"coordinated"`` (aircraft: ground model
-  below ``airborne_speed_mps``, coordinated flight above).
+  when slow and low, coordinated flight when fast or high).
 * speed profile of untimed paths: ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``,
   ``jerk_mps3``, ``corner_m`` (corner-rounding length of the polyline).
 * ground attitude: ``max_curvature_1pm`` (the heading turns at most ``speed x
@@ -16,8 +16,9 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
   vertical curves, not at a GNSS height step).
 * coordinated flight: ``hold_speed_mps``, ``hold_perp`` (attitude held below these speed and
-  perpendicular-force thresholds), ``airborne_speed_mps`` (blend from ground to flight
-  between 0.8x and 1x this horizontal speed).
+  perpendicular-force thresholds), ``airborne_speed_mps``, ``airborne_height_m`` (blend from
+  ground to flight between 0.8x and 1x this speed, or 0.5x and 1x this height above the
+  route's lowest point: a slow glider circling high is flying).
 * fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
   ``fit_floor_m``.
 * plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
@@ -52,6 +53,7 @@ class VehicleParams:
     max_speed_mps: float = 70.0
     max_accel_mps2: float = 8.0
     airborne_speed_mps: float = math.inf
+    airborne_height_m: float = math.inf
     hold_speed_mps: tuple = (0.2, 1.0)
     hold_perp: tuple = (0.05, 0.1)  # |r_perp| thresholds [m/s^2] of coordinated flight
     stop_speed_mps: float = 0.2
@@ -121,6 +123,7 @@ VEHICLES = {
         max_speed_mps=300.0,
         max_accel_mps2=30.0,
         airborne_speed_mps=25.0,
+        airborne_height_m=40.0,
         hold_speed_mps=(0.5, 2.0),
         hold_perp=(0.3, 1.0),
         stop_speed_mps=0.5,
@@ -153,7 +156,7 @@ def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams
                 value = text in ("true", "1")
             else:
                 value = float(value)
-                ok = value >= 0 if name == "max_roll_rad" else value > 0
+                ok = math.isfinite(value) and (value >= 0 if name == "max_roll_rad" else value > 0)
         except (TypeError, ValueError):
             ok = False
         if not ok:
