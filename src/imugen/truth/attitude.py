@@ -75,22 +75,6 @@ class EarthField:
     def gravitation(self, p):
         return ea.gravitation_n(p, self.frame)
 
-    def up_and_rate(self, p, v):
-        """Local geodetic up at p in n, and its time derivative for velocity v (m,3)."""
-        if self.flat:
-            up = np.zeros_like(p)
-            up[:, 2] = 1.0
-            return up, np.zeros_like(p)
-        lat, lon, h = self.frame.geodetic_from_n(p)
-        C_ln = ea.C_en_from_geodetic(lat, lon) @ self.frame.C_en.T
-        v_l = np.einsum("mij,mj->mi", C_ln, v)
-        s2 = np.sin(lat) ** 2
-        den = np.sqrt(1.0 - ea.E2_WGS84 * s2)
-        RN = ea.A_WGS84 / den
-        RM = ea.A_WGS84 * (1.0 - ea.E2_WGS84) / den**3
-        ud_l = np.column_stack([v_l[:, 0] / (RN + h), v_l[:, 1] / (RM + h), np.zeros(len(p))])
-        return C_ln[:, 2, :].copy(), np.einsum("mji,mj->mi", C_ln, ud_l)
-
     def local(self, p, v):
         """Local level at the vehicle: ``C_ln`` (m,3,3), velocity in it ``v_l`` (m,3) and its
         rotation rate relative to n in it, ``omega_nl_l`` (m,3) (transport rate)."""
@@ -268,8 +252,8 @@ def _blend_holds(out, ci, sigma, sigma_d, E, vp):
         elif i1 < K:
             q_h = out[i1, sQ].copy()
         else:  # never a defined attitude: level, facing East of the local level
-            up, _ = E.up_and_rate(out[:1, iP], np.zeros((1, 3)))
-            q_h = rot.dcm_to_quat(_level_attitude(up[0]))
+            C_ln, _, _ = E.local(out[:1, iP], np.zeros((1, 3)))
+            q_h = rot.dcm_to_quat(_level_attitude(C_ln[0, 2]))
         sl = slice(i0, i1)
         sg = sigma[sl]
         q_rel = rot.quat_mul(rot.quat_conj(q_h)[None, :], out[sl, sQ])
