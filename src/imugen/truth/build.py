@@ -10,9 +10,10 @@ import numpy as np
 import pandas as pd
 
 from imugen import __version__
-from imugen import columns as col
 from imugen import earth as ea
 from imugen.errors import InputError
+from imugen.tables import enu as tenu
+from imugen.tables import truth as col
 from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
@@ -64,10 +65,10 @@ def enu_table(enu_m, time_s=None, origin=(0.0, 0.0, 0.0)) -> tuple[pd.DataFrame,
     data = {}
     if time_s is not None:
         data[col.TIME] = np.asarray(time_s, dtype=float)
-    data[col.LAT] = np.degrees(lat)
-    data[col.LON] = np.degrees(lon)
-    data[col.ALT] = h
-    data[col.E], data[col.N], data[col.U] = enu_m.T
+    data[tenu.LAT] = np.degrees(lat)
+    data[tenu.LON] = np.degrees(lon)
+    data[tenu.ALT] = h
+    data[tenu.E], data[tenu.N], data[tenu.U] = enu_m.T
     meta = {
         "origin": {
             "lat_deg": float(origin[0]),
@@ -82,10 +83,10 @@ def enu_table(enu_m, time_s=None, origin=(0.0, 0.0, 0.0)) -> tuple[pd.DataFrame,
 
 def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOptions):
     """Fit the route: returns (motion, fit report, timing report)."""
-    for c in col.ENU:
+    for c in tenu.ENU:
         if c not in enu.columns:
             raise InputError(None, f"ENU table lacks column {c!r}")
-    y = enu[list(col.ENU)].to_numpy(dtype=float)
+    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
     if not np.all(np.isfinite(y)):
         raise InputError(None, "ENU table holds non-finite coordinates")
     timed = bool(meta.get("timed", col.TIME in enu.columns)) and col.TIME in enu.columns
@@ -111,7 +112,7 @@ def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
     route (their own noise), else from the smoothed path."""
     if motion.kind != "timed":
         return GroundAttitude(motion, E, vp)
-    y = enu[list(col.ENU)].to_numpy(dtype=float)
+    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
     h = y[:, 2] if E.flat else E.frame.geodetic_from_n(y)[2]
     noise_up = float(fit["noise_estimate_m"][2])
     return GroundAttitude(motion, E, vp, (enu[col.TIME].to_numpy(float), h), noise_up)
@@ -119,7 +120,7 @@ def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
 
 def _column_slices() -> dict:
     """Slices of the truth table's column groups (each group is contiguous)."""
-    ci = {c: i for i, c in enumerate(col.TRUTH_COLUMNS)}
+    ci = {c: i for i, c in enumerate(col.COLUMNS)}
     groups = {
         "pos": col.POS,
         "vel": col.VEL,
@@ -158,7 +159,7 @@ def build_truth(
     verbose: bool = True,
     **options,
 ) -> tuple[pd.DataFrame, dict]:
-    """ENU route -> truth table at the IMU rate (columns :data:`imugen.columns.TRUTH_COLUMNS`).
+    """ENU route -> truth table at the IMU rate (columns :data:`imugen.tables.truth.COLUMNS`).
 
     Parameters
     ----------
@@ -217,18 +218,18 @@ def build_truth(
     ground = _ground(motion, E, vp, enu, fit)
 
     ci = _column_slices()
-    out = np.zeros((K, len(col.TRUTH_COLUMNS)))
-    out[:, col.TRUTH_COLUMNS.index(col.TIME)] = times
+    out = np.zeros((K, len(col.COLUMNS)))
+    out[:, col.COLUMNS.index(col.TIME)] = times
     f_n, stats = attitude_pass(out, ci, motion, times, E, vp, chunk, ground)
     imu_pass(out, ci, f_n, E, motion, times, dt, chunk)
     del f_n
     if not np.all(np.isfinite(out)):
         raise InputError(None, "truth generation produced non-finite values (report this route)")
 
-    df = pd.DataFrame(out, columns=list(col.TRUTH_COLUMNS), copy=False)
+    df = pd.DataFrame(out, columns=list(col.COLUMNS), copy=False)
     airborne = stats.pop("airborne")
     stats["speed_max_mps"] = float(np.linalg.norm(out[:, ci["vel"]], axis=1).max())
-    y_in = enu[list(col.ENU)].to_numpy(dtype=float)
+    y_in = enu[list(tenu.ENU)].to_numpy(dtype=float)
     t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
     plaus = plausibility(df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne)
     tmeta = {
@@ -252,7 +253,7 @@ def build_truth(
         "conventions": "n = ENU of the origin, b = FLU; C_nb = Rz(yaw) Ry(-pitch) Rx(roll) "
         "relative to the local level at the vehicle; quaternion scalar first; increments on the "
         "row ending their interval (row 0 zeros)",
-        "units": {c: col.UNITS[c] for c in col.TRUTH_COLUMNS},
+        "units": {c: col.UNITS[c] for c in col.COLUMNS},
     }
     if verbose:
         for line in messages(tmeta):

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from imugen import columns as col
+from imugen.tables import truth as col
 
 # tolerances of the consistency checks (numerical, not vehicle limits)
 RATE_INCREMENT_TOL_RADPS = 1e-3
@@ -71,7 +71,7 @@ def plausibility(df, vp, *, input_enu=None, input_time=None, fit=None, airborne=
     Parameters
     ----------
     df : DataFrame
-        Truth table (:data:`imugen.columns.TRUTH_COLUMNS`).
+        Truth table (:data:`imugen.tables.truth.COLUMNS`).
     vp : imugen.truth.vehicles.VehicleParams
         The vehicle's limits.
     input_enu : ndarray, shape (N, 3), optional

@@ -7,14 +7,14 @@ import sys
 import pandas as pd
 
 from imugen.errors import InputError
-from imugen.io import read_meta, write_parquet
+from imugen.tables import enu as tenu
+from imugen.tables import truth as ttable
 from imugen.truth.build import build_truth, messages
 
 
 def read_enu(path) -> tuple[pd.DataFrame, dict]:
     """Read an ENU Parquet written by ``imugen ingest`` (table and metadata)."""
-    meta = read_meta(path)
-    return pd.read_parquet(path), meta
+    return tenu.read(path)
 
 
 def run(
@@ -32,7 +32,7 @@ def run(
         raise
     tmeta["source"] = str(enu_path)
     tmeta["route_source"] = meta.get("source")
-    write_parquet(df, tmeta, out_path)
+    ttable.write(df, tmeta, out_path)
     for line in messages(tmeta):
         print(line, file=sys.stderr)
     return tmeta

@@ -49,7 +49,7 @@ class VehicleParams:
     lean: bool = False
     grade_bin_m: float = 0.5
     heading_smooth_m: float = 2.0
-    grade_smooth_m: float = 20.0
+    grade_smooth_m: float = 50.0
     max_speed_mps: float = 70.0
     max_accel_mps2: float = 8.0
     airborne_speed_mps: float = math.inf
@@ -65,7 +65,8 @@ class VehicleParams:
 
 VEHICLES = {
     # car: 50 km/h cruise, 0.2 g longitudinal, 0.3 g lateral, 1 m/s^3 comfort jerk; turning
-    # radius >= 5 m; road grade within +-20 deg (steepest public roads ~35 %); roll 0;
+    # radius >= 5 m; road grade within +-20 deg (steepest public roads ~35 %), changing over
+    # vertical curves of 50 m at least; roll 0;
     # plausible up to 250 km/h and 0.8 g
     "car": VehicleParams(
         "ground", 13.9, 2.0, 3.0, 1.0, 10.0, max_curvature_1pm=0.2, max_pitch_rad=0.35
