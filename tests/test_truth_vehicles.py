@@ -116,10 +116,10 @@ def test_ground_rates_match_increments_wgs84():
             rate_hz=100,
             earth="wgs84",
             vehicle=vehicle,
-            vehicle_params={"heading_smooth_m": 0.5},
+            vehicle_params={"heading_smooth_m": 0.5, "heading_smooth_s": 0.05},
         )
         assert _rate_increment_error(tr) < 1e-5  # the 4th-order rule's own error at 100 Hz
-        assert meta["plausibility"]["max_attitude_step_excess_rad"] < 1e-12
+        assert meta["plausibility"]["max_attitude_step_excess_rad"] < 1e-6
         roll = tr["roll_rad"].to_numpy()
         mid = slice(len(roll) // 4, 3 * len(roll) // 4)
         lateral[vehicle] = np.abs(_arr(tr, col.ACCEL)[mid, 1]).max()

@@ -346,7 +346,7 @@ class GroundAttitude:
     * heading ``Psi(s)``: the direction of the horizontal velocity (local level) at distance
       nodes ``ds = max(0.1 / max_curvature, 0.1 m)`` apart, unwrapped, slope-limited to
       ``|dPsi/ds| <= max_curvature`` (forward: no anticipation of a turn), Gaussian-smoothed (sigma
-      ``heading_smooth_m``)
+      ``max(heading_smooth_m, heading_smooth_s x median moving speed)``)
       and represented by a variation-diminishing quintic B-spline: the yaw rate
       ``Psi'(s) v_h`` never exceeds ``v_h max_curvature`` (no turning on the spot; a reversal
       turns through a U of radius ``1 / max_curvature``, never by a branch flip);
@@ -402,7 +402,13 @@ class GroundAttitude:
             ok[:] = True
         d = np.unwrap(np.arctan2(v_l[ok, 1], v_l[ok, 0]))
         d = np.interp(np.arange(ns), np.flatnonzero(ok), d)
-        psi = _smooth(_rate_limit(d, k * ds), max(1.0, vp.heading_smooth_m / ds))
+        vg = np.diff(sg) / np.diff(tg)
+        v_med = (
+            float(np.median(vg[vg > vp.stop_speed_mps])) if np.any(vg > vp.stop_speed_mps) else 0.0
+        )
+        smooth_m = max(vp.heading_smooth_m, vp.heading_smooth_s * v_med)
+        self.report["heading_smooth_m"] = smooth_m
+        psi = _smooth(_rate_limit(d, k * ds), max(1.0, smooth_m / ds))
         self.Psi = _node_spline(psi, ds, 0.5 * ds)
         # grade: heights against distance, from the input points when there are some
         if heights is not None:

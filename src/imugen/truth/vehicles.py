@@ -9,8 +9,9 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
 * speed profile of untimed paths: ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``,
   ``jerk_mps3``, ``corner_m`` (corner-rounding length of the polyline).
 * ground attitude: ``max_curvature_1pm`` (the heading turns at most ``speed x
-  max_curvature``: no turning on the spot), ``heading_smooth_m`` (Gaussian smoothing of the
-  heading along the distance: how fast a turn sets in), ``max_pitch_rad`` (bound of the pitch taken from
+  max_curvature``: no turning on the spot), ``heading_smooth_m``, ``heading_smooth_s``
+  (Gaussian smoothing of the heading along the distance, at least this length and this time
+  at the route's median moving speed: how fast a turn sets in), ``max_pitch_rad`` (bound of the pitch taken from
   the grade), ``lean`` (bicycle: roll = ``atan(v^2 kappa / g)``), ``max_roll_rad`` (bound of
   that lean), ``grade_bin_m`` (bin of the height-against-distance fit),
   ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
@@ -49,6 +50,7 @@ class VehicleParams:
     lean: bool = False
     grade_bin_m: float = 0.5
     heading_smooth_m: float = 2.0
+    heading_smooth_s: float = 1.0
     grade_smooth_m: float = 50.0
     max_speed_mps: float = 70.0
     max_accel_mps2: float = 8.0
