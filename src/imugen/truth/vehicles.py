@@ -10,8 +10,9 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   ``jerk_mps3``, ``corner_m`` (corner-rounding length of the polyline).
 * ground attitude: ``max_curvature_1pm`` (the heading turns at most ``speed x
   max_curvature``: no turning on the spot), ``heading_smooth_m``, ``heading_smooth_s``
-  (Gaussian smoothing of the heading along the distance, at least this length and this time
-  at the route's median moving speed: how fast a turn sets in), ``max_pitch_rad`` (bound of the pitch taken from
+  (Gaussian smoothing of the heading along the distance: at least this length, and this time
+  at the route's median moving speed, default 0: the heading then stays within about 1 deg of
+  the velocity direction on a car's rounded corners; 1 s gives ~11 deg of sideslip there), ``max_pitch_rad`` (bound of the pitch taken from
   the grade), ``lean`` (bicycle: roll = ``atan(v^2 kappa / g)``), ``max_roll_rad`` (bound of
   that lean), ``grade_bin_m`` (bin of the height-against-distance fit),
   ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
@@ -50,7 +51,7 @@ class VehicleParams:
     lean: bool = False
     grade_bin_m: float = 0.5
     heading_smooth_m: float = 2.0
-    heading_smooth_s: float = 1.0
+    heading_smooth_s: float = 0.0
     grade_smooth_m: float = 50.0
     max_speed_mps: float = 70.0
     max_accel_mps2: float = 8.0
@@ -136,6 +137,9 @@ VEHICLES = {
 }
 
 
+_MAY_BE_ZERO = ("max_roll_rad", "heading_smooth_s")
+
+
 def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams:
     """The vehicle class ``vehicle`` with fields replaced by ``overrides`` (validated)."""
     if vehicle not in VEHICLES:
@@ -159,7 +163,7 @@ def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams
                 value = text in ("true", "1")
             else:
                 value = float(value)
-                ok = math.isfinite(value) and (value >= 0 if name == "max_roll_rad" else value > 0)
+                ok = math.isfinite(value) and (value > 0 or (value == 0 and name in _MAY_BE_ZERO))
         except (TypeError, ValueError):
             ok = False
         if not ok:
