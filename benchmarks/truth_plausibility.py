@@ -100,7 +100,11 @@ def main():
             import numpy as np
 
             v = df[["v_e_mps", "v_n_mps", "v_u_mps"]].to_numpy()
-            air = np.linalg.norm(v, axis=1) >= 0.9 * limits[used].airborne_speed_mps
+            up = df["u_m"].to_numpy()
+            lim = limits[used]  # fast, or high above the route's lowest point
+            air = (np.linalg.norm(v, axis=1) >= 0.9 * lim.airborne_speed_mps) | (
+                up - up.min() >= 0.75 * lim.airborne_height_m
+            )
         r = report.plausibility(
             df,
             limits[veh],
