@@ -64,7 +64,21 @@ def _cmd_ingest(a) -> int:
 def _cmd_truth(a) -> int:
     from imugen.truth import run
 
-    run(a.enu, a.output, rate_hz=a.rate_hz, earth=a.earth, vehicle=a.vehicle, grade=a.grade)
+    params = {}
+    for item in a.vehicle_param or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name or not value:
+            raise InputError("--vehicle-param", f"{item!r} is not NAME=VALUE")
+        params[name] = value.split(",") if "," in value else value
+    run(
+        a.enu,
+        a.output,
+        rate_hz=a.rate_hz,
+        earth=a.earth,
+        vehicle=a.vehicle,
+        grade=a.grade,
+        vehicle_params=params or None,
+    )
     return 0
 
 
@@ -352,8 +366,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--grade",
         action="append",
-        help="sensor grade(s) whose error budget `--earth auto` compares the dropped terms "
-        "with (repeat for several: the most demanding decides; default consumer)",
+        help="sensor grade(s), preset name or FILE.yaml:NAME, whose error budget `--earth auto` "
+        "compares the dropped terms with (repeat for several: the most demanding decides; "
+        "default consumer)",
+    )
+    p.add_argument(
+        "--vehicle-param",
+        action="append",
+        metavar="NAME=VALUE",
+        help="override a vehicle model parameter or limit (SI units, e.g. max_curvature_1pm=0.1)",
     )
     p.set_defaults(func=_cmd_truth)
 
@@ -595,7 +616,7 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--vehicle",
-        choices=["car", "aircraft", "pedestrian"],
+        choices=["car", "bicycle", "pedestrian", "aircraft"],
         default="car",
         help="vehicle model of the truth motion",
     )

@@ -101,9 +101,17 @@ def ingest_clean_opts(wildcards):
 
 
 def auto_grades():
-    """`--grade` options of the truth: the configured preset grades decide `--earth auto`."""
-    names = [g for g in GRADES if not is_custom(g)]
-    return " ".join(f"--grade {g}" for g in names)
+    """`--grade` options of the truth: every configured grade (presets by name, custom grades
+    as FILE.yaml:NAME) takes part in the `--earth auto` budget."""
+    return " ".join(
+        f"--grade {shlex.quote(f'results/grades/{g}.yaml:{g}' if is_custom(g) else g)}"
+        for g in GRADES
+    )
+
+
+def custom_grade_files():
+    """YAML files of all custom grades (inputs of the truth's `--earth auto` budget)."""
+    return [f"results/grades/{g}.yaml" for g in GRADES if is_custom(g)]
 
 
 def shard_paths(kind):

@@ -4,7 +4,26 @@
 rule truth:
     input:
         enu="results/{route}/enu.parquet",
-        code=stage_code("truth", "earth", "rotations", "columns", "grades"),
+        code=stage_code(
+            "truth/__init__",
+            "truth/budget",
+            "truth/build",
+            "truth/fit",
+            "truth/profile",
+            "truth/attitude",
+            "truth/increments",
+            "truth/report",
+            "truth/stage",
+            "truth/vehicles",
+            "earth",
+            "rotations",
+            "tables/__init__",
+            "tables/_parquet",
+            "tables/enu",
+            "tables/truth",
+            "grades",
+        ),
+        grade_files=custom_grade_files(),
         presets=PRESETS,
     output:
         "results/{route}/truth.parquet",

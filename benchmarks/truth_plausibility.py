@@ -1,0 +1,140 @@
+"""Plausibility figures of the truth of every shipped and shared real track (README table).
+
+Run with this checkout's code (after) or another's (before, e.g. main)::
+
+    python benchmarks/truth_plausibility.py [--src /work/main/src] [--rate-hz 20] [--md OUT]
+
+``--src`` puts another ``imugen`` first on the path for ingestion and truth; the figures are
+always computed by this checkout's :mod:`imugen.truth.report` with its vehicle limits, so
+before and after are measured alike. Tracks: the shipped example route and paper trajectory,
+and every file in ``../shared/data/trajectories`` (the Colorado GPX holds a drive and then a
+walk: both); a file no reader of that code reads is listed as such.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(
+    os.environ.get("IMUGEN_SHARED_TRAJECTORIES", REPO.parent / "shared" / "data" / "trajectories")
+)
+
+
+def _load(name, path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def tracks():
+    """(label, file, ingest options, vehicle) of every track."""
+    out = [
+        ("example_route.kml (shipped)", REPO / "resources" / "example_route.kml", {}, "car"),
+        (
+            "paper reference ENU (shipped)",
+            REPO / "resources" / "paper" / "seed_reference_trajectory_enu.txt",
+            {"origin": "31.63,-7.99,480.6", "dt": 1.0},
+            "car",
+        ),
+    ]
+    if SHARED.is_dir():
+        for f in sorted(SHARED.iterdir()):
+            if f.suffix in (".md",) or f.name.startswith("seed_"):
+                continue
+            n = f.name.lower()
+            if "colorado" in n:
+                out += [(f"{f.name} #1", f, {"path": 1}, "car")]
+                out += [(f"{f.name} #2", f, {"path": 2}, "pedestrian")]
+                continue
+            veh = "car"
+            for key, v in (("cycl", "bicycle"), ("bike", "bicycle"), ("hike", "pedestrian")):
+                if key in n:
+                    veh = v
+            if "glider" in n or n.endswith(".igc"):
+                veh = "aircraft"
+            kw = {"path": 3} if "kml_samples" in n else {}  # its first timed-less 3-D path
+            out.append((f.name if not kw else f"{f.name} #3", f, kw, veh))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--src", help="imugen source tree to measure (default: this checkout)")
+    ap.add_argument("--rate-hz", type=float, default=20.0)
+    ap.add_argument("--md", help="write the Markdown table here")
+    a = ap.parse_args()
+    sys.path.insert(0, str(a.src or REPO / "src"))
+    warnings.simplefilter("ignore")
+    from imugen import truth
+    from imugen.errors import InputError
+    from imugen.ingest import ingest
+
+    here = REPO / "src" / "imugen" / "truth"
+    report = _load("_report", here / "report.py")
+    limits = _load("_vehicles", here / "vehicles.py").VEHICLES
+    rows = []
+    for label, f, kw, veh in tracks():
+        used = veh if veh in truth.VEHICLES else "car"  # before: no bicycle class
+        try:
+            ing = ingest(f, **kw)
+        except InputError as exc:
+            rows.append(f"| {label} | {veh} | not read: {str(exc.message)[:60]} |")
+            continue
+        t0 = time.perf_counter()
+        df, meta = truth.build_truth(
+            ing.table, ing.meta, rate_hz=a.rate_hz, earth="wgs84", vehicle=used, verbose=False
+        )
+        dt = time.perf_counter() - t0
+        timed = bool(ing.meta["timed"]) and "time_s" in ing.table
+        air = None
+        if used == "aircraft":  # same classification for before and after
+            import numpy as np
+
+            v = df[["v_e_mps", "v_n_mps", "v_u_mps"]].to_numpy()
+            up = df["u_m"].to_numpy()
+            lim = limits[used]  # fast, or high above the route's lowest point
+            air = (np.linalg.norm(v, axis=1) >= 0.9 * lim.airborne_speed_mps) | (
+                up - up.min() >= 0.75 * lim.airborne_height_m
+            )
+        r = report.plausibility(
+            df,
+            limits[veh],
+            input_enu=ing.table[["e_m", "n_m", "u_m"]].to_numpy(),
+            input_time=ing.table["time_s"].to_numpy() if timed else None,
+            fit=meta["fit"],
+            airborne=air,
+        )
+        inv = "-" if r["invented_fraction"] is None else f"{100 * r['invented_fraction']:.2f}"
+        rows.append(
+            f"| {label} | {used} | {r['max_abs_pitch_deg']:.1f} | {r['max_abs_roll_deg']:.1f} "
+            f"| {r['max_yaw_rate_dps']:.0f} | {r['max_yaw_rate_excess_dps']:.1f} "
+            f"| {r['max_accel_mps2']:.2f} | {r['max_jerk_mps3']:.1f} "
+            f"| {r['max_rate_increment_radps']:.2g} | {r['max_attitude_step_excess_rad']:.2g} "
+            f"| {r['length_ratio']:.3f} | {inv} | {r['time_stopped_s']:.0f}/{r['time_moving_s']:.0f}"
+            f"/{r['time_airborne_s']:.0f} | {len(r['warnings'])} | {dt:.1f} |"
+        )
+        print(rows[-1], file=sys.stderr)
+    head = (
+        "| track | vehicle | max abs pitch deg | max abs roll deg | max yaw rate deg/s "
+        "| yaw rate beyond v k_max deg/s | max accel m/s^2 | max jerk m/s^3 "
+        "| dtheta vs gyro rad/s | attitude step excess rad | length truth/input "
+        "| invented % | stopped/moving/airborne s | warnings | build s |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    )
+    text = head + "\n" + "\n".join(rows) + "\n"
+    print(text)
+    if a.md:
+        Path(a.md).write_text(text)
+
+
+if __name__ == "__main__":
+    main()

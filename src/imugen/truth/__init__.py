@@ -1,0 +1,89 @@
+"""Truth motion: ENU route -> smooth 6-DoF motion, ideal IMU and exact increments.
+
+One smooth representation of position carries everything
+---------------------------------------------------------
+*Timed routes* (``time_s`` present): each axis is a quintic penalized smoothing spline of
+position against time (knots at the input times, penalty ``lambda * int |d3p/dt3|^2``, the
+classical smoothing spline of degree 5, continuous to the 4th derivative). The smoothing is
+chosen per axis by the *discrepancy principle*: the RMS residual equals the position noise
+estimated from the data itself (robust scale of the residuals of predicting every point from
+its neighbours, :func:`noise_estimate`), bounded by ``[fit_floor_m,
+fit_tol_max_m]``; ``fit_tol_m`` overrides it by a 3-D RMS tolerance. Input stretches of at
+least ``stop_min_s`` whose horizontal positions (3-D for aircraft) stay within
+``stop_radius_m`` (or 3x the noise) of their median and barely move overall, and intervals
+between sparse fixes that barely moved (see :func:`imugen.truth.fit._find_stops`), are *stops*: the spline is
+constrained to be exactly constant there (its B-spline coefficients over the stop are tied),
+so velocity, acceleration, jerk and snap vanish at the stop's edges and the stop is a real stop.
+
+*Untimed routes* (polylines, e.g. KML LineString): the polyline is densified and fitted by
+the same smoothing spline against chord length with a corner-rounding length ``corner_m``
+(a right-angle corner becomes an arc of radius about ``corner_m``), re-parameterized by arc
+length (quintic interpolation), and driven by a speed profile ``s(t)``: time-optimal under
+``cruise_mps``, ``accel_mps2`` and the lateral limit ``v <= sqrt(lat_accel_mps2 / kappa)``
+(forward/backward passes, at rest at both ends), then filtered twice by a moving average of
+width ``T = (max a - min a) / jerk_mps3`` (bounds jerk by ``jerk_mps3``, keeps the
+acceleration bound and the non-negative speed; ``s(t)`` is a C^3 piecewise quartic); where
+the filtering lifts the lateral acceleration above the limit, the limit is lowered there and
+the profile rebuilt. Position is ``G(s(t))``; derivatives by the chain rule.
+
+Attitude (per vehicle class, :mod:`imugen.truth.vehicles`)
+----------------------------------------------------------
+*Ground vehicles* (car, bicycle, pedestrian; an aircraft below its take-off speed): the
+attitude is a function of the horizontal distance travelled ``s``
+(:class:`imugen.truth.attitude.GroundAttitude`): heading ``Psi(s)`` along the horizontal
+velocity, its slope bounded by ``max_curvature_1pm`` (the yaw rate ``Psi'(s) v_h`` never
+exceeds speed x max curvature: no turning on the spot; a reversal through a stop is a U-turn
+on the vehicle's radius, never a branch flip); pitch from the grade of the height profile
+against distance, smoothed at the height noise and over at least ``grade_smooth_m``,
+bounded by ``max_pitch_rad``; roll zero, or for a bicycle the lean of a coordinated turn.
+Where the vehicle does not move, ``s`` and the whole attitude are exactly constant. Rates
+are the Euler-angle rates plus the transport rate of the local level, exact.
+
+*Aircraft in flight*: body x along the velocity, body z along the specific force's component
+perpendicular to it (coordinated turn, no sideslip; loops and vertical flight work because
+nothing is measured in Euler angles); rates analytic from velocity, acceleration and jerk;
+held below ``hold_speed_mps`` by ``q_hold Exp(w Log(q_hold^-1 q_target))``. Between the
+ground (slow and low) and flight (fast, or high above the route's lowest point: see
+``airborne_speed_mps``, ``airborne_height_m``) the attitudes are blended the same way, with the
+exact rate of the blend.
+
+Every truth carries a plausibility report (:mod:`imugen.truth.report`).
+
+Ideal IMU (per :mod:`imugen.earth` and the issue-3 spec)
+---------------------------------------------------------
+``omega_ib_b = omega_nb_b + C_nb^T Omega_n``; ``f_b = C_nb^T (a_n + 2 Omega_n x v_n - g_n(p_n))``;
+``dtheta_k = Log(C_nb(t_k)^T Exp(Omega_n dt) C_nb(t_k+1))``;
+``dv_k = C_nb(t_k)^T [v_I(t_k+1) - v_I(t_k) - int A(tau) G_n(p_n) dtau]`` with the
+gravitation integral by 4-node Gauss-Legendre quadrature on the continuous truth position
+(exact in ``flat``: ``dv_k = C_nb(t_k)^T (v_k+1 - v_k - g_n dt)``).
+"""
+
+from __future__ import annotations
+
+from imugen.io import write_parquet
+from imugen.truth.budget import earth_budget
+from imugen.truth.build import CHUNK, TruthOptions, build_motion, build_truth, enu_table
+from imugen.truth.fit import TimedMotion, fit_path, fit_timed, noise_estimate
+from imugen.truth.profile import PathMotion, speed_profile
+from imugen.truth.stage import read_enu, run
+from imugen.truth.vehicles import VEHICLES, VehicleParams
+
+__all__ = [
+    "CHUNK",
+    "VEHICLES",
+    "PathMotion",
+    "TimedMotion",
+    "TruthOptions",
+    "VehicleParams",
+    "build_motion",
+    "build_truth",
+    "earth_budget",
+    "enu_table",
+    "fit_path",
+    "fit_timed",
+    "noise_estimate",
+    "read_enu",
+    "run",
+    "speed_profile",
+    "write_parquet",
+]

@@ -1,0 +1,475 @@
+"""Vehicle attitude: target frame from velocity and a reference vector, attitude holds at low
+speed blended in by a quintic smoothstep, roll flips of coordinated flight."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.ndimage import gaussian_filter1d
+
+from imugen import earth as ea
+from imugen import rotations as rot
+from imugen.jit import njit
+from imugen.truth.fit import fit_height_profile
+
+
+def _smoothstep(x, lo, hi):
+    """Quintic smoothstep and its derivative (C^2): 0 below lo, 1 above hi."""
+    u = np.clip((x - lo) / (hi - lo), 0.0, 1.0)
+    s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
+    ds = 30.0 * u * u * (1.0 - u) ** 2 / (hi - lo)
+    return s, ds
+
+
+def _dot(a, b):
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _target_frame(v, a, r, rd):
+    """Body frame with x along v and z along r's component perpendicular to x.
+
+    Parameters
+    ----------
+    v, a : ndarray, shape (m, 3)
+        Velocity and acceleration in n.
+    r, rd : ndarray, shape (m, 3)
+        Reference vector and its time derivative in n.
+
+    Returns
+    -------
+    C_nb (m, 3, 3), omega_nb_b (m, 3), speed (m,), speed_dot (m,), rperp (m,), rperp_dot (m,)
+    """
+    sp_ = np.linalg.norm(v, axis=1)
+    sps = np.maximum(sp_, 1e-9)
+    x = v / sps[:, None]
+    xa = _dot(x, a)
+    xd = (a - x * xa[:, None]) / sps[:, None]
+    xr = _dot(x, r)
+    rp = r - x * xr[:, None]
+    rpn = np.linalg.norm(rp, axis=1)
+    rps = np.maximum(rpn, 1e-9)
+    z = rp / rps[:, None]
+    rpd = rd - xd * xr[:, None] - x * (_dot(xd, r) + _dot(x, rd))[:, None]
+    zrpd = _dot(z, rpd)
+    zd = (rpd - z * zrpd[:, None]) / rps[:, None]
+    y = np.cross(z, x)
+    yd = np.cross(zd, x) + np.cross(z, xd)
+    C = np.stack([x, y, z], axis=-1)
+    w = np.column_stack([_dot(yd, z), _dot(zd, x), _dot(xd, y)])
+    return C, w, sp_, xa, rpn, zrpd
+
+
+class EarthField:
+    """Gravity/up helpers on top of :mod:`imugen.earth` for one origin frame."""
+
+    def __init__(self, frame: ea.OriginFrame):
+        self.frame = frame
+        self.flat = frame.model == "flat"
+        self.Omega = ea.earth_rate_n(frame)
+
+    def gravity(self, p):
+        return ea.gravity_n(p, self.frame)
+
+    def gravitation(self, p):
+        return ea.gravitation_n(p, self.frame)
+
+    def local(self, p, v):
+        """Local level at the vehicle: ``C_ln`` (m,3,3), velocity in it ``v_l`` (m,3) and its
+        rotation rate relative to n in it, ``omega_nl_l`` (m,3) (transport rate)."""
+        if self.flat:
+            return np.broadcast_to(np.eye(3), (len(p), 3, 3)), v, np.zeros_like(v)
+        lat, _, h = self.frame.geodetic_from_n(p)
+        C_ln = self.frame.C_ln(p)
+        v_l = np.einsum("mij,mj->mi", C_ln, v)
+        s2 = np.sin(lat) ** 2
+        den = np.sqrt(1.0 - ea.E2_WGS84 * s2)
+        RN = ea.A_WGS84 / den + h
+        RM = ea.A_WGS84 * (1.0 - ea.E2_WGS84) / den**3 + h
+        w = np.column_stack([-v_l[:, 1] / RM, v_l[:, 0] / RN, v_l[:, 0] * np.tan(lat) / RN])
+        return C_ln, v_l, w
+
+    def gravity_rate(self, p, v):
+        """d/dt g_n(p(t)) = (grad g) v by a central difference along v (10 m each side)."""
+        if self.flat:
+            return np.zeros_like(p)
+        spd = np.linalg.norm(v, axis=1, keepdims=True)
+        e = np.divide(v, spd, out=np.zeros_like(v), where=spd > 0)
+        hstep = 10.0
+        return (self.gravity(p + hstep * e) - self.gravity(p - hstep * e)) * (spd / (2 * hstep))
+
+
+def _level_attitude(up):
+    """C_nb with body z = ``up`` and body x toward n's East projected on the level; (3,) -> (3, 3)."""
+    x = np.array([1.0, 0.0, 0.0]) - up * up[0]
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([0.0, 1.0, 0.0]) - up * up[1]
+    x = x / np.linalg.norm(x)
+    return np.stack([x, np.cross(up, x), up], axis=-1)
+
+
+_QX = np.array([0.0, 1.0, 0.0, 0.0])  # rotation by pi about body x
+
+
+def _flip_roll(out, rows, sQ, sG):
+    """Turn the attitude of ``rows`` by pi about body x (z -> -z): q * (0,1,0,0), w -> (wx,-wy,-wz)."""
+    out[rows, sQ] = rot.quat_mul(out[rows, sQ], _QX)
+    g = out[rows, sG]
+    g[..., 1:] *= -1.0
+    out[rows, sG] = g
+
+
+def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
+    """Kinematics and attitude of every sample (pass 1), written into ``out``.
+
+    Fills position, velocity, ``q_nb`` and ``omega_nb_b`` (rate of b relative to n, without
+    the Earth rate) of the truth table ``out`` (K, columns) whose column slices are ``ci``.
+    Ground vehicles take the :class:`GroundAttitude` ``ground``; aircraft blend it with
+    coordinated flight by the weight ``beta = 1 - (1 - b_v)(1 - b_h)``: quintic smoothsteps
+    of the speed (0.8 to 1 x ``airborne_speed_mps``) and of the height above the route's
+    lowest point (0.5 to 1 x ``airborne_height_m``).
+
+    Returns
+    -------
+    f_n : ndarray, shape (K, 3)
+        Specific force in n [m/s^2].
+    stats : dict
+        Acceleration and jerk figures, hold windows, blend angles, ``airborne`` (K,) bool.
+    """
+    K = len(times)
+    sP, sV, sQ, sG = ci["pos"], ci["vel"], ci["quat"], ci["gyro"]
+    air = vp.attitude == "coordinated"
+    f_n_all = np.empty((K, 3))
+    if air:
+        sigma = np.empty(K)
+        sigma_d = np.empty(K)
+        beta = np.ones(K)
+        beta_d = np.zeros(K)
+    if ground is not None and air:
+        q_g = np.empty((K, 4))
+        w_g = np.empty((K, 3))
+        h_low = float(motion.position(np.linspace(motion.t0, motion.t1, 20001))[:, 2].min())
+    acc_ss, acc_max, jerk_max = 0.0, 0.0, 0.0
+    s_prev = 0.0
+    for k0 in range(0, K, chunk):
+        k1 = min(K, k0 + chunk)
+        p, v, a, j = motion.eval(times[k0:k1])
+        an = np.linalg.norm(a, axis=1)
+        acc_ss += float(np.sum(an * an))
+        acc_max = max(acc_max, float(an.max()))
+        jerk_max = max(jerk_max, float(np.linalg.norm(j, axis=1).max()))
+        f_n = a + 2.0 * np.cross(E.Omega, v) - E.gravity(p)
+        out[k0:k1, sP] = p
+        out[k0:k1, sV] = v
+        f_n_all[k0:k1] = f_n
+        if air:
+            rd = j + 2.0 * np.cross(E.Omega, a) - E.gravity_rate(p, v)
+            C, w, spd, spd_d, rpn, rpn_d = _target_frame(v, a, f_n, rd)
+            s1, ds1 = _smoothstep(spd, *vp.hold_speed_mps)
+            s2, ds2 = _smoothstep(rpn, *vp.hold_perp)
+            sigma[k0:k1] = s1 * s2
+            sigma_d[k0:k1] = ds1 * spd_d * s2 + s1 * ds2 * rpn_d
+            out[k0:k1, sQ] = rot.dcm_to_quat(C)
+            out[k0:k1, sG] = w
+        if ground is None:
+            continue
+        steps = ground.distance_steps(motion, times[max(k0 - 1, 0) : k1])
+        s = s_prev + (np.r_[0.0, np.cumsum(steps)] if k0 == 0 else np.cumsum(steps))
+        s_prev = float(s[-1])
+        C, w = ground.attitude(s, p, v, a)
+        if air:
+            # airborne: fast, or well above the lowest point of the route (a slow glider)
+            bs, dbs = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
+            bh, dbh = _smoothstep(p[:, 2] - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m)
+            beta[k0:k1] = 1.0 - (1.0 - bs) * (1.0 - bh)
+            beta_d[k0:k1] = dbs * spd_d * (1.0 - bh) + dbh * v[:, 2] * (1.0 - bs)
+            q_g[k0:k1] = rot.dcm_to_quat(C)
+            w_g[k0:k1] = w
+        else:
+            out[k0:k1, sQ] = rot.dcm_to_quat(C)
+            out[k0:k1, sG] = w
+    stats = {
+        "accel_rms_mps2": float(np.sqrt(acc_ss / K)),
+        "accel_max_mps2": acc_max,
+        "jerk_max_mps3": jerk_max,
+        "attitude_hold_windows": 0,
+        "max_blend_angle_rad": 0.0,
+    }
+    if air:
+        n_hold, phi_max = _blend_holds(out, ci, sigma, sigma_d, E, vp)
+        stats["attitude_hold_windows"] = n_hold
+        stats["max_blend_angle_rad"] = phi_max
+        if ground is not None:
+            stats["max_ground_air_angle_rad"] = _blend_ground_air(out, ci, q_g, w_g, beta, beta_d)
+    stats["airborne"] = beta >= 0.5 if air else np.zeros(K, dtype=bool)
+    return f_n_all, stats
+
+
+def _blend_ground_air(out, ci, q_g, w_g, beta, beta_d):
+    """Attitude ``q_g Exp(beta Log(q_g^-1 q_air))`` and its exact rate, in place of the
+    coordinated-flight attitude ``out``; returns the largest blended angle [rad]."""
+    sQ, sG = ci["quat"], ci["gyro"]
+    g0 = beta <= 0.0
+    out[g0, sQ] = q_g[g0]
+    out[g0, sG] = w_g[g0]
+    mid = (beta > 0.0) & (beta < 1.0)
+    if not mid.any():
+        return 0.0
+    qg, wg, b, bd = q_g[mid], w_g[mid], beta[mid, None], beta_d[mid, None]
+    q_rel = rot.quat_mul(rot.quat_conj(qg), out[mid, sQ])
+    phi = rot.log_quat(q_rel)
+    w_rel = out[mid, sG] - np.einsum("mji,mj->mi", rot.quat_to_dcm(q_rel), wg)
+    phi_d = np.einsum("mij,mj->mi", rot.right_jacobian_inv(phi), w_rel)
+    psi = b * phi
+    out[mid, sQ] = rot.quat_mul(qg, rot.exp_quat(psi))
+    out[mid, sG] = np.einsum("mji,mj->mi", rot.exp_dcm(psi), wg) + np.einsum(
+        "mij,mj->mi", rot.right_jacobian(psi), bd * phi + b * phi_d
+    )
+    return float(np.linalg.norm(phi, axis=1).max())
+
+
+def _blend_holds(out, ci, sigma, sigma_d, E, vp):
+    """Hold the attitude where ``sigma < 1``: ``q_hold Exp(sigma Log(q_hold^-1 q_target))``.
+
+    Returns the number of hold windows and the largest blended angle [rad].
+    """
+    K = len(sigma)
+    sQ, sG, iP = ci["quat"], ci["gyro"], ci["pos"]
+    below = sigma < 1.0
+    edges = np.flatnonzero(np.diff(np.r_[0, below.astype(np.int8), 0]))
+    can_flip = vp.attitude == "coordinated"
+    n_hold = 0
+    phi_max = 0.0
+    flip = False  # aircraft: body z along -f_perp in the current segment (pushed over)
+    seg_start = 0
+    for i0, i1 in zip(edges[::2], edges[1::2], strict=True):  # run = [i0, i1)
+        n_hold += 1
+        if flip:
+            _flip_roll(out, slice(seg_start, i0), sQ, sG)
+        if i0 > 0:
+            q_h = out[i0 - 1, sQ].copy()
+        elif i1 < K:
+            q_h = out[i1, sQ].copy()
+        else:  # never a defined attitude: level, facing East of the local level
+            C_ln, _, _ = E.local(out[:1, iP], np.zeros((1, 3)))
+            q_h = rot.dcm_to_quat(_level_attitude(C_ln[0, 2]))
+        sl = slice(i0, i1)
+        sg = sigma[sl]
+        q_rel = rot.quat_mul(rot.quat_conj(q_h)[None, :], out[sl, sQ])
+        if can_flip:  # per sample, the roll sign closest to the held attitude
+            f = np.abs(q_rel[:, 1]) > np.abs(q_rel[:, 0])
+            _flip_roll(out, np.flatnonzero(f) + i0, sQ, sG)
+            q_rel[f] = rot.quat_mul(q_rel[f], _QX)
+        w_v = out[sl, sG]
+        phi = rot.log_quat(q_rel)
+        phi[sg <= 0] = 0.0
+        if np.any(sg > 0):
+            phi_max = max(phi_max, float(np.linalg.norm(phi[sg > 0], axis=1).max()))
+        psi = sg[:, None] * phi
+        q = rot.quat_mul(q_h, rot.exp_quat(psi))
+        w = sigma_d[sl, None] * phi + sg[:, None] * np.einsum(
+            "mij,mj->mi", rot.right_jacobian(psi) @ rot.right_jacobian_inv(phi), w_v
+        )
+        w[sg <= 0] = 0.0
+        out[sl, sQ] = q
+        out[sl, sG] = w
+        if can_flip and i1 < K:
+            qe = rot.quat_mul(rot.quat_conj(q_h), out[i1, sQ])
+            flip = bool(abs(qe[1]) > abs(qe[0]))
+        seg_start = i1
+    if flip:
+        _flip_roll(out, slice(seg_start, K), sQ, sG)
+    return n_hold, phi_max
+
+
+# ------------------------------------------------------------------------------------------
+# ground vehicles: attitude as functions of the horizontal distance travelled
+# ------------------------------------------------------------------------------------------
+G_LEAN = 9.80665  # gravity of the lean of a coordinated turn [m/s^2]
+_PAD = 6  # coefficients added at each end of the node splines
+_GL = np.polynomial.legendre.leggauss(4)
+
+
+@njit(cache=True)
+def _rate_limit(d, step):
+    """Slope limiter ``|x[j+1] - x[j]| <= step`` following ``d`` forward: where the path
+    turns faster (a reversal through a stop), the heading turns as the vehicle moves on."""
+    n = d.shape[0]
+    f = np.empty(n)
+    f[0] = d[0]
+    for j in range(1, n):
+        f[j] = min(max(d[j], f[j - 1] - step), f[j - 1] + step)
+    return f
+
+
+def soft_bound(x, m):
+    """Identity within ``0.75 m``, then saturating smoothly (C^2) below ``m``; and its
+    derivative. Used for pitch and lean bounds: small angles are kept exactly."""
+    a = 0.75 * m
+    ax = np.abs(x)
+    u = np.maximum(ax - a, 0.0) / (m - a)
+    th = np.tanh(u)
+    y = np.where(ax <= a, x, np.sign(x) * (a + (m - a) * th))
+    dy = np.where(ax <= a, 1.0, 1.0 - th * th)
+    return y, dy
+
+
+def _smooth(x, sigma):
+    """Gaussian filter (``sigma`` samples) with odd reflection at the ends: linear trends
+    are kept to the ends and a slope bound of ``x`` holds for the result."""
+    m = min(len(x) - 1, math.ceil(4 * sigma))
+    xp = np.r_[2 * x[0] - x[m:0:-1], x, 2 * x[-1] - x[-2 : -m - 2 : -1]]
+    return gaussian_filter1d(xp, sigma, mode="nearest")[m : m + len(x)]
+
+
+def _node_spline(values, ds, x0=0.0):
+    """Quintic B-spline whose coefficients are ``values`` at nodes ``x0 + j ds`` (their Greville
+    abscissae), extended by odd reflection (trends continue past the ends): variation
+    diminishing, so its slope stays within the values' slope ``max |diff| / ds`` and it is
+    exactly constant where they are."""
+    v = np.r_[values, np.full(max(0, _PAD + 1 - len(values)), values[-1])]
+    c = np.r_[2 * v[0] - v[_PAD:0:-1], values, 2 * v[-1] - v[-2 : -_PAD - 2 : -1]]
+    knots = x0 + (np.arange(len(c) + 6) - _PAD - 3) * ds
+    return BSpline(knots, c, 5)
+
+
+def _gl_nodes(t):
+    """4-node Gauss-Legendre nodes (n-1, 4) and weights (n-1, 4) on the intervals of ``t``."""
+    h = np.diff(t)[:, None]
+    return t[:-1, None] + 0.5 * h * (_GL[0] + 1.0), 0.5 * h * _GL[1]
+
+
+class GroundAttitude:
+    """Attitude of a ground vehicle against the horizontal distance travelled ``s``.
+
+    * heading ``Psi(s)``: the direction of the horizontal velocity (local level) at distance
+      nodes ``ds = max(0.1 / max_curvature, 0.1 m)`` apart, unwrapped, slope-limited to
+      ``|dPsi/ds| <= max_curvature`` (forward: no anticipation of a turn), Gaussian-smoothed (sigma
+      ``max(heading_smooth_m, heading_smooth_s x median moving speed)``)
+      and represented by a variation-diminishing quintic B-spline: the yaw rate
+      ``Psi'(s) v_h`` never exceeds ``v_h max_curvature`` (no turning on the spot; a reversal
+      turns through a U of radius ``1 / max_curvature``, never by a branch flip);
+    * pitch ``Theta(s) = bound(atan(H'(s)), max_pitch)``: the grade of the height profile
+      :func:`imugen.truth.fit.fit_height_profile`, smoothed at the height noise;
+    * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
+      ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
+      :func:`soft_bound`.
+
+    Where the vehicle does not move, ``s`` and so the whole attitude are exactly constant.
+
+    Parameters
+    ----------
+    motion : TimedMotion or PathMotion
+    E : EarthField
+    vp : VehicleParams
+    heights : (ndarray (N,), ndarray (N,)) or None
+        Input times [s] and heights [m] of a timed route (None: the motion's own heights).
+    noise_up_m : float
+        Noise of those heights [m].
+    grid_dt : float
+        Step of the internal time grid of the distance [s].
+    """
+
+    def __init__(self, motion, E, vp, heights=None, noise_up_m=0.0, grid_dt=0.1):
+        self.E, self.vp = E, vp
+        n = max(2, math.ceil((motion.t1 - motion.t0) / grid_dt) + 1)
+        tg = np.linspace(motion.t0, motion.t1, n)
+        sg = np.r_[0.0, np.cumsum(self.distance_steps(motion, tg))]
+        L = float(sg[-1])
+        self.length_m = L
+        k = vp.max_curvature_1pm
+        ds = max(0.1 / k, 0.1)
+        ns = math.ceil(L / ds)
+        if ns > 2_000_000:
+            ns = 2_000_000
+        self.report = {"length_m": L, "max_curvature_1pm": k}
+        if ns < 4:  # does not move: level, facing East of the local level
+            self.ds = max(L, 1.0)
+            self.Psi = _node_spline(np.zeros(2), self.ds)
+            self.Theta = _node_spline(np.zeros(2), self.ds)
+            self.report["grade"] = {"method": "level (does not move)"}
+            return
+        ds = L / ns
+        self.ds = ds
+        sn = np.linspace(0.0, L, ns + 1)
+        # direction of the horizontal velocity at the mid-nodes (the vehicle moves there)
+        up = np.r_[True, np.diff(sg) > 0]
+        tn = np.interp(sn[:-1] + 0.5 * ds, sg[up], tg[up])
+        _, v_l, _ = E.local(motion.position(tn), motion.velocity(tn))
+        ok = np.hypot(v_l[:, 0], v_l[:, 1]) > 1e-6
+        if not ok.any():
+            ok[:] = True
+        d = np.unwrap(np.arctan2(v_l[ok, 1], v_l[ok, 0]))
+        d = np.interp(np.arange(ns), np.flatnonzero(ok), d)
+        vg = np.diff(sg) / np.diff(tg)
+        v_med = (
+            float(np.median(vg[vg > vp.stop_speed_mps])) if np.any(vg > vp.stop_speed_mps) else 0.0
+        )
+        smooth_m = max(vp.heading_smooth_m, vp.heading_smooth_s * v_med)
+        self.report["heading_smooth_m"] = smooth_m
+        psi = _smooth(_rate_limit(d, k * ds), max(1.0, smooth_m / ds))
+        self.Psi = _node_spline(psi, ds, 0.5 * ds)
+        # grade: heights against distance, from the input points when there are some
+        if heights is not None:
+            t_in, h_in = heights
+            s_in = np.interp(t_in, tg, sg)
+        else:
+            s_in, h_in = sg, self._height(motion.position(tg))
+        H, grep = fit_height_profile(
+            s_in, h_in, noise_up_m, vp.grade_bin_m, vp.grade_smooth_m, vp.fit_floor_m
+        )
+        if H is None:
+            theta = np.zeros(ns + 1)
+        else:
+            theta, _ = soft_bound(np.arctan(H.derivative(1)(sn)), vp.max_pitch_rad)
+        self.Theta = _node_spline(theta, ds)
+        self.report["grade"] = grep
+
+    def _height(self, p):
+        return p[:, 2] if self.E.flat else self.E.frame.geodetic_from_n(p)[2]
+
+    def distance_steps(self, motion, t):
+        """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre
+        quadrature of the horizontal speed in n), shape (len(t) - 1,) [m]."""
+        tq, wq = _gl_nodes(t)
+        v = motion.velocity(tq.ravel())
+        vh = np.hypot(v[:, 0], v[:, 1]).reshape(wq.shape)
+        return np.sum(wq * vh, axis=1)
+
+    def attitude(self, s, p, v, a):
+        """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,
+        velocity and acceleration in n (m,3)."""
+        vp = self.vp
+        C_ln, _, w_nl = self.E.local(p, v)
+        # ds/dt: horizontal speed in n (the distance s is its integral)
+        vh = np.hypot(v[:, 0], v[:, 1])
+        vh_d = np.divide(
+            v[:, 0] * a[:, 0] + v[:, 1] * a[:, 1], vh, out=np.zeros_like(vh), where=vh > 0
+        )
+        s = np.clip(s, 0.0, self.length_m)
+        psi = self.Psi(s)
+        k1 = self.Psi(s, 1)
+        theta = self.Theta(s)
+        psi_d = k1 * vh
+        theta_d = self.Theta(s, 1) * vh
+        if vp.lean:
+            # lean into the turn: a left turn (Psi' > 0) lowers the left side (roll < 0)
+            X = -vh * vh * k1 / G_LEAN
+            X_d = -(2.0 * vh * vh_d * k1 + vh**3 * self.Psi(s, 2)) / G_LEAN
+            phi, dphi = soft_bound(np.arctan(X), vp.max_roll_rad)
+            phi_d = dphi * X_d / (1.0 + X * X)
+        else:
+            phi = phi_d = np.zeros_like(s)
+        C_lb = rot.euler_to_dcm(phi, theta, psi)
+        sf, cf, st, ct = np.sin(phi), np.cos(phi), np.sin(theta), np.cos(theta)
+        w_lb = np.column_stack(
+            [
+                phi_d + psi_d * st,
+                -theta_d * cf + psi_d * ct * sf,
+                theta_d * sf + psi_d * ct * cf,
+            ]
+        )
+        C_nb = np.swapaxes(C_ln, 1, 2) @ C_lb
+        w = w_lb + np.einsum("mji,mj->mi", C_lb, w_nl)
+        return C_nb, w

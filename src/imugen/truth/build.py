@@ -1,0 +1,267 @@
+"""The truth table: route -> motion -> attitude -> ideal IMU and increments -> metadata."""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+
+from imugen import __version__
+from imugen import earth as ea
+from imugen.errors import InputError
+from imugen.tables import enu as tenu
+from imugen.tables import truth as col
+from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
+from imugen.truth.budget import budget_meta, earth_budget
+from imugen.truth.fit import fit_path, fit_timed
+from imugen.truth.increments import imu_pass
+from imugen.truth.profile import PathMotion, speed_profile
+from imugen.truth.report import plausibility, report_lines
+from imugen.truth.vehicles import VehicleParams, vehicle_params
+
+CHUNK = 1 << 16  # samples per evaluation chunk
+
+
+@dataclass
+class TruthOptions:
+    """Options of :func:`build_truth` beyond rate, Earth model and vehicle (None: defaults)."""
+
+    grade: object = None  # name, FILE.yaml:NAME, Grade, GradeFigures, or a list of them
+    fit_tol_m: float | None = None
+    stops: bool = True
+    corner_m: float | None = None
+    cruise_mps: float | None = None
+    accel_mps2: float | None = None
+    lat_accel_mps2: float | None = None
+    jerk_mps3: float | None = None
+    hold_speed_mps: tuple | None = None
+    vehicle_params: dict | None = None  # VehicleParams fields to override
+    auto_fraction: float = 0.1
+    extra: dict = field(default_factory=dict)
+
+
+def enu_table(enu_m, time_s=None, origin=(0.0, 0.0, 0.0)) -> tuple[pd.DataFrame, dict]:
+    """Build an ENU table and its metadata from arrays (synthetic routes, tests).
+
+    Parameters
+    ----------
+    enu_m : array_like, shape (N, 3)
+        East, North, Up relative to the origin [m].
+    time_s : array_like, shape (N,), optional
+        Times [s]; None for an untimed path.
+    origin : (lat_deg, lon_deg, alt_m)
+
+    Returns
+    -------
+    (DataFrame, dict)
+        Columns like ingestion's output and the metadata (``origin``, ``timed``).
+    """
+    enu_m = np.asarray(enu_m, dtype=float).reshape(-1, 3)
+    frame = ea.OriginFrame.from_deg(*origin)
+    lat, lon, h = frame.geodetic_from_n(enu_m)
+    data = {}
+    if time_s is not None:
+        data[col.TIME] = np.asarray(time_s, dtype=float)
+    data[tenu.LAT] = np.degrees(lat)
+    data[tenu.LON] = np.degrees(lon)
+    data[tenu.ALT] = h
+    data[tenu.E], data[tenu.N], data[tenu.U] = enu_m.T
+    meta = {
+        "origin": {
+            "lat_deg": float(origin[0]),
+            "lon_deg": float(origin[1]),
+            "alt_m": float(origin[2]),
+        },
+        "timed": time_s is not None,
+        "source": "arrays",
+    }
+    return pd.DataFrame(data), meta
+
+
+def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOptions):
+    """Fit the route: returns (motion, fit report, timing report)."""
+    for c in tenu.ENU:
+        if c not in enu.columns:
+            raise InputError(None, f"ENU table lacks column {c!r}")
+    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
+    if not np.all(np.isfinite(y)):
+        raise InputError(None, "ENU table holds non-finite coordinates")
+    timed = bool(meta.get("timed", col.TIME in enu.columns)) and col.TIME in enu.columns
+    if timed:
+        motion, fit = fit_timed(enu[col.TIME].to_numpy(float), y, vp, opts.fit_tol_m, opts.stops)
+        timing = {"timed": True, "source": "input clock"}
+    else:
+        G, L, fit = fit_path(y, vp, opts.corner_m)
+        prof = {
+            "cruise_mps": opts.cruise_mps or vp.cruise_mps,
+            "accel_mps2": opts.accel_mps2 or vp.accel_mps2,
+            "lat_accel_mps2": opts.lat_accel_mps2 or vp.lat_accel_mps2,
+            "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
+        }
+        s_pp, rep = speed_profile(G, L, **prof)
+        motion = PathMotion(G, s_pp, L)
+        timing = {"timed": False, "source": "speed profile", **rep}
+    return motion, fit, timing
+
+
+def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
+    """The ground-vehicle attitude of the motion; heights from the input points of a timed
+    route (their own noise), else from the smoothed path."""
+    if motion.kind != "timed":
+        return GroundAttitude(motion, E, vp)
+    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
+    h = y[:, 2] if E.flat else E.frame.geodetic_from_n(y)[2]
+    noise_up = float(fit["noise_estimate_m"][2])
+    return GroundAttitude(motion, E, vp, (enu[col.TIME].to_numpy(float), h), noise_up)
+
+
+def _column_slices() -> dict:
+    """Slices of the truth table's column groups (each group is contiguous)."""
+    ci = {c: i for i, c in enumerate(col.COLUMNS)}
+    groups = {
+        "pos": col.POS,
+        "vel": col.VEL,
+        "quat": col.QUAT,
+        "gyro": col.GYRO,
+        "accel": col.ACCEL,
+        "euler": col.EULER,
+        "dtheta": col.DTHETA,
+        "dv": col.DV,
+    }
+    out = {}
+    for name, cols in groups.items():
+        idx = [ci[c] for c in cols]
+        assert idx == list(range(idx[0], idx[0] + len(idx))), name
+        out[name] = slice(idx[0], idx[-1] + 1)
+    return out
+
+
+def _origin(meta):
+    try:
+        origin = meta["origin"]
+        return tuple(float(origin[k]) for k in ("lat_deg", "lon_deg", "alt_m"))
+    except (KeyError, TypeError, ValueError):
+        raise InputError(None, "ENU metadata lacks the origin (lat_deg, lon_deg, alt_m)") from None
+
+
+def build_truth(
+    enu: pd.DataFrame,
+    meta: dict,
+    *,
+    rate_hz: float = 100.0,
+    earth: str = "flat",
+    vehicle: str = "car",
+    grade=None,
+    chunk: int = CHUNK,
+    verbose: bool = True,
+    **options,
+) -> tuple[pd.DataFrame, dict]:
+    """ENU route -> truth table at the IMU rate (columns :data:`imugen.tables.truth.COLUMNS`).
+
+    Parameters
+    ----------
+    enu : DataFrame
+        Ingestion's table: ``e_m, n_m, u_m`` and ``time_s`` for timed routes.
+    meta : dict
+        Ingestion's metadata: ``origin`` {lat_deg, lon_deg, alt_m}, ``timed``.
+    rate_hz : float
+        IMU rate; samples at ``t0 + k / rate_hz`` over the route.
+    earth : {"flat", "wgs84", "auto"}
+        Earth model (``auto``: budget stored in the metadata).
+    vehicle : str
+        A key of :data:`imugen.truth.VEHICLES`.
+    grade : str, Grade, GradeFigures or a list of them, optional
+        Sensor grade(s) for the ``auto`` budget (default ``consumer``): preset names,
+        ``FILE.yaml:NAME`` custom grades, grade objects or budget figures; with several, any
+        grade whose budget needs ``wgs84`` makes the truth ``wgs84``.
+    verbose : bool
+        Print the ``auto`` budget and the plausibility report to stderr.
+    **options
+        Fields of :class:`TruthOptions` (``fit_tol_m``, ``stops``, ``corner_m``,
+        ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``, ``jerk_mps3``, ``hold_speed_mps``).
+
+    Returns
+    -------
+    (DataFrame, dict)
+        Truth table (float64) and its metadata.
+    """
+    if earth not in ("flat", "wgs84", "auto"):
+        raise InputError("--earth", f"unknown Earth model {earth!r}; flat, wgs84 or auto")
+    if not (rate_hz > 0 and math.isfinite(rate_hz)):
+        raise InputError("--rate-hz", f"IMU rate must be a positive number, got {rate_hz}")
+    unknown = set(options) - set(TruthOptions.__dataclass_fields__)
+    if unknown:
+        raise TypeError(f"unknown options {sorted(unknown)}")
+    opts = TruthOptions(grade=grade, **options)
+    vp = vehicle_params(vehicle, opts.vehicle_params)
+    if opts.hold_speed_mps is not None:
+        vp = replace(vp, hold_speed_mps=tuple(opts.hold_speed_mps))
+    lat0, lon0, h0 = _origin(meta)
+
+    motion, fit, timing = build_motion(enu, meta, vp, opts)
+    dt = 1.0 / rate_hz
+    duration = motion.t1 - motion.t0
+    K = math.floor(duration * rate_hz + 1e-9) + 1
+    if K < 2:
+        raise InputError(None, f"route lasts {duration:.3g} s: shorter than one IMU interval")
+    times = motion.t0 + np.arange(K) * dt
+
+    budget = None
+    model = earth
+    if earth == "auto":
+        budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)
+        model = budget.model
+    E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+    ground = _ground(motion, E, vp, enu, fit)
+
+    ci = _column_slices()
+    out = np.zeros((K, len(col.COLUMNS)))
+    out[:, col.COLUMNS.index(col.TIME)] = times
+    f_n, stats = attitude_pass(out, ci, motion, times, E, vp, chunk, ground)
+    imu_pass(out, ci, f_n, E, motion, times, dt, chunk)
+    del f_n
+    if not np.all(np.isfinite(out)):
+        raise InputError(None, "truth generation produced non-finite values (report this route)")
+
+    df = pd.DataFrame(out, columns=list(col.COLUMNS), copy=False)
+    airborne = stats.pop("airborne")
+    stats["speed_max_mps"] = float(np.linalg.norm(out[:, ci["vel"]], axis=1).max())
+    y_in = enu[list(tenu.ENU)].to_numpy(dtype=float)
+    t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
+    plaus = plausibility(df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne)
+    tmeta = {
+        "stage": "truth",
+        "imugen_version": __version__,
+        "source": meta.get("source"),
+        "origin": {"lat_deg": lat0, "lon_deg": lon0, "alt_m": h0},
+        "earth": model,
+        "earth_requested": earth,
+        "earth_budget": None if budget is None else budget_meta(budget, opts.grade),
+        "rate_hz": float(rate_hz),
+        "samples": K,
+        "duration_s": float(times[-1] - times[0]),
+        "vehicle": vehicle,
+        "vehicle_params": asdict(vp),
+        "fit": fit,
+        "timing": timing,
+        "motion": stats,
+        "ground_attitude": ground.report,
+        "plausibility": plaus,
+        "conventions": "n = ENU of the origin, b = FLU; C_nb = Rz(yaw) Ry(-pitch) Rx(roll) "
+        "relative to the local level at the vehicle; quaternion scalar first; increments on the "
+        "row ending their interval (row 0 zeros)",
+        "units": {c: col.UNITS[c] for c in col.COLUMNS},
+    }
+    if verbose:
+        for line in messages(tmeta):
+            print(line, file=sys.stderr)
+    return df, tmeta
+
+
+def messages(tmeta: dict) -> list[str]:
+    """Lines for stderr of a truth's metadata: its Earth budget and plausibility report."""
+    budget = tmeta.get("earth_budget")
+    return (budget["lines"] if budget else []) + report_lines(tmeta["plausibility"])

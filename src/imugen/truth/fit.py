@@ -1,0 +1,446 @@
+"""Fitting timed routes and polylines: robust noise estimate, penalized quintic smoothing
+spline, stop detection, and the timed motion ``p(t)``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.interpolate import BSpline, make_interp_spline
+from scipy.ndimage import binary_dilation, maximum_filter1d, minimum_filter1d
+from scipy.optimize import brentq
+from scipy.sparse.linalg import splu
+
+from imugen.errors import InputError
+from imugen.truth.vehicles import VehicleParams
+
+K_SPLINE = 5  # quintic
+# corner rounding: lambda = (corner_m / spacing)^6 * _CORNER_CAL makes a right-angle corner an
+# arc of radius ~ corner_m (tests check)
+_CORNER_CAL = 1.0
+
+
+# ------------------------------------------------------------------------------------------
+# penalized quintic smoothing spline
+# ------------------------------------------------------------------------------------------
+def _predict_noise(t, y, half):
+    """Robust noise estimate from the residuals of the degree-(2 half - 1) Lagrange prediction
+    of every point from its ``half`` neighbours on each side (normalized by the noise gain)."""
+    n = len(t)
+    ti = t[half : n - half]
+    offs = [o for o in range(-half, half + 1) if o != 0]
+    nbr = np.stack([t[half + o : n - half + o] for o in offs])
+    w = np.ones_like(nbr)
+    for j in range(len(offs)):
+        for m in range(len(offs)):
+            if m != j:
+                w[j] *= (ti - nbr[m]) / (nbr[j] - nbr[m])
+    ys = np.stack([y[half + o : n - half + o] for o in offs])
+    e = y[half : n - half] - np.einsum("jn,jnd->nd", w, ys)
+    e = e / np.sqrt(1.0 + np.sum(w * w, axis=0))[:, None]
+    e = e - np.median(e, axis=0)
+    sig = 1.4826 * np.median(np.abs(e), axis=0)
+    for _ in range(3):  # RMS within 3 sigma (efficient), corrected for the truncation
+        inside = np.abs(e) <= 3.0 * sig
+        sig = (
+            np.sqrt(
+                np.sum(np.where(inside, e * e, 0.0), axis=0) / np.maximum(inside.sum(axis=0), 1)
+            )
+            / 0.98658
+        )
+    return sig
+
+
+def noise_estimate(t, y) -> np.ndarray:
+    """Robust white-noise estimate of each column of ``y`` sampled at times ``t``.
+
+    Every point is predicted from its neighbours by the cubic through 2 + 2 of them and by the
+    quintic through 3 + 3 of them; the residuals, scaled by the noise gain of the predictor
+    ``sqrt(1 + sum w^2)``, give a robust scale (``1.4826 MAD``, refined by the RMS within
+    3 sigma, corrected for the truncation). The smaller of the two is returned (for white
+    noise both are unbiased; on sparse samples of smooth motion the higher-order predictor
+    leaks less of the motion into the estimate). East and North share their RMS (GNSS
+    horizontal noise is isotropic), which halves the scatter of the estimate.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+    y : ndarray, shape (N, d)
+
+    Returns
+    -------
+    ndarray, shape (d,)
+        Zeros when N < 5.
+    """
+    t = np.asarray(t, float)
+    y = np.asarray(y, float).reshape(len(t), -1)
+    if len(t) < 5:
+        return np.zeros(y.shape[1])
+    est = _predict_noise(t, y, 2)
+    if len(t) >= 7:
+        est = np.minimum(est, _predict_noise(t, y, 3))
+    if est.shape[0] == 3:
+        est[:2] = math.sqrt(0.5 * (est[0] ** 2 + est[1] ** 2))
+    return est
+
+
+class _PenalizedSpline:
+    """Quintic B-spline with knots at the data sites; minimizes residual^2 + lam*int(f''')^2.
+
+    ``ties``: list of (i0, i1) coefficient ranges forced equal (constant stretches).
+    ``weights``: per-site weights of the squared residuals (default 1).
+    """
+
+    def __init__(self, x, ties=(), weights=None):
+        x = np.asarray(x, float)
+        k = K_SPLINE
+        self.x0 = x[0]
+        self.scale = float(np.median(np.diff(x)))
+        u = (x - self.x0) / self.scale
+        self.u = u
+        self.tau = np.r_[[u[0]] * k, u, [u[-1]] * k]
+        n = len(self.tau) - k - 1
+        self.n = n
+        B = BSpline.design_matrix(u, self.tau, k).tocsc()
+        self.sw = None if weights is None else np.sqrt(np.asarray(weights, float))
+        if self.sw is not None:
+            B = (sp.diags(self.sw) @ B).tocsc()
+        # tie matrix: c_full = M c_red
+        keep = np.ones(n, dtype=bool)
+        rows, cols_ = [], []
+        red_index = np.full(n, -1)
+        for i0, i1 in ties:
+            keep[i0 + 1 : i1 + 1] = False
+        red_index[keep] = np.arange(keep.sum())
+        for i0, i1 in ties:
+            red_index[i0 + 1 : i1 + 1] = red_index[i0]
+        rows = np.arange(n)
+        cols_ = red_index
+        self.M = sp.csc_matrix((np.ones(n), (rows, cols_)), shape=(n, keep.sum()))
+        self.B = (B @ self.M).tocsc()
+        self.P = (self.M.T @ self._penalty() @ self.M).tocsc()
+        self.BtB = (self.B.T @ self.B).tocsc()
+
+    def _penalty(self, m=3):
+        k = K_SPLINE
+        D = sp.identity(self.n, format="csr")
+        tt, nn = self.tau, self.n
+        for kk in range(k, k - m, -1):
+            d = kk / (tt[kk + 1 : kk + nn] - tt[1:nn])
+            D = sp.diags([-d, d], [0, 1], shape=(nn - 1, nn)) @ D
+            tt, nn = tt[1:-1], nn - 1
+        kd = k - m
+        xg, wg = np.polynomial.legendre.leggauss(kd + 1)
+        a, b = tt[:-1], tt[1:]
+        nz = b > a
+        a, b = a[nz], b[nz]
+        xq = (0.5 * (b - a)[:, None] * xg + 0.5 * (b + a)[:, None]).ravel()
+        wq = (0.5 * (b - a)[:, None] * wg).ravel()
+        Bq = BSpline.design_matrix(xq, tt, kd)
+        G = Bq.T @ sp.diags(wq) @ Bq
+        return D.T @ G @ D
+
+    def _w(self, y):
+        return y if self.sw is None else self.sw * y
+
+    def solve(self, lam, y):
+        lu = splu((self.BtB + lam * self.P).tocsc())
+        return lu.solve(self.B.T @ self._w(y))
+
+    def rms(self, lam, y):
+        """RMS of the (weighted) residuals."""
+        c = self.solve(lam, y)
+        return float(np.sqrt(np.mean((self.B @ c - self._w(y)) ** 2)))
+
+    def lam_for_rms(self, y, target, lo=-6.0, hi=12.0):
+        """log10 lambda (normalized time) whose RMS residual equals ``target``.
+
+        Bandwidth ~ lambda^(1/6) samples, so [lo, hi] spans 0.1 to 100 samples. When the
+        fit with lambda = 1 (one-sample bandwidth) already leaves less than a tenth of
+        ``target``, the data are smooth well within the noise: lambda = 1 is returned (well
+        conditioned). When even the smoothest fit stays below ``target``, ``hi`` is returned.
+        """
+
+        def f(ll):
+            return math.log(max(self.rms(10.0**ll, y), 1e-300)) - math.log(target)
+
+        if f(0.0) <= math.log(0.1):
+            return 0.0
+        if f(lo) >= 0:
+            return lo
+        if f(hi) <= 0:
+            return hi
+        return brentq(f, lo, hi, xtol=0.01)
+
+    def bspline(self, c_red_cols) -> BSpline:
+        """Full-coefficient BSpline in the original variable x (vector-valued)."""
+        c = self.M @ c_red_cols
+        # map u = (x - x0)/scale back to x: knots scale, coefficients unchanged
+        return BSpline(self.tau * self.scale + self.x0, c, K_SPLINE, extrapolate=True)
+
+
+# ------------------------------------------------------------------------------------------
+# timed routes
+# ------------------------------------------------------------------------------------------
+class TimedMotion:
+    """Position spline p(t) (vector-valued quintic BSpline) and its derivatives."""
+
+    kind = "timed"
+
+    def __init__(self, spline: BSpline, t0: float, t1: float):
+        self.spline = spline
+        self.d = [spline] + [spline.derivative(nu) for nu in (1, 2, 3)]
+        self.t0, self.t1 = t0, t1
+
+    def position(self, t):
+        return self.d[0](t)
+
+    def velocity(self, t):
+        return self.d[1](t)
+
+    def eval(self, t):
+        """(p, v, a, j), each shape (m, 3), at times ``t`` (m,)."""
+        return tuple(s(t) for s in self.d)
+
+
+def _find_stops(t, y, noise_m, vp: VehicleParams):
+    """Index ranges (i0, i1) of input points that are stops, from the horizontal motion.
+
+    ``y`` holds the coordinates that decide (N, d): horizontal for ground vehicles (GNSS
+    heights are noisier and step at stops), 3-D for aircraft; ``noise_m`` is their noise. A point is still when the points within ``stop_min_s / 2`` of it span a box of diagonal
+    at most ``2 r`` with ``r = max(stop_radius_m, 3 * noise_m)``; runs of still points (and
+    their windows), trimmed to their longest stretch within ``r`` of their median, lasting
+    at least ``stop_min_s`` whose points all lie within ``r`` of the run's median and whose net displacement (median of the first third to median of the last
+    third) is below ``r / 2`` and ``stop_speed_mps`` times the duration are stops; so is
+    the interval between two consecutive fixes at least ``stop_min_s`` apart that moved less
+    than that (sparse fixes). Overlapping stops are merged.
+    """
+    n = len(t)
+    if n < 3:
+        return []
+    r = max(vp.stop_radius_m, 3.0 * noise_m)
+    half = max(1, round(0.5 * vp.stop_min_s / float(np.median(np.diff(t)))))
+    size = 2 * half + 1
+    span = maximum_filter1d(y, size, axis=0, mode="nearest") - minimum_filter1d(
+        y, size, axis=0, mode="nearest"
+    )
+    still = np.linalg.norm(span, axis=1) <= 2.0 * r
+    mark = binary_dilation(still, structure=np.ones(size, dtype=bool))
+    edges = np.flatnonzero(np.diff(np.r_[0, mark.astype(np.int8), 0]))
+    stops = []
+    for i0, i1 in zip(edges[::2], edges[1::2] - 1, strict=True):
+        for _ in range(3):  # trim the run to its longest stretch within r of its median
+            if i1 <= i0:
+                break
+            pts = y[i0 : i1 + 1]
+            near = np.linalg.norm(pts - np.median(pts, axis=0), axis=1) <= r
+            if near.all() or not near.any():
+                break
+            e = np.flatnonzero(np.diff(np.r_[0, near.astype(np.int8), 0]))
+            j = int(np.argmax(e[1::2] - e[::2]))
+            i0, i1 = i0 + int(e[2 * j]), i0 + int(e[2 * j + 1]) - 1
+        dur = t[i1] - t[i0]
+        if i1 <= i0 or dur < vp.stop_min_s:
+            continue
+        pts = y[i0 : i1 + 1]
+        if np.max(np.linalg.norm(pts - np.median(pts, axis=0), axis=1)) > r:
+            continue
+        third = max(1, len(pts) // 3)
+        net = np.linalg.norm(np.median(pts[-third:], axis=0) - np.median(pts[:third], axis=0))
+        if net <= min(0.5 * r, vp.stop_speed_mps * dur):
+            stops.append((int(i0), int(i1)))
+    # sparse fixes: two consecutive fixes at least stop_min_s apart that moved less than r
+    # (and than stop_speed_mps on average) bracket a stop the window above cannot see
+    step = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    dt = np.diff(t)
+    pairs = np.flatnonzero(
+        (dt >= vp.stop_min_s) & (step <= np.minimum(0.5 * r, vp.stop_speed_mps * dt))
+    )
+    stops += [(int(i), int(i) + 1) for i in pairs]
+    merged = []
+    for i0, i1 in sorted(stops):
+        if merged and i0 <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], i1))
+        else:
+            merged.append((i0, i1))
+    return merged
+
+
+def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
+    """Fit the position spline of a timed route; returns (TimedMotion, report dict)."""
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    n = len(t)
+    if n < 3:
+        raise InputError(None, f"a timed route needs at least 3 points to fit, got {n}")
+    dt = np.diff(t)
+    if not np.all(np.isfinite(t)) or np.any(dt <= 0):
+        raise InputError(None, "route times must be finite and strictly increasing")
+    sig = noise_estimate(t, y)
+    norm = float(np.linalg.norm(sig))
+    if fit_tol_m is not None:
+        if not fit_tol_m > 0:
+            raise InputError(None, f"fit tolerance must be > 0, got {fit_tol_m}")
+        target = (sig / norm * fit_tol_m) if norm > 0 else np.full(3, fit_tol_m / math.sqrt(3))
+        criterion = f"RMS residual = fit_tol_m = {fit_tol_m} m (split by the noise estimate)"
+    else:
+        target = sig.copy()
+        if norm > vp.fit_tol_max_m:
+            target *= vp.fit_tol_max_m / norm
+        criterion = (
+            "discrepancy principle: per-axis RMS residual = robust noise estimate "
+            f"(noise_estimate: neighbour-prediction residuals), 3-D bounded by [{vp.fit_floor_m}, "
+            f"{vp.fit_tol_max_m}] m"
+        )
+    target = np.maximum(target, vp.fit_floor_m / math.sqrt(3))
+    ps = _PenalizedSpline(t)
+    loglam = np.array([ps.lam_for_rms(y[:, i], target[i]) for i in range(3)])
+    lam = 10.0**loglam
+    coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
+    spline = ps.bspline(coef)
+    stop_list = []
+    if stops:
+        # ground vehicles stop horizontally (heights step at stops); aircraft also climb
+        # vertically, so their stops are 3-D
+        d = 2 if vp.attitude == "ground" else 3
+        stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp)
+        if stop_list:
+            # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
+            ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
+            ps = _PenalizedSpline(t, ties)
+            coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
+            spline = ps.bspline(coef)
+    motion = TimedMotion(spline, float(t[0]), float(t[-1]))
+    dist = np.linalg.norm(spline(t) - y, axis=1)
+    report = {
+        "method": "quintic penalized smoothing spline (knots at input times, penalty on jerk)",
+        "criterion": criterion,
+        "noise_estimate_m": sig.tolist(),
+        "target_rms_m": target.tolist(),
+        "lambda_normalized": lam.tolist(),
+        "time_scale_s": ps.scale,
+        "rms_distance_m": float(np.sqrt(np.mean(dist**2))),
+        "max_distance_m": float(dist.max()),
+        "stops": [[float(t[i0]), float(t[i1])] for i0, i1 in stop_list],
+    }
+    return motion, report
+
+
+# ------------------------------------------------------------------------------------------
+# untimed routes: geometry
+# ------------------------------------------------------------------------------------------
+def fit_path(y, vp: VehicleParams, corner_m=None):
+    """Smooth a polyline and re-parameterize by arc length.
+
+    Returns (G BSpline of s, length L, report dict).
+    """
+    y = np.asarray(y, float)
+    seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    keep = np.r_[True, seg > 1e-9]
+    y = y[keep]
+    seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    if len(y) < 2 or seg.sum() <= 0:
+        raise InputError(None, "an untimed route needs at least 2 distinct points")
+    ell = float(corner_m if corner_m is not None else vp.corner_m)
+    if not ell > 0:
+        raise InputError(None, f"corner rounding length must be > 0, got {ell}")
+    step = ell / 4.0
+    nsub = np.maximum(1, np.ceil(seg / step).astype(int))
+    frac = np.concatenate([np.arange(m) / m for m in nsub])
+    idx = np.repeat(np.arange(len(seg)), nsub)
+    dense = np.vstack([y[idx] + frac[:, None] * (y[idx + 1] - y[idx]), y[-1:]])
+    u = np.r_[0.0, np.cumsum(np.repeat(seg / nsub, nsub))]
+    if len(dense) < 3:  # pragma: no cover - nsub >= 1 gives >= 2 points; make 3
+        mid = 0.5 * (dense[0] + dense[-1])
+        dense = np.vstack([dense[0], mid, dense[-1]])
+        u = np.array([0.0, 0.5 * u[-1], u[-1]])
+    ps = _PenalizedSpline(u)
+    # equivalent-kernel bandwidth of an order-3 smoothing spline ~ lam^(1/6) samples;
+    # calibrated so that a right-angle corner becomes an arc of radius ~ ell (tests check)
+    lam = (ell / ps.scale) ** 6 * _CORNER_CAL
+    coef = np.column_stack([ps.solve(lam, dense[:, i]) for i in range(3)])
+    g = ps.bspline(coef)
+    # arc length by 5-node Gauss-Legendre on a fine parameter grid
+    nfine = max(64, int(np.ceil(u[-1] / (step / 4.0))))
+    uf = np.linspace(0.0, u[-1], nfine + 1)
+    xg, wg = np.polynomial.legendre.leggauss(5)
+    h = np.diff(uf)
+    xq = (uf[:-1, None] + 0.5 * h[:, None] * (xg + 1.0)).ravel()
+    speed = np.linalg.norm(g.derivative(1)(xq), axis=1).reshape(-1, 5)
+    s = np.r_[0.0, np.cumsum(0.5 * h * (speed @ wg))]
+    L = float(s[-1])
+    G = make_interp_spline(s, g(uf), k=K_SPLINE)
+    # distance from input vertices to the smoothed curve (nearest fine sample)
+    from scipy.spatial import cKDTree
+
+    sf = np.linspace(0.0, L, max(2, int(np.ceil(L / (step / 8.0))) + 1))
+    d, _ = cKDTree(G(sf)).query(y)
+    report = {
+        "method": "quintic penalized smoothing spline of the densified polyline vs chord "
+        "length, re-parameterized by arc length",
+        "corner_m": ell,
+        "densify_step_m": step,
+        "rms_distance_m": float(np.sqrt(np.mean(d**2))),
+        "max_distance_m": float(d.max()),
+        "length_m": L,
+    }
+    return G, L, report
+
+
+# ------------------------------------------------------------------------------------------
+# height against horizontal distance (road grade)
+# ------------------------------------------------------------------------------------------
+def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
+    """Height against horizontal distance, smoothed at the height noise.
+
+    Points are binned by distance (``bin_m``; a stop's points fall into one bin, so height
+    noise or a height step at a stop is averaged, never a slope), and a quintic penalized
+    smoothing spline (penalty on the third derivative) is fitted to the bin means weighted by
+    their counts; its smoothing makes the count-weighted RMS residual equal to ``noise_m``
+    (discrepancy principle, the noise of one point), and is at least that of a bandwidth of
+    ``smooth_m`` (GNSS heights step and wander; quantized heights have no noise to measure).
+
+    Parameters
+    ----------
+    s : ndarray, shape (N,)
+        Horizontal distance travelled [m] (non-decreasing).
+    h : ndarray, shape (N,)
+        Height [m].
+    noise_m : float
+        White-noise level of ``h`` [m].
+    bin_m : float
+        Bin width [m].
+    smooth_m : float
+        Least smoothing length [m].
+    floor_m : float
+        Smallest residual target [m].
+
+    Returns
+    -------
+    (BSpline or None, dict)
+        ``H(s)`` (None when fewer than 6 bins: level) and a report.
+    """
+    s = np.asarray(s, float)
+    h = np.asarray(h, float)
+    b = np.floor((s - s[0]) / bin_m).astype(np.int64)
+    _, inv, cnt = np.unique(b, return_inverse=True, return_counts=True)
+    sm = np.bincount(inv, s) / cnt
+    hm = np.bincount(inv, h) / cnt
+    if len(sm) < 6:
+        return None, {"bins": len(sm), "method": "level (too short)"}
+    ps = _PenalizedSpline(sm, weights=cnt)
+    target = max(float(noise_m), floor_m)
+    lam = max(10.0 ** ps.lam_for_rms(hm, target), (smooth_m / ps.scale) ** 6)
+    H = ps.bspline(ps.solve(lam, hm))
+    res = H(sm) - hm
+    report = {
+        "method": "quintic penalized smoothing spline of binned height against distance",
+        "bins": len(sm),
+        "bin_m": bin_m,
+        "smooth_m": smooth_m,
+        "lambda_normalized": lam,
+        "noise_m": float(noise_m),
+        "rms_residual_m": float(np.sqrt(np.sum(cnt * res**2) / np.sum(cnt))),
+    }
+    return H, report

@@ -1,0 +1,148 @@
+"""Speed profile of an untimed path: time-optimal under speed, acceleration and lateral limits,
+jerk-bounded by moving-average filtering; the path motion ``G(s(t))``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.interpolate import BSpline, PPoly
+from scipy.ndimage import minimum_filter1d
+
+from imugen.errors import InputError
+
+
+class PathMotion:
+    """Position ``G(s(t))``: geometry G(s) (arc length) and speed profile s(t) (PPoly)."""
+
+    kind = "untimed"
+
+    def __init__(self, G: BSpline, s_of_t: PPoly, length: float):
+        self.G = [G] + [G.derivative(nu) for nu in (1, 2, 3)]
+        self.S = [s_of_t] + [s_of_t.derivative(nu) for nu in (1, 2, 3)]
+        self.length = length
+        self.t0 = float(s_of_t.x[0])
+        self.t1 = float(s_of_t.x[-1])
+
+    def _s(self, t):
+        return np.clip(self.S[0](t), 0.0, self.length)
+
+    def position(self, t):
+        return self.G[0](self._s(t))
+
+    def velocity(self, t):
+        return self.G[1](self._s(t)) * self.S[1](t)[:, None]
+
+    def eval(self, t):
+        s = self._s(t)
+        sd, sdd, sddd = (self.S[i](t)[:, None] for i in (1, 2, 3))
+        g1, g2, g3 = (self.G[i](s) for i in (1, 2, 3))
+        p = self.G[0](s)
+        v = g1 * sd
+        a = g2 * sd**2 + g1 * sdd
+        j = g3 * sd**3 + 3.0 * g2 * sd * sdd + g1 * sddd
+        return p, v, a, j
+
+
+def curvature(G: BSpline, s):
+    d1 = G.derivative(1)(s)
+    d2 = G.derivative(2)(s)
+    n1 = np.linalg.norm(d1, axis=1)
+    return np.linalg.norm(np.cross(d1, d2), axis=1) / np.maximum(n1, 1e-12) ** 3
+
+
+def _moving_average(x, m):
+    """Causal moving average over m samples with zero history: y_i = mean(x[i-m+1..i])."""
+    c = np.cumsum(np.r_[np.zeros(m), x])
+    return (c[m:] - c[:-m]) / m
+
+
+def speed_profile(
+    G: BSpline,
+    L: float,
+    *,
+    cruise_mps,
+    accel_mps2,
+    lat_accel_mps2,
+    jerk_mps3,
+    max_iter=30,
+    lat_tol=0.01,
+):
+    """Speed profile s(t) along the geometry; returns (PPoly s(t), report).
+
+    The profile starts and ends at rest; see the module docstring for the construction.
+    """
+    for name, val in (
+        ("cruise speed", cruise_mps),
+        ("acceleration", accel_mps2),
+        ("lateral acceleration", lat_accel_mps2),
+        ("jerk", jerk_mps3),
+    ):
+        if not (val > 0 and math.isfinite(val)):
+            raise InputError(None, f"{name} limit must be a positive number, got {val}")
+    ns = int(min(400_000, max(200, math.ceil(L / 0.25))))
+    s = np.linspace(0.0, L, ns + 1)
+    ds = s[1] - s[0]
+    kappa = curvature(G, s)
+    A = accel_mps2
+    scale_lim = np.ones_like(s)
+    for it in range(max_iter):  # noqa: B007 (reported below)
+        vlim2 = np.minimum(cruise_mps**2, lat_accel_mps2 / np.maximum(kappa, 1e-12)) * scale_lim
+        vlim2[0] = vlim2[-1] = 0.0
+        fwd = 2 * A * s + np.minimum.accumulate(vlim2 - 2 * A * s)
+        bwd = -2 * A * s + np.minimum.accumulate((vlim2 + 2 * A * s)[::-1])[::-1]
+        v = np.sqrt(np.maximum(np.minimum(np.minimum(fwd, bwd), vlim2), 0.0))
+        vm = v[:-1] + v[1:]
+        if not np.all(vm > 0):
+            raise InputError(None, "speed profile stalls (zero speed limit inside the path)")
+        dtj = 2.0 * ds / vm
+        tj = np.r_[0.0, np.cumsum(dtj)]
+        acc = (v[1:] - v[:-1]) / dtj  # uniform acceleration within each s-segment
+        T = tj[-1]
+        h = min(0.02, T / 200.0)
+        ti = np.arange(0.0, T + h, h)
+        j = np.clip(np.searchsorted(tj, ti, side="right") - 1, 0, ns - 1)
+        V = np.clip(v[j] + acc[j] * (ti - tj[j]), 0.0, None)
+        V[-1] = 0.0
+        a_raw = np.diff(V) / h
+        Tf = max(float(a_raw.max() - a_raw.min()) / jerk_mps3, 2 * h)
+        m = math.ceil(Tf / h)
+        a_pad = np.r_[a_raw, np.zeros(2 * m + 2)]
+        c = np.r_[0.0, 0.0, _moving_average(_moving_average(a_pad, m), m)]
+        # accel = sum c_i B2(t/h - i): uniform quadratic B-splines, support [i h, (i+3) h];
+        # the two leading zeros put the whole motion inside the base interval [2h, len(c) h]
+        acc_sp = BSpline(h * np.arange(len(c) + 3.0), c, 2)
+        pp = PPoly.from_spline(acc_sp)  # also holds extrapolated pieces: keep the base interval
+        pp = PPoly(pp.c[:, 2 : len(c)], pp.x[2 : len(c) + 1])
+        s_pp = pp.antiderivative(2)
+        t_end = float(s_pp.x[-1])
+        total = float(s_pp(t_end))
+        s_pp = PPoly(s_pp.c * (L / total), s_pp.x - s_pp.x[0])
+        # check the lateral acceleration on a fine grid
+        tt = np.linspace(0.0, s_pp.x[-1], max(2000, int(s_pp.x[-1] / h) + 1))
+        sv = np.clip(s_pp(tt), 0.0, L)
+        vv = s_pp.derivative(1)(tt)
+        ratio = curvature(G, sv) * vv**2 / lat_accel_mps2
+        worst = float(ratio.max())
+        if worst <= 1.0 + lat_tol:
+            break
+        # lower the limit where exceeded, spread over the distance the filter reaches
+        bad = ratio > 1.0
+        fac = np.ones_like(s)
+        idx = np.clip(np.searchsorted(s, sv[bad]), 0, ns)
+        np.minimum.at(fac, idx, 1.0 / ratio[bad])
+        reach = max(1, math.ceil(2.0 * Tf * float(vv[bad].max()) / ds))
+        fac = minimum_filter1d(fac, 2 * reach + 1)
+        scale_lim *= np.where(fac < 1.0, 0.98 * fac, 1.0)
+    report = {
+        "cruise_mps": cruise_mps,
+        "accel_mps2": accel_mps2,
+        "lat_accel_mps2": lat_accel_mps2,
+        "jerk_mps3": jerk_mps3,
+        "filter_width_s": Tf,
+        "duration_s": float(s_pp.x[-1]),
+        "max_lateral_ratio": worst,
+        "iterations": it + 1,
+        "distance_scale": L / total,
+    }
+    return s_pp, report

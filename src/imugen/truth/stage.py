@@ -1,0 +1,38 @@
+"""The ``imugen truth`` stage: read the ENU table, build the truth, write it."""
+
+from __future__ import annotations
+
+import sys
+
+import pandas as pd
+
+from imugen.errors import InputError
+from imugen.tables import enu as tenu
+from imugen.tables import truth as ttable
+from imugen.truth.build import build_truth, messages
+
+
+def read_enu(path) -> tuple[pd.DataFrame, dict]:
+    """Read an ENU Parquet written by ``imugen ingest`` (table and metadata)."""
+    return tenu.read(path)
+
+
+def run(
+    enu_path, out_path, *, rate_hz: float = 100.0, earth: str = "flat", vehicle: str = "car", **kw
+) -> dict:
+    """Read the ENU Parquet, build the truth, write it atomically, then print the Earth
+    budget and the plausibility report (stderr); returns the metadata."""
+    enu, meta = read_enu(enu_path)
+    kw["verbose"] = False
+    try:
+        df, tmeta = build_truth(enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, **kw)
+    except InputError as exc:
+        if exc.source is None:
+            raise InputError(enu_path, exc.message) from None
+        raise
+    tmeta["source"] = str(enu_path)
+    tmeta["route_source"] = meta.get("source")
+    ttable.write(df, tmeta, out_path)
+    for line in messages(tmeta):
+        print(line, file=sys.stderr)
+    return tmeta

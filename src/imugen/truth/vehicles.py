@@ -1,0 +1,175 @@
+"""Vehicle classes of the truth: motion models, defaults and physical limits (SI units).
+
+Every field can be overridden per truth (``build_truth(..., vehicle_params={...})``, CLI
+``imugen truth --vehicle-param NAME=VALUE``). Roles:
+
+* ``attitude``: ``"ground"`` (heading from the horizontal velocity, pitch from the road grade,
+  roll zero or the lean of a coordinated turn) or ``"coordinated"`` (aircraft: ground model
+  when slow and low, coordinated flight when fast or high).
+* speed profile of untimed paths: ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``,
+  ``jerk_mps3``, ``corner_m`` (corner-rounding length of the polyline).
+* ground attitude: ``max_curvature_1pm`` (the heading turns at most ``speed x
+  max_curvature``: no turning on the spot), ``heading_smooth_m``, ``heading_smooth_s``
+  (Gaussian smoothing of the heading along the distance: at least this length, and this time
+  at the route's median moving speed, default 0: the heading then stays within about 1 deg of
+  the velocity direction on a car's rounded corners; 1 s gives ~11 deg of sideslip there), ``max_pitch_rad`` (bound of the pitch taken from
+  the grade), ``lean`` (bicycle: roll = ``atan(v^2 kappa / g)``), ``max_roll_rad`` (bound of
+  that lean), ``grade_bin_m`` (bin of the height-against-distance fit),
+  ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
+  vertical curves, not at a GNSS height step).
+* coordinated flight: ``hold_speed_mps``, ``hold_perp`` (attitude held below these speed and
+  perpendicular-force thresholds), ``airborne_speed_mps``, ``airborne_height_m`` (blend from
+  ground to flight between 0.8x and 1x this speed, or 0.5x and 1x this height above the
+  route's lowest point: a slow glider circling high is flying).
+* fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
+  ``fit_floor_m``.
+* plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
+  ``max_accel_mps2`` and the attitude bounds above.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+from imugen.errors import InputError
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Model and limits of a vehicle class (SI units, radians); see the module docstring."""
+
+    attitude: str
+    cruise_mps: float
+    accel_mps2: float
+    lat_accel_mps2: float
+    jerk_mps3: float
+    corner_m: float
+    max_curvature_1pm: float
+    max_pitch_rad: float
+    max_roll_rad: float = 0.0
+    lean: bool = False
+    grade_bin_m: float = 0.5
+    heading_smooth_m: float = 2.0
+    heading_smooth_s: float = 0.0
+    grade_smooth_m: float = 50.0
+    max_speed_mps: float = 70.0
+    max_accel_mps2: float = 8.0
+    airborne_speed_mps: float = math.inf
+    airborne_height_m: float = math.inf
+    hold_speed_mps: tuple = (0.2, 1.0)
+    hold_perp: tuple = (0.05, 0.1)  # |r_perp| thresholds [m/s^2] of coordinated flight
+    stop_speed_mps: float = 0.2
+    stop_min_s: float = 2.0
+    stop_radius_m: float = 1.0
+    fit_tol_max_m: float = 5.0
+    fit_floor_m: float = 1e-3
+
+
+VEHICLES = {
+    # car: 50 km/h cruise, 0.2 g longitudinal, 0.3 g lateral, 1 m/s^3 comfort jerk; turning
+    # radius >= 5 m; road grade within +-20 deg (steepest public roads ~35 %), changing over
+    # vertical curves of 50 m at least; roll 0;
+    # plausible up to 250 km/h and 0.8 g
+    "car": VehicleParams(
+        "ground", 13.9, 2.0, 3.0, 1.0, 10.0, max_curvature_1pm=0.2, max_pitch_rad=0.35
+    ),
+    # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
+    "bicycle": VehicleParams(
+        "ground",
+        5.5,
+        1.0,
+        2.5,
+        1.0,
+        3.0,
+        max_curvature_1pm=1.0 / 3.0,
+        max_pitch_rad=0.35,
+        max_roll_rad=0.785,
+        lean=True,
+        heading_smooth_m=3.0,
+        grade_smooth_m=10.0,
+        max_speed_mps=25.0,
+        max_accel_mps2=5.0,
+    ),
+    # pedestrian: 5 km/h, gentle accelerations, corners rounded over ~1 m; turns on a 0.5 m
+    # radius at least; slopes up to 35 deg (stairs); plausible up to a 12 m/s sprint
+    "pedestrian": VehicleParams(
+        "ground",
+        1.4,
+        0.5,
+        0.5,
+        1.0,
+        1.0,
+        max_curvature_1pm=2.0,
+        max_pitch_rad=0.61,
+        heading_smooth_m=0.5,
+        grade_smooth_m=5.0,
+        max_speed_mps=12.0,
+        max_accel_mps2=5.0,
+        hold_speed_mps=(0.1, 0.5),
+        stop_speed_mps=0.1,
+        stop_radius_m=1.0,
+    ),
+    # aircraft: 70 m/s, 0.3 g longitudinal, 0.5 g lateral (~27 deg bank), 2 m/s^3; on the
+    # ground (below 25 m/s) a taxiing vehicle: radius >= 10 m, pitch within 5 deg
+    "aircraft": VehicleParams(
+        "coordinated",
+        70.0,
+        3.0,
+        5.0,
+        2.0,
+        300.0,
+        max_curvature_1pm=0.1,
+        max_pitch_rad=0.087,
+        heading_smooth_m=5.0,
+        grade_smooth_m=50.0,
+        max_roll_rad=1.05,
+        max_speed_mps=300.0,
+        max_accel_mps2=30.0,
+        airborne_speed_mps=25.0,
+        airborne_height_m=40.0,
+        hold_speed_mps=(0.5, 2.0),
+        hold_perp=(0.3, 1.0),
+        stop_speed_mps=0.5,
+        stop_radius_m=3.0,
+        fit_tol_max_m=20.0,
+    ),
+}
+
+
+_MAY_BE_ZERO = ("max_roll_rad", "heading_smooth_s")
+
+
+def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams:
+    """The vehicle class ``vehicle`` with fields replaced by ``overrides`` (validated)."""
+    if vehicle not in VEHICLES:
+        raise InputError("--vehicle", f"unknown vehicle {vehicle!r}; one of {sorted(VEHICLES)}")
+    vp = VEHICLES[vehicle]
+    if not overrides:
+        return vp
+    known = {f.name: f for f in fields(VehicleParams)}
+    new = {}
+    for name, value in overrides.items():
+        if name not in known or name == "attitude":
+            raise InputError("--vehicle-param", f"unknown vehicle parameter {name!r}")
+        old = getattr(vp, name)
+        try:
+            if isinstance(old, tuple):
+                value = tuple(float(x) for x in value)
+                ok = len(value) == 2 and 0 <= value[0] < value[1]
+            elif isinstance(old, bool):
+                text = str(value).lower()
+                ok = text in ("true", "false", "1", "0")
+                value = text in ("true", "1")
+            else:
+                value = float(value)
+                ok = math.isfinite(value) and (value > 0 or (value == 0 and name in _MAY_BE_ZERO))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError("--vehicle-param", f"{name}: invalid value {value!r}")
+        new[name] = value
+    vp = replace(vp, **new)
+    if vp.lean and not vp.max_roll_rad > 0:
+        raise InputError("--vehicle-param", "a leaning vehicle needs max_roll_rad > 0")
+    return vp
