@@ -457,7 +457,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="aided navigation-error Parquet")
     p.add_argument("--receiver", default="standalone", help="phone, standalone, sbas or rtk")
     p.add_argument("--gnss-rate-hz", type=float, help="epoch rate (default: the receiver's)")
-    p.add_argument("--gnss-draw", default="ranges", choices=["ranges", "nominal"])
+    p.add_argument(
+        "--gnss-draw",
+        default="ranges",
+        choices=["ranges", "nominal"],
+        help="receiver error levels drawn in the preset's ranges per sequence, or nominal",
+    )
     p.add_argument("--lever-arm", default="0,0,0", metavar="X,Y,Z", help="antenna, body frame, m")
     p.add_argument("--lever-arm-sd", type=float, default=0.0, help="per-axis spread drawn, m")
     p.add_argument(
@@ -469,7 +474,12 @@ def build_parser() -> argparse.ArgumentParser:
         "KIND drawn with the documented distributions (repeatable)",
     )
     p.add_argument("--settle-s", type=float, default=60.0, help="earliest start of a draw, s")
-    p.add_argument("--tuning-level", default="upper", choices=["nominal", "upper"])
+    p.add_argument(
+        "--tuning-level",
+        default="upper",
+        choices=["nominal", "upper"],
+        help="filter noise from the grade's nominal values or the top of their ranges",
+    )
     p.add_argument("--no-gnss-bias-states", action="store_true", help="no receiver-bias states")
     p.add_argument("--scale-factors", action="store_true", help="estimate scale factors")
     p.add_argument(
