@@ -10,7 +10,9 @@ slow bias (state at sample ``t_k``)
     * ``b_on`` turn-on bias, constant over the run;
     * ``x_c`` first-order Gauss-Markov (bias instability), exact discretization
       ``x_k = phi x_{k-1} + sigma sqrt(1 - phi^2) xi``, ``phi = exp(-dt/T)``, started from
-      its stationary law ``x_0 ~ N(0, sigma^2)``; a sum of several (log-spaced ``T``)
+      its stationary law ``x_0 ~ N(0, sigma^2)`` when it is the whole slow bias, or from
+      ``x_0 = 0`` when it is the in-run wander beside a turn-on bias (grade key ``start``);
+      a sum of several (log-spaced ``T``)
       approximates flicker (1/f) noise;
     * ``r`` rate random walk, ``r_k = r_{k-1} + K sqrt(dt) xi``, ``r_0 = 0`` (the turn-on bias
       is the initial value);
@@ -88,6 +90,9 @@ class SensorParams:
     ts : (S, 3)        scale-factor temperature coefficient [1/K]
     lsb : float        quantization step of the rate output (0: off)
     full_scale : float measurement range (inf: off)
+    bi_x0 : (S, 3, C)  standard deviation of each GM component's initial state: ``bi_sigma``
+                       (start from the stationary law) or 0 (in-run wander from the turn-on
+                       value); None means ``bi_sigma``
     """
 
     b_on: np.ndarray
@@ -104,6 +109,11 @@ class SensorParams:
     ts: np.ndarray
     lsb: float
     full_scale: float
+    bi_x0: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.bi_x0 is None:
+            self.bi_x0 = self.bi_sigma
 
     @property
     def components(self) -> int:
@@ -127,6 +137,7 @@ class SensorParams:
             "gs",
             "tb",
             "ts",
+            "bi_x0",
         ):
             kw[name] = np.concatenate([getattr(p, name) for p in items])
         return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale)
@@ -221,6 +232,7 @@ def draw_sensor(
     bi_level = np.zeros(3)
     bi_floor = np.zeros(3)
     bi_sigma = np.zeros((3, C))
+    bi_x0 = bi_sigma
     bi_tau = np.ones(C)
     lv = lvl("bias_instability")
     if lv is not None:
@@ -232,6 +244,7 @@ def draw_sensor(
 
             bi_tau = flicker_taus(bi.flicker_band, C)
         bi_sigma = np.array([[bi.sigma_from_level(x)] * C for x in lv])
+        bi_x0 = bi_sigma if bi.start == "stationary" else np.zeros_like(bi_sigma)
         bi_floor = np.array([bi.allan_floor_from_level(x) for x in lv])
     w = lvl("white_noise")
     r = lvl("rate_random_walk")
@@ -267,6 +280,7 @@ def draw_sensor(
         ts=ts[None],
         lsb=float(lsb),
         full_scale=float(full_scale),
+        bi_x0=bi_x0[None],
     )
 
 
@@ -508,7 +522,7 @@ class SensorModel:
             self.use_r and zr is not None,
             self.use_b and zb is not None,
             p.b_on,
-            p.bi_sigma,
+            p.bi_x0,
             self.phi,
             self.drv,
             p.white,
