@@ -87,6 +87,7 @@ def _cmd_simulate(a) -> int:
         grades_file=a.grades_file,
         static_earth=a.earth,
         shard_size=a.shard_size,
+        vibration=a.vibration,
     )
     print(
         f"{a.output}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
@@ -254,6 +255,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--outputs", choices=["increments", "rates", "both"], default="increments")
     p.add_argument("--draw", choices=["ranges", "nominal"], default="ranges")
     p.add_argument("--terms", help="comma-separated error terms to keep (default: all)")
+    p.add_argument(
+        "--vibration",
+        choices=["off", "car", "aircraft", "vehicle"],
+        default="off",
+        help="vibration of the IMU case (vehicle: the truth's vehicle class; default off)",
+    )
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
     p.add_argument("--series", action="store_true", help="also write true bias/SF series")
     p.add_argument("--dtype", choices=["float32", "float64"], default="float32")

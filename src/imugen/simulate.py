@@ -57,6 +57,7 @@ from imugen.errors import InputError
 from imugen.grades import TERMS, Grade, get_grade, preset_text
 from imugen.io import atomic_output, with_meta
 from imugen.sensors import SensorModel, SensorParams, draw_sensor
+from imugen.vibration import setup_vibration
 
 CHUNK = 8192
 """Samples per sequence processed per step (a constant; results do not depend on it)."""
@@ -71,6 +72,7 @@ STREAMS = {
     "accel_rrw": 4,
     "gyro_bi": 5,
     "accel_bi": 6,
+    "vibration": 7,
 }
 """Per-sequence random streams: last element of the spawn key."""
 OUTPUTS = ("increments", "rates", "both")
@@ -139,6 +141,7 @@ class ArrayTruth(Truth):
         ) + 1e-12 * abs(self.time[-1]):
             raise InputError(source, "time_s is not a uniform grid")
         self.meta = dict(meta or {})
+        self.speed_mps = None  # vehicle speed per sample when known (vibration model)
 
     def chunk(self, k0, L):
         s = slice(k0, k0 + L)
@@ -150,7 +153,7 @@ class ArrayTruth(Truth):
         miss = [c for c in need if c not in df.columns]
         if miss:
             raise InputError(source, f"not a truth table: missing column(s) {', '.join(miss)}")
-        return cls(
+        out = cls(
             df[col.TIME].to_numpy(),
             df[list(col.GYRO)].to_numpy(),
             df[list(col.ACCEL)].to_numpy(),
@@ -159,6 +162,9 @@ class ArrayTruth(Truth):
             meta,
             source,
         )
+        if set(col.VEL) <= set(df.columns):
+            out.speed_mps = np.linalg.norm(df[list(col.VEL)].to_numpy(), axis=1)
+        return out
 
     @classmethod
     def read(cls, path) -> ArrayTruth:
@@ -172,7 +178,8 @@ class ArrayTruth(Truth):
         miss = [c for c in need if c not in names]
         if miss:
             raise InputError(path, f"not a truth table: missing column(s) {', '.join(miss)}")
-        tbl = pf.read(columns=need)
+        has_vel = set(col.VEL) <= set(names)
+        tbl = pf.read(columns=need + (list(col.VEL) if has_vel else []))
         md = pf.schema_arrow.metadata or {}
         meta = {}
         if col.METADATA_KEY in md:
@@ -188,7 +195,7 @@ class ArrayTruth(Truth):
             k: meta[k] for k in ("origin", "earth", "rate_hz", "vehicle", "source") if k in meta
         }
         keep["path"] = str(path)
-        return cls(
+        out = cls(
             tbl.column(col.TIME).to_numpy(),
             arr(col.GYRO),
             arr(col.ACCEL),
@@ -197,6 +204,9 @@ class ArrayTruth(Truth):
             keep,
             str(path),
         )
+        if has_vel:
+            out.speed_mps = np.linalg.norm(arr(col.VEL), axis=1)
+        return out
 
 
 class StaticTruth(Truth):
@@ -475,6 +485,16 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
     return ArrayTruth.read(truth)
 
 
+def _vibrations(truth, option, seed, grade, shard, M):
+    """Per-sequence vibrations (stream ``vibration``) and their metadata, or (None, meta)."""
+    v = setup_vibration(truth, option)
+    meta = None if option in (None, "off") else {"option": option, "profile": None}
+    if v is None:
+        return None, meta
+    meta["profile"] = v.profile.as_dict()
+    return [v.draw(_rng(seed, grade.id, shard, j, "vibration")) for j in range(M)], meta
+
+
 def _first_id(shard: int, M: int, shard_size) -> int:
     """Global id of the shard's first sequence: ``shard * shard_size`` (default ``M``).
 
@@ -524,7 +544,7 @@ def _prepare(
 
 
 def _labels(
-    grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, first=None
+    grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, first=None, vib=None
 ) -> pd.DataFrame:
     first = shard * M if first is None else first
     d = {
@@ -536,11 +556,19 @@ def _labels(
     }
     d.update(gpar.labels("gyro", "radps"))
     d.update(apar.labels("accel", "mps2"))
+    if vib is not None:
+        for name in vib[0].labels():
+            d[name] = np.array([v.labels()[name] for v in vib])
     return pd.DataFrame(d)
 
 
-def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink):
-    """Generate every sequence in time chunks and hand each chunk to ``sink.put``."""
+def _loop(
+    truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, vib=None
+):
+    """Generate every sequence in time chunks and hand each chunk to ``sink.put``.
+
+    ``vib``: one :class:`imugen.vibration.SequenceVibration` per sequence, or None.
+    """
     K, dt = truth.K, truth.dt
     want_inc = outputs in ("increments", "both")
     want_rate = outputs in ("rates", "both")
@@ -575,6 +603,8 @@ def _loop(truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, s
         for k0 in range(0, K, CHUNK):
             L = min(CHUNK, K - k0)
             t, w_b, f_b, dth, dv = truth.chunk(k0, L)
+            if vib is not None:
+                w_b, f_b, dth, dv = vib[j].apply(k0, w_b, f_b, dth, dv)
             dT = None
             if temp is not None:
                 # time since turn-on of the sample before the chunk and of each sample
@@ -682,6 +712,7 @@ def _meta(
     names,
     labels_name=None,
     first=None,
+    vibration=None,
 ):
     first = shard * M if first is None else first
     units = {SEQUENCE: "1", col.TIME: "s"}
@@ -725,6 +756,7 @@ def _meta(
         "samples_per_sequence": truth.K,
         "truth": truth.meta,
         "temperature": temperature,
+        "vibration": vibration,
         "rows": "sorted by sequence then time; increments on row k are the interval ending at t_k; row 0 of each sequence is zero",
         "units": units,
         "labels_file": labels_name,
@@ -749,6 +781,7 @@ def simulate(
     static_origin=DEFAULT_STATIC_ORIGIN,
     grades_file=None,
     shard_size=None,
+    vibration=None,
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
@@ -776,6 +809,8 @@ def simulate(
     shard_size : int, optional
         Sequences per shard of the experiment (``>= sequences``): global ids are
         ``shard * shard_size + j``. Default ``sequences``; give it for a short last shard.
+    vibration : {"off", "car", "aircraft", "vehicle"}, optional
+        Vibration of the IMU case (:mod:`imugen.vibration`; ``vehicle``: the truth's class).
     """
     tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
     grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
@@ -784,7 +819,8 @@ def simulate(
     first = _first_id(shard, M, shard_size)
     names = _names(outputs, series)
     sink = _MemorySink(M, tr.K, names)
-    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
+    vib, vmeta = _vibrations(tr, vibration, seed, grade, shard, M)
+    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, vib)
     gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
     time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
     meta = _meta(
@@ -801,8 +837,9 @@ def simulate(
         np.float64,
         names,
         first=first,
+        vibration=vmeta,
     )
-    labels = _labels(grade, M, seed, shard, gpar, apar, first)
+    labels = _labels(grade, M, seed, shard, gpar, apar, first, vib)
     return Shard(time_s, sink.data, labels, gpar, apar, meta)
 
 
@@ -837,6 +874,7 @@ def run(
     static_earth="flat",
     static_origin=DEFAULT_STATIC_ORIGIN,
     shard_size=None,
+    vibration=None,
 ) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically.
 
@@ -864,6 +902,7 @@ def run(
     first = _first_id(shard, M, shard_size)
     names = _names(outputs, series)
     lab_path = labels_path(out)
+    vib, vmeta = _vibrations(tr, vibration, seed, grade, shard, M)
     meta = _meta(
         grade,
         tr,
@@ -879,6 +918,7 @@ def run(
         names,
         lab_path.name,
         first,
+        vmeta,
     )
     fields = [pa.field(SEQUENCE, pa.int32()), pa.field(col.TIME, pa.float64())]
     ftype = pa.float32() if dtype == "float32" else pa.float64()
@@ -896,9 +936,11 @@ def run(
             write_statistics=[SEQUENCE, col.TIME],
         ) as w:
             sink = _ParquetSink(w, schema, {n: _COLS[n] for n in names}, np.dtype(dtype), first)
-            _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink)
+            _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, vib)
             sink.flush()
-        lab = _labels(grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap), first)
+        lab = _labels(
+            grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap), first, vib
+        )
         lmeta = dict(meta)
         lmeta["format"] = "imugen-shard-labels"
         lmeta["shard_file"] = out.name

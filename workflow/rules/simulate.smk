@@ -16,7 +16,7 @@ rule simulate:
     input:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
-        code=stage_code("simulate", "sensors", "grades", "units"),
+        code=stage_code("simulate", "sensors", "grades", "units", "vibration"),
         presets=PRESETS,
     output:
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
@@ -31,6 +31,7 @@ rule simulate:
         dtype=SIM["dtype"],
         outputs=SIM["outputs"],
         series="--series" if SIM["series"] else "",
+        vibration=SIM["vibration"] or "off",
         shard=lambda wc: int(wc.shard),
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
@@ -38,6 +39,7 @@ rule simulate:
         "imugen simulate {input.truth:q} -o {output.shard:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
         "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
+        "--vibration {params.vibration} "
         "> {log:q} 2>&1"
 
 
