@@ -50,6 +50,8 @@ GRADES = (
     "navigation_calibrated",
 )
 ALL = "all terms"
+VIB = "vibration ({}) alone"
+VIB_ALL = "all terms + vibration ({})"
 
 
 def grade_terms(name: str) -> list[str]:
@@ -58,7 +60,7 @@ def grade_terms(name: str) -> list[str]:
     return [f"{s}.{t}" for s in SENSORS for t in g.sensor(s).configured()]
 
 
-def run_term(truth, frame, grade, terms, sequences, seed, rate_hz, batch=25):
+def run_term(truth, frame, grade, terms, sequences, seed, rate_hz, batch=25, vibration=None):
     """Median total RMSE and final 3-D error (m) of ``sequences`` sequences with ``terms`` on."""
     t = truth[col.TIME].to_numpy()
     p_true = truth[list(col.POS)].to_numpy()
@@ -77,6 +79,7 @@ def run_term(truth, frame, grade, terms, sequences, seed, rate_hz, batch=25):
             shard=shard // batch,
             shard_size=batch,
             terms=terms,
+            vibration=vibration,
         )
         nav = mechanize(
             sh.data["dtheta"][:, 1:],
@@ -116,7 +119,9 @@ def fmt(x: float) -> str:
 def markdown(df: pd.DataFrame, grades) -> str:
     """Rows: terms; columns: grades; cells: 'RMSE / final' in metres ('-' not configured)."""
     order = {f"{s}.{t}": (i, j) for i, s in enumerate(SENSORS) for j, t in enumerate(TERMS)}
-    terms = [*sorted((t for t in set(df.term) if t != ALL), key=order.__getitem__), ALL]
+    extra = [t for t in dict.fromkeys(df.term) if t.startswith(("vibration", "all terms +"))]
+    plain = (t for t in set(df.term) if t != ALL and t not in extra)
+    terms = [*sorted(plain, key=order.__getitem__), ALL, *extra]
     lines = [
         "| term | " + " | ".join(grades) + " |",
         "|---|" + "---|" * len(grades),
@@ -128,14 +133,15 @@ def markdown(df: pd.DataFrame, grades) -> str:
             cells.append(
                 "-" if r.empty else f"{fmt(r.rmse_total_m.iloc[0])} / {fmt(r.final_3d_m.iloc[0])}"
             )
-        name = f"**{term}**" if term == ALL else f"`{term}`"
+        name = f"`{term}`" if term in order else f"**{term}**"
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def dominant(df: pd.DataFrame, grade: str, share: float = 0.25) -> str:
     """Terms whose final error alone is at least ``share`` of the largest one, largest first."""
-    r = df[(df.grade == grade) & (df.term != ALL)].sort_values("final_3d_m", ascending=False)
+    r = df[(df.grade == grade) & df.term.str.contains(".", regex=False)]
+    r = r.sort_values("final_3d_m", ascending=False)
     top = r.final_3d_m.iloc[0]
     keep = r[r.final_3d_m >= share * top]
     return ", ".join(f"`{t}` ({fmt(f)} m)" for t, f in zip(keep.term, keep.final_3d_m, strict=True))
@@ -149,6 +155,11 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=20251150)
     ap.add_argument("--grades", default=",".join(GRADES))
     ap.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results")
+    ap.add_argument(
+        "--vibration",
+        default="car",
+        help="also rows for this vibration alone and with every term (off: none)",
+    )
     a = ap.parse_args(argv)
     grades = [g for g in a.grades.split(",") if g]
     t0 = time.perf_counter()
@@ -157,11 +168,16 @@ def main(argv=None):
     frame = OriginFrame.from_deg(*ORIGIN, model=a.earth)
     print(f"truth: {len(truth)} samples ({time.perf_counter() - t0:.1f} s)", flush=True)
     rows = []
+    v = a.vibration
     for g in grades:
-        for term in [*grade_terms(g), ALL]:
-            terms = None if term == ALL else [term]
+        runs = [(t, [t], None) for t in grade_terms(g)] + [(ALL, None, None)]
+        if v != "off":
+            runs += [(VIB.format(v), [], v), (VIB_ALL.format(v), None, v)]
+        for term, terms, vib in runs:
             ts = time.perf_counter()
-            rmse, final = run_term(truth, frame, g, terms, a.sequences, a.seed, a.rate_hz)
+            rmse, final = run_term(
+                truth, frame, g, terms, a.sequences, a.seed, a.rate_hz, vibration=vib
+            )
             rows.append({"grade": g, "term": term, "rmse_total_m": rmse, "final_3d_m": final})
             print(
                 f"{g:24s} {term:32s} RMSE {rmse:12.4g} m  final {final:12.4g} m "

@@ -263,7 +263,16 @@ def _start_bias(name, M=1000):
     """Slow bias at t = 0 and at the last sample, and the turn-on labels, of M sequences."""
     from imugen import simulate as S
 
-    sh = S.simulate(None, name, sequences=M, seed=4, static_s=620.0, rate_hz=0.2, series=True)
+    sh = S.simulate(
+        None,
+        name,
+        sequences=M,
+        seed=4,
+        static_s=620.0,
+        rate_hz=0.2,
+        series=True,
+        terms=["turn_on_bias", "bias_instability"],
+    )
     return sh.data["gyro_bias"], sh.data["accel_bias"], sh.gyro.b_on, sh.accel.b_on
 
 
@@ -304,3 +313,23 @@ def test_calibrated_in_run_wander_grows_as_the_gm_law():
     wander = gb[:, -1] - g_on
     expect = sig * math.sqrt(-math.expm1(-2 * T / tau))
     assert float(np.sqrt(np.mean(wander**2))) == pytest.approx(expect, rel=0.06)
+
+
+def test_calibration_at_rest_removes_the_static_g_sensitivity():
+    from imugen import simulate as S
+
+    kw = {"sequences": 3, "seed": 2, "static_s": 1.0, "rate_hz": 10.0, "outputs": "rates"}
+    for name, removed in (("consumer", False), ("consumer_calibrated", True)):
+        assert grades.presets()[name].gyro.static_g_removed is removed
+        sh = S.simulate(None, name, terms=["gyro.g_sensitivity"], **kw)
+        G = sh.gyro.gs
+        # still and level: f = (0, 0, g), so the gyro reads G (0, 0, g), less G (0, 0, g0)
+        # (standard gravity) when calibrated at rest: what is left is G (0, 0, g - g0)
+        g = S.StaticTruth(1.0, 10.0).f_b[2]
+        expect = G[:, :, 2] * (g - (9.80665 if removed else 0.0))
+        np.testing.assert_allclose(sh.data["gyro"][:, -1], expect, rtol=1e-9, atol=1e-20)
+        if removed:
+            assert np.max(np.abs(expect)) < 3e-3 * np.max(np.abs(G[:, :, 2] * g))
+        assert np.all(np.abs(G[:, :, 2]) > 0)
+    with pytest.raises(InputError, match="calibrated_at_rest"):
+        grades.grade_from_config("c", {"id": 1000, "calibrated_at_rest": True})

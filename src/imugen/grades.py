@@ -45,7 +45,8 @@ Terms (per sensor; all optional; an absent term is off)
 
 Grade keys besides the sensors: ``variant`` (``uncalibrated``, default: the part's turn-on
 figures; or ``calibrated``: residuals after a calibration, which ``calibration`` names with its
-source).
+source) and ``calibrated_at_rest`` (calibrated grades: the bias was measured at rest and level,
+so it also removed the gyro g-sensitivity's static part ``G (0, 0, g0)``).
 
 Every entry: ``value`` (scalar or three per-axis values), optional ``range: [lo, hi]`` (same
 unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate`), ``unit``,
@@ -55,6 +56,7 @@ unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate`
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import json
 import math
@@ -145,6 +147,7 @@ _GRADE_KEYS = {
     "reading",
     "variant",
     "calibration",
+    "calibrated_at_rest",
     "gyro",
     "accel",
 }
@@ -318,6 +321,9 @@ class SensorSpec:
     range: Param | None = None
     temperature_bias: Param | None = None
     temperature_scale_factor: Param | None = None
+    static_g_removed: bool = False
+    """Gyro of a grade calibrated at rest and level: the calibration removed the g-sensitivity's
+    static part ``G (0, 0, g0)`` together with the bias, so only ``G (f - (0, 0, g0))`` acts."""
 
     def configured(self) -> tuple[str, ...]:
         """Names of the configured terms."""
@@ -564,6 +570,11 @@ def grade_from_config(name: str, cfg: dict, origin: str = "<config>") -> Grade:
         raise _err(
             origin, where, "a calibrated grade needs 'calibration': which one, and its source"
         )
+    at_rest = cfg.get("calibrated_at_rest", False)
+    if not isinstance(at_rest, bool) or (at_rest and variant != "calibrated"):
+        raise _err(origin, where, "calibrated_at_rest is true or false, and only for calibrated")
+    if at_rest:
+        gyro = dataclasses.replace(gyro, static_g_removed=True)
     return Grade(
         name,
         gid,

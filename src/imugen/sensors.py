@@ -56,6 +56,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imugen import units
 from imugen.grades import TERMS, SensorSpec
 from imugen.jit import njit
 
@@ -75,7 +76,8 @@ class SensorParams:
 
     Attributes
     ----------
-    b_on : (S, 3)      turn-on bias [rad/s | m/s^2]
+    b_on : (S, 3)      turn-on bias [rad/s | m/s^2] (for a gyro calibrated at rest, minus the
+                       g-sensitivity's static part ``G (0, 0, g0)`` the calibration removed)
     bi_level : (S, 3)  drawn bias-instability level in the configured kind (Allan floor or
                        GM sigma) [rad/s | m/s^2]
     bi_floor : (S, 3)  Allan-deviation floor (peak for one GM) of the in-run bias
@@ -257,6 +259,9 @@ def draw_sensor(
             cc[i, j] = c[i] * z[6 + k]
     g = lvl("g_sensitivity")
     gs = np.zeros((3, 3)) if g is None else g[:, None] * z[12:21].reshape(3, 3)
+    if spec.static_g_removed:
+        # calibrated at rest and level: the bias estimate absorbed G (0, 0, g0)
+        b_on = b_on - gs[:, 2] * units.G0
     tbl = lvl("temperature_bias")
     tb = zero3 if tbl is None else tbl * z[21:24]
     tsl = lvl("temperature_scale_factor")
