@@ -61,7 +61,7 @@ def grade_terms(name: str) -> list[str]:
 
 
 def run_term(truth, frame, grade, terms, sequences, seed, rate_hz, batch=25, vibration=None):
-    """Median total RMSE and final 3-D error (m) of ``sequences`` sequences with ``terms`` on."""
+    """Per-sequence metrics (:func:`imugen.evaluate.sequence_metrics`) with ``terms`` on."""
     t = truth[col.TIME].to_numpy()
     p_true = truth[list(col.POS)].to_numpy()
     v0 = truth[list(col.VEL)].to_numpy()[0]
@@ -104,8 +104,7 @@ def run_term(truth, frame, grade, terms, sequences, seed, rate_hz, batch=25, vib
             }
         )
         metrics.append(sequence_metrics(table, 1.0))
-    m = pd.concat(metrics)
-    return float(m.rmse_total_m.median()), float(m.final_3d_m.median())
+    return pd.concat(metrics)
 
 
 def fmt(x: float) -> str:
@@ -175,10 +174,19 @@ def main(argv=None):
             runs += [(VIB.format(v), [], v), (VIB_ALL.format(v), None, v)]
         for term, terms, vib in runs:
             ts = time.perf_counter()
-            rmse, final = run_term(
-                truth, frame, g, terms, a.sequences, a.seed, a.rate_hz, vibration=vib
+            m = run_term(truth, frame, g, terms, a.sequences, a.seed, a.rate_hz, vibration=vib)
+            rmse, final = float(m.rmse_total_m.median()), float(m.final_3d_m.median())
+            p05, p95 = np.percentile(m.rmse_total_m, [5, 95])
+            rows.append(
+                {
+                    "grade": g,
+                    "term": term,
+                    "rmse_total_m": rmse,
+                    "final_3d_m": final,
+                    "rmse_total_p05_m": p05,
+                    "rmse_total_p95_m": p95,
+                }
             )
-            rows.append({"grade": g, "term": term, "rmse_total_m": rmse, "final_3d_m": final})
             print(
                 f"{g:24s} {term:32s} RMSE {rmse:12.4g} m  final {final:12.4g} m "
                 f"({time.perf_counter() - ts:.1f} s)",

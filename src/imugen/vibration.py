@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from imugen.errors import InputError
-from imugen.rotations import exp_dcm
+from imugen.jit import njit
 
 G0 = 9.80665
 KINDS = ("off", "car", "aircraft", "vehicle")
@@ -215,29 +215,229 @@ def shaft_rpm(speed_mps, profile: Profile, dt: float) -> np.ndarray:
     return out
 
 
-def _sinc(x):
-    return np.sinc(x / np.pi)  # sin(x) / x
+_SERIES = 1e-2  # below this phase advance per interval the integrals use their Taylor series
 
 
-def _int_sin(p0, p1, dt):
-    """int_0^dt sin(phi) for phi linear from p0 to p1 (stable as p1 - p0 -> 0)."""
-    h = 0.5 * (p1 - p0)
-    return dt * np.sin(p0 + h) * _sinc(h)
+@njit(cache=True)
+def _isin(s0, c0, s1, c1, w, dt):
+    """int_0^dt sin(phi) for phi linear at rate w, from (sin, cos) at both ends."""
+    x = w * dt
+    if abs(x) < _SERIES:
+        return dt * (s0 + c0 * x / 2.0 - s0 * x * x / 6.0 - c0 * x**3 / 24.0)
+    return (c0 - c1) / w
 
 
-def _int_cos(p0, p1, dt):
-    h = 0.5 * (p1 - p0)
-    return dt * np.cos(p0 + h) * _sinc(h)
+@njit(cache=True)
+def _icos(s0, c0, s1, c1, w, dt):
+    """int_0^dt cos(phi) for phi linear at rate w."""
+    x = w * dt
+    if abs(x) < _SERIES:
+        return dt * (c0 - s0 * x / 2.0 - c0 * x * x / 6.0 + s0 * x**3 / 24.0)
+    return (s1 - s0) / w
 
 
-def _int_t_sin(p0, p1, dt):
-    """int_0^dt tau sin(phi(tau)), phi linear from p0 to p1 (series when |p1 - p0| is small)."""
-    d = p1 - p0
-    small = np.abs(d) < 1e-3
-    w = np.where(small, 1.0, d) / dt
-    exact = -dt * np.cos(p1) / w + (np.sin(p1) - np.sin(p0)) / (w * w)
-    series = dt * dt * (np.sin(p0) / 2.0 + d * np.cos(p0) / 3.0 - d * d * np.sin(p0) / 8.0)
-    return np.where(small, series, exact)
+@njit(cache=True)
+def _it_sin(s0, c0, s1, c1, w, dt):
+    """int_0^dt tau sin(phi(tau)) for phi linear at rate w."""
+    x = w * dt
+    if abs(x) < _SERIES:
+        return dt * dt * (s0 / 2.0 + c0 * x / 3.0 - s0 * x * x / 8.0)
+    return -dt * c1 / w + (s1 - s0) / (w * w)
+
+
+@njit(cache=True)
+def _rot_minus(th, v, out):
+    """out = Exp(-th) v (Rodrigues)."""
+    a = math.sqrt(th[0] * th[0] + th[1] * th[1] + th[2] * th[2])
+    if a < 1e-4:
+        s, c = 1.0 - a * a / 6.0, 0.5 - a * a / 24.0
+    else:
+        s, c = math.sin(a) / a, (1.0 - math.cos(a)) / (a * a)
+    # Exp(-th) v = v - s (th x v) + c th x (th x v)
+    x0 = th[1] * v[2] - th[2] * v[1]
+    x1 = th[2] * v[0] - th[0] * v[2]
+    x2 = th[0] * v[1] - th[1] * v[0]
+    y0 = th[1] * x2 - th[2] * x1
+    y1 = th[2] * x0 - th[0] * x2
+    y2 = th[0] * x1 - th[1] * x0
+    out[0] = v[0] - s * x0 + c * y0
+    out[1] = v[1] - s * x1 + c * y1
+    out[2] = v[2] - s * x2 + c * y2
+
+
+@njit(cache=True)
+def _apply_kernel(
+    k0,
+    dt,
+    shaft_angle,
+    shaft_rate,
+    noise_scale,
+    l_axis,
+    l_amp,
+    l_order,
+    l_w,
+    l_phi0,
+    l_noise,
+    a_axis,
+    a_amp,
+    a_order,
+    a_phi0,
+    omega_b,
+    f_b,
+    dtheta,
+    dv,
+    gyro,
+    f_c,
+    dth,
+    dv_c,
+):
+    L = omega_b.shape[0]
+    Cl = l_amp.shape[0]
+    Ca = a_amp.shape[0]
+    ls = np.empty(Cl)
+    lc = np.empty(Cl)
+    as_ = np.empty(Ca)
+    ac = np.empty(Ca)
+    s0a = np.empty(Ca)
+    c0a = np.empty(Ca)
+    wa = np.empty(Ca)
+    sb = np.empty(Ca)
+    for c in range(Ca):
+        sb[c] = math.sin(a_phi0[c])
+    th = np.zeros(3)
+    th_p = np.zeros(3)
+    th_dot = np.zeros(3)
+    int_th = np.zeros(3)
+    con = np.zeros(3)
+    a_v = np.zeros(3)
+    int_a = np.zeros(3)
+    int_ta = np.zeros(3)
+    tmp = np.zeros(3)
+    out = np.zeros(3)
+    for j in range(L):
+        k = k0 + j
+        kp = k - 1 if k > 0 else 0
+        if j == 0:  # sin/cos at the sample before the chunk (afterwards carried over)
+            for c in range(Cl):
+                ph = l_phi0[c] + l_order[c] * shaft_angle[kp] + l_w[c] * kp * dt
+                ls[c] = math.sin(ph)
+                lc[c] = math.cos(ph)
+            for c in range(Ca):
+                ph = a_phi0[c] + a_order[c] * shaft_angle[kp]
+                as_[c] = math.sin(ph)
+                ac[c] = math.cos(ph)
+        for i in range(3):
+            th[i] = 0.0
+            th_p[i] = 0.0
+            th_dot[i] = 0.0
+            int_th[i] = 0.0
+            con[i] = 0.0
+            a_v[i] = 0.0
+            int_a[i] = 0.0
+            int_ta[i] = 0.0
+        # angular components
+        for c in range(Ca):
+            ph = a_phi0[c] + a_order[c] * shaft_angle[k]
+            w = a_order[c] * shaft_rate[k]
+            s1 = math.sin(ph)
+            c1 = math.cos(ph)
+            s0 = as_[c]
+            c0 = ac[c]
+            B = a_amp[c]
+            i = a_axis[c]
+            th[i] += B * (s1 - sb[c])
+            th_p[i] += B * (s0 - sb[c])
+            th_dot[i] += B * w * c1
+            int_th[i] += B * (_isin(s0, c0, s1, c1, w, dt) - sb[c] * dt)
+            s0a[c] = s0
+            c0a[c] = c0
+            wa[c] = w
+            as_[c] = s1
+            ac[c] = c1
+        for a in range(Ca):
+            for b in range(Ca):
+                ia = a_axis[a]
+                ib = a_axis[b]
+                if ia == ib:
+                    continue
+                sa0, ca0, sa1, ca1 = s0a[a], c0a[a], as_[a], ac[a]
+                sb0, cb0, sb1, cb1 = s0a[b], c0a[b], as_[b], ac[b]
+                plus = _isin(
+                    sa0 * cb0 + ca0 * sb0,
+                    ca0 * cb0 - sa0 * sb0,
+                    sa1 * cb1 + ca1 * sb1,
+                    ca1 * cb1 - sa1 * sb1,
+                    wa[a] + wa[b],
+                    dt,
+                )
+                minus = _isin(
+                    sa0 * cb0 - ca0 * sb0,
+                    ca0 * cb0 + sa0 * sb0,
+                    sa1 * cb1 - ca1 * sb1,
+                    ca1 * cb1 + sa1 * sb1,
+                    wa[a] - wa[b],
+                    dt,
+                )
+                i2 = sb[a] * _icos(sb0, cb0, sb1, cb1, wa[b], dt)
+                kk = -0.5 * a_amp[a] * a_amp[b] * wa[b] * (0.5 * (plus + minus) - i2)
+                # e_ia x e_ib = +-e_third
+                third = 3 - ia - ib
+                sign = 1.0 if (ib - ia) % 3 == 1 else -1.0
+                con[third] += sign * kk
+        # linear components
+        for c in range(Cl):
+            ph = l_phi0[c] + l_order[c] * shaft_angle[k] + l_w[c] * k * dt
+            w = l_order[c] * shaft_rate[k] + l_w[c]
+            s1 = math.sin(ph)
+            c1 = math.cos(ph)
+            A = l_amp[c] * (noise_scale[k] if l_noise[c] else 1.0)
+            i = l_axis[c]
+            a_v[i] += A * s1
+            int_a[i] += A * _isin(ls[c], lc[c], s1, c1, w, dt)
+            int_ta[i] += A * _it_sin(ls[c], lc[c], s1, c1, w, dt)
+            ls[c] = s1
+            lc[c] = c1
+        # measurements
+        wm0 = dtheta[j, 0] / dt
+        wm1 = dtheta[j, 1] / dt
+        wm2 = dtheta[j, 2] / dt
+        ob = omega_b[j]
+        gyro[j, 0] = (
+            ob[0]
+            - (th[1] * ob[2] - th[2] * ob[1])
+            + th_dot[0]
+            - 0.5 * (th[1] * th_dot[2] - th[2] * th_dot[1])
+        )
+        gyro[j, 1] = (
+            ob[1]
+            - (th[2] * ob[0] - th[0] * ob[2])
+            + th_dot[1]
+            - 0.5 * (th[2] * th_dot[0] - th[0] * th_dot[2])
+        )
+        gyro[j, 2] = (
+            ob[2]
+            - (th[0] * ob[1] - th[1] * ob[0])
+            + th_dot[2]
+            - 0.5 * (th[0] * th_dot[1] - th[1] * th_dot[0])
+        )
+        dth[j, 0] = dtheta[j, 0] + th[0] - th_p[0] - (int_th[1] * wm2 - int_th[2] * wm1) + con[0]
+        dth[j, 1] = dtheta[j, 1] + th[1] - th_p[1] - (int_th[2] * wm0 - int_th[0] * wm2) + con[1]
+        dth[j, 2] = dtheta[j, 2] + th[2] - th_p[2] - (int_th[0] * wm1 - int_th[1] * wm0) + con[2]
+        for i in range(3):
+            tmp[i] = f_b[j, i] + a_v[i]
+        _rot_minus(th, tmp, out)
+        for i in range(3):
+            f_c[j, i] = out[i]
+        tmp[0] = dv[j, 0] + int_a[0] + (wm1 * int_ta[2] - wm2 * int_ta[1])
+        tmp[1] = dv[j, 1] + int_a[1] + (wm2 * int_ta[0] - wm0 * int_ta[2])
+        tmp[2] = dv[j, 2] + int_a[2] + (wm0 * int_ta[1] - wm1 * int_ta[0])
+        _rot_minus(th_p, tmp, out)
+        for i in range(3):
+            dv_c[j, i] = out[i]
+        if k == 0:
+            for i in range(3):
+                dth[j, i] = 0.0
+                dv_c[j, i] = 0.0
 
 
 class Vibration:
@@ -318,6 +518,7 @@ class SequenceVibration:
             "phi0": np.array(phi0, float),
             "noise": np.array(noise, bool),
         }
+        self.lin["onehot"] = np.eye(3)[self.lin["axis"]].reshape(-1, 3)
         ang = np.asarray(p.angle_rad) * self.gains[0]
         a_axis, a_amp, a_order, a_phi0 = [], [], [], []
         for o in range(n_ord):
@@ -333,6 +534,7 @@ class SequenceVibration:
             "order": np.array(a_order, float),
             "phi0": np.array(a_phi0, float),
         }
+        self.ang["onehot"] = np.eye(3)[self.ang["axis"]].reshape(-1, 3)
 
     # --- per-sample quantities ---------------------------------------------------------
     def _phase(self, c, ks):
@@ -356,7 +558,7 @@ class SequenceVibration:
         out = np.zeros((len(ks), 3))
         if len(c["amp"]):
             phi, _ = self._phase(c, ks)
-            np.add.at(out.T, c["axis"], (c["amp"][None] * (np.sin(phi) - np.sin(c["phi0"]))).T)
+            out += (c["amp"][None] * (np.sin(phi) - np.sin(c["phi0"]))) @ c["onehot"]
         return out
 
     def accel(self, ks) -> np.ndarray:
@@ -365,7 +567,7 @@ class SequenceVibration:
         out = np.zeros((len(ks), 3))
         if len(c["amp"]):
             phi, _ = self._phase(c, ks)
-            np.add.at(out.T, c["axis"], (self._lin_amp(ks) * np.sin(phi)).T)
+            out += (self._lin_amp(ks) * np.sin(phi)) @ c["onehot"]
         return out
 
     def labels(self) -> dict:
@@ -381,58 +583,28 @@ class SequenceVibration:
         Parameters and returns: ``omega_b, f_b, dtheta, dv`` (L, 3) arrays (new arrays; the
         inputs are not modified). Increments of row ``k0 = 0`` stay zero.
         """
-        dt = self.vib.dt
-        L = len(omega_b)
-        ks = np.arange(k0, k0 + L)
-        kp = np.maximum(ks - 1, 0)
-        # --- angular part
-        th = self.angle(ks)
-        th_p = self.angle(kp)
-        c = self.ang
-        th_dot = np.zeros((L, 3))
-        int_th = np.zeros((L, 3))
-        coning = np.zeros((L, 3))
-        if len(c["amp"]):
-            phi, w = self._phase(c, ks)
-            phi_p, _ = self._phase(c, kp)
-            B, s0 = c["amp"][None], np.sin(c["phi0"])[None]
-            np.add.at(th_dot.T, c["axis"], (B * w * np.cos(phi)).T)
-            np.add.at(int_th.T, c["axis"], (B * (_int_sin(phi_p, phi, dt) - s0 * dt)).T)
-            e = np.eye(3)[c["axis"]]
-            for a in range(len(c["amp"])):
-                for b in range(len(c["amp"])):
-                    if c["axis"][a] == c["axis"][b]:
-                        continue
-                    # int (sin phi_a - s0_a) cos phi_b
-                    i1 = 0.5 * (
-                        _int_sin(phi_p[:, a] + phi_p[:, b], phi[:, a] + phi[:, b], dt)
-                        + _int_sin(phi_p[:, a] - phi_p[:, b], phi[:, a] - phi[:, b], dt)
-                    )
-                    i2 = s0[0, a] * _int_cos(phi_p[:, b], phi[:, b], dt)
-                    k = -0.5 * c["amp"][a] * c["amp"][b] * w[:, b] * (i1 - i2)
-                    coning += k[:, None] * np.cross(e[a], e[b])[None]
-        w_mean = dtheta / dt
-        gyro = omega_b - np.cross(th, omega_b) + th_dot - 0.5 * np.cross(th, th_dot)
-        dth = dtheta + (th - th_p) - np.cross(int_th, w_mean) + coning
-        # --- linear part
-        a_v = self.accel(ks)
-        int_a = np.zeros((L, 3))
-        int_ta = np.zeros((L, 3))
-        cl = self.lin
-        if len(cl["amp"]):
-            phi, _ = self._phase(cl, ks)
-            phi_p, _ = self._phase(cl, kp)
-            A = self._lin_amp(ks)
-            np.add.at(int_a.T, cl["axis"], (A * _int_sin(phi_p, phi, dt)).T)
-            np.add.at(int_ta.T, cl["axis"], (A * _int_t_sin(phi_p, phi, dt)).T)
-        R = exp_dcm(-th)  # case <- body at each sample
-        R_p = exp_dcm(-th_p)
-        f_c = np.einsum("kij,kj->ki", R, f_b + a_v)
-        dv_c = np.einsum("kij,kj->ki", R_p, dv + int_a + np.cross(w_mean, int_ta))
-        if k0 == 0:
-            dth[0] = 0.0
-            dv_c[0] = 0.0
-        return gyro, f_c, dth, dv_c
+        v, cl, ca = self.vib, self.lin, self.ang
+        out = [np.empty((len(omega_b), 3)) for _ in range(4)]
+        _apply_kernel(
+            int(k0),
+            v.dt,
+            v.shaft_angle,
+            v.shaft_radps,
+            v.noise_scale,
+            cl["axis"],
+            cl["amp"],
+            cl["order"],
+            cl["w"],
+            cl["phi0"],
+            cl["noise"],
+            ca["axis"],
+            ca["amp"],
+            ca["order"],
+            ca["phi0"],
+            *(np.ascontiguousarray(x, dtype=np.float64) for x in (omega_b, f_b, dtheta, dv)),
+            *out,
+        )
+        return tuple(out)
 
 
 def truth_speed(truth) -> np.ndarray:
