@@ -331,5 +331,14 @@ def test_calibration_at_rest_removes_the_static_g_sensitivity():
         if removed:
             assert np.max(np.abs(expect)) < 3e-3 * np.max(np.abs(G[:, :, 2] * g))
         assert np.all(np.abs(G[:, :, 2]) > 0)
+    # accelerometers: scale factor and cross-coupling on gravity, E (0, 0, g), likewise
+    for name, removed in (("industrial", False), ("industrial_calibrated", True)):
+        sh = S.simulate(None, name, terms=["accel.scale_factor", "accel.cross_coupling"], **kw)
+        p = sh.accel
+        E = p.cc + p.sf[:, :, None] * np.eye(3)[None]
+        g = S.StaticTruth(1.0, 10.0).f_b[2]
+        expect = E[:, :, 2] * (g - (9.80665 if removed else 0.0))
+        expect[:, 2] += g
+        np.testing.assert_allclose(sh.data["accel"][:, -1], expect, rtol=1e-9, atol=1e-20)
     with pytest.raises(InputError, match="calibrated_at_rest"):
         grades.grade_from_config("c", {"id": 1000, "calibrated_at_rest": True})

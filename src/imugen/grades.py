@@ -46,7 +46,8 @@ Terms (per sensor; all optional; an absent term is off)
 Grade keys besides the sensors: ``variant`` (``uncalibrated``, default: the part's turn-on
 figures; or ``calibrated``: residuals after a calibration, which ``calibration`` names with its
 source) and ``calibrated_at_rest`` (calibrated grades: the bias was measured at rest and level,
-so it also removed the gyro g-sensitivity's static part ``G (0, 0, g0)``).
+so it also removed the static error on gravity: the gyro g-sensitivity's ``G (0, 0, g0)``
+and the accelerometer scale factor and cross-coupling's ``E (0, 0, g0)``).
 
 Every entry: ``value`` (scalar or three per-axis values), optional ``range: [lo, hi]`` (same
 unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate`), ``unit``,
@@ -322,8 +323,10 @@ class SensorSpec:
     temperature_bias: Param | None = None
     temperature_scale_factor: Param | None = None
     static_g_removed: bool = False
-    """Gyro of a grade calibrated at rest and level: the calibration removed the g-sensitivity's
-    static part ``G (0, 0, g0)`` together with the bias, so only ``G (f - (0, 0, g0))`` acts."""
+    """Sensor of a grade calibrated at rest and level: the bias estimate also absorbed the
+    static error on gravity -- ``G (0, 0, g0)`` for a gyro's g-sensitivity, ``E (0, 0, g0)``
+    for an accelerometer's scale factor and cross-coupling ``E`` -- so only the errors on
+    ``f - (0, 0, g0)`` act."""
 
     def configured(self) -> tuple[str, ...]:
         """Names of the configured terms."""
@@ -575,6 +578,7 @@ def grade_from_config(name: str, cfg: dict, origin: str = "<config>") -> Grade:
         raise _err(origin, where, "calibrated_at_rest is true or false, and only for calibrated")
     if at_rest:
         gyro = dataclasses.replace(gyro, static_g_removed=True)
+        accel = dataclasses.replace(accel, static_g_removed=True)
     return Grade(
         name,
         gid,

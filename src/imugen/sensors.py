@@ -76,8 +76,9 @@ class SensorParams:
 
     Attributes
     ----------
-    b_on : (S, 3)      turn-on bias [rad/s | m/s^2] (for a gyro calibrated at rest, minus the
-                       g-sensitivity's static part ``G (0, 0, g0)`` the calibration removed)
+    b_on : (S, 3)      turn-on bias [rad/s | m/s^2] (for a grade calibrated at rest, minus the
+                       static error on gravity the calibration removed: ``G (0, 0, g0)`` for
+                       a gyro, ``E (0, 0, g0)`` for an accelerometer)
     bi_level : (S, 3)  drawn bias-instability level in the configured kind (Allan floor or
                        GM sigma) [rad/s | m/s^2]
     bi_floor : (S, 3)  Allan-deviation floor (peak for one GM) of the in-run bias
@@ -260,7 +261,11 @@ def draw_sensor(
     g = lvl("g_sensitivity")
     gs = np.zeros((3, 3)) if g is None else g[:, None] * z[12:21].reshape(3, 3)
     if spec.static_g_removed:
-        # calibrated at rest and level: the bias estimate absorbed G (0, 0, g0)
+        # calibrated at rest and level: the bias estimate absorbed the static error on gravity,
+        # (E + G) (0, 0, g0) with E = diag(sf) + cross-coupling, G the g-sensitivity
+        E = cc + np.diag(sf)
+        if spec.sensor == "accel":
+            b_on = b_on - E[:, 2] * units.G0
         b_on = b_on - gs[:, 2] * units.G0
     tbl = lvl("temperature_bias")
     tb = zero3 if tbl is None else tbl * z[21:24]
