@@ -68,6 +68,21 @@ def test_spectrum_peaks_at_the_engine_harmonics_with_their_amplitudes():
     np.testing.assert_allclose(spec, expect, atol=1e-9)
 
 
+def test_aircraft_propeller_orders_at_cruise():
+    # airborne at 60 m/s: 2400 rpm, propeller orders 1/2/4 at 40/80/160 Hz (noise off here)
+    prof = dataclasses.replace(V.PROFILES["aircraft"], noise_g=(0.0, 0.0, 0.0))
+    dt, K = 1e-3, 2000
+    assert V.shaft_rpm(np.full(3, 60.0), prof, dt)[0] == pytest.approx(prof.shift_rpm)
+    assert V.shaft_rpm(np.zeros(3), prof, dt)[0] == pytest.approx(prof.idle_rpm)
+    _, sv = _draw(prof, np.full(K + 1, 60.0), dt)
+    spec = np.abs(np.fft.rfft(sv.accel(np.arange(K)), axis=0)) * 2.0 / K
+    freqs = np.fft.rfftfreq(K, dt)
+    for o, order in enumerate(prof.orders):
+        b = np.argmin(np.abs(freqs - order * 40.0))
+        assert freqs[b] == pytest.approx(order * 40.0)
+        np.testing.assert_allclose(spec[b], np.asarray(prof.accel_g[o]) * G * sv.gains[0])
+
+
 def test_increments_are_the_exact_integrals_of_the_motion():
     # linear vibration at constant speed (engine in gear + road noise), no rotation: each dv is
     # the integral of a_v over its interval (independent: composite Simpson on a fine grid)
