@@ -6,12 +6,29 @@
 # the environment Snakemake itself runs in (README: one `pip install`), so a per-rule conda
 # environment would only duplicate that environment. tests/test_workflow.py asserts that no
 # other lint appears.
-from snakemake.utils import min_version
+import copy
+from pathlib import Path
+
+import yaml
+from snakemake.utils import min_version, update_config
 
 min_version("9.0")
 
-
-configfile: "config/config.yaml"
+# Configuration: config/config.yaml of the working directory (the shipped example) gives every
+# key; a --configfile or --config that names `routes` or `grades` REPLACES those two mappings
+# instead of merging into them (Snakemake's `configfile:` directive would merge, adding the
+# example route and the default grades to every user's run), and merges every other key as
+# usual. `config` holds the command line's files and overrides at this point.
+# tests/test_workflow.py checks it on the dry-run job list.
+_cli_config = copy.deepcopy(config)
+_shipped = Path("config/config.yaml")
+if _shipped.is_file():
+    config.clear()
+    config.update(yaml.safe_load(_shipped.read_text()) or {})
+    for _key in ("routes", "grades"):
+        if _key in _cli_config:
+            config.pop(_key, None)
+    update_config(config, _cli_config)
 
 
 report: "workflow/report/workflow.rst"
@@ -35,6 +52,10 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
 
 
+onsuccess:
+    run_summary()
+
+
 rule all:
     default_target: True
     input:
@@ -45,4 +66,9 @@ rule all:
             "results/{route}/datasets/{grade}.mat",
             route=ROUTES,
             grade=GRADES if config["exports"]["mat"] else [],
+        ),
+        expand(
+            "results/{route}/datasets/{grade}",
+            route=ROUTES,
+            grade=GRADES if config["exports"]["formats"] else [],
         ),

@@ -195,36 +195,24 @@ def normals_per_sample(truth_path: Path, grade: str) -> float:
 
     tr = S.ArrayTruth.read(truth_path)
     tr.K = min(tr.K, 2 * S.CHUNK)
-    g, M, seed, shard, en, temp, gp, ap = S._prepare(
-        tr, grade, 1, 1, 0, "increments", "ranges", None, None, None
-    )
-    return float(S._loop(tr, g, M, seed, shard, en, temp, gp, ap, "increments", False, Null()))
+    return float(S._loop(S._plan(tr, grade, 1, 1, 0), Null()))
 
 
 def mech_rate(truth_path: Path, batch: int = 16, repeats: int = 3) -> float:
     """Sample-sequences per second of the mechanization kernel on one core (as navigate calls it)."""
-    import pyarrow.parquet as pq
-
-    from imugen import columns as col
-    from imugen.io import read_meta
     from imugen.mechanize import mechanize
-    from imugen.navigate import frame_from_truthread_meta
+    from imugen.tables import truth as ttruth
 
-    meta = read_meta(truth_path)
-    tbl = pq.read_table(truth_path, columns=[*col.DTHETA, *col.DV, *col.POS, *col.VEL, *col.QUAT])
-
-    def arr(names):
-        return np.column_stack([tbl.column(c).to_numpy() for c in names])
-
-    dth, dv = arr(col.DTHETA)[1:], arr(col.DV)[1:]
-    p0, v0, q0 = arr(col.POS)[0], arr(col.VEL)[0], arr(col.QUAT)[0]
-    rate = float(meta["rate_hz"])
+    tr = ttruth.read(truth_path)
+    dth, dv = tr.dtheta[1:], tr.dv[1:]
+    p0, v0, q0 = tr.p_n[0], tr.v_n[0], tr.q_nb[0]
+    rate = tr.rate_hz
     every = max(1, round(rate))
     rng = np.random.default_rng(0)
     dt = 1.0 / rate
     a = np.ascontiguousarray(dth[None] + rng.normal(0, 1e-7, (batch, 1, 3)))
     b = np.ascontiguousarray(dv[None] + rng.normal(0, 1e-6, (batch, 1, 3)))
-    frame = frame_from_truthread_meta(meta)
+    frame = tr.origin_frame()
     mechanize(a[:1], b[:1], dt, p0, v0, q0, frame, every=every, outputs=("p", "q"))  # compile
     best = math.inf
     for _ in range(repeats):

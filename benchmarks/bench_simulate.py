@@ -29,6 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen import simulate as S
+from imugen.tables import shard as tshard
 
 
 class _Null:
@@ -54,12 +55,10 @@ def normals_rate(dtype=np.float64, seconds=2.0, shape=(S.CHUNK, 3)) -> float:
 
 def injection(grade, M, K, rate_hz=100.0):
     tr = S.StaticTruth((K - 1) / rate_hz, rate_hz)
-    g, M, seed, shard, en, temp, gp, ap = S._prepare(
-        tr, grade, M, 1, 0, "increments", "ranges", None, None, None
-    )
-    S._loop(tr, g, 2, seed, shard, en, temp, gp, ap, "increments", False, _Null())  # compile
+    S._loop(S._plan(tr, grade, 2, 1, 0), _Null())  # compile
+    plan = S._plan(tr, grade, M, 1, 0)
     t0 = time.perf_counter()
-    nps = S._loop(tr, g, M, seed, shard, en, temp, gp, ap, "increments", False, _Null())
+    nps = S._loop(plan, _Null())
     el = time.perf_counter() - t0
     return M * tr.K / el, nps, el
 
@@ -152,7 +151,7 @@ def main():
             f"{size / 1e9:.2f} GB, peak RSS {rss_mb():.0f} MB"
         )
         out.unlink()
-        S.labels_path(out).unlink()
+        tshard.labels_path(out).unlink()
     res["parquet"] = parquet_rates()
     for k, v in res["parquet"].items():
         print(f"parquet {k:28s} {v['MB_per_s']:7.0f} MB/s  size/raw {v['file_over_raw']:.3f}")

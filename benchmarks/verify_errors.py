@@ -31,6 +31,7 @@ from imugen import simulate as S
 from imugen.earth import OriginFrame
 from imugen.grades import grade_from_config, presets
 from imugen.mechanize import mechanize
+from imugen.tables import shard as tshard
 
 TEST_GRADE = {
     "id": 9001,
@@ -84,7 +85,7 @@ def allan_part(out: Path, quick: bool) -> dict:
         rep = allan.run(p, plot=out / f"allan_{name}.png", max_sequences=8)
         res[name] = rep
         p.unlink()
-        S.labels_path(p).unlink()
+        tshard.labels_path(p).unlink()
         print(f"{name}:", {k: round(v["ratio"], 3) for k, v in rep.items()})
     return res
 

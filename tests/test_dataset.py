@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import pickle
-from collections import Counter
 
 import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from imugen import columns as col
 from imugen import dataset as ds
@@ -46,7 +47,7 @@ def make_results(
                     col.TIME: np.tile(truth[col.TIME].to_numpy(), M),
                 }
             )
-            for c in [*col.DTHETA, *col.DV, *BIAS]:
+            for c in [*col.DTHETA, *col.DV, *BIAS, *ds.EFFECTIVE_ERROR["increments"]]:
                 df[c] = rng.standard_normal(M * K).astype(np.float32)
             p = tmp / r / "imu" / grade / f"shard-{sh:03d}.parquet"
             write_parquet(
@@ -56,8 +57,10 @@ def make_results(
                 row_group_size=rows_per_group,
                 write_statistics=statistics,
             )
+            lab = pd.DataFrame({"sequence": ids.astype(np.int32)})
+            lab["lab_a"], lab["lab_b"] = ids * 1.5, -ids.astype(float)
             write_parquet(
-                df[["sequence"]].drop_duplicates(),
+                lab,
                 {},
                 p.with_name(f"shard-{sh:03d}.labels.parquet"),
             )
@@ -82,7 +85,8 @@ def expected_windows(routes, frames, window, stride, keys=None):
 
 # --- splits ------------------------------------------------------------------------------------
 def all_keys(nroutes=20, nseq=500):
-    return [(f"route{r}", s) for r in range(nroutes) for s in range(nseq)]
+    """Keys with globally unique sequence ids, as route-keyed seeds make them."""
+    return [(f"route{r}", 10_000 * r + s) for r in range(nroutes) for s in range(nseq)]
 
 
 def test_split_deterministic_disjoint_and_complete():
@@ -99,19 +103,22 @@ def test_split_deterministic_disjoint_and_complete():
 
 
 def test_split_stable_when_sequences_and_routes_are_added():
-    small = [(r, s) for r, s in all_keys(5, 100)]
+    small = all_keys(5, 100)
     big = all_keys(8, 300)
-    fr = {"train": 0.7, "val": 0.15, "test": 0.15}
+    fr = {"train": 0.5, "val": 0.25, "test": 0.25}
     for by in ("sequence", "route"):
         a = ds.split(small, fr, seed=1, by=by)
         b = ds.split(big, fr, seed=1, by=by)
-        for name in fr:
-            assert set(a[name]) == set(b[name]) & set(small)
-        assert all(ds.assign(r, s, fr, seed=1, by=by) == n for n in a for r, s in a[n])
+        if by == "sequence":  # 500 units: no part empty, no repair
+            for name in fr:
+                assert set(a[name]) == set(b[name]) & set(small)
+        else:  # 5 routes: at most one route borrowed per part the hash left empty
+            moved = {r for name in fr for r, _ in set(a[name]) - set(b[name])}
+            assert len(moved) <= 2
 
 
 def test_split_by_route_keeps_routes_whole():
-    keys = all_keys(40, 30)
+    keys = [(f"route{r}", 1000 * r + s) for r in range(40) for s in range(30)]
     parts = ds.split(keys, seed=0, by="route")
     where = {}
     for name, ks in parts.items():
@@ -124,11 +131,108 @@ def test_split_by_route_keeps_routes_whole():
     assert {n for n, ks in seq_parts.items() if any(r == "route0" for r, _ in ks)} == set(parts)
 
 
-def test_split_rejects_bad_fractions():
-    with pytest.raises(InputError, match="sum to 1"):
-        ds.split([("a", 1)], {"train": 0.8, "test": 0.1})
-    with pytest.raises(InputError, match="by must be"):
-        ds.split([("a", 1)], by="shard")
+def test_split_never_leaves_a_part_empty_with_enough_units():
+    keys = [(f"r{r}", 100 * r + s) for r in range(4) for s in range(5)]
+    for seed in range(200):
+        parts = ds.split(keys, seed=seed, by="route")
+        assert all(parts.values()), seed
+    # a zero fraction stays empty; three sequences fill three parts
+    parts = ds.split(keys, {"train": 0.9, "val": 0.1, "test": 0.0}, seed=3, by="route")
+    assert parts["test"] == [] and parts["val"]
+    parts = ds.split([("a", 0), ("a", 1), ("a", 2)], seed=0)
+    assert sorted(len(v) for v in parts.values()) == [1, 1, 1]
+
+
+def test_split_repair_moves_only_units_of_an_empty_part():
+    # a unit keeps its hash part (the one it has among many units, where no part is empty)
+    # unless it was borrowed to fill an otherwise empty part: at most one unit per part
+    fr = {"train": 0.98, "val": 0.01, "test": 0.01}
+    big_keys = [(f"r{r}", r) for r in range(2000)]
+    big = ds.split(big_keys, fr, seed=0, by="route")
+    hashed = {k: n for n, ks in big.items() for k in ks}
+    for n in range(3, 40):
+        parts = ds.split(big_keys[:n], fr, seed=0, by="route")
+        assert all(parts.values())
+        moved = [k for name, ks in parts.items() for k in ks if hashed[k] != name]
+        empty = sum(not any(hashed[k] == name for k in big_keys[:n]) for name in fr)
+        assert len(moved) == empty
+
+
+def test_split_refuses_too_few_units():
+    with pytest.raises(InputError, match=r"3 non-empty parts .* need at least 3 routes"):
+        ds.split([("a", 0), ("b", 1)], seed=0, by="route")
+    with pytest.raises(InputError, match="need at least 3 sequences"):
+        ds.split([("a", 0), ("a", 1)], seed=0)
+
+
+def test_split_named_routes():
+    keys = [(f"r{r}", 10 * r + s) for r in range(6) for s in range(10)]
+    parts = ds.split(keys, seed=0, by="route", holdout_routes=["r2"], val_routes=["r4", "r5"])
+    assert {r for r, _ in parts["test"]} == {"r2"}
+    assert {r for r, _ in parts["val"]} == {"r4", "r5"}
+    assert {r for r, _ in parts["train"]} == {"r0", "r1", "r3"}
+    # by sequence: the held-out route whole in test, the others cut into train and val
+    parts = ds.split(keys, seed=0, holdout_routes="r2")
+    assert {r for r, _ in parts["test"]} == {"r2"} and len(parts["test"]) == 10
+    assert parts["val"] and {r for r, _ in parts["train"] + parts["val"]} == set(
+        "r0 r1 r3 r4 r5".split()
+    )
+    with pytest.raises(InputError, match="r9 hold no keys"):
+        ds.split(keys, holdout_routes=["r9"])
+    with pytest.raises(InputError, match="given for test and val"):
+        ds.split(keys, holdout_routes=["r1"], val_routes=["r1"])
+    with pytest.raises(InputError, match="not among"):
+        ds.split(keys, {"a": 0.5, "b": 0.5}, holdout_routes=["r1"])
+
+
+def test_split_warns_on_draws_shared_across_routes():
+    keys = [(f"r{r}", s) for r in range(6) for s in range(3)]  # legacy: same ids on every route
+    with pytest.warns(UserWarning, match="share those error draws"):
+        ds.split(keys, seed=0, by="route")
+    parts = ds.split(keys, seed=0, by="sequence")  # ids are the units: a draw stays together
+    assert all(len({s for _, s in v}) == len(v) // 6 for v in parts.values())
+
+
+route_names = st.sampled_from([f"route{i}" for i in range(7)])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    routes=st.lists(route_names, min_size=1, max_size=7, unique=True),
+    nseq=st.integers(1, 6),
+    seed=st.integers(0, 10**6),
+    by=st.sampled_from(["sequence", "route"]),
+    hold=st.booleans(),
+    fr=st.sampled_from(
+        [None, {"train": 0.6, "val": 0.2, "test": 0.2}, {"train": 0.9, "test": 0.1}]
+    ),
+)
+def test_split_properties(routes, nseq, seed, by, hold, fr):
+    # globally unique ids, one per draw (route-keyed seeds)
+    keys = [(r, 100 * i + s) for i, r in enumerate(routes) for s in range(nseq)]
+    holdout = routes[:1] if hold and len(routes) > 1 and (fr is None or "test" in fr) else None
+    names = list(fr or ds.DEFAULT_FRACTIONS)
+    free = [n for n in names if not (holdout and n == "test")]
+    rest = [k for k in keys if not holdout or k[0] not in holdout]
+    units = {k[0] if by == "route" else k[1] for k in rest}
+    if len(units) < len(free):
+        with pytest.raises(InputError, match="need at least"):
+            ds.split(keys, fr, seed=seed, by=by, holdout_routes=holdout)
+        return
+    parts = ds.split(keys, fr, seed=seed, by=by, holdout_routes=holdout)
+    assert list(parts) == names and all(parts.values())
+    assert sorted(k for v in parts.values() for k in v) == sorted(keys)
+    draw_part, route_part = {}, {}
+    for name, ks in parts.items():
+        for r, s in ks:
+            assert draw_part.setdefault(s, name) == name  # no draw in two parts
+            route_part.setdefault(r, set()).add(name)
+    if by == "route" or holdout:
+        for r in holdout or []:
+            assert route_part[r] == {"test"}
+    if by == "route":
+        assert all(len(v) == 1 for v in route_part.values())  # no route in two parts
+    assert parts == ds.split(keys, fr, seed=seed, by=by, holdout_routes=holdout)
 
 
 # --- dataset -----------------------------------------------------------------------------------
@@ -181,6 +285,7 @@ def test_delta_and_bias_targets(results):
     routes = ds.find_routes(root, "consumer")
     dv = ds.WindowDataset(routes, window=25, stride=20, target="delta_vel_pos", dtype=np.float64)
     db = ds.WindowDataset(routes, window=25, stride=20, target="bias")
+    de = ds.WindowDataset(routes, window=25, stride=20, target="effective_error")
     assert len(dv) == len(db) == 4 * M * 4  # k0 = 1, 21, 41, 61
     for i in range(len(dv)):
         info = dv.window_info(i)
@@ -192,6 +297,9 @@ def test_delta_and_bias_targets(results):
         _, b = db[i]
         rows = shard[shard["sequence"] == info["sequence"]].iloc[k0:k1]
         np.testing.assert_array_equal(b, rows[BIAS].to_numpy())
+        x, err = de[i]
+        np.testing.assert_array_equal(err, rows[list(ds.EFFECTIVE_ERROR["increments"])])
+        np.testing.assert_array_equal(x, rows[[*col.DTHETA, *col.DV]])
 
 
 def test_keys_select_whole_sequences(results):
@@ -212,62 +320,87 @@ def test_keys_select_whole_sequences(results):
     assert all(len(v) == 1 for v in seen.values())
 
 
-def test_reads_only_the_row_groups_of_the_window(results, monkeypatch):
+def test_shard_cache_built_once_and_rebuilt_when_the_shard_changes(results, monkeypatch):
     root, _ = results
     routes = ds.find_routes(root, "consumer")
-    d = ds.WindowDataset(routes, window=10, stride=10)
+    ds.WindowDataset(routes, window=10)
+    caches = sorted((root / "alpha" / "imu" / "consumer" / ds.CACHE_DIR).glob("*.npy"))
+    assert len(caches) == 2  # one per shard, for the input columns
     reads = []
     orig = pq.ParquetFile.read_row_group
 
-    def counting(self, i, *args, **kwargs):
-        reads.append((self.metadata.num_rows, i))
-        return orig(self, i, *args, **kwargs)
-
-    def forbidden(*args, **kwargs):
-        raise AssertionError("a whole file was read")
+    def counting(self, *args, **kwargs):
+        reads.append(self.metadata.num_rows)
+        return orig(self, *args, **kwargs)
 
     monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
-    monkeypatch.setattr(pq.ParquetFile, "read", forbidden)
-    monkeypatch.setattr(pq, "read_table", forbidden)
-    # sequence 4 of alpha = shard 1, j = 1: shard rows 101..201; window rows 1+10*3 = 31..40
-    i = [j for j in range(len(d)) if d.window_info(j)["sequence"] == 4][3]
-    info = d.window_info(i)
-    assert (info["route"], info["start"]) == ("alpha", 31)
-    d[i]
-    # shard rows 132..141 -> row group 3 (120..159); truth rows 31..40 -> groups 0 and 1
-    assert Counter(reads) == Counter({(M * K, 3): 1, (K, 0): 1, (K, 1): 1})
-    d[i]
-    d[i + 1]  # shard rows 142..151, truth rows 41..50: all cached
-    assert len(reads) == 3
-    d[i + 2]  # shard rows 152..161 straddle groups 3 and 4: one new read
-    assert Counter(reads) == Counter({(M * K, 3): 1, (M * K, 4): 1, (K, 0): 1, (K, 1): 1})
+    d = ds.WindowDataset(routes, window=10)
+    assert reads == []  # warm: no Parquet decoded
+    shard = routes[0].shards[0]
+    df = pd.read_parquet(shard)
+    df[col.DTHETA[0]] = 7.0
+    write_parquet(df, {"grade": {"name": "consumer"}}, shard)
+    d = ds.WindowDataset(routes, window=10)
+    # the rewritten shard only (one row group), and its stale cache is gone
+    assert reads == [M * K]
+    assert len(list(caches[0].parent.glob("*.npy"))) == 2
+    assert (d[0][0][:, 0] == 7.0).all()
+    # another column group has its own cache beside
+    ds.WindowDataset(routes, window=10, target="bias")
+    assert len(list(caches[0].parent.glob("*.npy"))) == 4
 
 
-def test_cache_is_bounded(results):
+@pytest.mark.parametrize(
+    "target", ["increments", "effective_error", "bias", "delta_vel_pos", "lab_b"]
+)
+def test_batches_in_memory_and_from_disk_equal_the_items(results, target, tmp_path):
     root, _ = results
-    d = ds.WindowDataset(ds.find_routes(root, "consumer"), window=10, cache_mb=0.002)
+    routes = ds.find_routes(root, "consumer")
+    keys = ds.sequence_keys(routes)[::2]
+    kw = {"window": 20, "stride": 7, "keys": keys, "target": target, "cache_dir": tmp_path / "c"}
+    disk = ds.WindowDataset(routes, **kw)
+    mem = ds.WindowDataset(routes, in_memory=True, **kw)
+    assert len(disk) == len(mem) > 0
+    batches = disk.batches(16, seed=5)
+    assert np.array_equal(np.sort(np.concatenate(batches)), np.arange(len(disk)))
+    assert [len(b) for b in disk.batches(16, seed=5, drop_last=True)] == [16] * (len(disk) // 16)
+    assert all(np.array_equal(a, b) for a, b in zip(batches, disk.batches(16, seed=5), strict=True))
+    # batches mix sequences: the first batch draws from many of them
+    info = [disk.window_info(i) for i in batches[0]]
+    assert len({(w["route"], w["sequence"]) for w in info}) >= 4  # of 6
+    for idx in batches[:3]:
+        xd, yd = disk[idx]
+        xm, ym = mem.get_batch(idx)
+        assert xd.shape == (len(idx), 20, 6) and xd.dtype == np.float32
+        np.testing.assert_array_equal(xd, xm)
+        np.testing.assert_array_equal(yd, ym)
+        for j, i in enumerate(idx):
+            x1, y1 = disk[int(i)]
+            np.testing.assert_array_equal(x1, xd[j])
+            np.testing.assert_array_equal(y1, yd[j])
+
+
+def test_label_target_is_the_sequence_scalar(tmp_path):
+    frames = make_results(tmp_path, routes=("gamma",), shards=(0, 1))
+    routes = ds.find_routes(tmp_path, "consumer")
+    d = ds.WindowDataset(routes, window=50, stride=25, target=["lab_a", "lab_b"], dtype=np.float64)
     for i in range(len(d)):
-        d[i]
-        assert d._cached <= max(2048, max(a.nbytes for a in d._cache.values()))
+        sid = d.window_info(i)["sequence"]
+        np.testing.assert_array_equal(d[i][1], [sid * 1.5, -sid])
+    assert frames
+    with pytest.raises(InputError, match="no label column"):
+        ds.WindowDataset(routes, window=50, target="nope")
 
 
-def test_pickles_without_files_and_local_shuffle(results):
+def test_pickles_without_the_maps(results):
     root, _ = results
     d = ds.WindowDataset(ds.find_routes(root, "consumer"), window=30, stride=15)
-    d[0]
-    e = pickle.loads(pickle.dumps(d))
-    assert len(e._cache) == 0
+    blob = pickle.dumps(d)
+    assert len(blob) < 20_000  # the memory maps are reopened, not copied
+    e = pickle.loads(blob)
     for i in (0, 5, len(d) - 1):
         np.testing.assert_array_equal(d[i][0], e[i][0])
         np.testing.assert_array_equal(d[i][1], e[i][1])
-    order = d.local_shuffle(seed=1, block=2)
-    assert sorted(order) == list(range(len(d))) and order != list(range(len(d)))
-    assert order == d.local_shuffle(seed=1, block=2)
-    # each block of 2 sequences (6 windows each) is contiguous in the order
-    nw = len(d) // (4 * M)
-    assert nw == 5  # k0 = 1, 16, 31, 46, 61
-    blocks = [{j // (2 * nw) for j in order[b : b + 2 * nw]} for b in range(0, len(d), 2 * nw)]
-    assert all(len(b) == 1 for b in blocks)
 
 
 def test_without_statistics_and_missing_columns(tmp_path):

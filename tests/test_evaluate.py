@@ -4,7 +4,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen.evaluate import grade_row, grade_table, sequence_metrics, write_tables
+from imugen import columns as col
+from imugen.evaluate import (
+    grade_row,
+    grade_table,
+    segment_drift,
+    segment_starts,
+    sequence_metrics,
+    write_tables,
+)
 
 
 def nav_table(errors: dict[int, np.ndarray]) -> pd.DataFrame:
@@ -77,3 +85,90 @@ def test_tables_written(tmp_path):
     )
     assert "| consumer |" in paths["md"].read_text()
     assert r"\begin{tabular}" in paths["tex"].read_text() and "<table" in paths["html"].read_text()
+
+
+# --- relative drift ----------------------------------------------------------------------------
+RATE, DURATION_S = 10.0, 300.0
+BIASES = {0: (0.0, 0.0, 0.0), 1: (3e-3, -2e-3, 1e-3), 2: (6e-3, -4e-3, 2e-3), 3: (0.0, 0.01, 0.0)}
+
+
+def static_scene(tmp_path):
+    """A level IMU at rest (flat Earth, 10 Hz, 300 s); sequence s has accel bias BIASES[s]."""
+    from imugen.earth import OriginFrame
+    from imugen.io import write_parquet
+
+    origin = {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 200.0}
+    g0 = OriginFrame.from_deg(*origin.values(), model="flat").g0
+    K = int(DURATION_S * RATE) + 1
+    t = np.arange(K) / RATE
+    truth = pd.DataFrame({c: np.zeros(K) for c in col.TRUTH_COLUMNS})
+    truth[col.TIME] = t
+    truth["q_w"] = 1.0
+    meta = {"rate_hz": RATE, "origin": origin, "earth": "flat"}
+    write_parquet(truth, meta, tmp_path / "truth.parquet")
+    frames = []
+    for s, b in BIASES.items():
+        df = pd.DataFrame({"sequence": np.full(K, s, np.int32), col.TIME: t})
+        for c in col.DTHETA:
+            df[c] = 0.0
+        for i, c in enumerate(col.DV):
+            df[c] = (b[i] + (g0 if i == 2 else 0.0)) / RATE
+        df.loc[0, [*col.DTHETA, *col.DV]] = 0.0
+        frames.append(df)
+    shard = pd.concat(frames, ignore_index=True)
+    write_parquet(shard, {"grade": {"name": "test"}}, tmp_path / "shard-000.parquet")
+    return tmp_path / "truth.parquet", tmp_path / "shard-000.parquet"
+
+
+def test_drift_of_a_constant_accel_bias_is_b_t2_over_2(tmp_path):
+    truth, shard = static_scene(tmp_path)
+    d = segment_drift(truth, shard, [30, 60, 120, 400])
+    assert list(d.columns) == ["drift_30s_m", "drift_60s_m", "drift_120s_m", "drift_400s_m"]
+    for s, b in BIASES.items():
+        for T in (30, 60, 120):
+            # every start from the true state drifts by |b| T^2 / 2 (T exact in samples)
+            assert d.loc[s, f"drift_{T}s_m"] == pytest.approx(
+                np.linalg.norm(b) * T**2 / 2, rel=1e-9, abs=1e-9
+            )
+        assert np.isnan(d.loc[s, "drift_400s_m"])  # longer than the route
+    # starts every T/2 while the segment fits: 0, 60, ..., 180 s for T = 120 s in 300 s
+    assert list(segment_starts(3001, 1200)) == [0, 600, 1200, 1800]
+    assert list(segment_starts(3001, 3000)) == [0] and len(segment_starts(3001, 3001)) == 0
+
+
+def test_evaluate_segments_command_and_tables(tmp_path):
+    import subprocess
+    import sys
+
+    from imugen.navigate import run as navigate
+
+    truth, shard = static_scene(tmp_path)
+    nav = navigate(truth, shard, tmp_path / "nav.parquet")
+    out = tmp_path / "metrics.parquet"
+    cmd = [sys.executable, "-m", "imugen", "evaluate", str(truth), str(nav), "-o", str(out)]
+    r = subprocess.run(
+        [*cmd, "--grade", "test", "--segments", "30,60", "--imu", str(shard)],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    m = pd.read_parquet(out).set_index("sequence")
+    np.testing.assert_allclose(
+        m["drift_60s_m"], [np.linalg.norm(b) * 1800 for b in BIASES.values()], rtol=1e-9, atol=1e-9
+    )
+    # the whole-run RMSE is unchanged by the drift columns: bias b gives |b| t^2 / 2
+    assert m.loc[1, "final_3d_m"] == pytest.approx(np.linalg.norm(BIASES[1]) * 300**2 / 2)
+    row = grade_row("test", m)
+    assert row["drift_30s_m"] == pytest.approx(np.median(m["drift_30s_m"]))
+    assert row["drift_30s_p95_m"] == pytest.approx(np.percentile(m["drift_30s_m"], 95))
+    paths = write_tables(grade_table([row]), tmp_path / "rmse.csv")
+    assert {"drift_30s_m", "drift_30s_p05_m", "drift_60s_p95_m"} <= set(
+        pd.read_csv(paths["csv"]).columns
+    )
+    assert "Drift 30 s (m)" in paths["md"].read_text()
+    r = subprocess.run(
+        [*cmd, "--grade", "test", "--segments", "30"], capture_output=True, text=True
+    )
+    assert r.returncode == 2 and "needs the IMU shards" in r.stderr
+    r = subprocess.run([*cmd, "--grade", "t", "--segments", "0,x"], capture_output=True, text=True)
+    assert r.returncode == 2 and "--segments" in r.stderr and not out.with_name("x").exists()

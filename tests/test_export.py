@@ -13,7 +13,7 @@ from imugen import columns as col
 from imugen import export
 from imugen.errors import InputError
 from imugen.io import write_parquet
-from imugen.simulate import labels_path
+from imugen.tables.shard import labels_path
 
 K, M, E = 37, 3, 5
 LONG_LABEL = "accel_rate_random_walk_x_mps2_per_sqrt_s"  # > 31 characters
@@ -124,7 +124,7 @@ def test_v5_round_trip(tmp_path, route):
     S = 2 * M
     ids = np.arange(S)
     np.testing.assert_array_equal(d["sequence_id"], ids.reshape(S, 1))
-    assert d["sequence_id"].dtype == np.int32
+    assert d["sequence_id"].dtype == np.int64
     # truth: K x n, double, same values
     assert d["truth_time_s"].shape == (K, 1)
     np.testing.assert_array_equal(d["truth_time_s"][:, 0], truth[col.TIME])
@@ -268,7 +268,7 @@ def test_v73_round_trip(tmp_path, route, monkeypatch):
         assert pos.shape == (3, K) and pos.attrs["MATLAB_class"] == b"double"
         np.testing.assert_array_equal(pos[()].T, truth[list(col.POS)].to_numpy())
         assert f["truth_time_s"].shape == (1, K)  # MATLAB K x 1
-        assert f["sequence_id"].attrs["MATLAB_class"] == b"int32"
+        assert f["sequence_id"].attrs["MATLAB_class"] == b"int64"
         np.testing.assert_array_equal(f["sequence_id"][()], np.arange(S).reshape(1, S))
         lab = f["labels"]
         assert lab.attrs["MATLAB_class"] == b"struct"

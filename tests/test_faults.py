@@ -25,6 +25,8 @@ from imugen import cli
 from imugen import simulate as S
 from imugen.ingest import run as ingest_run
 from imugen.navigate import run as navigate_run
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
 from imugen.truth import run as truth_run
 
 REPO = Path(__file__).resolve().parents[1]
@@ -87,7 +89,7 @@ def test_killed_shard_job_leaves_no_output_and_rerun_is_bit_identical(route, tmp
     assert tmp is not None, "the job ended before it was seen writing: enlarge KILL_ARGS"
     assert proc.returncode == -signal.SIGKILL
     # nothing at the output paths; only temporaries, which the shard patterns do not match
-    assert not out.exists() and not S.labels_path(out).exists()
+    assert not out.exists() and not tshard.labels_path(out).exists()
     left = sorted(p.name for p in a.iterdir())
     assert left and all(n.startswith(".shard-003.") and n.endswith(".tmp") for n in left), left
     assert not list(a.glob("shard-*.parquet")) and not list(a.glob("*.parquet"))
@@ -104,13 +106,13 @@ def test_killed_shard_job_leaves_no_output_and_rerun_is_bit_identical(route, tmp
     # the rerun completes, removes the stale temporary, and equals an uninterrupted run
     r = subprocess.run(cmd, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in a.iterdir()) == [S.labels_path(out).name, out.name]
+    assert sorted(p.name for p in a.iterdir()) == [tshard.labels_path(out).name, out.name]
     b = tmp_path / "clean"
     b.mkdir()
     ref = b / out.name
     S.run(None, ref, "industrial", sequences=50, seed=7, shard=3, static_s=600.0, rate_hz=100.0)
     assert sha(out) == sha(ref)
-    assert sha(S.labels_path(out)) == sha(S.labels_path(ref))
+    assert sha(tshard.labels_path(out)) == sha(tshard.labels_path(ref))
 
 
 def test_truncated_shard_is_refused_in_one_line(route, tmp_path):
@@ -210,12 +212,14 @@ def test_short_last_shard_keeps_global_ids_unique():
     kw = {"static_s": 2.0, "rate_hz": 10.0, "seed": 5}
     full = S.simulate(None, "consumer", sequences=3, shard=0, **kw)
     last = S.simulate(None, "consumer", sequences=2, shard=1, shard_size=3, **kw)
-    assert full.labels["sequence"].tolist() == [0, 1, 2]
-    assert last.labels["sequence"].tolist() == [3, 4]
-    assert last.meta["sequence_ids"] == [3, 4]
+    base = tshard.route_id("static") << 31
+    assert full.labels["index"].tolist() == [0, 1, 2]
+    assert (full.labels["sequence"] - base).tolist() == [0, 1, 2]
+    assert (last.labels["sequence"] - base).tolist() == [3, 4]
+    assert last.meta["sequence_ids"] == [base + 3, base + 4]
     # the data of sequence j of shard K do not depend on the shard size
     alone = S.simulate(None, "consumer", sequences=2, shard=1, **kw)
-    assert alone.labels["sequence"].tolist() == [2, 3]  # default: this shard's own size
+    assert (alone.labels["sequence"] - base).tolist() == [2, 3]  # default: this shard's size
     for name in last.data:
         assert (last.data[name] == alone.data[name]).all()
     with pytest.raises(S.InputError, match="fewer than"):
@@ -229,9 +233,11 @@ def test_cli_shard_size(tmp_path):
         cli.main([*argv, "--sequences", "2", "--seed", "5", "--shard", "1", "--shard-size", "3"])
         == 0
     )
-    ids = pq.read_table(out, columns=["sequence"]).column(0).to_numpy()
+    base = tshard.route_id("static") << 31
+    ids = pq.read_table(out, columns=["sequence"]).column(0).to_numpy() - base
     assert sorted(set(ids.tolist())) == [3, 4]
-    assert pq.read_table(S.labels_path(out)).column("sequence").to_pylist() == [3, 4]
+    lab = pq.read_table(tshard.labels_path(out)).column("sequence").to_numpy() - base
+    assert lab.tolist() == [3, 4]
 
 
 def _nav_table(ids, epochs=5, offset=0.0):
@@ -284,7 +290,7 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
     shard = tmp_path / "shard-000.parquet"
     S.run(route["truth"], shard, "consumer", sequences=5, seed=3)
     ref = N.navigate(route["truth"], shard)
-    monkeypatch.setattr(N, "READ_ROWS", 777)  # not a divisor of the samples per sequence
+    monkeypatch.setattr(tshard, "READ_ROWS", 777)  # not a divisor of the samples per sequence
     for b in (1, 2, 5, 64):
         assert N.navigate(route["truth"], shard, batch=b).equals(ref)
     # oracle: the same increments, rounded to float32 as stored, mechanized directly
@@ -302,7 +308,7 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
         tr[list(col.POS)].to_numpy()[0],
         tr[list(col.VEL)].to_numpy()[0],
         tr[list(col.QUAT)].to_numpy()[0],
-        N.frame_from_truthread_meta(meta),
+        ttruth.origin_frame(meta),
         every=round(meta["rate_hz"]),
         outputs=("p",),
     )

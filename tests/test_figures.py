@@ -266,3 +266,73 @@ def test_imu_signals_files(route, tmp_path):
         fg.imu_signals(route["truth"], route["shard"], tmp_path / "x", sequence=99)
     with pytest.raises(InputError):
         fg.imu_signals(route["truth"], route["shard"], tmp_path / "x", window_s=(100.0, 200.0))
+
+
+# ---------------------------------------------------------------------------------------
+# visual properties (not pixels): nothing clipped, every end in the zoom, distinct styles
+@pytest.fixture(scope="module")
+def drifting(tmp_path_factory):
+    """Paired paper/datasheet grades, one drifting 100 km: the case that broke the zoom."""
+    root = tmp_path_factory.mktemp("drift")
+    truth = write_parquet(_truth_df(), {"rate_hz": RATE}, root / "truth.parquet")
+    nav, metrics = {}, {}
+    for g, scale in {
+        "paper_tactical": 2e3,
+        "tactical": 30.0,
+        "consumer": 1e5,
+        "tactical_calibrated": 0.5,
+    }.items():
+        part = _nav_df(scale, 0, 3)
+        nav[g] = [write_parquet(part, {"grade": g}, root / "nav" / g / "shard-000.parquet")]
+        m = sequence_metrics(part, distance_m=2 * np.pi * 100.0).reset_index()
+        metrics[g] = write_parquet(m, {"grade": g}, root / "metrics" / f"{g}.parquet")
+    return truth, nav, metrics
+
+
+def test_figure8_properties(drifting):
+    import matplotlib.text
+
+    truth, nav, metrics = drifting
+    with fg._style():
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        fig = fg.figure8_figure(truth, nav, metrics)
+        FigureCanvasAgg(fig).draw()
+        r = fig.canvas.get_renderer()
+        texts = [t for t in fig.findobj(matplotlib.text.Text) if t.get_visible() and t.get_text()]
+        assert any("(b)" in t.get_text() for t in texts)
+        # every drawn artist (titles, tick labels, legend) inside the figure
+        tight, page = fig.get_tightbbox(r), fig.bbox_inches
+        assert page.x0 - 0.01 <= tight.x0 and tight.x1 <= page.x1 + 0.01, (tight, page)
+        assert page.y0 - 0.01 <= tight.y0 and tight.y1 <= page.y1 + 0.01, (tight, page)
+        for ax in fig.axes:  # titles sit above their axes, below the figure's top edge
+            tb = ax.title.get_window_extent(r)
+            assert tb.y1 <= fig.bbox.y1 + 1 and tb.x0 >= -1, ax.title.get_text()
+        ax_b = fig.axes[1]
+        (x0, x1), (y0, y1) = ax_b.get_xlim(), ax_b.get_ylim()
+        ends = 0
+        for line in ax_b.get_lines():
+            x, y = (np.asarray(v, float) for v in line.get_data())
+            if x.size:
+                assert x0 <= x[-1] <= x1 and y0 <= y[-1] <= y1, line.get_label()
+                ends += 1
+        assert ends >= 1 + len(nav)
+        styles = {
+            (ln.get_color(), ln.get_linestyle()) for ln in fig.axes[0].get_lines()[1 : 1 + len(nav)]
+        }
+        assert len(styles) == len(nav)  # paper_tactical, tactical, tactical_calibrated differ
+        labels = " ".join(t.get_text() for t in texts)
+        assert "km" in labels and "e+" not in labels  # 1e5 m reads as kilometres
+
+
+def test_grade_styles_and_lengths():
+    st = fg.grade_styles(["tactical", "paper_tactical", "tactical_calibrated", "consumer"])
+    assert len({(v["color"], v["ls"]) for v in st.values()}) == 4
+    assert st["paper_tactical"]["ls"] == "--" and st["tactical"]["ls"] == "-"
+    assert [fg.format_length(x) for x in (0.4412, 7.4, 172.3, 1726.0, 13439248.0)] == [
+        "0.441 m",
+        "7.40 m",
+        "172 m",
+        "1.73 km",
+        "13,400 km",
+    ]

@@ -353,7 +353,7 @@ def test_polygon_only_file_refused(tmp_path):
         ("<gx:altitudeMode>relativeToSeaFloor</gx:altitudeMode>", False, True),
         ("<altitudeMode>clampToGround</altitudeMode>", False, False),
         ("<gx:altitudeMode>clampToSeaFloor</gx:altitudeMode>", False, False),
-        ("", False, False),
+        ("", False, True),  # KML default: heights kept as written, untrusted
     ],
 )
 def test_altitude_mode_policy(tmp_path, element, trusted, kept):
@@ -364,10 +364,9 @@ def test_altitude_mode_policy(tmp_path, element, trusted, kept):
     assert p.altitude_trusted is trusted
     np.testing.assert_array_equal(p.alt_m, [300.0, 310.0] if kept else [0.0, 0.0])
     if not kept:
-        shown = f"altitudeMode {mode}" if mode else "no altitudeMode, KML default clampToGround"
-        assert f"altitudes ignored ({shown}): set to 0 m" in p.notes
+        assert f"altitudes ignored (altitudeMode {mode}): set to 0 m" in p.notes
     elif not trusted:
-        assert any(mode in n and "not trusted" in n for n in p.notes)
+        assert any((mode or "no altitudeMode") in n and "not trusted" in n for n in p.notes)
 
 
 # --------------------------------------------------------------- refusals and safety
@@ -609,8 +608,10 @@ def test_real_google_samples_all_paths():
     for p in paths:
         assert p.kind == "LineString"
         assert p.altitude_trusted is (p.altitude_mode == "absolute")
-        if p.altitude_mode in (None, "clampToGround"):
+        if p.altitude_mode == "clampToGround":
             assert np.all(p.alt_m == 0.0)
+        elif p.altitude_mode is None:  # default mode: heights kept as written (0 in this file)
+            assert np.all(p.alt_m == 0.0) and any("kept as written" in n for n in p.notes)
         else:
             assert np.all(p.alt_m > 0.0)
 

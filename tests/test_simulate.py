@@ -10,6 +10,7 @@ import pytest
 from imugen import columns as col
 from imugen import simulate as S
 from imugen.errors import InputError
+from imugen.tables import shard as tshard
 
 KW = {"static_s": 3.0, "rate_hz": 100.0}
 
@@ -73,7 +74,7 @@ def test_switching_a_term_keeps_other_realizations():
 
 
 def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
-    monkeypatch.setattr(S, "ROW_GROUP", 200)
+    monkeypatch.setattr(tshard, "ROW_GROUP", 200)
     out = tmp_path / "shard_0001.parquet"
     S.run(None, out, "navigation", sequences=3, seed=7, shard=1, outputs="both", series=True, **KW)
     pf = pq.ParquetFile(out)
@@ -81,33 +82,39 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     assert pf.metadata.num_row_groups == 5  # written as it goes, in bounded row groups
     tbl = pf.read()
     sch = tbl.schema
-    assert str(sch.field(S.SEQUENCE).type) == "int32"
+    assert str(sch.field(S.SEQUENCE).type) == "int64"
     assert str(sch.field(col.TIME).type) == "double"
     for c in (
         *col.DTHETA,
         *col.DV,
         *col.GYRO,
         *col.ACCEL,
-        *S.BIAS_SERIES["gyro"],
-        *S.SF_SERIES["accel"],
+        *tshard.BIAS_SERIES["gyro"],
+        *tshard.SF_SERIES["accel"],
+        *tshard.EFFECTIVE_ERROR["increments"],
+        *tshard.EFFECTIVE_ERROR["rates"],
     ):
         assert str(sch.field(c).type) == "float"
     df = tbl.to_pandas()
-    # sorted by sequence then time; global ids shard * M + j
-    assert list(df[S.SEQUENCE].unique()) == [3, 4, 5]
+    # sorted by sequence then time; global ids route_id << 31 | (shard * M + j); the route of
+    # a static IMU is "static"
+    rid = tshard.route_id("static")
+    assert list(df[S.SEQUENCE].unique()) == [(rid << 31) + i for i in (3, 4, 5)]
     assert df.groupby(S.SEQUENCE)[col.TIME].apply(lambda t: bool(np.all(np.diff(t) > 0))).all()
     assert np.all(df.groupby(S.SEQUENCE)[col.DTHETA[0]].first() == 0)
     meta = json.loads(sch.metadata[col.METADATA_KEY])
     for k in ("units", "grade", "preset_source", "seed", "shard", "spawn_key", "code_version"):
         assert k in meta
     assert (
-        meta["spawn_key"] == [4, 1] and meta["seed"] == 7 and meta["grade"]["name"] == "navigation"
+        meta["spawn_key"] == [rid, 4, 1]
+        and meta["seed"] == 7
+        and meta["grade"]["name"] == "navigation"
     )
     assert meta["units"][col.DV[0]] == "m/s" and meta["units"][col.GYRO[0]] == "rad/s"
     assert meta["grade"]["config"]["gyro"]["white_noise"]["unit"] == "deg_per_sqrt_h"
     # labels sidecar: one row per sequence, every drawn parameter
-    lab = pq.read_table(S.labels_path(out)).to_pandas()
-    assert list(lab[S.SEQUENCE]) == [3, 4, 5]
+    lab = pq.read_table(tshard.labels_path(out)).to_pandas()
+    assert list(lab[S.SEQUENCE]) == [(rid << 31) + i for i in (3, 4, 5)]
     assert {
         "gyro_turn_on_bias_x_radps",
         "accel_scale_factor_z",
@@ -160,7 +167,8 @@ def test_truth_file_input(tmp_path):
     p = tmp_path / "truth.parquet"
     df.to_parquet(p)
     meta = S.run(p, tmp_path / "o.parquet", "tactical", sequences=2, seed=1)
-    assert meta["rate_hz"] == pytest.approx(50.0) and meta["truth"]["path"] == str(p)
+    assert meta["rate_hz"] == pytest.approx(50.0) and meta["truth"]["file"] == "truth.parquet"
+    assert "path" not in meta["truth"] and len(meta["truth"]["sha256"]) == 64
     df.drop(columns=[col.DV[0]]).to_parquet(p)
     with pytest.raises(InputError, match="missing column"):
         S.run(p, tmp_path / "o2.parquet", "tactical")

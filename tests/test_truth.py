@@ -455,9 +455,11 @@ def test_errors_are_input_errors():
 def test_run_writes_parquet_atomically(tmp_path):
     import pyarrow.parquet as pq
 
+    from imugen.tables import enu as tenu
+
     df, meta = truth.enu_table(POLY, None, ORIGIN)
     enu_path = tmp_path / "enu.parquet"
-    truth.write_parquet(df, meta, enu_path)
+    tenu.write(df, meta, enu_path)
     out = tmp_path / "sub" / "truth.parquet"
     m = truth.run(enu_path, out, rate_hz=20, earth="auto", vehicle="car")
     tbl = pq.read_table(out)

@@ -6,6 +6,7 @@ dry-run job list); -j1 and -j2 give identical tables and bit-identical datasets;
 
 import copy
 import hashlib
+import os
 import re
 import shutil
 import subprocess
@@ -17,6 +18,7 @@ import pytest
 import yaml
 
 from imugen.io import read_meta
+from imugen.tables.shard import route_id
 
 REPO = Path(__file__).resolve().parents[1]
 ROUTE = REPO / "resources" / "example_route.kml"
@@ -45,6 +47,8 @@ TINY = {
 def snakemake(workdir, *args):
     bindir = Path(sys.executable).parent
     env = {"PATH": f"{bindir}:/usr/bin:/bin", "HOME": str(workdir)}
+    if os.environ.get("PYTHONPATH"):  # a worktree's own src/ (else the installed imugen)
+        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
     return subprocess.run(
         [
             sys.executable,
@@ -170,10 +174,13 @@ def test_short_last_shard_keeps_sequence_ids_unique(done, tmp_path):
     proc = snakemake(wd, "-j2", "results/paper/metrics/mine.parquet")
     assert proc.returncode == 0, proc.stderr[-3000:]
     shards = sorted((wd / "results" / "paper" / "imu" / "mine").glob("shard-*[0-9].parquet"))
-    ids = [pd.read_parquet(p, columns=["sequence"]).sequence.unique().tolist() for p in shards]
+    base = route_id("paper") << 31  # ids route_id << 31 | index (the workflow passes --route)
+    ids = [
+        (pd.read_parquet(p, columns=["sequence"]).sequence.unique() - base).tolist() for p in shards
+    ]
     assert ids == [[0, 1], [2, 3], [4]]
     metrics = pd.read_parquet(wd / "results" / "paper" / "metrics" / "mine.parquet")
-    assert sorted(metrics.sequence) == [0, 1, 2, 3, 4]
+    assert sorted(metrics.sequence - base) == [0, 1, 2, 3, 4]
 
 
 def test_figure_option_reruns_only_figures(done, tmp_path):
@@ -235,3 +242,48 @@ def test_lint_only_the_documented_conda_lint(tmp_path):
     lints = re.findall(r"^\s+\* (.+?):$", text, flags=re.M)
     assert lints, text[-2000:]
     assert set(lints) == {"Specify a conda environment or container for each rule."}
+
+
+def dry_run_outputs(workdir, *args) -> list[str]:
+    """Output paths of every job a dry run schedules."""
+    proc = snakemake(workdir, "-n", "-j1", *args)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = re.findall(r"^\s+output: (.+)$", proc.stdout + proc.stderr, flags=re.M)
+    return [p for line in lines for p in line.split(", ")]
+
+
+def test_configfile_replaces_the_shipped_routes_and_grades(tmp_path):
+    # a working directory like the repository: the shipped config/ and resources/
+    (tmp_path / "config").symlink_to(REPO / "config")
+    (tmp_path / "resources").symlink_to(REPO / "resources")
+    shipped = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    paper = yaml.safe_load((REPO / "config" / "paper.yaml").read_text())
+    outs = dry_run_outputs(tmp_path, "--configfile", str(tmp_path / "config" / "paper.yaml"))
+    routes = {p.split("/")[1] for p in outs if p.startswith("results/") and "allan" not in p}
+    assert routes == set(paper["routes"]) and "example" not in routes
+    nav = [p for p in outs if "/nav/" in p]
+    shards = paper["simulate"]["sequences"] // paper["simulate"]["sequences_per_shard"]
+    assert len(nav) == len(paper["grades"]) * shards
+    # a user's file naming other grades: only those, and the shipped value of every other key
+    mine = {"routes": paper["routes"], "grades": {"tactical": {}}}
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump(mine))
+    outs = dry_run_outputs(tmp_path, "--configfile", str(tmp_path / "mine.yaml"))
+    grades = {p.split("/")[3] for p in outs if re.match(r"results/\w+/(imu|nav)/", p)}
+    assert grades == {"tactical"} and not any("example" in p or "consumer" in p for p in outs)
+    sim = shipped["simulate"]
+    nav = [p for p in outs if "/nav/" in p]
+    assert len(nav) == sim["sequences"] // sim["sequences_per_shard"]
+    # without --configfile, the shipped example as before
+    outs = dry_run_outputs(tmp_path)
+    assert {p.split("/")[1] for p in outs if "/nav/" in p} == set(shipped["routes"])
+    assert {p.split("/")[3] for p in outs if "/nav/" in p} == set(shipped["grades"])
+
+
+def test_export_formats_planned_per_route_and_grade(tmp_path):
+    cfg = {**TINY, "exports": {"mat": False, "formats": ["tum", "euroc"]}}
+    write_config(tmp_path, cfg)
+    jobs = planned_jobs(tmp_path)
+    assert jobs.get("export_formats") == len(cfg["routes"]) * len(cfg["grades"])
+    write_config(tmp_path, {**cfg, "exports": {"mat": False, "formats": ["kitti"]}})
+    proc = snakemake(tmp_path, "-n", "-j1")
+    assert proc.returncode != 0 and "kitti" in proc.stdout + proc.stderr

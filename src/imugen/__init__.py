@@ -25,3 +25,28 @@ Errors
 """
 
 __version__ = "0.1.0"
+
+_LAZY = {
+    "navigate_arrays": ("imugen.navigate", "navigate_arrays"),
+    "write_shard": ("imugen.tables.shard", "write_like"),
+}
+"""Public functions loaded on first use, so that ``import imugen`` stays cheap."""
+
+__all__ = ["__version__", "navigate_arrays", "write_shard"]
+
+
+def __getattr__(name):
+    """``imugen.navigate_arrays`` (:func:`imugen.navigate.navigate_arrays`) and
+    ``imugen.write_shard`` (:func:`imugen.tables.shard.write_like`), imported lazily."""
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        value = getattr(importlib.import_module(module), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'imugen' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted({*globals(), *_LAZY})

@@ -25,15 +25,14 @@ from pathlib import Path
 import allantools
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 from scipy.optimize import nnls
 
-from imugen import columns as col
 from imugen import units
 from imugen.errors import InputError
-from imugen.io import read_meta
 from imugen.sensors import avar_bias_instability, avar_quantization, avar_rrw, avar_white
-from imugen.simulate import SEQUENCE, Shard, labels_path
+from imugen.simulate import Shard
+from imugen.tables import shard as tshard
+from imugen.tables.shard import SEQUENCE
 
 QUANTITIES = {
     # key: (sensor, term)
@@ -141,17 +140,14 @@ def fit_avar(taus, avar, bases: dict, T: float) -> dict:
 
 def _read_shard(path, max_sequences):
     path = Path(path)
-    meta = read_meta(path)
-    lp = path.with_name(meta.get("labels_file") or labels_path(path).name)
-    if not lp.exists():
-        raise InputError(path, f"labels sidecar {lp.name} not found")
-    labels = pq.read_table(lp).to_pandas()
+    meta = tshard.read_meta(path)
+    labels = tshard.read_labels(path, meta)
     first = int(meta["sequence_ids"][0])
     n = min(int(meta["sequences"]), int(max_sequences))
     labels = labels[labels[SEQUENCE] < first + n].reset_index(drop=True)
     inc = meta["outputs"] in ("increments", "both")
-    cols = [*col.DTHETA, *col.DV] if inc else [*col.GYRO, *col.ACCEL]
-    tbl = pq.read_table(path, columns=[SEQUENCE, *cols], filters=[(SEQUENCE, "<", first + n)])
+    cols = list(tshard.INCREMENTS if inc else tshard.RATES)
+    tbl = tshard.read(path, [SEQUENCE, *cols], filters=[(SEQUENCE, "<", first + n)])
     seq = tbl.column(SEQUENCE).to_numpy()
     K = int(meta["samples_per_sequence"])
     data = {}
@@ -262,41 +258,41 @@ def allan_report(source, max_sequences: int = 16, curves=None) -> dict:
     return report
 
 
-def plot_allan(curves: dict, out_png, report: dict | None = None) -> Path:
-    """Allan deviation of the shard (averaged) against the configured model, PNG."""
-    import matplotlib
+def plot_allan(curves: dict, out, report: dict | None = None, dpi: float = 150) -> Path:
+    """Allan deviation of the shard (averaged) against the configured model.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Drawn in the project's figure style (:mod:`imugen.plotting`) and written atomically; the
+    format follows the file name's extension (PNG, SVG or PDF).
+    """
+    from imugen.plotting import figure, save, style
 
+    out = Path(out)
+    fmt = out.suffix.lstrip(".").lower() or "png"
     taus = curves["taus"]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
-    for ax, s, unit_name, label in (
-        (axes[0], "gyro", "deg_per_h", "deg/h"),
-        (axes[1], "accel", "ug", "ug"),
-    ):
-        f = units.unit(unit_name).factor
-        ax.loglog(taus, np.sqrt(curves[s]) / f, "k.", label="simulated (oadev, mean AVAR)")
-        ts = set(curves["meta"]["terms"].get(s, ()))
-        bases, conf = _bases(s, ts, curves["labels"], curves["dt"], taus)
-        total = np.zeros_like(taus)
-        for name, b in bases.items():
-            amp2 = conf[name] ** 2 if name != "quantization" else 1.0
-            ax.loglog(taus, np.sqrt(b * amp2) / f, "--", lw=1, label=f"{name} (configured)")
-            total += b * amp2
-        if bases:
-            ax.loglog(taus, np.sqrt(total) / f, "r-", lw=1.2, label="configured total")
-        ax.set_xlabel("averaging time tau [s]")
-        ax.set_ylabel(f"Allan deviation [{label}]")
-        ax.set_title(f"{s} ({curves['meta']['grade']['name']}, {1 / curves['dt']:g} Hz)")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    with style():
+        fig = figure(figsize=(11, 4.8), layout="constrained")
+        axes = fig.subplots(1, 2)
+        for ax, s, unit_name, label in (
+            (axes[0], "gyro", "deg_per_h", "deg/h"),
+            (axes[1], "accel", "ug", "ug"),
+        ):
+            f = units.unit(unit_name).factor
+            ax.loglog(taus, np.sqrt(curves[s]) / f, "k.", label="simulated (oadev, mean AVAR)")
+            ts = set(curves["meta"]["terms"].get(s, ()))
+            bases, conf = _bases(s, ts, curves["labels"], curves["dt"], taus)
+            total = np.zeros_like(taus)
+            for name, b in bases.items():
+                amp2 = conf[name] ** 2 if name != "quantization" else 1.0
+                ax.loglog(taus, np.sqrt(b * amp2) / f, "--", lw=1, label=f"{name} (configured)")
+                total += b * amp2
+            if bases:
+                ax.loglog(taus, np.sqrt(total) / f, "r-", lw=1.2, label="configured total")
+            ax.set_xlabel("averaging time tau [s]")
+            ax.set_ylabel(f"Allan deviation [{label}]")
+            ax.set_title(f"{s} ({curves['meta']['grade']['name']}, {1 / curves['dt']:g} Hz)")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
 
 
 def run(shard, plot=None, max_sequences: int = 16) -> dict:

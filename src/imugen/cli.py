@@ -1,7 +1,8 @@
 """Command line: ``imugen <stage> ...``, a thin dispatcher onto the stages' functions.
 
 A user's mistake (bad file, bad option) prints one line ``imugen: error: FILE: problem``
-and exits with status 2; no traceback, no partial output.
+and exits with status 2; no traceback, no partial output. Control characters that a file
+could smuggle into a message (terminal escapes, carriage returns) are printed escaped.
 """
 
 from __future__ import annotations
@@ -11,7 +12,15 @@ import json
 import sys
 
 from imugen import __version__
+from imugen.clean import VEHICLE_LIMITS
 from imugen.errors import InputError
+
+
+def _printable(text: str) -> str:
+    """``text`` with non-printable characters escaped (``\\x1b``), so a message stays one line."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
 def _add_ingest_options(p: argparse.ArgumentParser) -> None:
@@ -35,9 +44,12 @@ def _cmd_ingest(a) -> int:
         max_speed_kmh=a.max_speed_kmh,
         max_extent_km=a.max_extent_km,
         gap_warn_s=a.gap_warn_s,
+        vehicle=a.vehicle,
+        max_gap_s=a.max_gap_s,
+        gaps=a.gaps,
     )
     for w in ing.warnings:
-        print(f"imugen: warning: {a.src}: {w}", file=sys.stderr)
+        print(_printable(f"imugen: warning: {a.src}: {w}"), file=sys.stderr)
     m = ing.meta
     print(
         f"{a.output}: path {m['path']!r}, {m['points_out']} points, "
@@ -87,6 +99,8 @@ def _cmd_simulate(a) -> int:
         grades_file=a.grades_file,
         static_earth=a.earth,
         shard_size=a.shard_size,
+        route=a.route,
+        increments=a.increments,
         vibration=a.vibration,
     )
     print(
@@ -111,10 +125,23 @@ def _cmd_navigate(a) -> int:
     return 0
 
 
+def _seconds_list(text: str) -> list[float]:
+    """``"30,60,120"`` -> ``[30.0, 60.0, 120.0]`` (argparse type of ``--segments``)."""
+    try:
+        out = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not a comma-separated list of seconds: {text!r}"
+        ) from None
+    if not out or any(not x > 0 for x in out):
+        raise argparse.ArgumentTypeError(f"need durations > 0 s, got {text!r}")
+    return out
+
+
 def _cmd_evaluate(a) -> int:
     from imugen.evaluate import run
 
-    run(a.truth, a.nav, a.output, grade=a.grade)
+    run(a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu)
     return 0
 
 
@@ -180,6 +207,58 @@ def _cmd_export_mat(a) -> int:
     return 0
 
 
+def _cmd_serve(a) -> int:
+    try:
+        from imugen.web.app import serve
+    except ImportError:
+        raise InputError("imugen serve", "needs Flask: pip install -e '.[web]'") from None
+    serve(a.workdir, host=a.host, port=a.port, repo=a.repo)
+
+
+def _cmd_export(a) -> int:
+    from imugen.formats import export
+
+    export(
+        a.format,
+        a.truth,
+        a.shards,
+        a.output,
+        route=a.route,
+        grade=a.grade,
+        nav_rate_hz=a.nav_rate_hz,
+        split_seed=a.split_seed,
+        sequences=a.sequences,
+        storage=a.storage,
+        overwrite=a.overwrite,
+    )
+    return 0
+
+
+def _cmd_grade_import(a) -> int:
+    from imugen.grade_io import grades_document, import_grade, write_text
+
+    name, cfg = import_grade(a.file, name=a.name, grade_id=a.id)
+    text = grades_document(name, cfg)
+    if a.output:
+        write_text(a.output, text)
+        print(f"{a.output}: grade {name!r} (id {cfg.get('id')})", file=sys.stderr)
+    else:
+        print(text, end="")
+    return 0
+
+
+def _cmd_grade_export(a) -> int:
+    from imugen.grade_io import to_kalibr, write_text
+    from imugen.grades import get_grade
+
+    text = to_kalibr(get_grade(a.grade, a.grades_file), rate_hz=a.rate_hz, topic=a.topic)
+    if a.output:
+        write_text(a.output, text)
+    else:
+        print(text, end="")
+    return 0
+
+
 def _cmd_closure(a) -> int:
     from imugen.closure import closure
 
@@ -214,6 +293,24 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-extent-km", type=float, default=100.0, help="largest distance from origin"
     )
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
+    p.add_argument(
+        "--vehicle",
+        choices=list(VEHICLE_LIMITS),
+        default="car",
+        help="vehicle class whose limits decide what is an outlier (default car)",
+    )
+    p.add_argument(
+        "--max-gap-s",
+        type=float,
+        metavar="SECONDS",
+        help="time gaps longer than this split the path (default 60; see --gaps)",
+    )
+    p.add_argument(
+        "--gaps",
+        choices=["split", "bridge"],
+        default="split",
+        help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
+    )
     p.set_defaults(func=_cmd_ingest)
 
     p = sub.add_parser("truth", help="ENU route -> 6-DoF truth and ideal IMU at the IMU rate")
@@ -262,9 +359,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="vibration of the IMU case (vehicle: the truth's vehicle class; default off)",
     )
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
-    p.add_argument("--series", action="store_true", help="also write true bias/SF series")
+    p.add_argument(
+        "--series",
+        action="store_true",
+        help="also write the true bias, scale-factor and effective-error series",
+    )
+    p.add_argument(
+        "--increments",
+        choices=["compensated", "raw"],
+        default="compensated",
+        help="increment semantics: compensated (rotation vector; body frame frozen at the "
+        "interval start, sculling included) or raw (plain integrals of rate and specific force)",
+    )
     p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
     p.add_argument("--grades-file", help="YAML file with custom grades")
+    p.add_argument(
+        "--route",
+        help="route name: its id enters every spawn key and the sequence ids (default: the "
+        "route recorded in the truth metadata, else the truth file's folder name; 'static' "
+        "with --static)",
+    )
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("navigate", help="shard of IMU sequences -> strapdown -> errors vs truth")
@@ -279,6 +393,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("nav", nargs="+", help="navigation-error Parquet files of the grade")
     p.add_argument("-o", "--output", required=True, help="per-sequence metrics Parquet")
     p.add_argument("--grade", required=True, help="grade name (recorded in the output)")
+    p.add_argument(
+        "--segments",
+        type=_seconds_list,
+        default=[],
+        metavar="T,T,...",
+        help="relative drift after T seconds from true starts (needs --imu), e.g. 30,60,120",
+    )
+    p.add_argument("--imu", nargs="+", default=[], help="IMU shards of the grade (for --segments)")
     p.set_defaults(func=_cmd_evaluate)
 
     p = sub.add_parser("tables", help="per-grade metrics -> RMSE table (CSV, MD, TeX, HTML)")
@@ -308,6 +430,60 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help=".mat path")
     p.set_defaults(func=_cmd_export_mat)
 
+    p = sub.add_parser("serve", help="local web page: upload a route, pick grades, run, download")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765)")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only)",
+    )
+    p.add_argument(
+        "--workdir", default="imugen-runs", help="folder of the runs (default ./imugen-runs)"
+    )
+    p.add_argument("--repo", help="project folder with the Snakefile (default: found)")
+    p.set_defaults(func=_cmd_serve)
+    p = sub.add_parser(
+        "export", help="shards -> EuRoC, TUM, TLIO, RoNIN, KF-GINS or ROS 2 bag datasets"
+    )
+    p.add_argument("truth", help="truth Parquet of the route")
+    p.add_argument("shards", nargs="+", help="IMU shard Parquet files (with their labels)")
+    p.add_argument("-o", "--output", required=True, help="output folder (one subfolder per format)")
+    p.add_argument(
+        "--format",
+        required=True,
+        help="comma-separated formats: euroc, tum, tlio, ronin, kfgins, ros2",
+    )
+    p.add_argument("--route", help="route name in folder names (default: the truth's folder)")
+    p.add_argument("--grade", help="grade name in folder names (default: from the shards)")
+    p.add_argument(
+        "--nav-rate-hz", type=float, default=10.0, help="rate of TUM trajectories (default 10)"
+    )
+    p.add_argument("--split-seed", type=int, default=0, help="seed of the TLIO split lists")
+    p.add_argument(
+        "--sequences", type=int, nargs="+", metavar="ID", help="export only these sequence ids"
+    )
+    p.add_argument(
+        "--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS 2 bag storage"
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=_cmd_export)
+
+    p = sub.add_parser("grade", help="import a Kalibr/VINS/i2Nav IMU description; export Kalibr")
+    gsub = p.add_subparsers(dest="grade_command", required=True)
+    q = gsub.add_parser("import", help="IMU description -> imugen custom grade (YAML)")
+    q.add_argument("file", help="Kalibr/EuRoC imu.yaml, VINS config, i2Nav/KF-GINS config")
+    q.add_argument("--name", help="grade name (default: from the file name)")
+    q.add_argument("--id", type=int, default=1000, help="stable grade id >= 100 (default 1000)")
+    q.add_argument("-o", "--output", help="grades YAML to write (default: print)")
+    q.set_defaults(func=_cmd_grade_import)
+    q = gsub.add_parser("export", help="grade -> Kalibr imu.yaml (white noise + random walk)")
+    q.add_argument("grade", help="preset name, or FILE.yaml:NAME")
+    q.add_argument("--grades-file", help="YAML file with custom grades")
+    q.add_argument("--rate-hz", type=float, default=100.0, help="update_rate (default 100)")
+    q.add_argument("--topic", default="/imu0", help="rostopic (default /imu0)")
+    q.add_argument("-o", "--output", help="imu.yaml to write (default: print)")
+    q.set_defaults(func=_cmd_grade_export)
+
     p = sub.add_parser("allan", help="Allan deviation of a static shard against its grade")
     p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")
     p.add_argument("--plot", help="also draw the Allan plot to this PNG/SVG")
@@ -328,7 +504,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except InputError as exc:
-        print(f"imugen: error: {exc}", file=sys.stderr)
+        print(_printable(f"imugen: error: {exc}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("imugen: interrupted", file=sys.stderr)

@@ -13,9 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from imugen import columns as col
-from imugen.earth import OriginFrame
 from imugen.mechanize import Mechanizer
+from imugen.tables import truth as col
 
 CHUNK = 1 << 16  # samples per mechanization chunk
 
@@ -42,7 +41,7 @@ def closure_of_truth(df, meta, *, chunk: int = CHUNK) -> dict:
     Parameters
     ----------
     df : DataFrame
-        Truth table (:data:`imugen.columns.TRUTH_COLUMNS`).
+        Truth table (:data:`imugen.tables.truth.COLUMNS`).
     meta : dict
         Its metadata (``origin``, ``earth``).
     chunk : int
@@ -56,8 +55,7 @@ def closure_of_truth(df, meta, *, chunk: int = CHUNK) -> dict:
         ``mechanization_seconds``.
     """
     t0 = time.perf_counter()
-    o = meta["origin"]
-    frame = OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=meta["earth"])
+    frame = col.origin_frame(meta)
     t = df[col.TIME].to_numpy()
     K = len(t)
     P = df[list(col.POS)].to_numpy()
@@ -159,7 +157,7 @@ def closure(
     from imugen.ingest import ingest
 
     t0 = time.perf_counter()
-    ing = ingest(src, path=path, origin=origin, dt=dt)
+    ing = ingest(src, path=path, origin=origin, dt=dt, vehicle=vehicle)
     t1 = time.perf_counter()
     df, meta = truth.build_truth(
         ing.table,

@@ -1,10 +1,13 @@
 """Training windows: (measured IMU window, truth target) pairs with leakage-safe splits.
 
 A map-style dataset over the Parquet files the workflow writes (``results/<route>/truth.parquet``
-and ``results/<route>/imu/<grade>/shard-*.parquet``); it needs neither PyTorch nor the data in
-memory. Building it reads only Parquet footers (row-group sizes and the ``sequence`` column
-statistics); an item reads only the row groups its window overlaps, through a small LRU cache
-of decoded row groups (``cache_mb``), so consecutive windows of one sequence cost one decode.
+and ``results/<route>/imu/<grade>/shard-*.parquet``); it needs no PyTorch. Decoding Parquet per
+window cannot feed a network (a row group is decoded whole), so each shard's needed columns are
+converted once into a flat ``.npy`` cache (:func:`shard_cache`: ``.imugen-cache/`` beside the
+shard, keyed by its size and modification time, written atomically) and read memory-mapped;
+``in_memory=True`` copies the selected sequences into one array instead. :meth:`get_batch`
+copies a batch of windows with one compiled loop (one call per shard touched), and
+:meth:`batches` draws i.i.d. shuffled batches that mix windows of every sequence.
 
 Windows
 -------
@@ -19,26 +22,32 @@ Every sequence of a route has the truth's ``K`` samples. A window is ``window`` 
 
 ``target``:
 
-- ``"increments"``: ``(window, 6)`` true ``dtheta, dv`` of the same rows (a network learning
-  to correct the IMU regresses these, or ``x - y``, the sensor error);
+- ``"increments"``: ``(window, 6)`` true ``dtheta, dv`` of the same rows (whatever the
+  ``inputs``);
+- ``"effective_error"``: ``(window, 6)`` everything the sensor adds except white noise and
+  quantization, in the units of the input (``err_dtheta_*_rad``, ``err_dv_*_mps`` or
+  ``err_gyro_*_radps``, ``err_accel_*_mps2``; shards simulated with ``series=True``): what
+  a drift-correcting network should subtract;
 - ``"delta_vel_pos"``: ``(6,)`` change of true velocity ``v_n`` (m/s) then position ``p_n``
   (m) over the window, ENU: ``truth[k0 + window - 1] - truth[k0 - 1]``;
 - ``"bias"``: ``(window, 6)`` true slow bias ``gyro_bias_{x,y,z}_radps``,
-  ``accel_bias_{x,y,z}_mps2`` (shards simulated with ``series=True``).
+  ``accel_bias_{x,y,z}_mps2`` (shards simulated with ``series=True``);
+- label column name(s): ``(L,)`` per-sequence scalars of the labels sidecar (the drawn
+  parameters), e.g. ``["gyro_bias_x_radps", ...]``.
 
 Arrays are returned as ``float32`` (``dtype`` to change); differences are formed in float64
 before the cast.
 
 Splits
 ------
-:func:`split` assigns each ``(route, sequence)`` key to a part by hashing
-``(seed, route, sequence)`` (``by="sequence"``) or ``(seed, route)`` (``by="route"``) to a
-number in ``[0, 1)`` and cutting ``[0, 1)`` by the fractions. The assignment of a key depends
-on nothing else, so it is deterministic, never changes when sequences, shards or routes are
-added, and whole sequences (or whole routes) land in one part: no window crosses a split.
-The same sequence id of another grade (another noise realization of the same truth) goes to
-the same part. With ``by="sequence"`` all parts share the routes' trajectories; use
-``by="route"`` to test generalization to unseen trajectories.
+:func:`split` assigns each ``(route, sequence)`` key to a part by hashing its unit (the
+sequence id, globally unique, with ``by="sequence"``; the route with ``by="route"``) with the
+seed to a number in ``[0, 1)`` and cutting ``[0, 1)`` by the fractions; a part the cut leaves
+empty borrows the nearest unit (see :func:`split`), and too few units for the parts is refused.
+``holdout_routes`` (test) and ``val_routes`` name whole routes. Whole sequences (or routes) land
+in one part: no window and no error draw crosses a split, and adding units never moves existing
+ones (except the at most one borrowed per otherwise empty part). With ``by="sequence"`` all parts
+share the routes' trajectories; hold routes out to test generalization to unseen trajectories.
 
 Example
 -------
@@ -47,45 +56,46 @@ Example
     from imugen.dataset import WindowDataset, find_routes, sequence_keys, split
 
     routes = find_routes("results", grade="consumer")
-    parts = split(sequence_keys(routes), {"train": 0.8, "val": 0.1, "test": 0.1},
-                  seed=0, by="route")
+    parts = split(sequence_keys(routes), seed=0, by="route", holdout_routes=["city"])
     train = WindowDataset(routes, window=200, stride=100, keys=parts["train"],
-                          inputs="increments", target="increments")
-    x, y = train[0]                     # float32 (200, 6), float32 (200, 6)
+                          target="effective_error", in_memory=True)
+    x, y = train.get_batch(train.batches(64, seed=0)[0])   # float32 (64, 200, 6) each
     train.window_info(0)                # {"route": ..., "sequence": ..., "start": 1, ...}
 
     import torch                        # optional; imugen does not depend on it
-    loader = torch.utils.data.DataLoader(
-        train, batch_size=64, num_workers=2,
-        sampler=train.local_shuffle(seed=epoch),  # shuffled, cache-friendly order
-    )
+    loader = torch.utils.data.DataLoader(   # the dataset gathers whole batches
+        train, sampler=train.batches(64, seed=epoch), batch_size=None, num_workers=0)
     for x, y in loader:                 # torch tensors (64, 200, 6)
         ...
 
-``shuffle=True`` also works; :meth:`WindowDataset.local_shuffle` shuffles blocks of
-consecutive sequences and the windows inside each block, so that each row group is decoded
-about once per epoch instead of once per window. The dataset pickles without its open files
-and cache, so ``num_workers > 0`` works.
+``train[i]`` gives one window (map-style); ``train[indices]`` a batch. The dataset pickles
+without its memory maps (workers reopen them), so ``num_workers > 0`` works, though one core
+already outruns most networks (README, "Loading for training").
 """
 
 from __future__ import annotations
 
+import glob
 import hashlib
-from collections import OrderedDict
+import os
+import tempfile
+import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 
-from imugen import columns as col
 from imugen.errors import InputError
+from imugen.jit import njit
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+from imugen.tables.shard import BIAS, EFFECTIVE_ERROR, SEQUENCE
 
-SEQUENCE = "sequence"
-INPUTS = {"increments": (*col.DTHETA, *col.DV), "rates": (*col.GYRO, *col.ACCEL)}
-BIAS = (*(f"gyro_bias_{a}_radps" for a in "xyz"), *(f"accel_bias_{a}_mps2" for a in "xyz"))
-TARGETS = ("increments", "delta_vel_pos", "bias")
+INPUTS = {"increments": tshard.INCREMENTS, "rates": tshard.RATES}
+TARGETS = ("increments", "effective_error", "bias", "delta_vel_pos")
+CACHE_DIR = ".imugen-cache"
+CACHE_FORMAT = 1  # bump when the cache layout changes
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
 
 
@@ -132,9 +142,9 @@ def find_routes(results_dir, grade: str | Iterable[str]) -> list[RouteFiles]:
 
 
 # --- splits ------------------------------------------------------------------------------------
-def _unit(seed, route, sequence) -> float:
-    """A uniform number in [0, 1) from the key (SHA-256; stable across runs and platforms)."""
-    h = hashlib.sha256(f"imugen-split\0{seed}\0{route}\0{sequence}".encode()).digest()
+def _unit_hash(seed, unit) -> float:
+    """A uniform number in [0, 1) from a split unit (SHA-256; stable across runs and platforms)."""
+    h = hashlib.sha256(f"imugen-split\0{seed}\0{unit}".encode()).digest()
     return int.from_bytes(h[:8], "big") / 2.0**64
 
 
@@ -146,23 +156,67 @@ def _check_fractions(fractions) -> dict[str, float]:
     return fr
 
 
-def assign(route: str, sequence: int, fractions=None, *, seed=0, by="sequence") -> str:
-    """The part (e.g. ``"train"``) of one ``(route, sequence)`` key; see :func:`split`."""
-    fr = _check_fractions(fractions)
-    if by not in ("sequence", "route"):
-        raise InputError("split", f"by must be 'sequence' or 'route', got {by!r}")
-    u = _unit(seed, route, int(sequence) if by == "sequence" else "*")
-    acc = 0.0
-    name = None
-    for name, f in fr.items():
-        acc += f
-        if u < acc:
-            return name
-    return name  # u within rounding of 1
+def _cut(units: list, fr: dict[str, float], seed, what: str) -> dict:
+    """Unit -> part: hash cut of [0, 1), then the repair that leaves no wanted part empty."""
+    names = list(fr)
+    total = sum(fr.values())
+    edges = np.cumsum([fr[n] / total for n in names]) if total > 0 else np.zeros(len(names))
+    lo = np.concatenate([[0.0], edges[:-1]])
+    wanted = [n for n in names if fr[n] > 0]
+    if units and len(units) < len(wanted):
+        raise InputError(
+            "split",
+            f"{len(wanted)} non-empty parts ({', '.join(wanted)}) need at least {len(wanted)} "
+            f"{what}s; the keys hold {len(units)}: name the routes of a part "
+            "(holdout_routes, val_routes) or give the parts fewer non-zero fractions",
+        )
+    u = {x: _unit_hash(seed, x) for x in units}
+    part = {}
+    for x, ux in u.items():
+        i = min(int(np.searchsorted(edges, ux, "right")), len(names) - 1)
+        while fr[names[i]] == 0:  # u on an edge of an empty interval (rounding)
+            i -= 1
+        part[x] = names[i]
+    if not units:
+        return part
+    count = {n: 0 for n in names}
+    for n in part.values():
+        count[n] += 1
+    for i, n in enumerate(names):
+        if fr[n] == 0 or count[n]:
+            continue
+        # borrow the unit nearest to this part's interval from a part that keeps one
+        a, b = lo[i], edges[i]
+        best = min(
+            (x for x in units if count[part[x]] > 1),
+            key=lambda x: (max(a - u[x], u[x] - b, 0.0), u[x]),
+        )
+        count[part[best]] -= 1
+        part[best] = n
+        count[n] = 1
+    return part
 
 
-def split(keys, fractions: Mapping[str, float] | None = None, *, seed=0, by="sequence"):
+def split(
+    keys,
+    fractions: Mapping[str, float] | None = None,
+    *,
+    seed=0,
+    by: str = "sequence",
+    holdout_routes: Iterable[str] | None = None,
+    val_routes: Iterable[str] | None = None,
+) -> dict[str, list[tuple[str, int]]]:
     """Assign ``(route, sequence)`` keys to parts, deterministically and leakage-free.
+
+    Each unit (a sequence id with ``by="sequence"``, a route name with ``by="route"``) is
+    hashed with ``seed`` to ``u`` in ``[0, 1)``, and ``[0, 1)`` is cut by the fractions. Sequence
+    ids are globally unique (one id = one error draw, whatever the route), so a draw never
+    lands in two parts; ids repeated across routes (shards simulated before route-keyed
+    seeds, which share draws) are one unit and stay together. A unit's part depends only on
+    ``(seed, unit)``, except for the repair: a part with a non-zero fraction that the cut left
+    empty borrows the one unit nearest to its interval from a part holding more than one.
+    Repairs happen only while a part would be empty, and stop once the hash fills it, so adding
+    units moves at most one unit per repaired part.
 
     Parameters
     ----------
@@ -174,76 +228,129 @@ def split(keys, fractions: Mapping[str, float] | None = None, *, seed=0, by="seq
         Changes the assignment.
     by : {"sequence", "route"}
         Hash each sequence, or each route (every sequence of a route in one part).
+    holdout_routes, val_routes : iterable of str, optional
+        Routes that form the ``"test"`` (``"val"``) part exactly, whole; the other routes are cut
+        among the remaining parts by their renormalized fractions.
 
     Returns
     -------
     dict
-        ``{name: [keys in input order]}`` for every part (possibly empty).
+        ``{name: [keys in input order]}`` for every part.
+
+    Raises
+    ------
+    InputError
+        Bad fractions or routes, or fewer units than parts with a non-zero fraction.
     """
     fr = _check_fractions(fractions)
+    if by not in ("sequence", "route"):
+        raise InputError("split", f"by must be 'sequence' or 'route', got {by!r}")
+    keys = [(str(r), int(s)) for r, s in keys]
+    present = {r for r, _ in keys}
+    fixed: dict[str, str] = {}
+    for name, given in (("test", holdout_routes), ("val", val_routes)):
+        if given is None:
+            continue
+        given = [given] if isinstance(given, str) else [str(r) for r in given]
+        if name not in fr:
+            raise InputError(
+                "split", f"routes given for part {name!r}, which is not among {list(fr)}"
+            )
+        unknown = sorted(set(given) - present)
+        if unknown:
+            raise InputError("split", f"{name} route(s) {', '.join(unknown)} hold no keys")
+        twice = sorted(r for r in given if fixed.get(r, name) != name)
+        if twice:
+            raise InputError("split", f"route(s) {', '.join(twice)} given for test and val")
+        fixed.update(dict.fromkeys(given, name))
+    free = {n: (0.0 if n in fixed.values() else f) for n, f in fr.items()}
+    rest = [k for k in keys if k[0] not in fixed]
+    if rest and sum(free.values()) == 0:
+        raise InputError(
+            "split", "every part with a fraction is named by routes; the other routes have none"
+        )
+    unit = (lambda k: k[0]) if by == "route" else (lambda k: k[1])
+    units = sorted({unit(k) for k in rest})
+    part = _cut(units, free, seed, by)
     out = {name: [] for name in fr}
-    for route, seq in keys:
-        out[assign(route, seq, fr, seed=seed, by=by)].append((route, int(seq)))
+    where: dict[int, set] = {}
+    for k in keys:
+        name = fixed[k[0]] if k[0] in fixed else part[unit(k)]
+        out[name].append(k)
+        where.setdefault(k[1], set()).add(name)
+    shared = sum(len(v) > 1 for v in where.values())
+    if shared:
+        warnings.warn(
+            f"split: {shared} sequence id(s) appear in two parts under different routes; shards "
+            "simulated before route-keyed seeds share those error draws across routes "
+            "(re-simulate for independent draws)",
+            stacklevel=2,
+        )
     return out
 
 
 # --- file index --------------------------------------------------------------------------------
-def _row_starts(md) -> np.ndarray:
-    return np.concatenate(
-        [[0], np.cumsum([md.row_group(g).num_rows for g in range(md.num_row_groups)])]
-    )
-
-
 def _shard_sequence_ids(path: Path, K: int) -> np.ndarray:
-    """Sequence ids of a shard in row order, from the footer statistics when they suffice.
-
-    Rows are sorted by sequence then time with exactly ``K`` rows per sequence; the ids are
-    contiguous when every row group's min/max statistics say so, else the ``sequence`` column
-    is read once.
-    """
-    md = pq.ParquetFile(path).metadata
-    n = md.num_rows
-    if n % K:
-        raise InputError(path, f"holds {n} rows: not whole sequences of {K} samples")
-    nseq = n // K
-    if nseq == 0:
-        return np.zeros(0, np.int64)
-    try:
-        ci = md.schema.to_arrow_schema().get_field_index(SEQUENCE)
-    except KeyError:
-        ci = -1
-    if ci < 0:
-        raise InputError(path, "has no 'sequence' column")
-    starts = _row_starts(md)
-    ok = True
-    first = None
-    for g in range(md.num_row_groups):
-        st = md.row_group(g).column(ci).statistics
-        if st is None or not st.has_min_max:
-            ok = False
-            break
-        if first is None:
-            first = int(st.min)
-        a, b = starts[g], starts[g + 1]
-        if b > a and (st.min != first + a // K or st.max != first + (b - 1) // K):
-            ok = False
-            break
-    if ok:
-        return first + np.arange(nseq, dtype=np.int64)
-    seq = pq.read_table(path, columns=[SEQUENCE]).column(SEQUENCE).to_numpy().reshape(nseq, K)
-    if not (seq == seq[:, :1]).all() or np.any(np.diff(seq[:, 0]) <= 0):
-        raise InputError(path, f"rows are not grouped by sequence with {K} rows each")
-    return seq[:, 0].astype(np.int64)
+    """Sequence ids of a shard in row order (``K`` rows per sequence), from its metadata."""
+    return tshard.stored_ids(path, K, tshard.read_meta(path))
 
 
 def sequence_keys(routes: Iterable[RouteFiles]) -> list[tuple[str, int]]:
     """All distinct ``(route, sequence)`` keys of ``routes`` (footers only), sorted."""
     keys = set()
     for r in routes:
-        K = pq.ParquetFile(r.truth).metadata.num_rows
+        K = ttruth.samples(r.truth)
         for p in r.shards:
             keys.update((r.name, int(s)) for s in _shard_sequence_ids(Path(p), K))
     return sorted(keys)
+
+
+def _cache_path(path: Path, columns, dtype, cache_dir) -> Path:
+    """Cache file of ``columns`` of ``path``: named by the columns, keyed by size and mtime."""
+    st = path.stat()
+    group = hashlib.sha256(f"{CACHE_FORMAT}\0{list(columns)}\0{dtype.str}".encode()).hexdigest()
+    key = hashlib.sha256(f"{st.st_size}\0{st.st_mtime_ns}".encode()).hexdigest()
+    root = Path(cache_dir) if cache_dir is not None else path.parent / CACHE_DIR
+    return root / f"{path.stem}.{group[:12]}.{key[:12]}.npy"
+
+
+def shard_cache(path, columns, samples: int, dtype=np.float32, cache_dir=None) -> np.ndarray:
+    """``columns`` of a shard as a ``(rows, len(columns))`` memory-mapped array.
+
+    ``samples`` rows per sequence. Converted once, streaming sequences into ``.npy`` (in ``cache_dir``, default
+    ``.imugen-cache/`` beside the file), named ``STEM.COLUMNS.KEY.npy`` with ``KEY`` from the
+    file's size and modification time: a rewritten shard gets a new cache and the stale one of
+    the same columns is deleted. Written under a temporary name and renamed, so a reader never
+    sees a partial cache and concurrent builders (one per DataLoader worker or rank) only
+    duplicate work.
+    """
+    path = Path(path)
+    dtype = np.dtype(dtype)
+    out = _cache_path(path, columns, dtype, cache_dir)
+    if not out.exists():
+        K = int(samples)
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+        except OSError as exc:
+            raise InputError(out.parent, f"cannot write the loader cache here ({exc})") from None
+        os.close(fd)
+        try:
+            shape = (tshard.rows(path), len(columns))
+            mm = np.lib.format.open_memmap(name, mode="w+", dtype=dtype, shape=shape)
+            for j, (_, block) in enumerate(tshard.iter_sequences(path, list(columns), K, dtype)):
+                mm[j * K : (j + 1) * K] = block.T
+            mm.flush()
+            del mm
+            os.replace(name, out)
+        except BaseException:
+            Path(name).unlink(missing_ok=True)
+            raise
+        group = out.name.rsplit(".", 2)[0]
+        for stale in out.parent.glob(glob.escape(group) + ".*.npy"):
+            if stale != out:
+                stale.unlink(missing_ok=True)
+    return np.asarray(np.load(out, mmap_mode="r"))
 
 
 class WindowDataset:
@@ -260,9 +367,14 @@ class WindowDataset:
     keys : iterable of (str, int), optional
         Only these ``(route, sequence)`` keys (a part of :func:`split`); default all.
     inputs : {"increments", "rates"}
-    target : {"increments", "delta_vel_pos", "bias"}
-    cache_mb : float
-        Memory for decoded row groups (least recently used evicted first).
+    target : {"increments", "effective_error", "bias", "delta_vel_pos"} or label column(s)
+        A name or list of names of label columns gives the per-sequence scalars of the labels
+        sidecar, ``(len(names),)`` per window.
+    in_memory : bool
+        Copy the selected sequences into one array in memory (fastest); else gather from the
+        memory-mapped shard caches (the page cache holds what fits).
+    cache_dir : path, optional
+        Where the shard caches go (default ``.imugen-cache/`` beside each shard).
     dtype : numpy dtype
         Of the returned arrays (float32).
     """
@@ -275,8 +387,9 @@ class WindowDataset:
         stride: int | None = None,
         keys=None,
         inputs: str = "increments",
-        target: str = "increments",
-        cache_mb: float = 256,
+        target="increments",
+        in_memory: bool = False,
+        cache_dir=None,
         dtype=np.float32,
     ):
         self.routes = list(routes)
@@ -286,126 +399,124 @@ class WindowDataset:
             raise InputError("window", "window and stride must be >= 1 sample")
         if inputs not in INPUTS:
             raise InputError("inputs", f"must be one of {', '.join(INPUTS)}, got {inputs!r}")
-        if target not in TARGETS:
-            raise InputError("target", f"must be one of {', '.join(TARGETS)}, got {target!r}")
-        self.inputs, self.target = inputs, target
-        self.dtype = np.dtype(dtype)
-        self.cache_bytes = int(cache_mb * 2**20)
-        self.x_cols = list(INPUTS[inputs])
-        self.shard_cols = self.x_cols + (list(BIAS) if target == "bias" else [])
-        if target == "increments":
-            self.truth_cols = [*col.DTHETA, *col.DV]
-        elif target == "delta_vel_pos":
-            self.truth_cols = [*col.VEL, *col.POS]
+        labels = None
+        if isinstance(target, str) and target in TARGETS:
+            self.target = target
         else:
-            self.truth_cols = []
+            labels = [target] if isinstance(target, str) else [str(c) for c in target]
+            if not labels:
+                raise InputError("target", f"must be one of {', '.join(TARGETS)} or label columns")
+            self.target = "labels"
+        self.inputs = inputs
+        self.dtype = np.dtype(dtype)
+        self.cache_dir = cache_dir
+        self.x_cols = list(INPUTS[inputs])
+        self.y_cols = {"bias": list(BIAS), "effective_error": list(EFFECTIVE_ERROR[inputs])}.get(
+            self.target, []
+        )
+        truth_cols = {
+            "increments": [*ttruth.DTHETA, *ttruth.DV],
+            "delta_vel_pos": [*ttruth.VEL, *ttruth.POS],
+        }
         wanted = None if keys is None else {(str(r), int(s)) for r, s in keys}
 
-        # files: 0..R-1 are the truths, then shards; entries are sequences with windows
         self.files: list[Path] = []
-        self.starts: list[np.ndarray] = []  # row-group start rows per file
-        self._fdtype: list = []  # decoded dtype per file (truth float64, shards as stored)
-        self._truth_fi: list[int] = []  # file index of each route's truth
-        ent_file, ent_row, ent_seq, ent_route, nwin = [], [], [], [], []
+        truths, toff, lab, file_k = [], [0], [], []
+        ent_file, ent_row, ent_seq, ent_route, ent_k, nwin = [], [], [], [], [], []
         for ri, r in enumerate(self.routes):
-            tmd = pq.ParquetFile(r.truth).metadata
-            K = tmd.num_rows
-            self._truth_fi.append(self._add_file(Path(r.truth), tmd, self.truth_cols, truth=True))
+            K = ttruth.samples(r.truth)
+            if self.target in truth_cols:
+                t = ttruth.read_arrow(r.truth, columns=truth_cols[self.target])
+                truths.append(np.column_stack([c.to_numpy() for c in t.columns]))
+            toff.append(toff[-1] + K)
             nw = (K - 1 - self.window) // self.stride + 1 if K - 1 >= self.window else 0
-            for p in r.shards:
-                p = Path(p)
-                md = pq.ParquetFile(p).metadata
-                fi = self._add_file(p, md, self.shard_cols)
+            for p in map(Path, r.shards):
                 ids = _shard_sequence_ids(p, K)
-                for j, sid in enumerate(ids):
-                    if wanted is None or (r.name, int(sid)) in wanted:
-                        ent_file.append(fi)
-                        ent_row.append(j * K)
-                        ent_seq.append(int(sid))
-                        ent_route.append(ri)
-                        nwin.append(nw)
+                sel = [
+                    j for j, sid in enumerate(ids) if wanted is None or (r.name, int(sid)) in wanted
+                ]
+                if not sel:
+                    continue
+                self._check_columns(p, self.x_cols + self.y_cols)
+                self.files.append(p)
+                file_k.append(K)
+                if labels is not None:
+                    lab.append(_label_rows(p, labels, ids[sel]))
+                for j in sel:
+                    ent_file.append(len(self.files) - 1)
+                    ent_row.append(j * K)
+                    ent_seq.append(int(ids[j]))
+                    ent_route.append(ri)
+                    ent_k.append(K)
+                    nwin.append(nw)
         self._file = np.array(ent_file, np.int64)
         self._row = np.array(ent_row, np.int64)
         self._seq = np.array(ent_seq, np.int64)
         self._route = np.array(ent_route, np.int64)
         self._cum = np.concatenate([[0], np.cumsum(nwin, dtype=np.int64)])
-        self._handles: OrderedDict = OrderedDict()
-        self._cache: OrderedDict = OrderedDict()
-        self._cached = 0
+        self._truth_row = np.array(toff[:-1], np.int64)[self._route] if len(self._route) else None
+        if self.target == "increments":
+            self._truth = np.concatenate(truths).astype(self.dtype) if truths else None
+        else:
+            self._truth = np.concatenate(truths) if truths else None
+        self._labels = np.concatenate(lab).astype(self.dtype) if lab else None
+        self._cache_paths = [
+            _cache_path(p, self.x_cols + self.y_cols, self.dtype, cache_dir) for p in self.files
+        ]
+        maps = [
+            shard_cache(p, self.x_cols + self.y_cols, k, self.dtype, cache_dir)
+            for p, k in zip(self.files, file_k, strict=True)
+        ]
+        self._mem = None
+        if in_memory:
+            # the selected sequences, back to back: one fancy index gathers a whole batch
+            self._mem = (
+                np.concatenate(
+                    [maps[f][r : r + k] for f, r, k in zip(ent_file, ent_row, ent_k, strict=True)]
+                )
+                if ent_file
+                else np.zeros((0, len(self.x_cols + self.y_cols)), self.dtype)
+            )
+            self._row = np.concatenate([[0], np.cumsum(ent_k)[:-1]]).astype(np.int64)
+            maps = None
+        self._maps = maps
 
-    def _add_file(self, path: Path, md, columns, truth=False) -> int:
-        schema = md.schema.to_arrow_schema()
-        missing = [c for c in columns if c not in schema.names]
+    @staticmethod
+    def _check_columns(path: Path, columns) -> None:
+        names = tshard.column_names(path)
+        missing = [c for c in columns if c not in names]
         if missing:
             raise InputError(path, f"lacks the columns {', '.join(missing)}")
-        self.files.append(path)
-        self.starts.append(_row_starts(md))
-        types = [schema.field(c).type.to_pandas_dtype() for c in columns]
-        self._fdtype.append(np.float64 if truth or not types else np.result_type(*types))
-        return len(self.files) - 1
 
-    # --- pickling (DataLoader workers): no open files, no cache
+    # --- pickling (DataLoader workers): the memory maps are reopened, not copied
     def __getstate__(self):
         state = dict(self.__dict__)
-        state["_handles"] = OrderedDict()
-        state["_cache"] = OrderedDict()
-        state["_cached"] = 0
+        state["_maps"] = None
         return state
 
-    # --- reading
-    def _row_group(self, fi: int, g: int, columns) -> np.ndarray:
-        key = (fi, g)
-        hit = self._cache.get(key)
-        if hit is not None:
-            self._cache.move_to_end(key)
-            return hit
-        pf = self._handles.get(fi)
-        if pf is None:
-            pf = pq.ParquetFile(self.files[fi])
-            self._handles[fi] = pf
-            if len(self._handles) > 32:
-                self._handles.popitem(last=False)
-        else:
-            self._handles.move_to_end(fi)
-        t = pf.read_row_group(g, columns=list(columns))
-        arr = np.empty((t.num_rows, len(columns)), self._fdtype[fi])
-        for i, c in enumerate(columns):
-            arr[:, i] = t.column(c).to_numpy()
-        self._cache[key] = arr
-        self._cached += arr.nbytes
-        while self._cached > self.cache_bytes and len(self._cache) > 1:
-            _, old = self._cache.popitem(last=False)
-            self._cached -= old.nbytes
-        return arr
-
-    def _rows(self, fi: int, r0: int, r1: int, columns) -> np.ndarray:
-        """Rows ``[r0, r1)`` of file ``fi`` as ``(r1 - r0, len(columns))``."""
-        st = self.starts[fi]
-        g0 = int(np.searchsorted(st, r0, "right")) - 1
-        g1 = int(np.searchsorted(st, r1 - 1, "right")) - 1
-        parts = [
-            self._row_group(fi, g, columns)[max(r0 - st[g], 0) : min(r1, st[g + 1]) - st[g]]
-            for g in range(g0, g1 + 1)
-        ]
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+    def _shard_maps(self) -> list[np.ndarray]:
+        if self._maps is None:
+            self._maps = [np.asarray(np.load(p, mmap_mode="r")) for p in self._cache_paths]
+        return self._maps
 
     # --- map-style dataset
     def __len__(self) -> int:
         return int(self._cum[-1])
 
-    def _locate(self, i: int):
+    def _locate(self, idx) -> tuple[np.ndarray, np.ndarray]:
+        """Entries and first rows ``k0`` of window indices (negative counts from the end)."""
         n = len(self)
-        if i < 0:
-            i += n
-        if not 0 <= i < n:
-            raise IndexError(f"window {i} out of range for {n} windows")
-        e = int(np.searchsorted(self._cum, i, "right")) - 1
-        k0 = 1 + (i - int(self._cum[e])) * self.stride
-        return e, k0
+        idx = np.asarray(idx, np.int64)
+        idx = np.where(idx < 0, idx + n, idx)
+        if idx.size and (idx.min() < 0 or idx.max() >= n):
+            raise IndexError(f"window index out of range for {n} windows")
+        e = np.searchsorted(self._cum, idx, "right") - 1
+        return e, 1 + (idx - self._cum[e]) * self.stride
 
     def window_info(self, i: int) -> dict:
         """Where window ``i`` comes from: route, grade, sequence, rows ``[start, stop)``."""
-        e, k0 = self._locate(i)
+        e, k0 = self._locate([i])
+        e, k0 = int(e[0]), int(k0[0])
         r = self.routes[int(self._route[e])]
         return {
             "route": r.name,
@@ -416,32 +527,83 @@ class WindowDataset:
             "stop": k0 + self.window,
         }
 
-    def __getitem__(self, i: int):
-        e, k0 = self._locate(int(i))
-        fi, base = int(self._file[e]), int(self._row[e])
-        ti = self._truth_fi[int(self._route[e])]
-        k1 = k0 + self.window
-        x = self._rows(fi, base + k0, base + k1, self.shard_cols)
-        nx = len(self.x_cols)
-        if self.target == "bias":
-            y = x[:, nx:]
-        elif self.target == "increments":
-            y = self._rows(ti, k0, k1, self.truth_cols)
-        else:
-            end = self._rows(ti, k1 - 1, k1, self.truth_cols)[0]
-            y = end - self._rows(ti, k0 - 1, k0, self.truth_cols)[0]
-        return x[:, :nx].astype(self.dtype), np.asarray(y).astype(self.dtype)
+    def get_batch(self, indices) -> tuple[np.ndarray, np.ndarray]:
+        """Windows ``indices`` gathered at once: ``x (B, window, 6)``, ``y (B, ...)``.
 
-    def local_shuffle(self, seed: int = 0, block: int = 16) -> list[int]:
-        """A permutation of all window indices with read locality, for a DataLoader sampler.
-
-        Consecutive sequences are grouped in blocks of ``block``; the blocks are shuffled,
-        then the windows inside each block. Deterministic for a ``seed`` (pass the epoch).
+        A compiled loop copies each window as one block: in memory from one array, from the
+        caches one call per shard the batch touches.
         """
-        rng = np.random.default_rng(seed)
-        nseq = len(self._cum) - 1
-        out = []
-        for b in rng.permutation(np.arange(0, nseq, max(int(block), 1))):
-            idx = np.arange(self._cum[b], self._cum[min(b + block, nseq)])
-            out.append(rng.permutation(idx))
-        return np.concatenate(out).tolist() if out else []
+        e, k0 = self._locate(indices)
+        nx, W = len(self.x_cols), self.window
+        x = np.empty((len(e), W, nx), self.dtype)
+        y = np.empty((len(e), W, len(self.y_cols)), self.dtype) if self.y_cols else x
+        rows = self._row[e] + k0
+        if self._mem is not None:
+            _gather(self._mem, rows, np.arange(len(e)), x, y)
+        else:
+            maps = self._shard_maps()
+            files = self._file[e]
+            order = np.argsort(files, kind="stable")
+            bounds = np.flatnonzero(np.diff(files[order])) + 1
+            for sel in np.split(order, bounds) if len(order) else []:
+                _gather(maps[files[sel[0]]], rows, sel, x, y)
+        if self.target == "increments":
+            y = np.empty((len(e), W, self._truth.shape[1]), self.dtype)
+            _gather(self._truth, self._truth_row[e] + k0, np.arange(len(e)), y, y)
+        elif self.target == "delta_vel_pos":
+            t0 = self._truth_row[e] + k0 - 1
+            y = (self._truth[t0 + self.window] - self._truth[t0]).astype(self.dtype)
+        elif self.target == "labels":
+            y = self._labels[e]
+        return x, y
+
+    def __getitem__(self, i):
+        """Window ``i`` as ``(x, y)``; a list or array of indices gives a batch (:meth:`get_batch`)."""
+        if np.ndim(i) == 0:
+            x, y = self.get_batch([int(i)])
+            return x[0], y[0]
+        return self.get_batch(i)
+
+    def batches(self, batch_size: int = 64, *, seed=0, drop_last: bool = False) -> list:
+        """I.i.d. shuffled batches of window indices: a permutation of all windows, cut.
+
+        Deterministic for a ``seed`` (pass the epoch). Each batch mixes windows of many
+        sequences. Use as a PyTorch sampler with ``batch_size=None`` (the dataset gathers each
+        batch with :meth:`get_batch`).
+        """
+        order = np.random.default_rng(seed).permutation(len(self))
+        n = len(order) // batch_size * batch_size if drop_last else len(order)
+        return [order[b : b + batch_size] for b in range(0, n, batch_size)]
+
+
+@njit(cache=True, nogil=True)
+def _gather(src, rows, sel, x, y):
+    """Copy windows ``src[rows[i] : rows[i] + W]`` for ``i`` in ``sel`` into ``x[i]``, ``y[i]``.
+
+    ``src`` is ``(rows, nx [+ ny])``; its first ``nx`` columns go to ``x (B, W, nx)`` and the
+    rest to ``y (B, W, ny)`` (pass ``y = x`` when ``src`` has ``nx`` columns). One contiguous
+    block per window: no per-row index arrays.
+    """
+    W, nx = x.shape[1], x.shape[2]
+    split = src.shape[1] > nx
+    for i in sel:
+        block = src[rows[i] : rows[i] + W]
+        x[i] = block[:, :nx]
+        if split:
+            y[i] = block[:, nx:]
+
+
+def _label_rows(shard: Path, names, ids) -> np.ndarray:
+    """Label columns ``names`` of sequences ``ids`` from a shard's labels sidecar, ``(n, L)``."""
+    t = tshard.read_labels(shard)
+    missing = [c for c in names if c not in t.columns]
+    if missing:
+        raise InputError(tshard.labels_path(shard), f"has no label column(s) {', '.join(missing)}")
+    path = tshard.labels_path(shard)
+    seq = t[SEQUENCE].to_numpy()
+    pos = {int(s): i for i, s in enumerate(seq)}
+    absent = [int(s) for s in ids if int(s) not in pos]
+    if absent:
+        raise InputError(path, f"has no labels for sequence(s) {absent[:5]}")
+    rows = np.array([pos[int(s)] for s in ids], np.int64)
+    return np.column_stack([t[c].to_numpy(dtype=float)[rows] for c in names])

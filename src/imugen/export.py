@@ -41,7 +41,11 @@ true_gyro_bias_radps   K x 3 x S  single*  rad/s   true slow gyro bias (if ``ser
 true_gyro_sf           K x 3 x S  single*  1       true gyro scale-factor error (if ``series``)
 true_accel_bias_mps2   K x 3 x S  single*  m/s^2   true slow accel bias (if ``series``)
 true_accel_sf          K x 3 x S  single*  1       true accel scale-factor error (if ``series``)
-sequence_id            S x 1      int32    1       global sequence id (``shard * M + index``)
+err_dtheta_rad         K x 3 x S  single*  rad     effective error of imu_dtheta_rad (if ``series``)
+err_dv_mps             K x 3 x S  single*  m/s     effective error of imu_dv_mps (if ``series``)
+err_gyro_radps         K x 3 x S  single*  rad/s   effective error of imu_gyro_radps (if ``series``)
+err_accel_mps2         K x 3 x S  single*  m/s^2   effective error of imu_accel_mps2 (if ``series``)
+sequence_id            S x 1      int64    1       global sequence id (``route_id << 31 | index``)
 labels                 struct              SI      one S x 1 field per labels column (drawn
                                                    parameters; the unit is in the field name)
 nav_time_s             E x 1      double   s       navigation evaluation epochs (with ``nav``)
@@ -52,13 +56,17 @@ info                   struct                      metadata, below
 
 ``*`` as stored in the shards (single by default, double for shards written with
 ``dtype="float64"``). Increments on row ``k`` belong to the interval ending at ``t(k)``; row 1
-(MATLAB indexing) of every increment series is zero.
+(MATLAB indexing) of every increment series is zero. The effective error is everything the
+sensor adds except white noise and quantization (``imu = true + err + white + quantization``).
+``info.increment_semantics`` is ``compensated`` (the truth's increments: ``imu_dv_mps -
+truth_dv_mps`` is the total error) or ``raw`` (plain integrals of rate and specific force).
 
 ``info`` fields: ``format`` ("imugen-mat"), ``format_version``, ``imugen_version``, ``route``,
 ``grade``, ``grade_id``, ``grade_description``, ``seed``, ``origin`` (struct ``lat_deg``,
 ``lon_deg``, ``alt_m``: WGS-84 geodetic origin of the ENU frame), ``earth`` ("flat" or
 "wgs84"), ``rate_hz``, ``dt_s``, ``samples`` (K), ``sequences`` (S), ``epochs`` (E, 0 without
-navigation), ``mat_version`` ("5" or "7.3"), ``layout``, ``frames``, ``increments`` (text), and
+navigation), ``mat_version`` ("5" or "7.3"), ``layout``, ``frames``, ``increments`` (text),
+``increment_semantics``, and
 ``units`` (struct: variable name -> unit string).
 
 Frames: ``n`` is local East-North-Up with the axes of the topocentric frame at the route
@@ -81,18 +89,17 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
 from imugen import __version__
-from imugen import columns as col
 from imugen.errors import InputError
 from imugen.io import atomic_output, read_meta
+from imugen.tables import nav as tnav
+from imugen.tables import shard as tshard
+from imugen.tables import truth as col
+from imugen.tables._parquet import SEQUENCE
 
 V5_MAX_BYTES = 2**31
 """MATLAB's per-variable limit of MAT v5/v7 files (bytes); larger variables need v7.3."""
-SEQUENCE = "sequence"
-NAV_ERR = ("err_e_m", "err_n_m", "err_u_m")
-NAV_ATT = "err_att_rad"
 
 TRUTH_VARS = {
     "truth_time_s": ((col.TIME,), "s"),
@@ -112,10 +119,14 @@ IMU_VARS = {
     "imu_dv_mps": (col.DV, "m/s"),
     "imu_gyro_radps": (col.GYRO, "rad/s"),
     "imu_accel_mps2": (col.ACCEL, "m/s^2"),
-    "true_gyro_bias_radps": (tuple(f"gyro_bias_{a}_radps" for a in "xyz"), "rad/s"),
-    "true_gyro_sf": (tuple(f"gyro_sf_{a}" for a in "xyz"), "1"),
-    "true_accel_bias_mps2": (tuple(f"accel_bias_{a}_mps2" for a in "xyz"), "m/s^2"),
-    "true_accel_sf": (tuple(f"accel_sf_{a}" for a in "xyz"), "1"),
+    "true_gyro_bias_radps": (tshard.BIAS_SERIES["gyro"], "rad/s"),
+    "true_gyro_sf": (tshard.SF_SERIES["gyro"], "1"),
+    "true_accel_bias_mps2": (tshard.BIAS_SERIES["accel"], "m/s^2"),
+    "true_accel_sf": (tshard.SF_SERIES["accel"], "1"),
+    "err_dtheta_rad": (tshard.ERR_DTHETA, "rad"),
+    "err_dv_mps": (tshard.ERR_DV, "m/s"),
+    "err_gyro_radps": (tshard.ERR_GYRO, "rad/s"),
+    "err_accel_mps2": (tshard.ERR_ACCEL, "m/s^2"),
 }
 """Per-sequence shard variables (exported when the shards have the columns)."""
 
@@ -135,66 +146,14 @@ INCREMENTS = (
 
 
 # --- shard and navigation files -------------------------------------------------------------
-def _iter_sequences(path, columns, rows, dtype):
-    """Yield ``(sequence id, block (len(columns), rows))`` for each sequence, in file order.
-
-    Reads one row group at a time; ``block`` is a reused buffer (consume it before the next
-    step). Raises InputError unless the rows come in runs of exactly ``rows`` per sequence
-    with increasing ids.
-    """
-    pf = pq.ParquetFile(path)
-    buf = np.empty((len(columns), rows), dtype)
-    fill, cur, last = 0, None, None
-    bad = f"rows are not grouped by sequence with {rows} rows each (sorted by sequence, time)"
-    for g in range(pf.num_row_groups):
-        t = pf.read_row_group(g, columns=[SEQUENCE, *columns])
-        seq = t.column(SEQUENCE).to_numpy()
-        cols = [t.column(c).to_numpy() for c in columns]
-        n, pos = len(seq), 0
-        while pos < n:
-            m = min(rows - fill, n - pos)
-            ids = seq[pos : pos + m]
-            if fill == 0:
-                cur = int(ids[0])
-                if last is not None and cur <= last:
-                    raise InputError(path, bad)
-            if not (ids == cur).all():
-                raise InputError(path, bad)
-            for i, c in enumerate(cols):
-                buf[i, fill : fill + m] = c[pos : pos + m]
-            fill += m
-            pos += m
-            if fill == rows:
-                yield cur, buf
-                fill, last = 0, cur
-    if fill:
-        raise InputError(path, bad)
-
-
-def _sequence_ids(path, rows, meta) -> np.ndarray:
-    """Sequence ids of a shard (from its metadata when present; else from the column)."""
-    n = pq.ParquetFile(path).metadata.num_rows
-    if n % rows:
-        raise InputError(path, f"holds {n} rows: not whole sequences of {rows} samples")
-    ids = meta.get("sequence_ids") if meta else None
-    if ids and ids[1] - ids[0] + 1 == n // rows:
-        return np.arange(ids[0], ids[1] + 1, dtype=np.int64)
-    seq = pq.read_table(path, columns=[SEQUENCE]).column(SEQUENCE).to_numpy()
-    return seq[::rows].astype(np.int64)
-
-
 def _labels_table(shard_paths, ids) -> pd.DataFrame:
-    from imugen.simulate import labels_path
-
-    parts = []
-    for p in shard_paths:
-        lp = labels_path(p)
-        if not lp.exists():
-            raise InputError(lp, "labels sidecar missing (incomplete shard?)")
-        parts.append(pd.read_parquet(lp))
+    parts = [tshard.read_labels(p) for p in shard_paths]
     lab = pd.concat(parts, ignore_index=True).sort_values(SEQUENCE, kind="stable")
     if not np.array_equal(lab[SEQUENCE].to_numpy(np.int64), ids):
-        raise InputError(lp, "labels sequences do not match the shards' sequences")
+        raise InputError(
+            tshard.labels_path(shard_paths[-1]),
+            "labels sequences do not match the shards' sequences",
+        )
     return lab
 
 
@@ -392,7 +351,7 @@ class _H5Writer:
 
 # --- export ---------------------------------------------------------------------------------
 def _sorted_by_first_id(paths, rows, metas):
-    ids = [_sequence_ids(p, rows, m) for p, m in zip(paths, metas, strict=True)]
+    ids = [tshard.stored_ids(p, rows, m) for p, m in zip(paths, metas, strict=True)]
     order = sorted(range(len(paths)), key=lambda i: int(ids[i][0]) if len(ids[i]) else -1)
     return [paths[i] for i in order], [ids[i] for i in order], [metas[i] for i in order]
 
@@ -438,9 +397,8 @@ def export_mat(
     if not shard_paths:
         raise InputError(out_path, "no IMU shards to export")
     tmeta = read_meta(truth_path)
-    tpf = pq.ParquetFile(truth_path)
-    K = tpf.metadata.num_rows
-    truth_cols = set(tpf.schema_arrow.names)
+    K = col.samples(truth_path)
+    truth_cols = set(col.column_names(truth_path))
 
     # shards: metadata, order, sequence ids, variables present
     shard_paths = [Path(p) for p in shard_paths]
@@ -457,7 +415,7 @@ def export_mat(
     if np.any(np.diff(ids) <= 0):
         raise InputError(shard_paths[0], "shards hold overlapping sequence ids")
     S = len(ids)
-    schema = pq.read_schema(shard_paths[0])
+    schema = tshard.schema_of(shard_paths[0])
     names0 = set(schema.names)
     imu_vars = {v: c for v, c in IMU_VARS.items() if set(c[0]) <= names0}
     if not imu_vars:
@@ -465,7 +423,7 @@ def export_mat(
     imu_cols = [c for cols, _ in imu_vars.values() for c in cols]
     dtype = np.result_type(*(schema.field(c).type.to_pandas_dtype() for c in imu_cols))
     for p in shard_paths[1:]:
-        sch = pq.read_schema(p)
+        sch = tshard.schema_of(p)
         if not set(imu_cols) <= set(sch.names) or any(
             sch.field(c).type != schema.field(c).type for c in imu_cols
         ):
@@ -476,7 +434,7 @@ def export_mat(
     nav = None
     if nav_paths:
         nav_paths = [Path(p) for p in nav_paths]
-        first = pq.read_table(nav_paths[0], columns=[SEQUENCE, col.TIME]).to_pandas()
+        first = tnav.read(nav_paths[0], columns=[SEQUENCE, col.TIME])
         if first.empty:
             raise InputError(nav_paths[0], "is empty")
         nav_time = first.loc[first[SEQUENCE] == first[SEQUENCE].iloc[0], col.TIME].to_numpy()
@@ -529,6 +487,7 @@ def export_mat(
         "layout": LAYOUT,
         "frames": FRAMES,
         "increments": INCREMENTS,
+        "increment_semantics": str(first_meta.get("increments", "compensated")),
         "units": units,
     }
 
@@ -539,9 +498,9 @@ def export_mat(
             for v, (cols, _) in TRUTH_VARS.items():
                 if not set(cols) <= truth_cols:
                     raise InputError(truth_path, f"lacks the columns {', '.join(cols)}")
-                t = pq.read_table(truth_path, columns=list(cols))
+                t = col.read_arrow(truth_path, columns=list(cols))
                 w.put(v, np.column_stack([t.column(c).to_numpy() for c in cols]))
-            w.put("sequence_id", ids.astype(np.int32))
+            w.put("sequence_id", ids.astype(np.int64))
             w.put(
                 "labels",
                 {_field_name(c): labels[c].to_numpy() for c in labels.columns if c != SEQUENCE},
@@ -555,7 +514,7 @@ def export_mat(
                 w.reserve("nav_err_att_rad", E, None, S, np.float64)
             s = 0
             for p in shard_paths:
-                for sid, block in _iter_sequences(p, imu_cols, K, dtype):
+                for sid, block in tshard.iter_sequences(p, imu_cols, K, dtype):
                     if sid != ids[s]:
                         raise InputError(p, f"sequence {sid} where {ids[s]} was expected")
                     for i, v in enumerate(imu_vars):
@@ -564,8 +523,8 @@ def export_mat(
             if nav is not None:
                 s = 0
                 for p in nav[0]:
-                    cols = [col.TIME, *NAV_ERR, NAV_ATT]
-                    for _, block in _iter_sequences(p, cols, E, np.float64):
+                    cols = [col.TIME, *tnav.ERR_POS, tnav.ERR_ATT]
+                    for _, block in tshard.iter_sequences(p, cols, E, np.float64):
                         if not np.array_equal(block[0], nav[1]):
                             raise InputError(p, "sequences have different evaluation epochs")
                         w.write("nav_err_enu_m", s, block[1:4])

@@ -1,7 +1,7 @@
 """Figures of a route's results: the paper's Figure 8, 3-D tracks, error growth, IMU signals.
 
 Every function reads the stage files (truth, navigation errors, metrics, IMU shards; formats
-in :mod:`imugen.columns`, :mod:`imugen.navigate`, :mod:`imugen.evaluate`), draws one figure
+in :mod:`imugen.tables`), draws one figure
 with Matplotlib (object API, Agg renderer, no display, no global pyplot state), writes it
 atomically as ``<out_stem>.<ext>`` for each requested format and returns the paths written.
 
@@ -21,16 +21,21 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Iterable, Mapping, Sequence
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
-from imugen import columns as col
 from imugen.errors import InputError
-from imugen.io import atomic_output, read_meta
+from imugen.plotting import figure as _figure
+from imugen.plotting import format_length
+from imugen.plotting import save as _save
+from imugen.plotting import style as _style
+from imugen.tables import metrics as tmetrics
+from imugen.tables import nav as tnav
+from imugen.tables import shard as tshard
+from imugen.tables import truth as col
+from imugen.tables._parquet import SEQUENCE
 
 __all__ = [
     "REPRESENTATIVE",
@@ -39,7 +44,10 @@ __all__ = [
     "error_bands",
     "error_vs_time",
     "figure8",
+    "figure8_figure",
+    "format_length",
     "grade_colours",
+    "grade_styles",
     "imu_signals",
     "interval_rates",
     "representative_sequence",
@@ -48,9 +56,8 @@ __all__ = [
     "zoom_window",
 ]
 
-SEQUENCE = "sequence"
-ERR = ("err_e_m", "err_n_m", "err_u_m")
-RMSE_TOTAL = "rmse_total_m"
+ERR = tnav.ERR_POS
+RMSE_TOTAL = tmetrics.RMSE_TOTAL
 #: accepted values of the ``representative`` option
 REPRESENTATIVE = ("median", "best", "worst")
 #: at most this many points of a densely sampled line are drawn (every k-th sample)
@@ -79,26 +86,40 @@ _CLASS_KEYS = (
 )
 _FALLBACK = ("#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
 
-# rcParams set on top of Matplotlib's defaults for every figure
-_RC = {
-    "svg.hashsalt": "imugen",
-    "svg.fonttype": "path",
-    "font.size": 9,
-    "axes.titlesize": 10,
-    "legend.fontsize": 8,
-    "axes.grid": True,
-    "grid.alpha": 0.3,
-    "path.simplify": True,
-}
-# savefig metadata per format: no date stamps
-_METADATA = {
-    "svg": {"Date": None},
-    "pdf": {"CreationDate": None, "ModDate": None},
-}
-
-
 # ----------------------------------------------------------------------------------------
 # colours, drawing context, saving
+
+
+_DARK = 0.55  # paper presets: the class hue darkened by this factor
+_LIGHT = 0.5  # calibrated variants: the class hue mixed with white by this fraction
+
+
+def _shade(hex_colour: str, dark: float = 1.0, light: float = 0.0) -> str:
+    rgb = np.array([int(hex_colour[i : i + 2], 16) for i in (1, 3, 5)], float) / 255.0
+    rgb = rgb * dark + (1.0 - rgb * dark) * light
+    return "#" + "".join(f"{round(255 * c):02x}" for c in np.clip(rgb, 0, 1))
+
+
+def grade_styles(grades: Iterable[str]) -> dict[str, dict]:
+    """Colour and line style of each grade: related within a class, distinct across variants.
+
+    A grade's class (consumer/low-cost, industrial, tactical, navigation) fixes its hue
+    (:func:`grade_colours`); the paper's presets (``paper_*``) draw it darker and dashed,
+    calibrated variants (``*_calibrated``) lighter and dash-dotted, datasheet presets solid.
+    Returns ``{grade: {"color": hex, "ls": linestyle}}``.
+    """
+    grades = list(grades)
+    base = grade_colours(grades)
+    out = {}
+    for g in grades:
+        low = g.lower()
+        if low.startswith("paper_"):
+            out[g] = {"color": _shade(base[g], dark=_DARK), "ls": "--"}
+        elif low.endswith("_calibrated"):
+            out[g] = {"color": _shade(base[g], light=_LIGHT), "ls": "-."}
+        else:
+            out[g] = {"color": base[g], "ls": "-"}
+    return out
 
 
 def grade_colours(grades: Iterable[str]) -> dict[str, str]:
@@ -129,63 +150,6 @@ def grade_colours(grades: Iterable[str]) -> dict[str, str]:
         out[g] = c
         used.add(c)
     return out
-
-
-@contextmanager
-def _style():
-    import matplotlib as mpl
-
-    with mpl.rc_context():
-        mpl.rcdefaults()
-        mpl.rcParams.update(_RC)
-        yield
-
-
-def _figure(**kw):
-    from matplotlib.figure import Figure
-
-    return Figure(**kw)
-
-
-def _check_formats(formats: Sequence[str]) -> tuple[str, ...]:
-    from matplotlib.backend_bases import FigureCanvasBase
-
-    if isinstance(formats, str):
-        formats = (formats,)
-    supported = FigureCanvasBase.get_supported_filetypes()
-    fmts = tuple(str(f).lower().lstrip(".") for f in formats)
-    for f in fmts:
-        if f not in supported:
-            raise InputError("formats", f"unknown figure format {f!r} (one of {sorted(supported)})")
-    if not fmts:
-        raise InputError("formats", "no figure format requested")
-    return fmts
-
-
-def _save(fig, out_stem, formats: Sequence[str], dpi: float) -> list[Path]:
-    """Write ``fig`` as ``<out_stem>.<ext>`` for each format, atomically."""
-    fmts = _check_formats(formats)
-    # lay out once (at the style's 100 dpi), then freeze: every format and dpi gets the same
-    # positions whatever the order of the formats
-    fig.draw_without_rendering()
-    fig.set_layout_engine("none")
-    paths = []
-    for ext in fmts:
-        out = Path(f"{out_stem}.{ext}")
-        with atomic_output(out) as tmp:
-            fig.savefig(tmp, format=ext, dpi=dpi, metadata=_METADATA.get(ext))
-        paths.append(out)
-    return paths
-
-
-def _fmt_m(x: float) -> str:
-    if not np.isfinite(x):
-        return str(x)
-    if abs(x) >= 100:
-        return f"{x:.0f}"
-    if abs(x) >= 1:
-        return f"{x:.2f}"
-    return f"{x:.2g}"
 
 
 # ----------------------------------------------------------------------------------------
@@ -342,32 +306,15 @@ def epoch_matrix(nav: pd.DataFrame, source="nav") -> tuple[np.ndarray, np.ndarra
 
 
 def _read_metrics(path) -> pd.DataFrame:
-    try:
-        df = pq.read_table(path).to_pandas()
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read as Parquet ({exc})") from None
-    if SEQUENCE not in df.columns and df.index.name == SEQUENCE:
-        df = df.reset_index()
-    if SEQUENCE not in df.columns or RMSE_TOTAL not in df.columns:
-        raise InputError(path, f"is not a metrics table (needs {SEQUENCE}, {RMSE_TOTAL})")
-    return df
+    return tmetrics.read(path)
 
 
 def _read_nav_sequence(paths: Sequence, sid: int, grade: str) -> pd.DataFrame:
     """Navigation errors of sequence ``sid`` from whichever shard holds it."""
     for p in paths:
-        try:
-            tbl = pq.read_table(
-                p, columns=[SEQUENCE, col.TIME, *ERR], filters=[(SEQUENCE, "==", int(sid))]
-            )
-        except FileNotFoundError:
-            raise InputError(p, "no such file") from None
-        except OSError as exc:
-            raise InputError(p, f"cannot read navigation errors ({exc})") from None
-        if tbl.num_rows:
-            return tbl.to_pandas().sort_values(col.TIME, kind="stable")
+        df = tnav.read(p, [SEQUENCE, col.TIME, *ERR], filters=[(SEQUENCE, "==", int(sid))])
+        if len(df):
+            return df.sort_values(col.TIME, kind="stable")
     raise InputError(grade, f"sequence {sid} of the metrics is in none of the navigation files")
 
 
@@ -379,13 +326,7 @@ def _truth_track(path, queries: Mapping[str, np.ndarray], max_points: int = MAX_
     (exact at sample times).
     """
     cols = [col.TIME, *col.POS]
-    try:
-        pf = pq.ParquetFile(path)
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read as Parquet ({exc})") from None
-    total = pf.metadata.num_rows
+    total = col.samples(path)
     if total == 0:
         raise InputError(path, "truth table is empty")
     stride = max(1, math.ceil(total / max_points))
@@ -396,8 +337,7 @@ def _truth_track(path, queries: Mapping[str, np.ndarray], max_points: int = MAX_
     prev = None  # last row of the previous batch, (4,)
     start = 0
     last = None
-    for rb in pf.iter_batches(batch_size=1 << 16, columns=cols):
-        a = np.column_stack([rb.column(c).to_numpy().astype(np.float64) for c in cols])
+    for a in col.iter_batches(path, cols):
         idx = np.arange(start, start + a.shape[0])
         keep.append(a[idx % stride == 0])
         start += a.shape[0]
@@ -445,11 +385,93 @@ def _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, how):
 
 
 def _rep_label(g, r, how):
-    return f"{g}: RMSE {_fmt_m(r['rmse'])} m (seq {r['sequence']}, {how} of {r['count']})"
+    return f"{g}: RMSE {format_length(r['rmse'])} (sequence {r['sequence']}, {how} of {r['count']})"
 
 
 # ----------------------------------------------------------------------------------------
 # figures
+
+
+def figure8_figure(
+    truth_path,
+    nav_paths_by_grade: Mapping[str, Sequence],
+    metrics_by_grade: Mapping[str, str | Path],
+    *,
+    zoom_fraction: float = 0.2,
+    representative: str = "median",
+    clip_factor: float | None = 3.0,
+):
+    """The Matplotlib figure of :func:`figure8` (for saving, or for inspecting its artists)."""
+    track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
+    t, e, n, _ = track
+    window = zoom_window(t[0], t[-1], zoom_fraction)
+    styles = grade_styles(reps)
+    from matplotlib.patches import Rectangle
+
+    fig = _figure(figsize=(15, 6.2), layout="constrained")
+    ax_a, ax_b, ax_c = fig.subplots(1, 3, width_ratios=(1, 1, 1.1))
+    tracks = [(r["t"], r["e"], r["n"]) for r in reps.values()]
+    whole = (t[0], t[-1])
+    box_a = clip_box(
+        zoom_extent(whole, [(t, e, n), *tracks], pad=0.03),
+        zoom_extent(whole, [(t, e, n)], pad=0.03),
+        clip_factor,
+    )
+    # zoom: the reference over the window and the END of every plotted track
+    ends = [(np.array([r["t"][-1]]), r["e"][-1:], r["n"][-1:]) for r in reps.values()]
+    lo_e, hi_e, lo_n, hi_n = zoom_extent(window, [(t, e, n), *ends], pad=0.08)
+    half = max(hi_e - lo_e, hi_n - lo_n) / 2  # square box: equal scales on a square panel
+    ce, cn = (lo_e + hi_e) / 2, (lo_n + hi_n) / 2
+    for ax, zoom in ((ax_a, False), (ax_b, True)):
+        m = (t >= window[0]) if zoom else slice(None)
+        ax.plot(e[m], n[m], color="black", lw=0.9, label="reference (truth)", zorder=3)
+        for g, r in reps.items():
+            mr = (r["t"] >= window[0]) if zoom else slice(None)
+            ax.plot(
+                r["e"][mr], r["n"][mr], lw=1.2, label=_rep_label(g, r, representative), **styles[g]
+            )
+            if zoom:
+                ax.plot(r["e"][-1], r["n"][-1], "o", ms=4, color=styles[g]["color"], zorder=4)
+                ax.plot(
+                    [e[-1], r["e"][-1]], [n[-1], r["n"][-1]], ":", lw=0.7, color=styles[g]["color"]
+                )
+        ax.plot(e[-1], n[-1], "ks", ms=4, zorder=5, label=None if zoom else "end")
+        if zoom:
+            ax.set_xlim(ce - half, ce + half)
+            ax.set_ylim(cn - half, cn + half)
+        else:
+            ax.plot(e[0], n[0], "k^", ms=5, zorder=4, label="start")
+            ax.add_patch(
+                Rectangle(
+                    (ce - half, cn - half),
+                    2 * half,
+                    2 * half,
+                    fill=False,
+                    ls="--",
+                    lw=0.8,
+                    ec="0.4",
+                )
+            )
+            ax.set_xlim(box_a[0], box_a[1])
+            ax.set_ylim(box_a[2], box_a[3])
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("East [m]")
+        ax.set_ylabel("North [m]")
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+    # error growth of the same sequences: what the zoom shows, on a scale that fits any grade
+    for g, r in reps.items():
+        h = np.interp(r["t"], t, e), np.interp(r["t"], t, n)
+        err = np.hypot(r["e"] - h[0], r["n"] - h[1])
+        ax_c.plot(r["t"], np.where(err > 0, err, np.nan), lw=1.2, **styles[g])
+    ax_c.axvspan(*window, color="0.9", zorder=0, label="zoom window")
+    ax_c.set_yscale("log")
+    ax_c.set_xlabel("time [s]")
+    ax_c.set_ylabel("horizontal error [m]")
+    ax_a.set_title("(a) reference and one sequence per grade", loc="left")
+    ax_b.set_title(f"(b) last {100 * zoom_fraction:g} % of the time, every end inside", loc="left")
+    ax_c.set_title("(c) horizontal error of the same sequences", loc="left")
+    fig.legend(*ax_a.get_legend_handles_labels(), loc="outside lower center", ncols=2)
+    return fig
 
 
 def figure8(
@@ -466,89 +488,31 @@ def figure8(
 ) -> list[Path]:
     """The paper's Figure 8: reference and one navigated sequence per grade, East-North.
 
-    (a) the whole route: truth (thin black) and, per grade, the sequence whose RMSE total is
-    the ``representative`` one (median, best or worst) of that grade; (b) the same on the last
-    ``zoom_fraction`` of the time. Grades are drawn in the order given, with their fixed
-    colours; the legend gives each grade's RMSE total. Equal axis scales.
-
-    Each panel shows every track, but never more than ``clip_factor`` times the extent of the
-    reference in that panel (:func:`clip_box`): a grade drifting kilometres away leaves the
-    panel instead of shrinking the route to a dot. ``clip_factor=None`` never clips.
-
-    Parameters
-    ----------
-    truth_path : path
-        Truth table of the route.
-    nav_paths_by_grade : {grade: [navigation shard paths]}
-    metrics_by_grade : {grade: metrics path}
-    out_stem : path
-        Output name without extension; ``<out_stem>.<ext>`` is written per format.
+    (a) the whole route: truth (black) and, per grade, the sequence whose RMSE total is the
+    ``representative`` one (median, best or worst) of that grade, never drawn beyond
+    ``clip_factor`` times the reference's extent (:func:`clip_box`) so a grade drifting
+    kilometres away does not shrink the route to a dot; (b) the last ``zoom_fraction`` of the
+    time in a square box that holds the reference over that time AND the end of every plotted
+    track (dotted lines join the reference's end to each grade's end), so the error the zoom is
+    meant to show is always in view, whatever its size; (c) the horizontal error of the same
+    sequences against time on a log scale, which reads for metre and megametre errors alike.
+    Grades keep their class hue; the paper's presets are darker and dashed, calibrated variants
+    lighter and dash-dotted (:func:`grade_styles`); the legend gives each grade's RMSE total
+    in readable units (:func:`format_length`). Equal axis scales in (a) and (b).
 
     Returns
     -------
     list of Path
     """
-    track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
-    t, e, n, _ = track
-    window = zoom_window(t[0], t[-1], zoom_fraction)
-    colours = grade_colours(reps)
-    from matplotlib.patches import Rectangle
-
     with _style():
-        fig = _figure(figsize=(11, 6), layout="constrained")
-        ax_a, ax_b = fig.subplots(1, 2)
-        tracks = [(r["t"], r["e"], r["n"]) for r in reps.values()]
-        whole = (t[0], t[-1])
-        box_a = clip_box(
-            zoom_extent(whole, [(t, e, n), *tracks], pad=0.03),
-            zoom_extent(whole, [(t, e, n)], pad=0.03),
-            clip_factor,
+        fig = figure8_figure(
+            truth_path,
+            nav_paths_by_grade,
+            metrics_by_grade,
+            zoom_fraction=zoom_fraction,
+            representative=representative,
+            clip_factor=clip_factor,
         )
-        lo_e, hi_e, lo_n, hi_n = clip_box(
-            zoom_extent(window, [(t, e, n), *tracks], pad=0.05),
-            zoom_extent(window, [(t, e, n)], pad=0.05),
-            clip_factor,
-        )
-        half = max(hi_e - lo_e, hi_n - lo_n) / 2  # square box: equal scales on a square panel
-        ce, cn = (lo_e + hi_e) / 2, (lo_n + hi_n) / 2
-        for ax, zoom in ((ax_a, False), (ax_b, True)):
-            m = (t >= window[0]) if zoom else slice(None)
-            ax.plot(e[m], n[m], color="black", lw=0.8, label="reference (truth)", zorder=3)
-            for g, r in reps.items():
-                mr = (r["t"] >= window[0]) if zoom else slice(None)
-                ax.plot(
-                    r["e"][mr],
-                    r["n"][mr],
-                    color=colours[g],
-                    lw=1.1,
-                    label=_rep_label(g, r, representative),
-                )
-            ax.plot(e[-1], n[-1], "ks", ms=4, zorder=4, label=None if zoom else "end")
-            if zoom:
-                ax.set_xlim(ce - half, ce + half)
-                ax.set_ylim(cn - half, cn + half)
-                ax.set_aspect("equal", adjustable="box")
-            else:
-                ax.plot(e[0], n[0], "k^", ms=5, zorder=4, label="start")
-                ax.add_patch(
-                    Rectangle(
-                        (ce - half, cn - half),
-                        2 * half,
-                        2 * half,
-                        fill=False,
-                        ls="--",
-                        lw=0.8,
-                        ec="0.4",
-                    )
-                )
-                ax.set_xlim(box_a[0], box_a[1])
-                ax.set_ylim(box_a[2], box_a[3])
-                ax.set_aspect("equal", adjustable="box")
-            ax.set_xlabel("East [m]")
-            ax.set_ylabel("North [m]")
-        ax_a.set_title("(a) reference and one sequence per grade")
-        ax_b.set_title(f"(b) zoom: last {100 * zoom_fraction:g} % of the time")
-        fig.legend(*ax_a.get_legend_handles_labels(), loc="outside lower center", ncols=2)
         return _save(fig, out_stem, formats, dpi)
 
 
@@ -579,7 +543,7 @@ def trajectories_3d(
     """
     track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
     _, e, n, u = track
-    colours = grade_colours(reps)
+    styles = grade_styles(reps)
     xyz = {g: np.column_stack([r["e"], r["n"], r["u"]]) for g, r in reps.items()}
     if clip_factor is not None:
         ref = clip_box(
@@ -598,12 +562,7 @@ def trajectories_3d(
         ax = fig.add_subplot(projection="3d")
         ax.plot(e, n, u, color="black", lw=0.8, label="reference (truth)")
         for g, r in reps.items():
-            ax.plot(
-                *xyz[g].T,
-                color=colours[g],
-                lw=1.1,
-                label=_rep_label(g, r, representative),
-            )
+            ax.plot(*xyz[g].T, lw=1.1, label=_rep_label(g, r, representative), **styles[g])
         ax.scatter([e[0]], [n[0]], [u[0]], color="black", marker="^", s=20, label="start")
         ax.set_box_aspect((rng[0], rng[1], rz))
         ax.view_init(elev=25, azim=-60)
@@ -622,12 +581,7 @@ def _grade_errors(paths: Sequence, grade: str):
     parts: dict[str, list[np.ndarray]] = {"horizontal": [], "up": []}
     seen: set[int] = set()
     for p in paths:
-        try:
-            nav = pq.read_table(p, columns=[SEQUENCE, col.TIME, *ERR]).to_pandas()
-        except FileNotFoundError:
-            raise InputError(p, "no such file") from None
-        except OSError as exc:
-            raise InputError(p, f"cannot read navigation errors ({exc})") from None
+        nav = tnav.read(p, [SEQUENCE, col.TIME, *ERR])
         if nav.empty:
             continue
         ids, t, err = epoch_matrix(nav, source=p)
@@ -664,7 +618,7 @@ def error_vs_time(
     -------
     list of Path
     """
-    colours = grade_colours(nav_paths_by_grade)
+    styles = grade_styles(nav_paths_by_grade)
     stats = {}
     for g, paths in nav_paths_by_grade.items():
         time, err = _grade_errors(list(paths), g)
@@ -679,10 +633,8 @@ def error_vs_time(
         ):
             for g, (time, S, bands) in stats.items():
                 p05, p50, p95 = (np.where(b > 0, b, np.nan) for b in bands[key])
-                ax.fill_between(time, p05, p95, color=colours[g], alpha=0.2, lw=0)
-                ax.plot(
-                    time, p50, color=colours[g], lw=1.2, label=f"{g} (median, 5-95 %, {S} seq.)"
-                )
+                ax.fill_between(time, p05, p95, color=styles[g]["color"], alpha=0.2, lw=0)
+                ax.plot(time, p50, lw=1.2, label=f"{g} (median, 5-95 %, {S} seq.)", **styles[g])
             ax.set_yscale("log")
             ax.set_ylabel(ylabel)
             ax.set_title(title)
@@ -760,9 +712,9 @@ def imu_signals(
     -------
     list of Path
     """
-    meta = read_meta(shard_path)
+    meta = tshard.read_meta(shard_path)
     grade = meta.get("grade", {}).get("name", "measured")
-    names = pq.read_schema(shard_path).names
+    names = tshard.column_names(shard_path)
     rates = all(c in names for c in (*col.GYRO, *col.ACCEL))
     incs = all(c in names for c in (*col.DTHETA, *col.DV))
     if not (rates or incs):
@@ -773,9 +725,8 @@ def imu_signals(
         if ids:
             sequence = int(ids[0])
         else:
-            first = next(pq.ParquetFile(shard_path).iter_batches(batch_size=1, columns=[SEQUENCE]))
-            sequence = int(first.column(0)[0].as_py())
-    tbl = pq.read_table(
+            sequence = int(tshard.read(shard_path, [SEQUENCE]).column(0)[0].as_py())
+    tbl = tshard.read(
         shard_path,
         columns=[col.TIME, *gyro_cols, *accel_cols],
         filters=[(SEQUENCE, "==", int(sequence))],
@@ -801,7 +752,7 @@ def imu_signals(
     t, meas = t[m], meas[m]
     if t.size == 0:
         raise InputError("window_s", f"no sample of sequence {sequence} in [{w0:g}, {w1:g}] s")
-    truth = pq.read_table(
+    truth = col.read_arrow(
         truth_path,
         columns=[col.TIME, *col.GYRO, *col.ACCEL],
         filters=[(col.TIME, ">=", w0), (col.TIME, "<=", w1)],

@@ -12,15 +12,19 @@ Validation (each failure: one line naming the file, exit status 2, no output)
     height in [-11 km, 100 km]; a non-zero path length; no point farther than
     ``max_extent_km`` (default 100 km) from the origin (see :mod:`imugen.frames`); for timed
     paths, no implied speed above ``max_speed_kmh`` (default 1,200 km/h) between
-    consecutive points (GPS spikes).
+    consecutive points once outliers are removed.
+Cleaning
+    Outliers beyond the vehicle's limits are removed, missing heights interpolated and the
+    noise estimated (:mod:`imugen.clean`); more than half of the points as outliers is refused.
 Time
     ISO-8601 times become seconds from the first point (``time_s``); a time without an offset
     is UTC. Exact duplicates (same time and same position) are dropped with a warning. A time
     that does not increase at a point whose position differs is refused (the order of the
     points is ambiguous). When every point has the same time, or only some points have a time,
-    the clock cannot be used: the path falls back to untimed with a warning. Gaps are kept (the
-    truth stage interpolates through them) and reported when longer than ``gap_warn_s``
-    (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
+    the clock cannot be used: the path falls back to untimed with a warning. Gaps longer than
+    ``max_gap_s`` split the path into candidate parts, or are bridged on request
+    (:mod:`imugen.segments`); shorter ones are kept (the truth stage interpolates through them)
+    and reported when longer than ``gap_warn_s`` (default 60 s). ``dt`` gives an untimed path a uniform clock (the paper's trajectory is
     1 point per second); it is ignored (with a warning) when the file has a usable clock.
 Untimed paths
     Consecutive repeated positions are dropped (a path without a clock has no stops); the truth
@@ -42,12 +46,15 @@ import numpy as np
 import pandas as pd
 from pyproj import Geod
 
-from imugen import __version__
+from imugen import __version__, limits
+from imugen.clean import clean_path
 from imugen.errors import InputError
 from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
-from imugen.io import atomic_output, write_parquet
+from imugen.io import atomic_output
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
+from imugen.segments import choose_path
+from imugen.tables import enu as tenu
 
 UNITS = {
     "time_s": "s",
@@ -176,7 +183,11 @@ def _check_enu(enu: np.ndarray, source) -> None:
         )
 
 
-def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str]):
+def _when(p: RoutePath, t: float) -> str:
+    return iso_utc(t) if p.time_is_absolute else f"{t:g} s"
+
+
+def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str], source):
     """Decide the clock of a path: returns (time_s or None, time source label, start UTC)."""
     t = p.time_unix_s
     if t is not None:
@@ -189,7 +200,7 @@ def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str])
             t = None
         elif np.ptp(t) == 0.0:
             warnings.append(
-                f"all {len(t)} points have the same time ({iso_utc(float(t[0]))}): the clock is "
+                f"all {len(t)} points have the same time ({_when(p, float(t[0]))}): the clock is "
                 "not usable and the path is treated as untimed"
             )
             t = None
@@ -207,9 +218,12 @@ def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str])
         if dt is not None:
             warnings.append("the file has a clock: the dt option is ignored")
         start = iso_utc(float(t[0])) if p.time_is_absolute else None
-        return t - t[0], "file", start
+        rel = t - t[0]
+        if not np.isfinite(rel).all():  # differences of finite huge values may overflow
+            raise InputError(source, "the times span more than a float can hold")
+        return rel, "file", start
     if dt is not None:
-        if not (np.isfinite(dt) and dt > 0):
+        if not (np.isfinite(dt) and dt > 0 and np.isfinite(dt * p.n_points)):
             raise InputError("--dt", f"{dt!r} must be a positive number of seconds")
         return np.arange(p.n_points) * float(dt), f"uniform dt = {dt:g} s (option)", None
     return None, None, None
@@ -261,6 +275,9 @@ def ingest(
     max_speed_kmh: float = 1200.0,
     max_extent_km: float = MAX_EXTENT_M / 1000.0,
     gap_warn_s: float = 60.0,
+    vehicle: str = "car",
+    max_gap_s: float | None = None,
+    gaps: str = "split",
 ) -> Ingested:
     """Read, select, validate and convert one path of a route file.
 
@@ -278,6 +295,11 @@ def ingest(
         Also output UTM easting/northing in the zone of the origin.
     max_speed_kmh, max_extent_km, gap_warn_s : float
         Validation limits (see the module docstring).
+    vehicle : str
+        Vehicle class whose limits decide what is an outlier (:mod:`imugen.clean`).
+    max_gap_s, gaps : float or None, {"split", "bridge"}
+        Time gaps longer than ``max_gap_s`` split the path, or are bridged when asked
+        (:mod:`imugen.segments`); ``path`` may then be ``"longest"``.
 
     Returns
     -------
@@ -285,12 +307,39 @@ def ingest(
         ``table`` columns: ``time_s`` (timed paths only), ``lat_deg``, ``lon_deg``, ``alt_m``,
         ``e_m``, ``n_m``, ``u_m`` (and ``utm_e_m``, ``utm_n_m``); ``meta`` dict for the file.
     """
+    with np.errstate(over="ignore", invalid="ignore"):  # overflows are refused, not printed
+        return _ingest(
+            src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s,
+            vehicle, max_gap_s, gaps,
+        )  # fmt: skip
+
+
+def _ingest(
+    src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s, vehicle, max_gap_s, gaps
+) -> Ingested:
     src = Path(src)
+    for name, value in (
+        ("--max-speed-kmh", max_speed_kmh),
+        ("--max-extent-km", max_extent_km),
+        ("--gap-warn-s", gap_warn_s),
+    ):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(name, f"{value!r} must be a positive number")
     if isinstance(origin, str):
         origin = parse_origin(origin)
-    cands = read_route_file(src)
-    p = select_path(cands, path, src)
+    raw = limits.read_input(src)
+    cands = read_route_file(src, raw)
     warnings: list[str] = []
+    p, segments = choose_path(
+        cands,
+        path,
+        max_gap_s=max_gap_s,
+        gaps=gaps,
+        source=src,
+        warnings=warnings,
+        select=select_path,
+    )
+    warnings += p.warnings
     n_in = p.n_points
     if n_in < 2:
         raise InputError(src, f"path {p.name!r} has {n_in} point(s): a path needs at least two")
@@ -299,6 +348,7 @@ def ingest(
     if origin is None and p.carried.get("origin"):
         o = p.carried["origin"]
         origin = Origin(float(o["lat_deg"]), float(o["lon_deg"]), float(o["alt_m"]))
+        _check_geodetic(*(np.array([v]) for v in origin.as_dict().values()), src, "origin")
         origin_from = "carried from " + str(p.carried.get("source", "the previous stage"))
 
     if p.enu_m is not None:
@@ -310,20 +360,36 @@ def ingest(
                 "(the geodetic position of the first row)",
             )
         enu_first = p.enu_m - p.enu_m[0]
+        _check_enu(enu_first, src)  # differences of finite huge values may overflow
+        far = ~(np.hypot(enu_first[:, 0], enu_first[:, 1]) <= max_extent_km * 1000.0)
+        far |= ~(np.abs(enu_first[:, 2]) <= max_extent_km * 1000.0)
+        if far.any():
+            i = _first_bad(far)
+            raise InputError(
+                src,
+                f"row {i + 1} lies more than {max_extent_km:g} km from the first row "
+                "(the local ENU frame's limit); check the units (metres) or raise --max-extent-km",
+            )
         frame = LocalFrame(origin)
         lat, lon, alt = frame.to_geodetic(enu_first)
+        _check_geodetic(lat, lon, alt, src)
         pos = enu_first
     else:
         lat, lon, alt = p.lat_deg, p.lon_deg, p.alt_m
         _check_geodetic(lat, lon, alt, src)
         pos = np.column_stack([lat, lon, alt])
 
-    time_s, time_source, start_utc = _clock(p, pos, dt, warnings)
+    time_s, time_source, start_utc = _clock(p, pos, dt, warnings, src)
     timed = time_s is not None
     cols = {"pos": pos, "lat": lat, "lon": lon, "alt": alt}
+    cols["alt_missing"] = np.zeros(n_in, bool) if p.alt_missing is None else p.alt_missing
     if timed:
         cols["time"] = time_s
     cols = _dedupe(cols, timed, src, warnings)
+    enu_frame = LocalFrame(origin) if p.enu_m is not None else None
+    cols, cleaning = clean_path(
+        cols, p, timed=timed, vehicle=vehicle, source=src, warnings=warnings, enu_frame=enu_frame
+    )
     lat, lon, alt = cols["lat"], cols["lon"], cols["alt"]
     if len(lat) < 2:
         raise InputError(
@@ -344,8 +410,8 @@ def ingest(
     horiz = np.hypot(enu[:, 0], enu[:, 1])
     lon_jump = np.abs(np.diff(lon)) > 180.0
     crosses = bool(lon_jump.any())
-    if horiz.max() > max_extent_km * 1000.0:
-        i = int(np.argmax(horiz))
+    if not horiz.max() <= max_extent_km * 1000.0:  # NaN-safe
+        i = int(np.argmax(np.where(np.isfinite(horiz), horiz, np.inf)))
         why = " and crosses the antimeridian" if crosses else ""
         raise InputError(
             src,
@@ -400,7 +466,7 @@ def ingest(
         "stage": "ingest",
         "imugen_version": __version__,
         "source": str(src),
-        "source_sha256": hashlib.sha256(src.read_bytes()).hexdigest(),
+        "source_sha256": hashlib.sha256(raw).hexdigest(),
         "path": p.name,
         "path_kind": p.kind,
         "candidates": len(cands),
@@ -421,6 +487,8 @@ def ingest(
         "max_distance_from_origin_m": float(horiz.max()),
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
+        "cleaning": cleaning,
+        "segments": segments,
         "utm": utm_meta,
         "notes": list(p.notes),
         "warnings": warnings,
@@ -435,7 +503,7 @@ def write(ing: Ingested, out: str | Path) -> Path:
     if suffix not in (".parquet", ".csv"):
         raise InputError(out, "output must end in .parquet or .csv")
     if suffix == ".parquet":
-        return write_parquet(ing.table, ing.meta, out)
+        return tenu.write(ing.table, ing.meta, out)
     with atomic_output(out) as tmp, tmp.open("w", encoding="utf-8", newline="\n") as fh:
         fh.write("# imugen: " + json.dumps(ing.meta) + "\n")
         ing.table.to_csv(fh, index=False)

@@ -4,7 +4,7 @@ Every stage writes its outputs under a temporary name in the target directory
 (``.NAME.XXXXXXXX.tmp``) and renames it into place only when complete, so an interrupted job
 never leaves a truncated file that looks done; the temporaries a killed job leaves behind are
 removed by the next successful write of the same output. Metadata (source, units, parameters, code version) travels as JSON under the
-Parquet schema metadata key :data:`imugen.columns.METADATA_KEY`.
+Parquet schema metadata key :data:`METADATA_KEY`.
 """
 
 from __future__ import annotations
@@ -21,8 +21,10 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen.columns import METADATA_KEY
 from imugen.errors import InputError
+
+METADATA_KEY = b"imugen"
+"""Key of the JSON metadata in the Parquet schema metadata."""
 
 
 def _one_line(exc: OSError) -> str:

@@ -7,6 +7,10 @@ changes. Before the first kernel is defined, this module hashes every ``*.py`` f
 package and, when the hash differs from the one stamped in the package's ``__pycache__``,
 deletes the package's numba cache files there. Kernels then recompile once (a few
 seconds) and are cached across processes again.
+
+The cache is an optimisation, never a requirement: a kernel whose cache file cannot be written
+(read-only install, full disk, quota or ``RLIMIT_FSIZE``: ``OSError``) runs from memory and the
+stage goes on; numba itself lets such errors fail the call that compiled the kernel.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import tempfile
 from pathlib import Path
 
 from numba import njit as _njit
+from numba.core.caching import FunctionCache
+from numba.core.dispatcher import Dispatcher
 
 _PACKAGE = Path(__file__).resolve().parent
 _STAMP = "imugen-numba-source.sha256"
@@ -52,6 +58,25 @@ def _refresh_cache() -> None:
 _refresh_cache()
 
 
+class _TolerantCache(FunctionCache):
+    """numba's per-function cache whose failed saves are ignored (the kernel stays in memory)."""
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except OSError:
+            pass
+
+
+def _tolerant(dispatcher):
+    if isinstance(dispatcher, Dispatcher) and isinstance(dispatcher._cache, FunctionCache):
+        dispatcher._cache = _TolerantCache(dispatcher.py_func)
+    return dispatcher
+
+
 def njit(*args, **kwargs):
     """``numba.njit`` (same arguments); see the module docstring for the cache policy."""
-    return _njit(*args, **kwargs)
+    out = _njit(*args, **kwargs)
+    if isinstance(out, Dispatcher):
+        return _tolerant(out)
+    return lambda func: _tolerant(out(func))

@@ -4,12 +4,17 @@ Each sequence starts from the true initial state (position, velocity, attitude a
 no initial-alignment error) and is mechanized with :mod:`imugen.mechanize` on the shard's
 angle/velocity increments (or, when the shard holds rates only, on increments formed from
 them by :func:`imugen.mechanize.increments_from_rates`), in the Earth model of the truth.
-Sequences are streamed from the shard in batches, so memory is bounded by the batch size.
+Raw increments (shard metadata ``increments: raw``: plain integrals of rate and specific
+force) first get the two-sample coning/sculling correction
+(:func:`imugen.mechanize.compensate_raw`). Sequences are streamed from the shard in batches,
+so memory is bounded by the batch size.
 
-Output (Parquet, one row per sequence and evaluation epoch; epochs every
-``round(rate / eval_rate_hz)`` samples from ``t_0``): ``sequence``, ``time_s``, position
-error ``err_e_m``, ``err_n_m``, ``err_u_m`` (navigation minus truth, metres) and attitude
-error ``err_att_rad`` (angle of the rotation from the true to the computed attitude).
+Output: the navigation error table of :mod:`imugen.tables.nav` (``sequence``, ``time_s``,
+``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``), one row per sequence and evaluation
+epoch (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
+
+:func:`navigate_arrays` does the same for increments held in memory (no files): the loop of
+a user who corrects increments and wants to see the navigation errors.
 """
 
 from __future__ import annotations
@@ -18,33 +23,21 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
 from imugen import __version__
-from imugen import columns as col
-from imugen.earth import OriginFrame
 from imugen.errors import InputError
-from imugen.io import read_meta, write_parquet
-from imugen.mechanize import increments_from_rates, mechanize
+from imugen.mechanize import compensate_raw, increments_from_rates, mechanize
 from imugen.rotations import log_quat, quat_conj, quat_mul
-
-SEQUENCE = "sequence"
-NAV_COLUMNS = (SEQUENCE, col.TIME, "err_e_m", "err_n_m", "err_u_m", "err_att_rad")
-
-
-def frame_from_truthread_meta(meta: dict) -> OriginFrame:
-    """The navigation frame and Earth model a truth file was built with."""
-    o = meta["origin"]
-    return OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=meta["earth"])
-
+from imugen.tables import nav as tnav
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+from imugen.tables._parquet import SEQUENCE, TIME
 
 BATCH_BYTES = 64 << 20
 """Budget of the float64 increment buffers of one batch (both sensors): with the reused
 buffers it bounds a navigate job's memory whatever the shard's size and the IMU rate."""
 
-
-READ_ROWS = 1 << 16
-"""Rows per Parquet record batch read (results do not depend on it)."""
+NAV_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT]
 
 
 def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
@@ -52,55 +45,39 @@ def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
     return int(max(1, min(256, budget // (2 * 3 * 8 * max(int(samples), 1)))))
 
 
-def _sequence_blocks(shard_path: Path, columns: list[str], samples: int, batch: int, skip: int):
-    """Yield ``(ids (b,), a (b, samples-skip, 3), c (b, samples-skip, 3))`` per batch of sequences.
+class _Navigator:
+    """Mechanizes batches of increments against one truth and tabulates their errors."""
 
-    ``a`` holds ``columns[:3]`` and ``c`` ``columns[3:]`` as float64, the first ``skip`` rows of
-    each sequence dropped (the zero increment of ``t_0``). The arrays are views into two buffers
-    reused from batch to batch (first-touching fresh memory is slow), filled straight from the
-    Parquet record batches: memory stays at ``2 * batch * samples * 24`` bytes plus one record
-    batch, whatever the shard holds. Each view is valid until the next iteration.
-    """
-    # buffered reads, no pre-buffering of whole row groups, no reader threads: a 250-sequence
-    # shard then streams through ~30 MB instead of ~180 MB, with a fifth of the system time
-    pf = pq.ParquetFile(shard_path, pre_buffer=False, buffer_size=1 << 20)
-    K = int(samples)
-    width = K - skip
-    bufs = (np.empty((batch, width, 3)), np.empty((batch, width, 3)))
-    ids = np.empty(batch, np.int64)
-    n = 0  # complete sequences in the buffers
-    k = 0  # rows received of the current sequence
-    cur = 0
-    for rb in pf.iter_batches(
-        batch_size=READ_ROWS, columns=[SEQUENCE, *columns], use_threads=False
-    ):
-        seq = rb.column(0).to_numpy(zero_copy_only=False)
-        data = [rb.column(i + 1).to_numpy(zero_copy_only=False) for i in range(len(columns))]
-        r, R = 0, len(seq)
-        while r < R:
-            m = min(R - r, K - k)
-            if k == 0:
-                cur = seq[r]
-                ids[n] = cur
-            if not (seq[r : r + m] == cur).all():
-                raise InputError(
-                    shard_path, "rows are not grouped by sequence with one row per sample"
-                )
-            lo = max(k, skip)  # first sample of this run that is stored
-            if lo < k + m:
-                for i, src in enumerate(data):
-                    bufs[i // 3][n, lo - skip : k + m - skip, i % 3] = src[r + lo - k : r + m]
-            k += m
-            r += m
-            if k == K:
-                n, k = n + 1, 0
-                if n == batch:
-                    yield ids[:n], bufs[0][:n], bufs[1][:n]
-                    n = 0
-    if k:
-        raise InputError(shard_path, f"holds {k} stray rows: not whole sequences of {K}")
-    if n:
-        yield ids[:n], bufs[0][:n], bufs[1][:n]
+    def __init__(self, truth: ttruth.Truth, eval_rate_hz: float):
+        self.t = truth.time_s
+        self.K = truth.K
+        self.dt = truth.dt
+        self.every = max(1, round(truth.rate_hz / eval_rate_hz))
+        self.frame = truth.origin_frame()
+        self.p_true = truth.p_n
+        self.q_true = truth.q_nb
+        self.x0 = (self.p_true[0], truth.v_n[0], self.q_true[0])
+
+    def errors(self, seq_ids, dth, dvb) -> pd.DataFrame:
+        """Errors of increments ``dth``, ``dvb`` (b, K-1, 3) (compensated, row 0 dropped)."""
+        p0, v0, q0 = self.x0
+        nav = mechanize(dth, dvb, self.dt, p0, v0, q0, self.frame, every=self.every,
+                        outputs=("p", "q"))  # fmt: skip
+        idx = nav.index
+        err = nav.p_n - self.p_true[idx][None]
+        dq = quat_mul(quat_conj(self.q_true[idx])[None], nav.q_nb)
+        att = np.linalg.norm(log_quat(dq), axis=-1)
+        n_seq, n_ep = err.shape[:2]
+        return pd.DataFrame(
+            {
+                SEQUENCE: np.repeat(np.asarray(seq_ids, np.int64), n_ep),
+                TIME: np.tile(self.t[idx], n_seq),
+                tnav.ERR_POS[0]: err[..., 0].ravel(),
+                tnav.ERR_POS[1]: err[..., 1].ravel(),
+                tnav.ERR_POS[2]: err[..., 2].ravel(),
+                tnav.ERR_ATT: att.ravel(),
+            }
+        )
 
 
 def navigate(
@@ -116,26 +93,11 @@ def navigate(
     memory budget); the result does not depend on it.
     """
     truth_path, shard_path = Path(truth_path), Path(shard_path)
-    tmeta = read_meta(truth_path)
-    smeta = read_meta(shard_path)
-    truth = pd.read_parquet(truth_path, columns=[col.TIME, *col.POS, *col.VEL, *col.QUAT])
-    t = truth[col.TIME].to_numpy()
-    K = len(t)
-    rate = float(tmeta.get("rate_hz", 1.0 / np.median(np.diff(t))))
-    dt = 1.0 / rate
-    every = max(1, round(rate / eval_rate_hz))
-    frame = frame_from_truthread_meta(tmeta)
-    p_true = truth[list(col.POS)].to_numpy()
-    q_true = truth[list(col.QUAT)].to_numpy()
-    p0, v0, q0 = p_true[0], truth[list(col.VEL)].iloc[0].to_numpy(), q_true[0]
-
-    names = set(pq.read_schema(shard_path).names)
-    if set(col.DTHETA + col.DV) <= names:
-        columns, kind = [*col.DTHETA, *col.DV], "increments"
-    elif set(col.GYRO + col.ACCEL) <= names:
-        columns, kind = [*col.GYRO, *col.ACCEL], "rates"
-    else:
-        raise InputError(shard_path, "holds neither increment nor rate columns of an IMU shard")
+    smeta = tshard.read_meta(shard_path)
+    nav = _Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS), eval_rate_hz)
+    K = nav.K
+    columns, kind = tshard.measurement(shard_path)
+    raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
     n = smeta.get("samples_per_sequence")
     if n is not None and n != K:
         raise InputError(shard_path, f"has {n} samples per sequence where the truth has {K}")
@@ -144,54 +106,136 @@ def navigate(
         batch = batch_size(K)
     skip = 1 if kind == "increments" else 0
     frames = []
-    for seq_ids, a, b in _sequence_blocks(shard_path, columns, K, int(batch), skip):
+    from imugen.progress import Progress
+
+    total = int(smeta.get("sequences", 0)) or None
+    progress = (
+        Progress(f"navigate {shard_path.parent.name}/{shard_path.name}", total or 0)
+        if total
+        else None
+    )
+    done = 0
+    for seq_ids, a, b in tshard.iter_blocks(shard_path, columns, K, int(batch), skip):
         if kind == "increments":
-            dth, dvb = a, b
+            dth, dvb = compensate_raw(a, b) if raw else (a, b)
         else:
-            dth, dvb = increments_from_rates(a, b, dt)
-        nav = mechanize(dth, dvb, dt, p0, v0, q0, frame, every=every, outputs=("p", "q"))
-        idx = nav.index
-        err = nav.p_n - p_true[idx][None]
-        dq = quat_mul(quat_conj(q_true[idx])[None], nav.q_nb)
-        att = np.linalg.norm(log_quat(dq), axis=-1)
-        n_seq, n_ep = err.shape[:2]
-        frames.append(
-            pd.DataFrame(
-                {
-                    SEQUENCE: np.repeat(seq_ids.astype(np.int32), n_ep),
-                    col.TIME: np.tile(t[idx], n_seq),
-                    "err_e_m": err[..., 0].ravel(),
-                    "err_n_m": err[..., 1].ravel(),
-                    "err_u_m": err[..., 2].ravel(),
-                    "err_att_rad": att.ravel(),
-                }
-            )
-        )
+            dth, dvb = increments_from_rates(a, b, nav.dt)
+        frames.append(nav.errors(seq_ids, dth, dvb))
+        done += len(seq_ids)
+        if progress is not None:
+            progress.update(done)
     if not frames:
         raise InputError(shard_path, "holds no sequences")
     return pd.concat(frames, ignore_index=True)
+
+
+def _as_increments(increments, K: int):
+    """``(dtheta, dv, ids, semantics or None)`` float64 (S, K-1, 3) from the accepted forms."""
+    semantics = None
+    ids = None
+    meta = getattr(increments, "meta", None)
+    if meta is not None and hasattr(increments, "data"):  # imugen.simulate.Shard
+        semantics = tshard.increment_kind(meta)
+        ids = increments.labels[SEQUENCE].to_numpy()
+        increments = increments.data
+    if isinstance(increments, dict):
+        if "dtheta" not in increments or "dv" not in increments:
+            raise InputError("increments", "a dict needs 'dtheta' and 'dv' arrays")
+        dth, dv = increments["dtheta"], increments["dv"]
+    elif isinstance(increments, tuple | list) and len(increments) == 2:
+        dth, dv = increments
+    else:
+        a = np.asarray(increments, dtype=np.float64)
+        if a.shape[-1] != 6:
+            raise InputError("increments", f"expected (..., 6) or (dtheta, dv), got {a.shape}")
+        dth, dv = a[..., :3], a[..., 3:]
+    out = []
+    for name, x in (("dtheta", dth), ("dv", dv)):
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 2:
+            x = x[None]
+        if x.ndim != 3 or x.shape[-1] != 3 or x.shape[1] not in (K, K - 1):
+            raise InputError(
+                "increments", f"{name} must be (S, K, 3) or (S, K-1, 3) with K = {K}, got {x.shape}"
+            )
+        if x.shape[1] == K:  # rows aligned with the truth: row 0 is the empty interval
+            x = x[:, 1:]
+        if not np.all(np.isfinite(x)):
+            raise InputError("increments", f"{name} holds non-finite values")
+        out.append(np.array(x, dtype=np.float64, order="C"))  # a copy: never alter the caller's
+    if out[0].shape != out[1].shape:
+        raise InputError("increments", f"dtheta {out[0].shape} and dv {out[1].shape} differ")
+    return out[0], out[1], ids, semantics
+
+
+def navigate_arrays(
+    truth,
+    increments,
+    *,
+    semantics: str | None = None,
+    eval_rate_hz: float = 1.0,
+    sequence_ids=None,
+) -> pd.DataFrame:
+    """Navigate increments held in memory against a truth; no files written.
+
+    Parameters
+    ----------
+    truth : path or imugen.tables.truth.Truth
+        Truth file (or one already read with :func:`imugen.tables.truth.read`).
+    increments : (dtheta, dv), dict, ndarray or imugen.simulate.Shard
+        Angle [rad] and velocity [m/s] increments, each ``(S, K, 3)`` with rows aligned with
+        the truth (row 0, the empty interval, is ignored) or ``(S, K-1, 3)``; ``(K, 3)`` for one
+        sequence. A dict with ``"dtheta"``, ``"dv"`` (``Shard.data``), an ``(S, K, 6)`` array
+        (dtheta then dv), or an in-memory shard from :func:`imugen.simulate.simulate`.
+    semantics : {"compensated", "raw"}, optional
+        Increment semantics; raw increments get the two-sample coning/sculling correction.
+        Default: the shard's, else compensated.
+    eval_rate_hz : float
+        Error epochs per second (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
+    sequence_ids : array of int, optional
+        Ids of the ``S`` sequences in the result (default the shard's, else ``0 .. S-1``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The navigation error table (:mod:`imugen.tables.nav`): ``sequence``, ``time_s``,
+        ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``.
+    """
+    if not isinstance(truth, ttruth.Truth):
+        truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS)
+    nav = _Navigator(truth, eval_rate_hz)
+    dth, dv, ids, kind = _as_increments(increments, nav.K)
+    kind = semantics or kind or "compensated"
+    if kind not in tshard.INCREMENT_KINDS:
+        raise InputError("semantics", f"must be compensated or raw, got {kind!r}")
+    if sequence_ids is not None:
+        ids = np.asarray(sequence_ids, np.int64)
+    if ids is None:
+        ids = np.arange(len(dth), dtype=np.int64)
+    if len(ids) != len(dth):
+        raise InputError("sequence_ids", f"{len(ids)} ids for {len(dth)} sequences")
+    if kind == "raw":
+        compensate_raw(dth, dv)  # in place, on the copies
+    return nav.errors(ids, dth, dv)
 
 
 def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = None) -> Path:
     """Navigate a shard and write its error table atomically (Parquet with metadata)."""
     out = Path(out)
     df = navigate(truth, shard, eval_rate_hz=eval_rate_hz, batch=batch)
-    smeta = read_meta(shard)
+    smeta = tshard.read_meta(shard)
     meta = {
         "stage": "navigate",
         "imugen_version": __version__,
-        "truth": str(truth),
-        "shard": str(shard),
+        "truth": Path(truth).name,
+        "truth_sha256": ttruth.checksum(truth),
+        "shard": Path(shard).name,
         "grade": smeta.get("grade"),
+        "route": smeta.get("route"),
         "eval_rate_hz": eval_rate_hz,
-        "units": {
-            "time_s": "s",
-            "err_e_m": "m",
-            "err_n_m": "m",
-            "err_u_m": "m",
-            "err_att_rad": "rad",
-        },
+        "increments": smeta.get("increments", "compensated"),
+        "derived": smeta.get("derived"),
         "error": "navigation minus truth, ENU of the route origin",
     }
-    write_parquet(df, meta, out)
+    tnav.write(df, meta, out)
     return out

@@ -43,6 +43,11 @@ saturation and quantization (last)
     The output is clipped to ``+-range`` (increments: ``+-range dt``), then quantized to the
     LSB ``q`` (increments: ``q dt``) with residual carry (``r += y; out = q round(r / q);
     r -= out``), so the quantization error does not accumulate in integrated outputs.
+effective error (optional output)
+    Everything above except the white term and quantization: ``E u + G a + s`` (rates) or
+    ``E_bar du + G da + dt (s_{k-1} + s_k) / 2`` (increments), plus the saturation excess
+    (clipped minus unclipped output), so that ``output = true + effective error + white +
+    quantization error`` holds exactly.
 
 Everything is vectorized over a batch of sequences (leading axis ``S``) in one numba kernel
 that resumes from a state array, so time can be processed in chunks. The random normals are
@@ -352,6 +357,8 @@ def _kernel(
     out_inc,
     out_bias,
     out_sf,
+    out_err_rate,
+    out_err_inc,
 ):
     S = b_on.shape[0]
     L = u.shape[0]
@@ -361,6 +368,8 @@ def _kernel(
     do_inc = out_inc.shape[0] > 0
     do_bias = out_bias.shape[0] > 0
     do_sf = out_sf.shape[0] > 0
+    do_er = out_err_rate.shape[0] > 0
+    do_ei = out_err_inc.shape[0] > 0
     lsb_i = lsb * dt
     fs_i = full_scale * dt
     slow = np.empty(3)
@@ -404,10 +413,13 @@ def _kernel(
                     y = u[j, i] + e[i] + slow[i]
                     if use_w:
                         y += white[s, i] / sqdt * zw[s, j, i]
+                    y0 = y
                     if y > full_scale:
                         y = full_scale
                     elif y < -full_scale:
                         y = -full_scale
+                    if do_er:
+                        out_err_rate[s, j, i] = e[i] + slow[i] + (y - y0)
                     if lsb > 0.0:
                         q_rate[s, i] += y
                         y = lsb * math.floor(q_rate[s, i] / lsb + 0.5)
@@ -417,6 +429,8 @@ def _kernel(
                 if g == 0:
                     for i in range(3):
                         out_inc[s, j, i] = 0.0
+                        if do_ei:
+                            out_err_inc[s, j, i] = 0.0
                 else:
                     for i in range(3):
                         e[i] = (sf[s, i] + ts[s, i] * Tm) * du[j, i]
@@ -427,13 +441,17 @@ def _kernel(
                             for k in range(3):
                                 e[i] += gs[s, i, k] * da[j, k]
                     for i in range(3):
-                        y = du[j, i] + e[i] + 0.5 * (s_prev[s, i] + slow[i]) * dt
+                        eb = e[i] + 0.5 * (s_prev[s, i] + slow[i]) * dt
+                        y = du[j, i] + eb
                         if use_w:
                             y += white[s, i] * sqdt * zw[s, j, i]
+                        y0 = y
                         if y > fs_i:
                             y = fs_i
                         elif y < -fs_i:
                             y = -fs_i
+                        if do_ei:
+                            out_err_inc[s, j, i] = eb + (y - y0)
                         if lsb_i > 0.0:
                             q_inc[s, i] += y
                             y = lsb_i * math.floor(q_inc[s, i] / lsb_i + 0.5)
@@ -492,6 +510,8 @@ class SensorModel:
         out_inc=None,
         out_bias=None,
         out_sf=None,
+        out_err_rate=None,
+        out_err_inc=None,
     ):
         """Process samples ``k0 .. k0 + L - 1`` (call with consecutive chunks).
 
@@ -511,6 +531,11 @@ class SensorModel:
             Standard normals of the Gauss-Markov components (axis-major, component minor).
         out_rate, out_inc, out_bias, out_sf : ndarray, shape (S, L, 3) or None
             Outputs: rate samples, increments, slow bias and scale-factor error labels.
+        out_err_rate, out_err_inc : ndarray, shape (S, L, 3) or None
+            Effective error of the rate and increment outputs: everything added except
+            white noise and quantization (slow bias, scale factor, cross-coupling,
+            g-sensitivity, temperature, saturation excess), so that output = true + error +
+            white noise + quantization error.
         """
         p = self.p
         st = self.state
@@ -554,6 +579,8 @@ class SensorModel:
             _EMPTY3 if out_inc is None else out_inc,
             _EMPTY3 if out_bias is None else out_bias,
             _EMPTY3 if out_sf is None else out_sf,
+            _EMPTY3 if out_err_rate is None else out_err_rate,
+            _EMPTY3 if out_err_inc is None else out_err_inc,
         )
 
 

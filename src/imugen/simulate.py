@@ -2,16 +2,23 @@
 
 Randomness
 ----------
-A shard's root is ``SeedSequence(seed, spawn_key=(grade_id, shard))``. Sequence ``j`` of the
-shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(grade_id, shard, j,
-stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one per
-stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate random
-walk and bias-instability normals. So a shard's data never depends on how many shards exist or
-on the order they run; raising N only adds shards; sequence ``j`` of a shard does not depend
-on ``M`` (a larger shard only appends sequences); switching a term off leaves the other terms'
-realizations unchanged; and the chunking of time cannot change the numbers (NumPy fills normals
-sequentially). Bit-identity across machines holds for the same NumPy bit-generator algorithms
-(PCG64, ``standard_normal``) -- the NumPy version is recorded in the metadata.
+A route is named by its id ``route_id = int.from_bytes(sha256(name.encode("utf-8"))[:4],
+"big")`` (:func:`imugen.tables.shard.route_id`; the name is ``--route``, else the truth
+metadata's ``route``, else the truth file's folder name, see :func:`route_name`). A shard's
+root is ``SeedSequence(seed, spawn_key=(route_id, grade_id, shard))``. Sequence ``j`` of the
+shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(route_id, grade_id,
+shard, j, stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one
+per stream (:data:`STREAMS`): its parameter draw and, for each sensor, its white noise, rate
+random walk and bias-instability normals. So no two (route, grade, sequence) share a draw (up
+to a collision of 32-bit route ids: probability ``n^2 / 2^33`` for ``n`` routes); a shard's
+data never depends on how many shards or routes exist or on the order they run; raising N
+only adds shards; sequence ``j`` of a shard does not depend on ``M`` (a larger shard only
+appends sequences); switching a term off leaves the other terms' realizations unchanged; and
+the chunking of time cannot change the numbers (NumPy fills normals sequentially).
+Bit-identity across machines holds for the same NumPy bit-generator algorithms (PCG64,
+``standard_normal``) -- the NumPy version is recorded in the metadata. The shard's bytes do
+not depend on how the truth path was spelled: the metadata names the truth by file name and
+SHA-256.
 
 Per-sequence parameters (see :func:`imugen.sensors.draw_sensor`)
 -----------------------------------------------------------------
@@ -21,20 +28,15 @@ temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationa
 
 Output (one shard = one Parquet file + a labels sidecar)
 --------------------------------------------------------
-Rows sorted by ``sequence`` then time, one per (sequence, IMU sample):
-``sequence`` int32 (global id ``shard * shard_size + j``, ``shard_size`` the experiment's
-sequences per shard, by default this shard's ``M``), ``time_s`` float64, then
-``dtheta_{x,y,z}_rad``, ``dv_{x,y,z}_mps`` (``outputs="increments"``, default; row k holds
-the interval ending at ``t_k``, row 0 of each sequence is zero as in the truth table) and/or
-``gyro_{x,y,z}_radps``, ``accel_{x,y,z}_mps2`` (``outputs="rates"``). Measurements are float32
-by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is a
-white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives 6e-8 rad
-per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is available.
-``series=True`` adds the true slow bias (turn-on + in-run + RRW + temperature, at ``t_k``)
-and scale-factor error of each axis (``gyro_bias_x_radps``, ``gyro_sf_x``, ...).
+The layout, ids and columns are those of :mod:`imugen.tables.shard` (``sequence`` int64
+``route_id << 31 | (shard * shard_size + j)``, ``time_s``, increments and/or rates, with
+``series=True`` the true bias, scale-factor and effective-error series). Measurements are
+float32 by default: their rounding (relative 6e-8, e.g. 6e-10 rad on a 0.01 rad increment) is
+a white error below 1 % of the navigation-grade noise floor (ARW 0.002 deg/sqrt(h) gives
+6e-8 rad per 100 Hz increment), and it halves the bytes written; ``dtype="float64"`` is
+available. Increments are ``compensated`` (the truth's) or ``raw`` (plain integrals of rate
+and specific force, :meth:`Truth.raw_chunk`), recorded as ``increments`` in the metadata.
 Row groups are written as time chunks are produced (bounded buffer, never the whole shard).
-The labels sidecar ``<stem>.labels.parquet`` holds one row per sequence with every drawn
-parameter (SI units in the column names). Both files carry JSON metadata under ``b"imugen"``.
 """
 
 from __future__ import annotations
@@ -48,22 +50,19 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from imugen import __version__
-from imugen import columns as col
 from imugen.errors import InputError
 from imugen.grades import TERMS, Grade, get_grade, preset_text
-from imugen.io import atomic_output, with_meta
 from imugen.sensors import SensorModel, SensorParams, draw_sensor
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+from imugen.tables.shard import SEQUENCE
+from imugen.tables.truth import ACCEL, DTHETA, DV, GYRO, TIME, VEL
 from imugen.vibration import setup_vibration
 
 CHUNK = 8192
 """Samples per sequence processed per step (a constant; results do not depend on it)."""
-ROW_GROUP = 1 << 20
-"""Rows per Parquet row group."""
-SEQUENCE = "sequence"
 STREAMS = {
     "params": 0,
     "gyro_white": 1,
@@ -75,16 +74,8 @@ STREAMS = {
     "vibration": 7,
 }
 """Per-sequence random streams: last element of the spawn key."""
-OUTPUTS = ("increments", "rates", "both")
+OUTPUTS = tshard.OUTPUTS
 DRAWS = ("ranges", "nominal")
-BIAS_SERIES = {
-    "gyro": tuple(f"gyro_bias_{a}_radps" for a in "xyz"),
-    "accel": tuple(f"accel_bias_{a}_mps2" for a in "xyz"),
-}
-SF_SERIES = {
-    "gyro": tuple(f"gyro_sf_{a}" for a in "xyz"),
-    "accel": tuple(f"accel_sf_{a}" for a in "xyz"),
-}
 DEFAULT_STATIC_ORIGIN = (45.0, 0.0, 0.0)
 """Origin (lat_deg, lon_deg, alt_m) of a still IMU built with ``--static``."""
 
@@ -110,6 +101,11 @@ class Truth(ABC):
     @abstractmethod
     def chunk(self, k0: int, L: int):
         """``(time_s (L,), omega_ib_b (L,3), f_b (L,3), dtheta (L,3), dv (L,3))``, float64."""
+
+    @abstractmethod
+    def raw_chunk(self, k0: int, L: int):
+        """Raw increments ``(int omega_ib_b dt (L,3), int f_b dt (L,3))`` of the intervals
+        ending at samples ``k0 .. k0+L-1`` (row 0 zero), float64."""
 
 
 class ArrayTruth(Truth):
@@ -141,71 +137,60 @@ class ArrayTruth(Truth):
         ) + 1e-12 * abs(self.time[-1]):
             raise InputError(source, "time_s is not a uniform grid")
         self.meta = dict(meta or {})
+        self._raw = None
         self.speed_mps = None  # vehicle speed per sample when known (vibration model)
 
     def chunk(self, k0, L):
         s = slice(k0, k0 + L)
         return self.time[s], self.w[s], self.f[s], self.dth[s], self.dv[s]
 
+    def raw_chunk(self, k0, L):
+        """4-point quadrature of the rate samples (:func:`imugen.mechanize.interval_integrals`:
+        exact for cubics, local error ``O(dt^5)``), computed once for the whole truth."""
+        if self._raw is None:
+            from imugen.mechanize import interval_integrals
+
+            self._raw = (interval_integrals(self.w, self.dt), interval_integrals(self.f, self.dt))
+        s = slice(k0, k0 + L)
+        return self._raw[0][s], self._raw[1][s]
+
     @classmethod
     def from_frame(cls, df: pd.DataFrame, meta=None, source="<frame>") -> ArrayTruth:
-        need = (col.TIME, *col.GYRO, *col.ACCEL, *col.DTHETA, *col.DV)
+        need = (TIME, *GYRO, *ACCEL, *DTHETA, *DV)
         miss = [c for c in need if c not in df.columns]
         if miss:
             raise InputError(source, f"not a truth table: missing column(s) {', '.join(miss)}")
         out = cls(
-            df[col.TIME].to_numpy(),
-            df[list(col.GYRO)].to_numpy(),
-            df[list(col.ACCEL)].to_numpy(),
-            df[list(col.DTHETA)].to_numpy(),
-            df[list(col.DV)].to_numpy(),
+            df[TIME].to_numpy(),
+            df[list(GYRO)].to_numpy(),
+            df[list(ACCEL)].to_numpy(),
+            df[list(DTHETA)].to_numpy(),
+            df[list(DV)].to_numpy(),
             meta,
             source,
         )
-        if set(col.VEL) <= set(df.columns):
-            out.speed_mps = np.linalg.norm(df[list(col.VEL)].to_numpy(), axis=1)
+        if set(VEL) <= set(df.columns):
+            out.speed_mps = np.linalg.norm(df[list(VEL)].to_numpy(), axis=1)
         return out
 
     @classmethod
     def read(cls, path) -> ArrayTruth:
-        path = Path(path)
-        need = [col.TIME, *col.GYRO, *col.ACCEL, *col.DTHETA, *col.DV]
-        try:
-            pf = pq.ParquetFile(path)
-        except (OSError, pa.ArrowInvalid) as exc:
-            raise InputError(path, f"cannot read as Parquet: {exc}") from None
-        names = pf.schema_arrow.names
-        miss = [c for c in need if c not in names]
-        if miss:
-            raise InputError(path, f"not a truth table: missing column(s) {', '.join(miss)}")
-        has_vel = set(col.VEL) <= set(names)
-        tbl = pf.read(columns=need + (list(col.VEL) if has_vel else []))
-        md = pf.schema_arrow.metadata or {}
-        meta = {}
-        if col.METADATA_KEY in md:
-            try:
-                meta = json.loads(md[col.METADATA_KEY])
-            except ValueError:
-                meta = {}
-
-        def arr(names_):
-            return np.column_stack([tbl.column(c).to_numpy() for c in names_])
-
+        """Read a truth file; the provenance kept names it by file name and checksum only."""
+        has_vel = set(VEL) <= set(ttruth.column_names(path))
+        cols = [TIME, *GYRO, *ACCEL, *DTHETA, *DV, *(VEL if has_vel else ())]
+        tr = ttruth.read(path, columns=cols, need_meta=False)
         keep = {
-            k: meta[k] for k in ("origin", "earth", "rate_hz", "vehicle", "source") if k in meta
+            k: tr.meta[k]
+            for k in ("origin", "earth", "rate_hz", "vehicle", "route")
+            if k in tr.meta
         }
-        keep["path"] = str(path)
-        out = cls(
-            tbl.column(col.TIME).to_numpy(),
-            arr(col.GYRO),
-            arr(col.ACCEL),
-            arr(col.DTHETA),
-            arr(col.DV),
-            keep,
-            str(path),
-        )
+        # no path strings (the truth's own ``source`` is one): a shard's bytes must not depend
+        # on how paths were spelled; the checksum names the truth and its provenance
+        keep["file"] = Path(path).name
+        keep["sha256"] = ttruth.checksum(path)
+        out = cls(tr.time_s, tr.omega_ib_b, tr.f_b, tr.dtheta, tr.dv, keep, str(path))
         if has_vel:
-            out.speed_mps = np.linalg.norm(arr(col.VEL), axis=1)
+            out.speed_mps = np.linalg.norm(tr.v_n, axis=1)
         return out
 
 
@@ -295,6 +280,15 @@ class StaticTruth(Truth):
         t = np.arange(k0, k0 + L, dtype=np.float64) * self.dt
         return t, w, f, dth, dv
 
+    def raw_chunk(self, k0, L):
+        """Constant rates: the plain integrals are exactly ``omega dt`` and ``f_b dt``."""
+        a = np.tile(self.omega * self.dt, (L, 1))
+        b = np.tile(self.f_b * self.dt, (L, 1))
+        if k0 == 0:
+            a[0] = 0.0
+            b[0] = 0.0
+        return a, b
+
 
 # --- temperature profiles ---------------------------------------------------------------------------
 def temperature_profile(spec):
@@ -382,44 +376,15 @@ class _MemorySink:
             self.data[n][j, k0 : k0 + L] = a
 
 
-class _ParquetSink:
-    """Fills fixed-size column buffers and writes a row group whenever they are full."""
+class _WriterSink:
+    """Hands each chunk to a :class:`imugen.tables.shard.Writer` under its global id."""
 
-    def __init__(self, writer, schema, col_groups, dtype, seq_offset):
+    def __init__(self, writer, ids):
         self.w = writer
-        self.schema = schema
-        self.groups = col_groups  # name -> tuple of 3 column names
-        self.n = 0
-        self.seq_offset = seq_offset
-        self.buf = {SEQUENCE: np.empty(ROW_GROUP, np.int32), col.TIME: np.empty(ROW_GROUP)}
-        for names in col_groups.values():
-            for c in names:
-                self.buf[c] = np.empty(ROW_GROUP, dtype)
+        self.ids = ids
 
     def put(self, j, k0, L, t, outs):
-        done = 0
-        while done < L:
-            m = min(L - done, ROW_GROUP - self.n)
-            a, b = self.n, self.n + m
-            self.buf[SEQUENCE][a:b] = self.seq_offset + j
-            self.buf[col.TIME][a:b] = t[done : done + m]
-            for g, names in self.groups.items():
-                src = outs[g]
-                for i, c in enumerate(names):
-                    self.buf[c][a:b] = src[done : done + m, i]
-            self.n = b
-            done += m
-            if self.n == ROW_GROUP:
-                self.flush()
-
-    def flush(self):
-        if self.n == 0:
-            return
-        arrays = [pa.array(self.buf[f.name][: self.n]) for f in self.schema]
-        self.w.write_table(
-            pa.Table.from_arrays(arrays, schema=self.schema), row_group_size=ROW_GROUP
-        )
-        self.n = 0
+        self.w.put(int(self.ids[j]), t, outs)
 
 
 # --- the generator ---------------------------------------------------------------------------------------
@@ -448,12 +413,29 @@ class Shard:
     meta: dict
 
 
-def _seed_seq(seed, gid, shard, j, stream):
-    return np.random.SeedSequence(seed, spawn_key=(gid, shard, j, STREAMS[stream]))
+def _seed_seq(seed, rid, gid, shard, j, stream):
+    return np.random.SeedSequence(seed, spawn_key=(rid, gid, shard, j, STREAMS[stream]))
 
 
-def _rng(seed, gid, shard, j, stream):
-    return np.random.Generator(np.random.PCG64(_seed_seq(seed, gid, shard, j, stream)))
+def _rng(seed, rid, gid, shard, j, stream):
+    return np.random.Generator(np.random.PCG64(_seed_seq(seed, rid, gid, shard, j, stream)))
+
+
+def route_name(truth, tr: Truth, route=None) -> str:
+    """The route a shard belongs to: ``route``; else the truth metadata's ``route``; else the
+    truth file's folder name (``results/<route>/truth.parquet``); else ``"static"`` for a
+    still IMU and ``""`` for in-memory arrays."""
+    if route is not None:
+        if not isinstance(route, str):
+            raise InputError("--route", f"must be a string, got {route!r}")
+        return route
+    if tr.meta.get("route"):
+        return str(tr.meta["route"])
+    if isinstance(tr, StaticTruth):
+        return "static"
+    if isinstance(truth, str | Path):
+        return Path(truth).resolve().parent.name
+    return ""
 
 
 def _check_int(name, v, lo=0):
@@ -475,7 +457,7 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
         return ArrayTruth.from_frame(truth)
     if isinstance(truth, dict):
         return ArrayTruth(
-            truth[col.TIME],
+            truth[TIME],
             truth["omega_ib_b"],
             truth["f_b"],
             truth["dtheta"],
@@ -485,18 +467,8 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
     return ArrayTruth.read(truth)
 
 
-def _vibrations(truth, option, seed, grade, shard, M):
-    """Per-sequence vibrations (stream ``vibration``) and their metadata, or (None, meta)."""
-    v = setup_vibration(truth, option)
-    meta = None if option in (None, "off") else {"option": option, "profile": None}
-    if v is None:
-        return None, meta
-    meta["profile"] = v.profile.as_dict()
-    return [v.draw(_rng(seed, grade.id, shard, j, "vibration")) for j in range(M)], meta
-
-
 def _first_id(shard: int, M: int, shard_size) -> int:
-    """Global id of the shard's first sequence: ``shard * shard_size`` (default ``M``).
+    """Index of the shard's first sequence: ``shard * shard_size`` (default ``M``).
 
     A shard holds at most ``shard_size`` sequences; only the last shard of an experiment whose
     N is not a multiple of the shard size is shorter, and it must be given the experiment's
@@ -505,70 +477,62 @@ def _first_id(shard: int, M: int, shard_size) -> int:
     size = M if shard_size is None else _check_int("--shard-size", shard_size, 1)
     if M > size:
         raise InputError("--shard-size", f"is {size}, fewer than the {M} sequences of this shard")
-    if shard * size + M - 1 >= 2**31:
-        raise InputError("--shard", "sequence ids (shard * shard_size + j) overflow int32")
+    if shard * size + M - 1 >= 2**tshard.ROUTE_SHIFT:
+        raise InputError("--shard", "sequence index shard * shard_size + j must be < 2^31")
     return shard * size
 
 
-def _prepare(
-    truth,
-    grade,
-    sequences,
-    seed,
-    shard,
-    outputs,
-    draw,
-    terms,
-    temperature,
-    grades_file,
-    shard_size=None,
-):
-    grade = get_grade(grade, grades_file)
-    M = _check_int("--sequences", sequences, 1)
-    seed = _check_int("--seed", seed, 0)
-    shard = _check_int("--shard", shard, 0)
-    if outputs not in OUTPUTS:
-        raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
-    if draw not in DRAWS:
-        raise InputError("--draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
-    _first_id(shard, M, shard_size)
-    enabled = enabled_terms(grade, terms)
-    temp = temperature_profile(temperature)
-    nominal = draw == "nominal"
-    gp, ap = [], []
-    for j in range(M):
-        rng = _rng(seed, grade.id, shard, j, "params")
-        gp.append(draw_sensor(grade.gyro, rng, enabled["gyro"], nominal))
-        ap.append(draw_sensor(grade.accel, rng, enabled["accel"], nominal))
-    return grade, M, seed, shard, enabled, temp, gp, ap
+@dataclass
+class _Plan:
+    """Everything one shard's generation needs, validated once (shared by simulate and run)."""
+
+    truth: Truth
+    grade: Grade
+    M: int
+    seed: int
+    shard: int
+    rid: int
+    ids: np.ndarray
+    enabled: dict
+    temp: object
+    gp: list
+    ap: list
+    outputs: str
+    series: bool
+    raw: bool
+    names: list
+    meta: dict
+    vib: list | None = None  # one imugen.vibration.SequenceVibration per sequence
+
+    def labels(self) -> pd.DataFrame:
+        """One row per sequence: ids, provenance and every drawn parameter."""
+        M = self.M
+        d = {
+            SEQUENCE: self.ids,
+            "route_id": np.full(M, self.rid, np.int64),
+            "shard": np.full(M, self.shard, np.int32),
+            "index": np.arange(M, dtype=np.int32),
+            "seed": np.full(M, self.seed, np.int64),
+            "grade_id": np.full(M, self.grade.id, np.int32),
+        }
+        d.update(SensorParams.stack(self.gp).labels("gyro", "radps"))
+        d.update(SensorParams.stack(self.ap).labels("accel", "mps2"))
+        if self.vib is not None:
+            for name in self.vib[0].labels():
+                d[name] = np.array([v.labels()[name] for v in self.vib])
+        return pd.DataFrame(d)
 
 
-def _labels(
-    grade, M, seed, shard, gpar: SensorParams, apar: SensorParams, first=None, vib=None
-) -> pd.DataFrame:
-    first = shard * M if first is None else first
-    d = {
-        SEQUENCE: (first + np.arange(M)).astype(np.int32),
-        "shard": np.full(M, shard, np.int32),
-        "index": np.arange(M, dtype=np.int32),
-        "seed": np.full(M, seed, np.int64),
-        "grade_id": np.full(M, grade.id, np.int32),
-    }
-    d.update(gpar.labels("gyro", "radps"))
-    d.update(apar.labels("accel", "mps2"))
-    if vib is not None:
-        for name in vib[0].labels():
-            d[name] = np.array([v.labels()[name] for v in vib])
-    return pd.DataFrame(d)
-
-
-def _loop(
-    truth: Truth, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, vib=None
-):
+def _loop(plan: _Plan, sink, progress=None):
     """Generate every sequence in time chunks and hand each chunk to ``sink.put``.
 
-    ``vib``: one :class:`imugen.vibration.SequenceVibration` per sequence, or None.
-    """
+    With ``plan.raw`` the sensor integrates the plain integrals of rate and specific force
+    (raw increments) instead of the truth's compensated increments."""
+    truth, M, seed, shard, rid = plan.truth, plan.M, plan.seed, plan.shard, plan.rid
+    grade, temp, gp, ap, outputs, series = (
+        plan.grade, plan.temp, plan.gp, plan.ap, plan.outputs, plan.series,
+    )  # fmt: skip
+    raw = plan.raw
     K, dt = truth.K, truth.dt
     want_inc = outputs in ("increments", "both")
     want_rate = outputs in ("rates", "both")
@@ -582,6 +546,10 @@ def _loop(
         "gyro_sf",
         "accel_bias",
         "accel_sf",
+        "gyro_err_rate",
+        "gyro_err_inc",
+        "accel_err_rate",
+        "accel_err_inc",
     ):
         bufs[name] = np.empty((1, CHUNK, 3))
     nz = {}
@@ -592,19 +560,24 @@ def _loop(
         for s, m in models.items():
             normals += m.normals_per_sample
             if m.use_w:
-                rngs[f"{s}_white"] = (_rng(seed, grade.id, shard, j, f"{s}_white"), 3)
+                rngs[f"{s}_white"] = (_rng(seed, rid, grade.id, shard, j, f"{s}_white"), 3)
             if m.use_r:
-                rngs[f"{s}_rrw"] = (_rng(seed, grade.id, shard, j, f"{s}_rrw"), 3)
+                rngs[f"{s}_rrw"] = (_rng(seed, rid, grade.id, shard, j, f"{s}_rrw"), 3)
             if m.use_b:
-                rngs[f"{s}_bi"] = (_rng(seed, grade.id, shard, j, f"{s}_bi"), 3 * m.p.components)
+                rngs[f"{s}_bi"] = (
+                    _rng(seed, rid, grade.id, shard, j, f"{s}_bi"),
+                    3 * m.p.components,
+                )
         for key, (_, w) in rngs.items():
             if key not in nz or nz[key].shape[1] != w:
                 nz[key] = np.empty((CHUNK, w))
         for k0 in range(0, K, CHUNK):
             L = min(CHUNK, K - k0)
             t, w_b, f_b, dth, dv = truth.chunk(k0, L)
-            if vib is not None:
-                w_b, f_b, dth, dv = vib[j].apply(k0, w_b, f_b, dth, dv)
+            if raw:
+                dth, dv = truth.raw_chunk(k0, L)
+            if plan.vib is not None:
+                w_b, f_b, dth, dv = plan.vib[j].apply(k0, w_b, f_b, dth, dv)
             dT = None
             if temp is not None:
                 # time since turn-on of the sample before the chunk and of each sample
@@ -621,6 +594,8 @@ def _loop(
                 o_inc = bufs[f"{s}_inc"][:, :L] if want_inc else None
                 o_bias = bufs[f"{s}_bias"][:, :L] if series else None
                 o_sf = bufs[f"{s}_sf"][:, :L] if series else None
+                o_er = bufs[f"{s}_err_rate"][:, :L] if series and want_rate else None
+                o_ei = bufs[f"{s}_err_inc"][:, :L] if series and want_inc else None
                 if s == "gyro":
                     m.step(
                         k0,
@@ -636,6 +611,8 @@ def _loop(
                         o_inc,
                         o_bias,
                         o_sf,
+                        o_er,
+                        o_ei,
                     )
                 else:
                     m.step(
@@ -652,6 +629,8 @@ def _loop(
                         o_inc,
                         o_bias,
                         o_sf,
+                        o_er,
+                        o_ei,
                     )
                 if want_inc:
                     outs["dtheta" if s == "gyro" else "dv"] = o_inc[0]
@@ -660,67 +639,66 @@ def _loop(
                 if series:
                     outs[f"{s}_bias"] = o_bias[0]
                     outs[f"{s}_sf"] = o_sf[0]
+                    if want_inc:
+                        outs["err_dtheta" if s == "gyro" else "err_dv"] = o_ei[0]
+                    if want_rate:
+                        outs[f"err_{s}"] = o_er[0]
             sink.put(j, k0, L, t, outs)
+        if progress is not None:
+            progress.update(j + 1)
     return normals / M if M else 0
 
 
-def _names(outputs, series):
-    names = []
-    if outputs in ("increments", "both"):
-        names += ["dtheta", "dv"]
-    if outputs in ("rates", "both"):
-        names += ["gyro", "accel"]
-    if series:
-        names += ["gyro_bias", "gyro_sf", "accel_bias", "accel_sf"]
-    return names
-
-
-_COLS = {
-    "dtheta": col.DTHETA,
-    "dv": col.DV,
-    "gyro": col.GYRO,
-    "accel": col.ACCEL,
-    "gyro_bias": BIAS_SERIES["gyro"],
-    "gyro_sf": SF_SERIES["gyro"],
-    "accel_bias": BIAS_SERIES["accel"],
-    "accel_sf": SF_SERIES["accel"],
-}
-_UNITS = {
-    "dtheta": "rad",
-    "dv": "m/s",
-    "gyro": "rad/s",
-    "accel": "m/s^2",
-    "gyro_bias": "rad/s",
-    "gyro_sf": "1",
-    "accel_bias": "m/s^2",
-    "accel_sf": "1",
-}
-
-
-def _meta(
-    grade,
+def _plan(
     truth,
-    M,
+    grade,
+    sequences,
     seed,
     shard,
-    enabled,
-    outputs,
-    draw,
-    temperature,
-    series,
-    dtype,
-    names,
-    labels_name=None,
-    first=None,
+    *,
+    outputs="increments",
+    draw="ranges",
+    terms=None,
+    temperature=None,
+    series=False,
+    static_s=None,
+    rate_hz=100.0,
+    static_earth="flat",
+    static_origin=DEFAULT_STATIC_ORIGIN,
+    grades_file=None,
+    shard_size=None,
+    route=None,
+    increments="compensated",
+    dtype="float32",
     vibration=None,
-):
-    first = shard * M if first is None else first
-    units = {SEQUENCE: "1", col.TIME: "s"}
-    for n in names:
-        units.update(dict.fromkeys(_COLS[n], _UNITS[n]))
-    return {
-        "format": "imugen-shard",
-        "format_version": 1,
+) -> _Plan:
+    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
+    route = route_name(truth, tr, route)
+    rid = tshard.route_id(route)
+    grade = get_grade(grade, grades_file)
+    M = _check_int("--sequences", sequences, 1)
+    seed = _check_int("--seed", seed, 0)
+    shard = _check_int("--shard", shard, 0)
+    if outputs not in OUTPUTS:
+        raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
+    if draw not in DRAWS:
+        raise InputError("--draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
+    if increments not in tshard.INCREMENT_KINDS:
+        kinds = ", ".join(tshard.INCREMENT_KINDS)
+        raise InputError("--increments", f"must be one of {kinds}, got {increments!r}")
+    first = _first_id(shard, M, shard_size)
+    enabled = enabled_terms(grade, terms)
+    temp = temperature_profile(temperature)
+    nominal = draw == "nominal"
+    gp, ap = [], []
+    for j in range(M):
+        rng = _rng(seed, rid, grade.id, shard, j, "params")
+        gp.append(draw_sensor(grade.gyro, rng, enabled["gyro"], nominal))
+        ap.append(draw_sensor(grade.accel, rng, enabled["accel"], nominal))
+    ids = tshard.sequence_ids(rid, first + np.arange(M))
+    meta = {
+        "format": tshard.FORMAT,
+        "format_version": tshard.FORMAT_VERSION,
         "code_version": __version__,
         "numpy_version": np.__version__,
         "grade": {
@@ -737,30 +715,51 @@ def _meta(
         "preset_sha": hashlib.sha256(preset_text().encode()).hexdigest()
         if grade.origin.startswith("imugen/data/")
         else None,
+        "route": route,
+        "route_id": rid,
         "seed": seed,
         "shard": shard,
         "sequences": M,
-        "sequence_ids": [first, first + M - 1],
-        "spawn_key": [grade.id, shard],
-        "sequence_spawn_key": "(grade_id, shard, index, stream)",
+        "first_index": first,
+        "sequence_ids": [int(ids[0]), int(ids[-1])],
+        "sequence_id": "route_id << 31 | index, index = shard * shard_size + j",
+        "spawn_key": [rid, grade.id, shard],
+        "sequence_spawn_key": "(route_id, grade_id, shard, index_in_shard, stream)",
         "streams": STREAMS,
         "bit_generator": "PCG64",
         "draw": draw,
         "terms": {k: sorted(v) for k, v in enabled.items()},
         "outputs": outputs,
+        "increments": increments,
         "series": bool(series),
         "dtype": np.dtype(dtype).name,
         "chunk": CHUNK,
-        "rate_hz": 1.0 / truth.dt,
-        "dt_s": truth.dt,
-        "samples_per_sequence": truth.K,
-        "truth": truth.meta,
+        "rate_hz": 1.0 / tr.dt,
+        "dt_s": tr.dt,
+        "samples_per_sequence": tr.K,
+        "truth": tr.meta,
         "temperature": temperature,
-        "vibration": vibration,
-        "rows": "sorted by sequence then time; increments on row k are the interval ending at t_k; row 0 of each sequence is zero",
-        "units": units,
-        "labels_file": labels_name,
+        "vibration": None,
+        "rows": "sorted by sequence then time; increments on row k are the interval ending at "
+        "t_k; row 0 of each sequence is zero",
+        "derived": None,
     }
+    names = tshard.groups(outputs, series)
+    vib, meta["vibration"] = _vibrations(tr, vibration, seed, rid, grade, shard, M)
+    return _Plan(
+        tr, grade, M, seed, shard, rid, ids, enabled, temp, gp, ap, outputs, bool(series),
+        increments == "raw", names, meta, vib,
+    )  # fmt: skip
+
+
+def _vibrations(truth, option, seed, rid, grade, shard, M):
+    """Per-sequence vibrations (stream ``vibration``) and their metadata, or (None, meta)."""
+    v = setup_vibration(truth, option)
+    meta = None if option in (None, "off") else {"option": option, "profile": None}
+    if v is None:
+        return None, meta
+    meta["profile"] = v.profile.as_dict()
+    return [v.draw(_rng(seed, rid, grade.id, shard, j, "vibration")) for j in range(M)], meta
 
 
 def simulate(
@@ -781,6 +780,8 @@ def simulate(
     static_origin=DEFAULT_STATIC_ORIGIN,
     grades_file=None,
     shard_size=None,
+    route=None,
+    increments="compensated",
     vibration=None,
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
@@ -788,9 +789,9 @@ def simulate(
     Parameters
     ----------
     truth : path, DataFrame, dict, Truth or None
-        Truth table (Parquet path or DataFrame with the columns of :mod:`imugen.columns`), a
-        dict with ``time_s``, ``omega_ib_b``, ``f_b``, ``dtheta``, ``dv`` arrays, or None with
-        ``static_s``.
+        Truth table (Parquet path or DataFrame with the columns of :mod:`imugen.tables.truth`),
+        a dict with ``time_s``, ``omega_ib_b``, ``f_b``, ``dtheta``, ``dv`` arrays, or None
+        with ``static_s``.
     grade : str or Grade
         Preset name, ``file.yaml:name``, or a :class:`~imugen.grades.Grade`.
     sequences, seed, shard : int
@@ -803,54 +804,35 @@ def simulate(
     temperature : dict or str, optional
         Temperature profile (:func:`temperature_profile`).
     series : bool
-        Also return the true slow-bias and scale-factor series.
+        Also return the true slow-bias, scale-factor and effective-error series.
     static_s, rate_hz, static_earth, static_origin
         Still IMU instead of a truth table.
     shard_size : int, optional
-        Sequences per shard of the experiment (``>= sequences``): global ids are
+        Sequences per shard of the experiment (``>= sequences``): indices are
         ``shard * shard_size + j``. Default ``sequences``; give it for a short last shard.
+    route : str, optional
+        Route name; its :func:`~imugen.tables.shard.route_id` enters every spawn key and the
+        sequence ids. Default :func:`route_name`.
+    increments : {"compensated", "raw"}
+        Increment semantics (:mod:`imugen.tables.shard`): the truth's compensated increments,
+        or plain integrals of rate and specific force (``Truth.raw_chunk``).
     vibration : {"off", "car", "aircraft", "vehicle"}, optional
         Vibration of the IMU case (:mod:`imugen.vibration`; ``vehicle``: the truth's class).
     """
-    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
-    grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
-        tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
-    )
-    first = _first_id(shard, M, shard_size)
-    names = _names(outputs, series)
-    sink = _MemorySink(M, tr.K, names)
-    vib, vmeta = _vibrations(tr, vibration, seed, grade, shard, M)
-    _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, vib)
-    gpar, apar = SensorParams.stack(gp), SensorParams.stack(ap)
+    plan = _plan(
+        truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
+        temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
+        static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
+        shard_size=shard_size, route=route, increments=increments, dtype=np.float64,
+        vibration=vibration,
+    )  # fmt: skip
+    tr = plan.truth
+    sink = _MemorySink(plan.M, tr.K, plan.names)
+    _loop(plan, sink)
     time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
-    meta = _meta(
-        grade,
-        tr,
-        M,
-        seed,
-        shard,
-        enabled,
-        outputs,
-        draw,
-        temperature,
-        series,
-        np.float64,
-        names,
-        first=first,
-        vibration=vmeta,
-    )
-    labels = _labels(grade, M, seed, shard, gpar, apar, first, vib)
-    return Shard(time_s, sink.data, labels, gpar, apar, meta)
-
-
-def labels_path(out_path) -> Path:
-    """Sidecar path of a shard: ``dir/stem.labels.parquet``."""
-    p = Path(out_path)
-    return p.with_name(
-        p.name[: -len(".parquet")] + ".labels.parquet"
-        if p.name.endswith(".parquet")
-        else p.name + ".labels.parquet"
-    )
+    meta = {**plan.meta, "units": tshard.units(plan.names)}
+    gpar, apar = SensorParams.stack(plan.gp), SensorParams.stack(plan.ap)
+    return Shard(time_s, sink.data, plan.labels(), gpar, apar, meta)
 
 
 def run(
@@ -874,16 +856,17 @@ def run(
     static_earth="flat",
     static_origin=DEFAULT_STATIC_ORIGIN,
     shard_size=None,
+    route=None,
+    increments="compensated",
     vibration=None,
 ) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically.
 
     Parameters are those of :func:`simulate`, plus ``out`` (the shard path; the sidecar is
-    :func:`labels_path`), ``dtype`` of the measurement columns (``"float32"`` or
-    ``"float64"``) and the Parquet ``compression`` (``"none"`` default: noise-like floats do
-    not compress, see benchmarks/README.md). Dictionary encoding is used only for ``sequence``
-    (constant runs); float columns are written PLAIN. ``rate_hz`` and ``static_*`` only apply
-    to ``static_s`` (a truth table has its own rate).
+    :func:`~imugen.tables.shard.labels_path`), ``dtype`` of the measurement columns
+    (``"float32"`` or ``"float64"``) and the Parquet ``compression`` (``"none"`` default:
+    noise-like floats do not compress, see benchmarks/README.md). ``rate_hz`` and ``static_*``
+    only apply to ``static_s`` (a truth table has its own rate).
 
     Returns
     -------
@@ -892,60 +875,19 @@ def run(
     """
     if out is None:
         raise InputError("-o", "an output path is required")
-    out = Path(out)
     if dtype not in ("float32", "float64"):
         raise InputError("--dtype", f"must be float32 or float64, got {dtype!r}")
-    tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
-    grade, M, seed, shard, enabled, temp, gp, ap = _prepare(
-        tr, grade, sequences, seed, shard, outputs, draw, terms, temperature, grades_file
-    )
-    first = _first_id(shard, M, shard_size)
-    names = _names(outputs, series)
-    lab_path = labels_path(out)
-    vib, vmeta = _vibrations(tr, vibration, seed, grade, shard, M)
-    meta = _meta(
-        grade,
-        tr,
-        M,
-        seed,
-        shard,
-        enabled,
-        outputs,
-        draw,
-        temperature,
-        series,
-        dtype,
-        names,
-        lab_path.name,
-        first,
-        vmeta,
-    )
-    fields = [pa.field(SEQUENCE, pa.int32()), pa.field(col.TIME, pa.float64())]
-    ftype = pa.float32() if dtype == "float32" else pa.float64()
-    for n in names:
-        fields += [pa.field(c, ftype) for c in _COLS[n]]
-    schema = pa.schema(fields, metadata={col.METADATA_KEY: json.dumps(meta).encode()})
-    # shard and labels each go to a temporary name; both are renamed only once both are
-    # complete, the shard last: a shard at its path always has its labels beside it
-    with atomic_output(out) as tmp:
-        with pq.ParquetWriter(
-            tmp,
-            schema,
-            compression=compression,
-            use_dictionary=[SEQUENCE],
-            write_statistics=[SEQUENCE, col.TIME],
-        ) as w:
-            sink = _ParquetSink(w, schema, {n: _COLS[n] for n in names}, np.dtype(dtype), first)
-            _loop(tr, grade, M, seed, shard, enabled, temp, gp, ap, outputs, series, sink, vib)
-            sink.flush()
-        lab = _labels(
-            grade, M, seed, shard, SensorParams.stack(gp), SensorParams.stack(ap), first, vib
-        )
-        lmeta = dict(meta)
-        lmeta["format"] = "imugen-shard-labels"
-        lmeta["shard_file"] = out.name
-        with atomic_output(lab_path) as tmp_lab:
-            pq.write_table(
-                with_meta(pa.Table.from_pandas(lab, preserve_index=False), lmeta), tmp_lab
-            )
-    return meta
+    plan = _plan(
+        truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
+        temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
+        static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
+        shard_size=shard_size, route=route, increments=increments, dtype=dtype,
+        vibration=vibration,
+    )  # fmt: skip
+    from imugen.progress import Progress
+
+    progress = Progress(f"simulate {Path(out).parent.name}/{Path(out).name}", plan.M)
+    with tshard.writer(out, plan.meta, plan.names, dtype, compression=compression) as w:
+        _loop(plan, _WriterSink(w, plan.ids), progress)
+        w.labels = plan.labels()
+    return tshard.read_meta(out)

@@ -65,7 +65,8 @@ from imugen import columns as col
 from imugen import earth as ea
 from imugen import rotations as rot
 from imugen.errors import InputError
-from imugen.io import read_meta, write_parquet
+from imugen.tables import enu as tenu
+from imugen.tables import truth as ttable
 
 K_SPLINE = 5  # quintic
 N_GAUSS = 4  # Gauss-Legendre nodes of the gravitation integral
@@ -1073,8 +1074,7 @@ def _expm1_rot(phi):
 # ------------------------------------------------------------------------------------------
 def read_enu(path) -> tuple[pd.DataFrame, dict]:
     """Read an ENU Parquet written by ``imugen ingest`` (table and metadata)."""
-    meta = read_meta(path)
-    return pd.read_parquet(path), meta
+    return tenu.read(path)
 
 
 def run(
@@ -1090,5 +1090,5 @@ def run(
         raise
     tmeta["source"] = str(enu_path)
     tmeta["route_source"] = meta.get("source")
-    write_parquet(df, tmeta, out_path)
+    ttable.write(df, tmeta, out_path)
     return tmeta

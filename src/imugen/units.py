@@ -122,6 +122,7 @@ _UNITS = [
     _u("m_per_s2", "acceleration", 1.0, "m/s^2"),
     _u("g", "acceleration", G0, "g"),
     _u("mg", "acceleration", 1e-3 * G0, "mg"),
+    _u("mgal", "acceleration", 1e-5, "mGal"),
     _u("ug", "acceleration", 1e-6 * G0, "ug"),
     # acceleration density / velocity random walk
     _u("m_per_s_per_sqrt_s", "acceleration_density", 1.0, "m/s/sqrt(s)"),

@@ -101,3 +101,25 @@ def grade_pairs(kind):
         )
 
     return opts
+
+
+def run_summary():
+    """Where the results are and, per route, the Earth model the truth used and why."""
+    from imugen.io import read_meta
+
+    print("imugen: results in " + str(Path("results").resolve()))
+    for r in ROUTES:
+        truth = Path("results") / r / "truth.parquet"
+        if not truth.exists():
+            continue
+        m = read_meta(truth)
+        b = m.get("earth_budget") or {}
+        why = "as configured"
+        if b.get("terms_m") and b.get("grade_effect_m"):
+            name, val = max(b["terms_m"].items(), key=lambda kv: kv[1])
+            why = (
+                f"earth: auto; largest term flat drops: {name}, "
+                f"{val / b['grade_effect_m']:.1%} of the {b.get('grade')} grade's error effect "
+                f"(limit {b.get('fraction', 0.1):.0%})"
+            )
+        print(f"  {r}: results/{r}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")

@@ -1,18 +1,26 @@
-# Evaluation: per-grade per-sequence RMSE, then the RMSE table of each route.
+# Evaluation: per-grade per-sequence RMSE and relative drift, then the RMSE table of each route.
+
+
+SEGMENTS = config["evaluate"]["segments_s"]
 
 
 rule evaluate:
     input:
         truth="results/{route}/truth.parquet",
         nav=shard_paths("nav"),
-        code=stage_code("evaluate"),
+        imu=shard_paths("imu") if SEGMENTS else [],
+        code=stage_code("evaluate", "navigate", "mechanize", "earth", "rotations"),
     output:
         "results/{route}/metrics/{grade}.parquet",
+    params:
+        segments=(
+            "--segments " + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
+        ),
     log:
         "logs/{route}/evaluate/{grade}.log",
     shell:
         "imugen evaluate {input.truth:q} {input.nav:q} -o {output:q} --grade {wildcards.grade} "
-        "> {log:q} 2>&1"
+        "{params.segments} {input.imu:q} > {log:q} 2>&1"
 
 
 rule tables:

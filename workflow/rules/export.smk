@@ -14,3 +14,24 @@ rule export_mat:
     shell:
         "imugen export-mat --truth {input.truth:q} --shards {input.shards:q} --nav {input.nav:q} "
         "--grade {wildcards.grade} --route {wildcards.route} -o {output:q} > {log:q} 2>&1"
+
+
+rule export_formats:
+    input:
+        truth="results/{route}/truth.parquet",
+        shards=shard_paths("imu"),
+        code=stage_code(
+            "formats/__init__", "formats/source", "formats/common", "formats/convert",
+            *(f"formats/{f}" for f in config["exports"]["formats"]),
+        ),
+    output:
+        directory("results/{route}/datasets/{grade}"),
+    params:
+        formats=",".join(config["exports"]["formats"]),
+        nav_rate_hz=config["exports"]["nav_rate_hz"],
+    log:
+        "logs/{route}/export_formats/{grade}.log",
+    shell:
+        "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
+        "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
+        "--overwrite > {log:q} 2>&1"

@@ -13,5 +13,5 @@ rule navigate:
     log:
         "logs/{route}/navigate/{grade}/shard-{shard}.log",
     shell:
-        "imugen navigate {input.truth:q} {input.shard:q} -o {output:q} "
-        "--eval-rate-hz {params.eval_rate_hz} > {log:q} 2>&1"
+        "IMUGEN_CONSOLE_FD=3 imugen navigate {input.truth:q} {input.shard:q} -o {output:q} "
+        "--eval-rate-hz {params.eval_rate_hz} 3>&2 > {log:q} 2>&1"

@@ -31,16 +31,17 @@ rule simulate:
         dtype=SIM["dtype"],
         outputs=SIM["outputs"],
         series="--series" if SIM["series"] else "",
+        increments=SIM["increments"],
         vibration=SIM["vibration"] or "off",
         shard=lambda wc: int(wc.shard),
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
-        "imugen simulate {input.truth:q} -o {output.shard:q} --grade {params.grade:q} "
+        "IMUGEN_CONSOLE_FD=3 imugen simulate {input.truth:q} -o {output.shard:q} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
-        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} {params.series} "
+        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
         "--vibration {params.vibration} "
-        "> {log:q} 2>&1"
+        "3>&2 > {log:q} 2>&1"
 
 
 rule allan_static:

@@ -2,50 +2,80 @@
 
 Every reader returns *all* candidate paths of a file as :class:`imugen.route.RoutePath`
 objects; choosing one and validating its numbers is :mod:`imugen.ingest`'s job.
+
+A file is read once, by :func:`imugen.limits.read_input` (regular files only, bounded size),
+and its bytes are handed to the reader; the bounds on points (all candidates together) and
+on name length are checked here for every reader.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from imugen import limits
 from imugen.errors import InputError
 from imugen.route import RoutePath
 
 _SNIFF_BYTES = 4096
+_WIDE_BOMS = (
+    (b"\xff\xfe\x00\x00", "utf-32"),
+    (b"\x00\x00\xfe\xff", "utf-32"),
+    (b"\xff\xfe", "utf-16"),
+    (b"\xfe\xff", "utf-16"),
+)
 
 
-def read_route_file(path: str | Path) -> list[RoutePath]:
+def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
     """Read every candidate path of a route file, choosing the reader by content.
 
-    KMZ is recognised by its zip signature, KML and GPX by their XML root element, and
-    anything else is read as delimited text (CSV with a header, or E N U rows).
+    KMZ is recognised by its zip signature, KML and GPX by their XML root element, NMEA by
+    ``$GP``/``$GN``/... sentences, IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
+    suffixes of :data:`imugen.readers.babel.FORMATS` go through GPSBabel; NUL bytes, ROS
+    NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.readers.gnsscsv`; anything else is
+    read as delimited text (CSV with a header, or E N U rows). ``data`` is
+    the file's content when the caller has already read it with
+    :func:`imugen.limits.read_input`.
     """
-    from imugen.readers import gpx, kml, text
-
     path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            head = fh.read(_SNIFF_BYTES)
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except IsADirectoryError:
-        raise InputError(path, "is a directory, not a route file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot be read ({exc.strerror})") from None
+    if data is None:
+        data = limits.read_input(path)
+    paths = _dispatch(path, data)
+    limits.check(path, "points", sum(p.n_points for p in paths), "all paths together")
+    for p in paths:
+        limits.check(path, "name_chars", len(p.name), "a path name")
+    return paths
+
+
+def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
+    from imugen.readers import babel, geojson, gnsscsv, gpx, igc, kml, nmea, text
+
+    head = data[:_SNIFF_BYTES]
     if not head:
         raise InputError(path, "is empty")
     suffix = path.suffix.lower()
     if head.startswith(b"PK\x03\x04") or suffix == ".kmz":
-        return kml.read_kmz(path)
-    if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16 with a byte-order mark
-        head = head.decode("utf-16", errors="replace").encode("utf-8", errors="replace")
+        return kml.read_kmz(path, data)
+    if suffix in babel.FORMATS:
+        return babel.read_with_gpsbabel(path)
+    wide = next((enc for bom, enc in _WIDE_BOMS if head.startswith(bom)), None)
+    if wide:
+        head = head.decode(wide, errors="replace").encode("utf-8", errors="replace")
     elif b"\x00" in head:
-        raise InputError(path, "contains NUL bytes: not a text route file")
+        return gnsscsv.read_gnss_csv(path, data)  # NUL-padded fields, or a binary file (refused)
+    start = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    if suffix == ".nmea" or start.startswith((b"$GP", b"$GN", b"$GL", b"$GA", b"$BD")):
+        return nmea.read_nmea(path, data)
+    if suffix == ".igc" or (start.startswith(b"A") and b"\nHFDTE" in head):
+        return igc.read_igc(path, data)
+    if suffix in (".geojson", ".json") or start.startswith(b"{"):
+        return geojson.read_geojson(path, data)
+    if gnsscsv.claims(head):
+        return gnsscsv.read_gnss_csv(path, data)
     lowered = head.lower()
     if suffix == ".gpx" or b"<gpx" in lowered:
-        return gpx.read_gpx(path)
+        return gpx.read_gpx(path, data)
     if suffix == ".kml" or b"<kml" in lowered:
-        return kml.read_kml(path)
+        return kml.read_kml(path, data)
     if head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         raise InputError(path, "is XML but neither KML (<kml>) nor GPX (<gpx>)")
-    return text.read_text(path)
+    return text.read_text(path, data)

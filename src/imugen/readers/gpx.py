@@ -4,7 +4,8 @@ Each track segment and each route is one candidate path. A segment is named afte
 track (``"<trk name> / segment k"`` when the track has several segments); unnamed tracks
 and routes are called ``"track k"`` and ``"route k"``. ``<ele>`` gives the height (GPX
 defines it as metres above mean sea level, WGS-84 geoid: taken as trusted); a point without
-``<ele>`` gets 0 m and the path is flagged untrusted. ``<time>`` gives the clock; a path
+``<ele>`` is marked missing (ingestion interpolates it); a path without any ``<ele>`` gets
+0 m and is flagged untrusted. ``<time>`` gives the clock; a path
 where no point has a time is untimed, a path where only some points do keeps NaN for the
 others (ingestion then decides, see :mod:`imugen.ingest`).
 """
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imugen import limits
 from imugen.errors import InputError
 from imugen.route import RoutePath, parse_iso_time, parse_number
 from imugen.xmlsafe import local, parse_xml
@@ -43,37 +45,36 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
     alt = np.zeros(n)
     t = np.full(n, np.nan)
     have_ele = 0
+    missing = np.ones(n, dtype=bool)
     for i, p in enumerate(pts):
         try:
             lat[i] = parse_number(p.get("lat", ""))
             lon[i] = parse_number(p.get("lon", ""))
-        except ValueError:
+        except ValueError as exc:
             raise InputError(
                 source,
-                f"{where} point {i + 1}: lat/lon attributes are missing or not numbers "
-                f"(lat={p.get('lat')!r}, lon={p.get('lon')!r})",
+                f"{where} point {i + 1}: lat/lon attributes are missing or not numbers ({exc})",
             ) from None
         ele = _text(p, "ele")
         if ele:
             try:
                 alt[i] = parse_number(ele)
                 have_ele += 1
-            except ValueError:
-                raise InputError(
-                    source, f"{where} point {i + 1}: <ele> {ele!r} is not a number"
-                ) from None
+                missing[i] = False
+            except ValueError as exc:
+                raise InputError(source, f"{where} point {i + 1}: <ele>: {exc}") from None
         when = _text(p, "time")
         if when:
             try:
                 t[i] = parse_iso_time(when)
-            except ValueError:
-                raise InputError(
-                    source, f"{where} point {i + 1}: <time> {when!r} is not ISO-8601"
-                ) from None
+            except ValueError as exc:
+                raise InputError(source, f"{where} point {i + 1}: <time>: {exc}") from None
     notes = []
-    trusted = have_ele == n
-    if not trusted:
-        notes.append(f"{n - have_ele} of {n} points have no <ele>: their height is set to 0 m")
+    trusted = have_ele > 0
+    if have_ele == 0:
+        notes.append("no point has <ele>: heights set to 0 m")
+    elif have_ele < n:
+        notes.append(f"{n - have_ele} of {n} points have no <ele>: heights interpolated")
     timed = bool(np.isfinite(t).any())
     return RoutePath(
         name=name,
@@ -84,11 +85,12 @@ def _points(pts, where: str, source: Path, name: str, kind: str) -> RoutePath:
         time_unix_s=t if timed else None,
         altitude_trusted=trusted,
         notes=notes,
+        alt_missing=missing if 0 < have_ele < n else None,
     )
 
 
-def read_gpx(path: str | Path) -> list[RoutePath]:
-    """Read all track segments and routes of a GPX file.
+def read_gpx(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
+    """Read all track segments and routes of a GPX file (``data``: its bytes, if already read).
 
     Returns
     -------
@@ -96,13 +98,14 @@ def read_gpx(path: str | Path) -> list[RoutePath]:
         One per non-empty ``trkseg`` and per non-empty ``rte``, in document order.
     """
     path = Path(path)
-    root = parse_xml(path.read_bytes(), path)
+    root = parse_xml(limits.read_input(path) if data is None else data, path)
     if local(root.tag) != "gpx":
         raise InputError(path, f"is not GPX: the root element is <{local(root.tag)}>, not <gpx>")
     out: list[RoutePath] = []
     n_wpt = len(_children(root, "wpt"))
     for ti, trk in enumerate(_children(root, "trk"), start=1):
         tname = _text(trk, "name") or f"track {ti}"
+        limits.check(path, "name_chars", len(tname), f"track {ti} <name>")
         segs = [s for s in _children(trk, "trkseg") if _children(s, "trkpt")]
         for si, seg in enumerate(segs, start=1):
             name = tname if len(segs) == 1 else f"{tname} / segment {si}"
@@ -111,6 +114,7 @@ def read_gpx(path: str | Path) -> list[RoutePath]:
         pts = _children(rte, "rtept")
         if pts:
             name = _text(rte, "name") or f"route {ri}"
+            limits.check(path, "name_chars", len(name), f"route {ri} <name>")
             out.append(_points(pts, f"route {name!r}", path, name, "rte"))
     if not out:
         extra = f" (it holds {n_wpt} waypoints, which are not a path)" if n_wpt else ""

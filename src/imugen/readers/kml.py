@@ -30,8 +30,11 @@ as written in ``RoutePath.altitude_mode``)
     ``relativeToGround``, ``relativeToSeaFloor``
         Heights above a terrain we do not know: kept as written but
         ``altitude_trusted=False``, with a note.
-    ``clampToGround``, ``clampToSeaFloor``, no altitudeMode (KML default
-    ``clampToGround``), or an unknown value
+    no altitudeMode (KML default ``clampToGround``)
+        Google Earth would ignore the altitudes, but a track saved without a mode (an
+        airliner's climb) still carries real heights: kept as written,
+        ``altitude_trusted=False``, with a note (ingestion warns).
+    ``clampToGround``, ``clampToSeaFloor``, or an unknown value
         Google Earth ignores the altitudes, so do we: ``alt_m`` is set to 0,
         ``altitude_trusted=False``, with a note.
     2-D tuples (``lon,lat``) get altitude 0 and ``altitude_trusted=False`` whatever
@@ -48,15 +51,19 @@ KMZ
     A zip archive read in memory (nothing is extracted to disk). The main document is
     ``doc.kml`` at the archive root, else the first ``*.kml`` at the root in archive
     order. The chosen member is refused if its name is absolute or has ``..`` parts,
-    or if it decompresses to more than :data:`KMZ_MAX_MEMBER_BYTES` (checked on the
-    header and again while reading, so a lying header cannot bypass the bound).
+    or if it decompresses to more than the input bound of :mod:`imugen.limits` (at most
+    :data:`KMZ_MAX_MEMBER_BYTES`; checked on the header and again while reading, so a
+    lying header cannot bypass the bound).
 XML safety
     Parsing goes through :func:`imugen.xmlsafe.parse_xml`: DTDs, entities (XXE,
-    billion laughs) and NUL bytes are refused.
+    billion laughs) and NUL bytes are refused, element count and depth are bounded.
+    Coordinates are tokenized with string methods (no regular expression runs on them), so
+    reading is linear in the size of the file.
 """
 
 from __future__ import annotations
 
+import io
 import posixpath
 import re
 import zipfile
@@ -66,13 +73,15 @@ from xml.etree.ElementTree import Element
 
 import numpy as np
 
+from imugen import limits
 from imugen.errors import InputError
 from imugen.route import RoutePath, parse_iso_time, parse_number
 from imugen.xmlsafe import local, parse_xml
 
 __all__ = ["KMZ_MAX_MEMBER_BYTES", "read_kml", "read_kmz"]
 
-#: Largest decompressed size (bytes) of the KML document read from a KMZ archive.
+#: Hard ceiling (bytes) on the decompressed KML document of a KMZ archive; the input bound of
+#: :mod:`imugen.limits` applies below it.
 KMZ_MAX_MEMBER_BYTES = 256 * 1024 * 1024
 
 _CHUNK_BYTES = 1024 * 1024
@@ -89,9 +98,15 @@ _NOT_PATHS = {
 }
 _OVERLAYS = {"GroundOverlay", "ScreenOverlay", "PhotoOverlay"}
 
-# Whitespace around the commas of a tuple ("lon, lat, alt") is removed before tuples
-# are split on whitespace.
-_COMMA_SPACES = re.compile(r"\s*,\s*")
+
+def _tuples(text: str, sep: str) -> list[str]:
+    """Split coordinate text into tuples, components joined by ``sep``.
+
+    Whitespace runs separate tuples; whitespace around a comma ("lon, lat, alt") belongs to
+    the tuple. Linear: one split, fixed-width replaces and one more split.
+    """
+    flat = " ".join(text.split()).replace(" ,", ",").replace(", ", ",")
+    return flat.split() if sep == "," else [" ".join(flat.replace(",", " ").split())]
 
 
 class _Ctx:
@@ -134,11 +149,14 @@ def _apply_altitude_mode(
         )
         return alt_m, False
     if mode is None:
-        why = "no altitudeMode, KML default clampToGround"
-    elif mode in _CLAMPED:
+        notes.append(
+            "no altitudeMode (KML default clampToGround): altitudes kept as written, not trusted"
+        )
+        return alt_m, False
+    if mode in _CLAMPED:
         why = f"altitudeMode {mode}"
     else:
-        why = f"unknown altitudeMode {mode!r}, treated as clampToGround"
+        why = f"unknown altitudeMode {limits.shorten(mode)!r}, treated as clampToGround"
     notes.append(f"altitudes ignored ({why}): set to 0 m")
     return np.zeros_like(alt_m), False
 
@@ -175,8 +193,8 @@ def _parse_tuples(
             )
         try:
             values = [parse_number(p) for p in parts]
-        except ValueError:
-            raise _tuple_error(ctx, where, number, tup, "is not numeric") from None
+        except ValueError as exc:
+            raise _tuple_error(ctx, where, number, tup, f"is not numeric ({exc})") from None
         lon[k] = values[0]
         lat[k] = values[1]
         if len(values) == 3:
@@ -219,7 +237,7 @@ def _finish(
 def _read_linestring(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> RoutePath:
     coords = _children(geom, "coordinates")
     text = " ".join(_text(c) for c in coords)
-    tuples = _COMMA_SPACES.sub(",", text).split()
+    tuples = _tuples(text, ",")
     lat, lon, alt, n_2d = _parse_tuples(tuples, ",", ctx, where)
     notes: list[str] = []
     if not tuples:
@@ -251,7 +269,7 @@ def _read_track(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> Route
             + (" with their <when>" if whens else "")
         )
     # gx:coord is "lon lat alt"; tolerate commas too.
-    tuples = [_COMMA_SPACES.sub(" ", coords[k]) for k in keep]
+    tuples = [_tuples(coords[k], " ")[0] for k in keep]
     lat, lon, alt, n_2d = _parse_tuples(
         tuples, None, ctx, f"{where}, <coord>", [k + 1 for k in keep]
     )
@@ -267,11 +285,8 @@ def _read_track(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> Route
                 continue
             try:
                 times[i] = parse_iso_time(w)
-            except (ValueError, OverflowError, OSError):
-                shown = w if len(w) <= 60 else w[:57] + "..."
-                raise ctx.error(
-                    f"{where}: <when> {k + 1} {shown!r} is not an ISO-8601 date-time"
-                ) from None
+            except ValueError as exc:
+                raise ctx.error(f"{where}: <when> {k + 1}: {exc}") from None
         if n_empty:
             notes.append(f"{n_empty} empty <when> element(s): time unknown (NaN)")
     elif coords:
@@ -315,6 +330,7 @@ def _paths_from_root(root: Element, ctx: _Ctx) -> list[RoutePath]:
         names = _children(elem, "name")
         name = _text(names[0]).strip() if names else ""
         name = name or f"Placemark {k}"
+        limits.check(ctx.source, "name_chars", len(name), f"Placemark {k} <name>")
         found: list[RoutePath] = []
         for child in elem:
             if isinstance(child.tag, str):
@@ -343,13 +359,15 @@ def _parse_kml_bytes(data: bytes, source: str | Path) -> list[RoutePath]:
     return _paths_from_root(parse_xml(data, source), _Ctx(source))
 
 
-def read_kml(path: Path) -> list[RoutePath]:
+def read_kml(path: Path, data: bytes | None = None) -> list[RoutePath]:
     """Read every candidate path of a KML file.
 
     Parameters
     ----------
     path : Path
         The ``.kml`` file.
+    data : bytes, optional
+        Its content, when already read (:func:`imugen.limits.read_input`).
 
     Returns
     -------
@@ -363,10 +381,8 @@ def read_kml(path: Path) -> list[RoutePath]:
         coordinate tuple / ``<when>`` that cannot be parsed.
     """
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+    if data is None:
+        data = limits.read_input(path)
     return _parse_kml_bytes(data, path)
 
 
@@ -401,13 +417,15 @@ def _choose_member(infos: list[zipfile.ZipInfo]) -> zipfile.ZipInfo | None:
     return root_kml[0] if root_kml else None
 
 
-def read_kmz(path: Path) -> list[RoutePath]:
+def read_kmz(path: Path, data: bytes | None = None) -> list[RoutePath]:
     """Read every candidate path of the main KML document of a KMZ archive.
 
     Parameters
     ----------
     path : Path
         The ``.kmz`` file (a zip archive).
+    data : bytes, optional
+        Its content, when already read (:func:`imugen.limits.read_input`).
 
     Returns
     -------
@@ -421,21 +439,22 @@ def read_kmz(path: Path) -> list[RoutePath]:
         member too large, or any :func:`read_kml` problem in the member.
     """
     path = Path(path)
+    if data is None:
+        data = limits.read_input(path)
     try:
-        zf = zipfile.ZipFile(path)
-    except zipfile.BadZipFile:
+        zf = zipfile.ZipFile(io.BytesIO(data))
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError):
         raise InputError(path, "is not a KMZ (zip) archive") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
     with zf:
         info = _choose_member(zf.infolist())
         if info is None:
             raise InputError(path, "KMZ archive holds no .kml document at its root")
         member = info.filename
+        shown = limits.shorten(member)
         if _unsafe_member(member):
-            raise InputError(path, f"KMZ member {member!r} has an absolute or '..' path: refused")
-        limit = KMZ_MAX_MEMBER_BYTES
-        too_big = f"KMZ member {member!r} decompresses to more than {limit} bytes: refused"
+            raise InputError(path, f"KMZ member {shown!r} has an absolute or '..' path: refused")
+        limit = min(KMZ_MAX_MEMBER_BYTES, limits.current().input_bytes)
+        too_big = f"KMZ member {shown!r} decompresses to more than {limit} bytes: refused"
         if info.file_size > limit:
             raise InputError(path, too_big)
         chunks: list[bytes] = []
@@ -455,13 +474,11 @@ def read_kmz(path: Path) -> list[RoutePath]:
         # zipfile raises NotImplementedError for compression methods it lacks (e.g. deflate64)
         # and RuntimeError for encrypted members: both are a user's file, not a bug
         except (zipfile.BadZipFile, RuntimeError, NotImplementedError, EOFError, OSError) as exc:
-            raise InputError(path, f"KMZ member {member!r} cannot be read ({exc})") from None
+            raise InputError(path, f"KMZ member {shown!r} cannot be read ({exc})") from None
         except zlib.error as exc:
-            raise InputError(
-                path, f"KMZ member {member!r} cannot be decompressed ({exc})"
-            ) from None
+            raise InputError(path, f"KMZ member {shown!r} cannot be decompressed ({exc})") from None
     data = b"".join(chunks)
     try:
         return _parse_kml_bytes(data, path)
     except InputError as exc:
-        raise InputError(path, f"(member {member}) {exc.message}") from None
+        raise InputError(path, f"(member {shown}) {exc.message}") from None

@@ -1,0 +1,1085 @@
+"""Loosely-coupled GNSS/INS: a batched error-state Kalman filter on the project's increments.
+
+Frames, conventions and the strapdown are those of :mod:`imugen.mechanize` (n = Earth-fixed
+ENU of the route origin; ``flat`` or ``wgs84``); one step per IMU interval:
+``C_{k+1} = Exp(-Omega dt) C_k Exp(dtheta)``,
+``A(dt) (v_{k+1} + W r_{k+1}) = v_k + W r_k + C_k dv + dt/2 (A G_{k+1} + G_k)`` (solved with the
+kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g dt``) and the
+trapezoid for position. Increments are corrected with the estimated biases and scale factors,
+``dtheta_hat = (dtheta - b_g dt) / (1 + s_g)`` (likewise ``dv``).
+
+Error state (estimate minus truth), ``n = 15 (+3) (+6)``
+    ``dp, dv`` [m, m/s] in n; ``psi`` [rad] with ``C_hat = Exp(psi) C``; gyro and accelerometer
+    bias errors; optionally the GNSS receiver's Gauss-Markov position bias (E, N, U), then
+    gyro and accelerometer scale-factor errors. Continuous model
+    ``dp' = dv``; ``dv' = -[f_n x] psi - C (db_a + diag(f) ds_a) - 2 Omega x dv + Gamma dp``;
+    ``psi' = -Omega x psi - C (db_g + diag(omega) ds_g)``; biases random walks; GNSS bias
+    first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
+    accumulated by the strapdown (``int C dt``, ``int C f dt``, ``int C diag(f) dt``, ``int C
+    diag(omega) dt``), second order in ``T`` for the position rows; ``Gamma`` is the gravity
+    gradient ``g/R diag(-1, -1, 2)`` (``wgs84`` only). Process noise: white densities ``N_g``,
+    ``N_a`` (ARW, VRW) and the bias random-walk densities.
+
+Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
+    * GNSS position of the antenna ``p + C l_b (+ b_gnss)`` and velocity ``v + C (omega x l_b)``
+      taken back to the fix's time of validity (``- v L + a L^2 / 2`` and ``- a L``, ``a`` the
+      acceleration of the last IMU interval, ``L`` the latency). With GNSS bias states, the reported sigma is split between the
+      white part (``R``) and the modelled bias in the tuning's proportions; without them ``R``
+      is the reported variance.
+    * NHC (cars): body-frame lateral and vertical velocity zero, sigma ``nhc_sd_mps``.
+    * ZUPT: velocity zero when the interval was still (every sample's corrected rate below
+      ``zupt_gyro_radps``, specific-force magnitude within ``zupt_accel_mps2`` of gravity) and
+      the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
+    * An optional innovation gate rejects a scalar update whose normalized innovation exceeds
+      ``gate_sigma`` (0: off).
+After the updates the error state is fed back (``C <- Exp(-psi) C``, ...) and reset to zero.
+
+The time recursion is one numba kernel: sequences outside, time inside, no allocation per
+step, no I/O. Initial alignment (:func:`align`) is vectorized NumPy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from imugen import earth
+from imugen import mechanize as mech
+from imugen.earth import OriginFrame
+from imugen.errors import InputError
+from imugen.grades import Grade, get_grade
+from imugen.jit import njit
+from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
+
+# --- nominal state layout (one row per sequence) ------------------------------------------------
+X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB = 0, 3, 6, 10, 13, 16, 19, 22
+NX = 25
+# --- error-state indices (fixed part) -----------------------------------------------------------
+I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
+N_BASE = 15
+# --- tuning vector (per sequence) ---------------------------------------------------------------
+T_NG, T_NA, T_QBG, T_QBA, T_GB_SD, T_GB_TAU, T_GW, T_QS = 0, 3, 6, 9, 12, 15, 16, 19
+N_TUNE = 20
+# --- options vector (shared) --------------------------------------------------------------------
+(O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
+O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
+N_OPT = 12
+# --- flags per epoch ----------------------------------------------------------------------------
+F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED = 1, 2, 4, 8, 16, 32
+LEVEL_SD_RAD = math.radians(1.0)
+"""Roll/pitch 1-sigma of a moving-start alignment (land vehicle assumed level)."""
+HEADING_SD_RAD = math.radians(0.5)
+"""Heading-along-velocity 1-sigma margin of a moving-start alignment."""
+
+
+def n_states(scale_factors: bool, gnss_bias: bool) -> int:
+    """Size of the error state."""
+    return N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors)
+
+
+def state_names(scale_factors: bool, gnss_bias: bool) -> list[str]:
+    """Names of the error-state components, in order."""
+    names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
+    names[9:15] = [f"{g}_{a}" for g in ("dbg", "dba") for a in "xyz"]
+    if gnss_bias:
+        names += [f"dgnss_bias_{a}" for a in "enu"]
+    if scale_factors:
+        names += [f"dsg_{a}" for a in "xyz"] + [f"dsa_{a}" for a in "xyz"]
+    return names
+
+
+# --- tuning -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Tuning:
+    """Filter noise model (SI, per body axis).
+
+    Attributes
+    ----------
+    gyro_white, accel_white : (3,)  ARW [rad/sqrt(s)], VRW [m/s/sqrt(s)]
+    gyro_bias_sd, accel_bias_sd : (3,)  initial bias 1-sigma [rad/s, m/s^2]
+    gyro_bias_q, accel_bias_q : (3,)  bias random-walk PSD [(rad/s)^2/s, (m/s^2)^2/s]
+    gyro_sf_sd, accel_sf_sd : (3,)  initial scale-factor 1-sigma
+    sf_q : float  scale-factor random-walk PSD [1/s]
+    """
+
+    gyro_white: np.ndarray
+    accel_white: np.ndarray
+    gyro_bias_sd: np.ndarray
+    accel_bias_sd: np.ndarray
+    gyro_bias_q: np.ndarray
+    accel_bias_q: np.ndarray
+    gyro_sf_sd: np.ndarray
+    accel_sf_sd: np.ndarray
+    sf_q: float = 0.0
+
+    @classmethod
+    def from_grade(cls, grade: Grade | str, level: str = "nominal", inflate: float = 1.0):
+        """Tuning from a grade's figures.
+
+        ``level``: ``"nominal"`` (the grade's values) or ``"upper"`` (the top of each range,
+        for a filter that knows the grade but not the device). Initial bias sigma:
+        ``sqrt(turn_on^2 + sigma_GM^2)``; bias random walk ``2 sigma_GM^2 / T + K^2`` (the
+        Gauss-Markov's short-time growth plus the rate random walk). ``inflate`` scales the
+        white densities (unmodelled terms such as cross-coupling or g-sensitivity).
+        """
+        g = get_grade(grade)
+        if level not in ("nominal", "upper"):
+            raise InputError("aided.tuning", f"level must be nominal or upper, got {level!r}")
+
+        def val(p):
+            if p is None:
+                return np.zeros(3)
+            return np.asarray(p.hi if (level == "upper" and p.hi is not None) else p.value)
+
+        out = {}
+        for s in ("gyro", "accel"):
+            spec = g.sensor(s)
+            on = val(spec.turn_on_bias)
+            bi = spec.bias_instability
+            if bi is None:
+                sig, q_gm = np.zeros(3), np.zeros(3)
+            else:
+                lv = val(bi.level)
+                comp = bi.components
+                sig = np.array([bi.sigma_from_level(x) for x in lv]) * math.sqrt(comp)
+                if bi.model == "gauss_markov":
+                    tau = float(np.min(val(bi.correlation_time)))
+                else:
+                    tau = float(bi.flicker_band[0])
+                q_gm = 2.0 * sig**2 / tau
+            rrw = val(spec.rate_random_walk)
+            out[f"{s}_white"] = inflate * val(spec.white_noise)
+            out[f"{s}_bias_sd"] = np.hypot(on, sig)
+            out[f"{s}_bias_q"] = q_gm + rrw**2
+            out[f"{s}_sf_sd"] = val(spec.scale_factor)
+        return cls(**out)
+
+
+@dataclass(frozen=True)
+class Options:
+    """Filter switches and thresholds (SI).
+
+    ``scale_factors``: estimate gyro/accel scale factors; ``gnss_bias``: model the receiver's
+    Gauss-Markov position bias as states (needs ``gnss_bias_sd_m``, ``gnss_bias_tau_s``,
+    ``gnss_white_m`` per axis); ``nhc``: non-holonomic constraint (cars); ``zupt``: zero-velocity
+    updates at detected stops; ``use_velocity``: GNSS velocity updates; ``latency``:
+    compensate the GNSS latency to first order; ``gate_sigma``: innovation gate (0: off).
+    """
+
+    scale_factors: bool = False
+    gnss_bias: bool = True
+    nhc: bool = False
+    nhc_sd_mps: float = 0.1
+    zupt: bool = False
+    zupt_sd_mps: float = 0.02
+    zupt_gyro_radps: float = 0.02
+    zupt_accel_mps2: float = 0.3
+    zupt_speed_mps: float = 0.2
+    gate_sigma: float = 0.0
+    use_velocity: bool = True
+    latency: bool = True
+
+    def vector(self) -> np.ndarray:
+        o = np.zeros(N_OPT)
+        o[O_SF] = self.scale_factors
+        o[O_GB] = self.gnss_bias
+        o[O_NHC] = self.nhc
+        o[O_NHC_SD] = self.nhc_sd_mps
+        o[O_ZUPT] = self.zupt
+        o[O_ZUPT_SD] = self.zupt_sd_mps
+        o[O_ZUPT_GYRO] = self.zupt_gyro_radps
+        o[O_ZUPT_ACC] = self.zupt_accel_mps2
+        o[O_ZUPT_SPEED] = self.zupt_speed_mps
+        o[O_GATE] = self.gate_sigma
+        o[O_USE_VEL] = self.use_velocity
+        o[O_LATENCY] = self.latency
+        return o
+
+
+def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> np.ndarray:
+    """Per-sequence tuning vectors (S, N_TUNE).
+
+    The GNSS bias model comes from ``gnss_params`` (drawn :class:`imugen.gnss.ReceiverParams`,
+    an oracle) or from a receiver's nominal figures (``gnss_receiver``).
+    """
+    T = np.zeros((S, N_TUNE))
+    T[:, T_NG : T_NG + 3] = tun.gyro_white
+    T[:, T_NA : T_NA + 3] = tun.accel_white
+    T[:, T_QBG : T_QBG + 3] = tun.gyro_bias_q
+    T[:, T_QBA : T_QBA + 3] = tun.accel_bias_q
+    T[:, T_QS] = tun.sf_q
+    T[:, T_GB_TAU] = 60.0
+    if gnss_params is not None:
+        T[:, T_GB_SD : T_GB_SD + 3] = gnss_params.axis("position_bias_h_m", "position_bias_v_m")
+        T[:, T_GB_TAU] = gnss_params.position_bias_tau_s
+        T[:, T_GW : T_GW + 3] = gnss_params.axis("position_white_h_m", "position_white_v_m")
+    elif gnss_receiver is not None:
+        f = gnss_receiver.figures
+        T[:, T_GB_SD : T_GB_SD + 3] = [f["position_bias_h_m"].value] * 2 + [
+            f["position_bias_v_m"].value
+        ]
+        T[:, T_GB_TAU] = f["position_bias_tau_s"].value
+        T[:, T_GW : T_GW + 3] = [f["position_white_h_m"].value] * 2 + [
+            f["position_white_v_m"].value
+        ]
+    return T
+
+
+# --- numba helpers ------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _dcm(q0, q1, q2, q3, C):
+    C[0, 0] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
+    C[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
+    C[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
+    C[1, 0] = 2.0 * (q1 * q2 + q0 * q3)
+    C[1, 1] = 1.0 - 2.0 * (q1 * q1 + q3 * q3)
+    C[1, 2] = 2.0 * (q2 * q3 - q0 * q1)
+    C[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
+    C[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
+    C[2, 2] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
+
+
+@njit(cache=True, inline="always")
+def _skew(x, y, z, M):
+    M[0, 0] = 0.0
+    M[0, 1] = -z
+    M[0, 2] = y
+    M[1, 0] = z
+    M[1, 1] = 0.0
+    M[1, 2] = -x
+    M[2, 0] = -y
+    M[2, 1] = x
+    M[2, 2] = 0.0
+
+
+@njit(cache=True)
+def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
+    """One scalar update ``z_pred - z = h dx + noise`` (r = z_pred - z); returns accepted.
+
+    ``P`` symmetric: ``P h`` is a sum of the rows named in ``nz``; the rank-one downdate is
+    applied to full rows (contiguous) and stays symmetric to rounding (re-symmetrized per epoch).
+    """
+    n = P.shape[0]
+    for i in range(n):
+        PHt[i] = 0.0
+    for m in range(nnz):
+        k = nz[m]
+        f = h[k]
+        for i in range(n):
+            PHt[i] += f * P[k, i]
+    s = var
+    innov = r
+    for m in range(nnz):
+        k = nz[m]
+        s += h[k] * PHt[k]
+        innov -= h[k] * dx[k]
+    if gate > 0.0 and innov * innov > gate * gate * s:
+        return False
+    inv = 1.0 / s
+    for i in range(n):
+        dx[i] += PHt[i] * inv * innov
+    for i in range(n):
+        ki = PHt[i] * inv
+        for j in range(n):
+            P[i, j] -= ki * PHt[j]
+    return True
+
+
+@njit(cache=True)
+def _kernel(
+    dth, dvb, k0, ep_idx, zp, zv, sp, sv, ok, lever, lat, x0, P0, prm, tun, opt,
+    out_x, out_sd, out_P, out_flag,
+):  # fmt: skip
+    """Filter every sequence from its start sample ``k0[s]`` through the epochs ``ep_idx``.
+
+    dth, dvb : (S, K, 3) increments (row k: interval ending at t_k); zp, zv, sp, sv : (S, J, 3)
+    GNSS position/velocity and reported sigmas; ok : (S, J) usable epochs; lever : (S, 3);
+    lat : (S,) latency [s]; x0 : (S, NX) state at t_{k0}; P0 : (S, n, n); outputs per epoch:
+    out_x (S, J, NX) (NaN before the start), out_sd (S, J, n), out_P (S, J or 0, n, n),
+    out_flag (S, J).
+    """
+    S = dth.shape[0]
+    J = ep_idx.shape[0]
+    n = P0.shape[1]
+    wgs = prm[earth.P_MODEL] != 0.0
+    dt = prm[mech.K_DT]
+    g0 = prm[earth.P_G0]
+    w0 = prm[earth.P_OMEGA]
+    w1 = prm[earth.P_OMEGA + 1]
+    w2 = prm[earth.P_OMEGA + 2]
+    sf_on = opt[O_SF] != 0.0
+    gb_on = opt[O_GB] != 0.0
+    i_gb = N_BASE
+    i_sg = N_BASE + (3 if gb_on else 0)
+    i_sa = i_sg + 3
+    store_P = out_P.shape[1] > 0
+    # transition sparsity pattern: columns that may be non-zero in each row
+    nzc = np.zeros((n, n), np.int64)
+    nnz = np.zeros(n, np.int64)
+    for i in range(n):
+        cols = np.zeros(n, np.bool_)
+        cols[i] = True
+        if i < 3:  # position rows
+            for k in range(3, 15):
+                cols[k] = True
+            if sf_on:
+                for k in range(i_sg, i_sa + 3):
+                    cols[k] = True
+        elif i < 6:  # velocity rows
+            for k in range(3, 15):
+                cols[k] = True
+            if wgs:
+                for k in range(3):
+                    cols[k] = True
+            if sf_on:
+                for k in range(i_sg, i_sa + 3):
+                    cols[k] = True
+        elif i < 9:  # attitude rows
+            for k in range(6, 12):
+                cols[k] = True
+            if sf_on:
+                for k in range(i_sg, i_sg + 3):
+                    cols[k] = True
+        m = 0
+        for k in range(n):
+            if cols[k]:
+                nzc[i, m] = k
+                m += 1
+        nnz[i] = m
+    P = np.zeros((n, n))
+    Phi = np.zeros((n, n))
+    T = np.zeros((n, n))
+    dx = np.zeros(n)
+    h = np.zeros(n)
+    hz = np.zeros(n, np.int64)
+    PHt = np.zeros(n)
+    C = np.zeros((3, 3))
+    Cf = np.zeros((3, 3))
+    Cw = np.zeros((3, 3))
+    Cint = np.zeros((3, 3))
+    dvn = np.zeros(3)
+    x = np.zeros(NX)
+    qdiag = np.zeros(n)
+    R_gamma = g0 / earth.R_MEAN
+    Xm = np.zeros((3, 3))
+    Wm = np.zeros((3, 3))
+    _skew(w0, w1, w2, Wm)
+    for s in range(S):
+        for i in range(NX):
+            x[i] = x0[s, i]
+        for i in range(n):
+            for j in range(n):
+                P[i, j] = P0[s, i, j]
+        k = k0[s]
+        px, py, pz = x[0], x[1], x[2]
+        vx, vy, vz = x[3], x[4], x[5]
+        q0, q1, q2, q3 = x[6], x[7], x[8], x[9]
+        if wgs:
+            Gx, Gy, Gz = earth.gravitation_nb(prm, px, py, pz)
+        else:
+            Gx, Gy, Gz = 0.0, 0.0, -g0
+        for jj in range(J):
+            ke = ep_idx[jj]
+            if ke < k:
+                for i in range(NX):
+                    out_x[s, jj, i] = np.nan
+                for i in range(n):
+                    out_sd[s, jj, i] = np.nan
+                out_flag[s, jj] = 0
+                continue
+            # --- strapdown from k to ke, accumulating the transition integrals ---------------
+            for a in range(3):
+                dvn[a] = 0.0
+                for b in range(3):
+                    Cint[a, b] = 0.0
+                    Cf[a, b] = 0.0
+                    Cw[a, b] = 0.0
+            still = ke > k
+            bgx, bgy, bgz = x[X_BG], x[X_BG + 1], x[X_BG + 2]
+            bax, bay, baz = x[X_BA], x[X_BA + 1], x[X_BA + 2]
+            sgx, sgy, sgz = x[X_SG], x[X_SG + 1], x[X_SG + 2]
+            sax, say, saz = x[X_SA], x[X_SA + 1], x[X_SA + 2]
+            ovx, ovy, ovz = vx, vy, vz
+            for i in range(k + 1, ke + 1):
+                tx = (dth[s, i, 0] - bgx * dt) / (1.0 + sgx)
+                ty = (dth[s, i, 1] - bgy * dt) / (1.0 + sgy)
+                tz = (dth[s, i, 2] - bgz * dt) / (1.0 + sgz)
+                ux = (dvb[s, i, 0] - bax * dt) / (1.0 + sax)
+                uy = (dvb[s, i, 1] - bay * dt) / (1.0 + say)
+                uz = (dvb[s, i, 2] - baz * dt) / (1.0 + saz)
+                if still:
+                    wn = math.sqrt(tx * tx + ty * ty + tz * tz) / dt
+                    fn = math.sqrt(ux * ux + uy * uy + uz * uz) / dt
+                    if wn > opt[O_ZUPT_GYRO] or abs(fn - g0) > opt[O_ZUPT_ACC]:
+                        still = False
+                _dcm(q0, q1, q2, q3, C)
+                ax = C[0, 0] * ux + C[0, 1] * uy + C[0, 2] * uz
+                ay = C[1, 0] * ux + C[1, 1] * uy + C[1, 2] * uz
+                az = C[2, 0] * ux + C[2, 1] * uy + C[2, 2] * uz
+                dvn[0] += ax
+                dvn[1] += ay
+                dvn[2] += az
+                for a in range(3):
+                    Cint[a, 0] += C[a, 0] * dt
+                    Cint[a, 1] += C[a, 1] * dt
+                    Cint[a, 2] += C[a, 2] * dt
+                if sf_on:
+                    for a in range(3):
+                        Cf[a, 0] += C[a, 0] * ux
+                        Cf[a, 1] += C[a, 1] * uy
+                        Cf[a, 2] += C[a, 2] * uz
+                        Cw[a, 0] += C[a, 0] * tx
+                        Cw[a, 1] += C[a, 1] * ty
+                        Cw[a, 2] += C[a, 2] * tz
+                ovx, ovy, ovz = vx, vy, vz
+                if wgs:
+                    rx = prm[earth.P_R0N] + px
+                    ry = prm[earth.P_R0N + 1] + py
+                    rz = prm[earth.P_R0N + 2] + pz
+                    wrx = w1 * rz - w2 * ry
+                    wry = w2 * rx - w0 * rz
+                    wrz = w0 * ry - w1 * rx
+                    wvx = w1 * vz - w2 * vy
+                    wvy = w2 * vx - w0 * vz
+                    wvz = w0 * vy - w1 * vx
+                    cfx = w1 * wrz - w2 * wry
+                    cfy = w2 * wrx - w0 * wrz
+                    cfz = w0 * wry - w1 * wrx
+                    sx = vx + ax + dt * (Gx - 2.0 * wvx - cfx)
+                    sy = vy + ay + dt * (Gy - 2.0 * wvy - cfy)
+                    sz = vz + az + dt * (Gz - 2.0 * wvz - cfz)
+                    Gnx, Gny, Gnz = earth.gravitation_nb(
+                        prm, px + 0.5 * dt * (sx + vx), py + 0.5 * dt * (sy + vy),
+                        pz + 0.5 * dt * (sz + vz),
+                    )  # fmt: skip
+                    AGx, AGy, AGz = mech._mv(prm, mech.K_A, Gnx, Gny, Gnz)
+                    Jx = 0.5 * dt * (AGx + Gx)
+                    Jy = 0.5 * dt * (AGy + Gy)
+                    Jz = 0.5 * dt * (AGz + Gz)
+                    dsx, dsy, dsz = mech._mv(
+                        prm, mech.K_D, vx + wrx + ax + Jx, vy + wry + ay + Jy, vz + wrz + az + Jz
+                    )
+                    ex = ax + Jx + dsx - dt * wvx
+                    ey = ay + Jy + dsy - dt * wvy
+                    ez = az + Jz + dsz - dt * wvz
+                    ddx, ddy, ddz = mech._mv(prm, mech.K_MT, ex, ey, ez)
+                    vx += ddx
+                    vy += ddy
+                    vz += ddz
+                    Gx, Gy, Gz = Gnx, Gny, Gnz
+                else:
+                    vx += ax
+                    vy += ay
+                    vz += az - g0 * dt
+                px += 0.5 * dt * (vx + ovx)
+                py += 0.5 * dt * (vy + ovy)
+                pz += 0.5 * dt * (vz + ovz)
+                e0, e1, e2, e3 = mech._qexpm1(tx, ty, tz)
+                e0 += 1.0
+                q0, q1, q2, q3 = mech._qmul(q0, q1, q2, q3, e0, e1, e2, e3)
+                if wgs:
+                    q0, q1, q2, q3 = mech._qmul(
+                        1.0 + prm[mech.K_QW], prm[mech.K_QW + 1], prm[mech.K_QW + 2],
+                        prm[mech.K_QW + 3], q0, q1, q2, q3,
+                    )  # fmt: skip
+                nq = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+                q0 *= nq
+                q1 *= nq
+                q2 *= nq
+                q3 *= nq
+            Tint = (ke - k) * dt
+            if ke > k:  # acceleration of the last IMU interval (latency of the fix)
+                acx = (vx - ovx) / dt
+                acy = (vy - ovy) / dt
+                acz = (vz - ovz) / dt
+            else:
+                acx, acy, acz = 0.0, 0.0, 0.0
+            # --- covariance propagation P <- Phi P Phi^T + Q ---------------------------------
+            if ke > k:
+                for i in range(n):
+                    for j in range(n):
+                        Phi[i, j] = 0.0
+                    Phi[i, i] = 1.0
+                    qdiag[i] = 0.0
+                _skew(dvn[0], dvn[1], dvn[2], Xm)  # [dv_n x]
+                for a in range(3):
+                    Phi[a, 3 + a] = Tint
+                    for b in range(3):
+                        # -[dv x] and -int C
+                        Phi[3 + a, 6 + b] = -Xm[a, b]
+                        Phi[a, 6 + b] = -0.5 * Tint * Xm[a, b]
+                        Phi[3 + a, 12 + b] = -Cint[a, b]
+                        Phi[a, 12 + b] = -0.5 * Tint * Cint[a, b]
+                        Phi[6 + a, 9 + b] = -Cint[a, b]
+                        # psi driven by gyro bias, then velocity by psi: +1/2 [dv x] int C
+                        acc = Xm[a, 0] * Cint[0, b] + Xm[a, 1] * Cint[1, b] + Xm[a, 2] * Cint[2, b]
+                        Phi[3 + a, 9 + b] = 0.5 * acc
+                        Phi[a, 9 + b] = Tint * acc / 6.0
+                        if sf_on:
+                            Phi[3 + a, i_sa + b] = -Cf[a, b]
+                            Phi[a, i_sa + b] = -0.5 * Tint * Cf[a, b]
+                            Phi[6 + a, i_sg + b] = -Cw[a, b]
+                if wgs:
+                    for a in range(3):
+                        for b in range(3):
+                            Phi[3 + a, 3 + b] -= 2.0 * Wm[a, b] * Tint
+                            Phi[6 + a, 6 + b] -= Wm[a, b] * Tint
+                    # gravity gradient at the origin, local ENU: g/R diag(-1, -1, 2)
+                    Phi[3, 0] = -R_gamma * Tint
+                    Phi[4, 1] = -R_gamma * Tint
+                    Phi[5, 2] = 2.0 * R_gamma * Tint
+                for a in range(3):
+                    qa = tun[s, T_NA + a] ** 2
+                    qdiag[3 + a] = qa * Tint
+                    qdiag[6 + a] = tun[s, T_NG + a] ** 2 * Tint
+                    qdiag[9 + a] = tun[s, T_QBG + a] * Tint
+                    qdiag[12 + a] = tun[s, T_QBA + a] * Tint
+                if gb_on:
+                    phig = math.exp(-Tint / tun[s, T_GB_TAU])
+                    for a in range(3):
+                        Phi[i_gb + a, i_gb + a] = phig
+                        qdiag[i_gb + a] = tun[s, T_GB_SD + a] ** 2 * (1.0 - phig * phig)
+                if sf_on:
+                    for a in range(6):
+                        qdiag[i_sg + a] = tun[s, T_QS] * Tint
+                # P <- Phi (Phi P)^T (= Phi P Phi^T for symmetric P): two sparse-row products
+                # with contiguous inner loops, then the transpose in between
+                for i in range(n):
+                    for j in range(n):
+                        T[i, j] = 0.0
+                    for m in range(nnz[i]):
+                        c = nzc[i, m]
+                        f = Phi[i, c]
+                        for j in range(n):
+                            T[i, j] += f * P[c, j]
+                for i in range(n):
+                    for j in range(n):
+                        P[i, j] = T[j, i]
+                for i in range(n):
+                    for j in range(n):
+                        T[i, j] = 0.0
+                    for m in range(nnz[i]):
+                        c = nzc[i, m]
+                        f = Phi[i, c]
+                        for j in range(n):
+                            T[i, j] += f * P[c, j]
+                for i in range(n):
+                    for j in range(i, n):
+                        acc = 0.5 * (T[i, j] + T[j, i])
+                        P[i, j] = acc
+                        P[j, i] = acc
+                    P[i, i] += qdiag[i]
+                # white VRW also integrates into position over the interval
+                for a in range(3):
+                    qa = tun[s, T_NA + a] ** 2
+                    P[a, a] += qa * Tint**3 / 3.0
+                    P[a, 3 + a] += qa * Tint**2 / 2.0
+                    P[3 + a, a] += qa * Tint**2 / 2.0
+            k = ke
+            # --- measurement updates -----------------------------------------------------------
+            flag = F_ALIGNED
+            for i in range(n):
+                dx[i] = 0.0
+            _dcm(q0, q1, q2, q3, C)
+            gate = opt[O_GATE]
+            # corrected angular rate at t_ke (lever-arm velocity), extrapolated from the
+            # mean rates of the last two intervals (second order)
+            if ke > 1:
+                wbx = ((1.5 * dth[s, ke, 0] - 0.5 * dth[s, ke - 1, 0]) / dt - x[X_BG]) / (
+                    1.0 + x[X_SG]
+                )
+                wby = ((1.5 * dth[s, ke, 1] - 0.5 * dth[s, ke - 1, 1]) / dt - x[X_BG + 1]) / (
+                    1.0 + x[X_SG + 1]
+                )
+                wbz = ((1.5 * dth[s, ke, 2] - 0.5 * dth[s, ke - 1, 2]) / dt - x[X_BG + 2]) / (
+                    1.0 + x[X_SG + 2]
+                )
+            elif ke > 0:
+                wbx = (dth[s, ke, 0] / dt - x[X_BG]) / (1.0 + x[X_SG])
+                wby = (dth[s, ke, 1] / dt - x[X_BG + 1]) / (1.0 + x[X_SG + 1])
+                wbz = (dth[s, ke, 2] / dt - x[X_BG + 2]) / (1.0 + x[X_SG + 2])
+            else:
+                wbx, wby, wbz = 0.0, 0.0, 0.0
+            lx, ly, lz = lever[s, 0], lever[s, 1], lever[s, 2]
+            # C l and C (w x l)
+            cl0 = C[0, 0] * lx + C[0, 1] * ly + C[0, 2] * lz
+            cl1 = C[1, 0] * lx + C[1, 1] * ly + C[1, 2] * lz
+            cl2 = C[2, 0] * lx + C[2, 1] * ly + C[2, 2] * lz
+            cwx = wby * lz - wbz * ly
+            cwy = wbz * lx - wbx * lz
+            cwz = wbx * ly - wby * lx
+            # C ((w_ib - C^T Omega) x l) = C (w_ib x l) - Omega x (C l)
+            cw0 = C[0, 0] * cwx + C[0, 1] * cwy + C[0, 2] * cwz - (w1 * cl2 - w2 * cl1)
+            cw1 = C[1, 0] * cwx + C[1, 1] * cwy + C[1, 2] * cwz - (w2 * cl0 - w0 * cl2)
+            cw2 = C[2, 0] * cwx + C[2, 1] * cwy + C[2, 2] * cwz - (w0 * cl1 - w1 * cl0)
+            gnss_ok = ok[s, jj]
+            if gnss_ok:
+                L = lat[s] if opt[O_LATENCY] != 0.0 else 0.0
+                va0 = vx + cw0
+                va1 = vy + cw1
+                va2 = vz + cw2
+                # antenna at t - L, second order: p - L v + L^2/2 a
+                hL = 0.5 * L * L
+                pred = (
+                    px + cl0 - L * va0 + hL * acx,
+                    py + cl1 - L * va1 + hL * acy,
+                    pz + cl2 - L * va2 + hL * acz,
+                )
+                clv = (cl0, cl1, cl2)
+                for a in range(3):
+                    for i in range(n):
+                        h[i] = 0.0
+                    # dp - [(C l) x] psi (+ gnss bias)
+                    h[a] = 1.0
+                    hz[0] = a
+                    m = 1
+                    b1 = (a + 1) % 3
+                    b2 = (a + 2) % 3
+                    # row a of -[c x]: entries (a, b1) = c[b2], (a, b2) = -c[b1]
+                    h[6 + b1] = clv[b2]
+                    h[6 + b2] = -clv[b1]
+                    hz[1] = 6 + b1
+                    hz[2] = 6 + b2
+                    m = 3
+                    var = sp[s, jj, a] ** 2
+                    r = pred[a] - zp[s, jj, a]
+                    if gb_on:
+                        h[i_gb + a] = 1.0
+                        hz[m] = i_gb + a
+                        m += 1
+                        r += x[X_GB + a]
+                        wsd = tun[s, T_GW + a]
+                        tot = wsd * wsd + tun[s, T_GB_SD + a] ** 2
+                        var = var * (wsd * wsd / tot) if tot > 0.0 else var
+                    var = max(var, 1e-12)
+                    if _scalar_update(P, dx, h, hz, m, r, var, gate, PHt):
+                        flag |= F_GNSS_P
+                    else:
+                        flag |= F_REJECT
+                if opt[O_USE_VEL] != 0.0:
+                    predv = (vx + cw0 - L * acx, vy + cw1 - L * acy, vz + cw2 - L * acz)
+                    cwv = (cw0, cw1, cw2)
+                    # C [l x] columns for the gyro-bias term: C (l x e_b)
+                    for a in range(3):
+                        for i in range(n):
+                            h[i] = 0.0
+                        h[3 + a] = 1.0
+                        hz[0] = 3 + a
+                        b1 = (a + 1) % 3
+                        b2 = (a + 2) % 3
+                        h[6 + b1] = cwv[b2]
+                        h[6 + b2] = -cwv[b1]
+                        hz[1] = 6 + b1
+                        hz[2] = 6 + b2
+                        # d(C (w x l))/d dbg = C [l x] (w_hat = w - dbg)
+                        for b in range(3):
+                            eb0 = 1.0 if b == 0 else 0.0
+                            eb1 = 1.0 if b == 1 else 0.0
+                            eb2 = 1.0 if b == 2 else 0.0
+                            lxe0 = ly * eb2 - lz * eb1
+                            lxe1 = lz * eb0 - lx * eb2
+                            lxe2 = lx * eb1 - ly * eb0
+                            h[9 + b] = C[a, 0] * lxe0 + C[a, 1] * lxe1 + C[a, 2] * lxe2
+                            hz[3 + b] = 9 + b
+                        var = max(sv[s, jj, a] ** 2, 1e-12)
+                        r = predv[a] - zv[s, jj, a]
+                        if _scalar_update(P, dx, h, hz, 6, r, var, gate, PHt):
+                            flag |= F_GNSS_V
+                        else:
+                            flag |= F_REJECT
+            if opt[O_ZUPT] != 0.0 and still and ke > k0[s]:
+                if gnss_ok:
+                    spd = math.sqrt(zv[s, jj, 0] ** 2 + zv[s, jj, 1] ** 2 + zv[s, jj, 2] ** 2)
+                else:
+                    spd = math.sqrt(vx * vx + vy * vy + vz * vz)
+                if spd < opt[O_ZUPT_SPEED]:
+                    vcur = (vx, vy, vz)
+                    for a in range(3):
+                        for i in range(n):
+                            h[i] = 0.0
+                        h[3 + a] = 1.0
+                        hz[0] = 3 + a
+                        _scalar_update(P, dx, h, hz, 1, vcur[a], opt[O_ZUPT_SD] ** 2, 0.0, PHt)
+                    flag |= F_ZUPT
+            if opt[O_NHC] != 0.0:
+                # v_b = C^T v; rows y, z: dv_b = C^T dv + C^T [v x] psi
+                _skew(vx, vy, vz, Xm)
+                for row in (1, 2):
+                    for i in range(n):
+                        h[i] = 0.0
+                    vb = C[0, row] * vx + C[1, row] * vy + C[2, row] * vz
+                    for a in range(3):
+                        h[3 + a] = C[a, row]
+                        hz[a] = 3 + a
+                    # (C^T [v x])[row, b]
+                    for b in range(3):
+                        h[6 + b] = (
+                            C[0, row] * Xm[0, b] + C[1, row] * Xm[1, b] + C[2, row] * Xm[2, b]
+                        )
+                        hz[3 + b] = 6 + b
+                    _scalar_update(P, dx, h, hz, 6, vb, opt[O_NHC_SD] ** 2, 0.0, PHt)
+                flag |= F_NHC
+            # --- feedback ------------------------------------------------------------------------
+            px -= dx[0]
+            py -= dx[1]
+            pz -= dx[2]
+            vx -= dx[3]
+            vy -= dx[4]
+            vz -= dx[5]
+            e0, e1, e2, e3 = mech._qexpm1(-dx[6], -dx[7], -dx[8])
+            q0, q1, q2, q3 = mech._qmul(e0 + 1.0, e1, e2, e3, q0, q1, q2, q3)
+            nq = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+            q0 *= nq
+            q1 *= nq
+            q2 *= nq
+            q3 *= nq
+            for a in range(3):
+                x[X_BG + a] -= dx[9 + a]
+                x[X_BA + a] -= dx[12 + a]
+                if gb_on:
+                    x[X_GB + a] -= dx[i_gb + a]
+                if sf_on:
+                    x[X_SG + a] -= dx[i_sg + a]
+                    x[X_SA + a] -= dx[i_sa + a]
+            x[0], x[1], x[2] = px, py, pz
+            x[3], x[4], x[5] = vx, vy, vz
+            x[6], x[7], x[8], x[9] = q0, q1, q2, q3
+            if wgs and (dx[0] != 0.0 or dx[1] != 0.0 or dx[2] != 0.0):
+                Gx, Gy, Gz = earth.gravitation_nb(prm, px, py, pz)
+            for i in range(n):
+                for j in range(i + 1, n):
+                    acc = 0.5 * (P[i, j] + P[j, i])
+                    P[i, j] = acc
+                    P[j, i] = acc
+            for i in range(NX):
+                out_x[s, jj, i] = x[i]
+            for i in range(n):
+                out_sd[s, jj, i] = math.sqrt(max(P[i, i], 0.0))
+            if store_P:
+                for i in range(n):
+                    for j in range(n):
+                        out_P[s, jj, i, j] = P[i, j]
+            out_flag[s, jj] = flag
+            if gb_on and jj + 1 < J:
+                # predicted GNSS bias mean decays over the next interval
+                phin = math.exp(-(ep_idx[jj + 1] - ke) * dt / tun[s, T_GB_TAU])
+                for a in range(3):
+                    x[X_GB + a] *= phin
+
+
+# --- Python drivers -----------------------------------------------------------------------------
+@dataclass
+class Initial:
+    """Filter start: sample index ``k0`` (S,), nominal state ``x0`` (S, NX), covariance ``P0``."""
+
+    k0: np.ndarray
+    x0: np.ndarray
+    P0: np.ndarray
+
+
+@dataclass
+class AidedResult:
+    """Filter output at the GNSS epochs (after the updates; NaN before the filter starts).
+
+    Attributes
+    ----------
+    time_s, index : (J,)        epoch times [s] and IMU sample indices
+    p_n, v_n : (S, J, 3)        position [m] and velocity [m/s] of the IMU in n
+    q_nb : (S, J, 4)            attitude
+    gyro_bias, accel_bias : (S, J, 3)  estimated biases [rad/s, m/s^2]
+    gyro_sf, accel_sf : (S, J, 3)      estimated scale factors (zeros when not estimated)
+    gnss_bias : (S, J, 3)       estimated receiver position bias [m]
+    sd : (S, J, n)              1-sigma of every error state (:func:`state_names`)
+    P : (S, J, n, n) or None    full covariance (``store_P``)
+    flags : (S, J) int8         bits F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED
+    names : list of str         error-state names
+    """
+
+    time_s: np.ndarray
+    index: np.ndarray
+    p_n: np.ndarray
+    v_n: np.ndarray
+    q_nb: np.ndarray
+    gyro_bias: np.ndarray
+    accel_bias: np.ndarray
+    gyro_sf: np.ndarray
+    accel_sf: np.ndarray
+    gnss_bias: np.ndarray
+    sd: np.ndarray
+    P: np.ndarray | None
+    flags: np.ndarray
+    names: list
+
+
+def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
+    """An :class:`Initial` from explicit values (S rows each; biases default 0)."""
+    p = np.atleast_2d(np.asarray(p_n, float))
+    v = np.atleast_2d(np.asarray(v_n, float))
+    q = np.atleast_2d(np.asarray(q_nb, float))
+    P0 = np.asarray(P0, float)
+    S = max(len(p), len(v), len(q), len(P0) if P0.ndim == 3 else 1)
+    x0 = np.zeros((S, NX))
+    x0[:, X_P : X_P + 3] = p
+    x0[:, X_V : X_V + 3] = v
+    x0[:, X_Q : X_Q + 4] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    if gyro_bias is not None:
+        x0[:, X_BG : X_BG + 3] = gyro_bias
+    if accel_bias is not None:
+        x0[:, X_BA : X_BA + 3] = accel_bias
+    k = np.broadcast_to(np.asarray(k0, np.int64), (S,)).copy()
+    return Initial(k, x0, np.ascontiguousarray(np.broadcast_to(P0, (S, *np.shape(P0)[-2:]))))
+
+
+def initial_covariance(
+    tun: Tuning, opts: Options, sd_p, sd_v, sd_att, gnss_bias_sd=None
+) -> np.ndarray:
+    """Block-diagonal initial covariance from per-axis sigmas (arrays broadcast to (S, 3)).
+
+    With GNSS bias states, a position taken from a fix has error ``b + w``: its covariance
+    with the bias error ``-b`` is ``-sigma_b^2`` (``gnss_bias_sd``).
+    """
+    sd_p, sd_v, sd_att = (np.atleast_2d(np.asarray(a, float)) for a in (sd_p, sd_v, sd_att))
+    S = max(len(sd_p), len(sd_v), len(sd_att))
+    n = n_states(opts.scale_factors, opts.gnss_bias)
+    P = np.zeros((S, n, n))
+    ix = np.arange(3)
+    P[:, ix, ix] = np.broadcast_to(sd_p, (S, 3)) ** 2
+    P[:, 3 + ix, 3 + ix] = np.broadcast_to(sd_v, (S, 3)) ** 2
+    P[:, 6 + ix, 6 + ix] = np.broadcast_to(sd_att, (S, 3)) ** 2
+    P[:, 9 + ix, 9 + ix] = tun.gyro_bias_sd**2
+    P[:, 12 + ix, 12 + ix] = tun.accel_bias_sd**2
+    i = N_BASE
+    if opts.gnss_bias:
+        gb = np.broadcast_to(
+            np.atleast_2d(gnss_bias_sd if gnss_bias_sd is not None else 0.0), (S, 3)
+        )
+        P[:, i + ix, i + ix] = gb**2
+        P[:, ix, i + ix] = -(gb**2)
+        P[:, i + ix, ix] = -(gb**2)
+        i += 3
+    if opts.scale_factors:
+        P[:, i + ix, i + ix] = tun.gyro_sf_sd**2
+        P[:, i + 3 + ix, i + 3 + ix] = tun.accel_sf_sd**2
+    return P
+
+
+def align(
+    dtheta_b,
+    dv_b,
+    dt,
+    gnss,
+    tun: Tuning,
+    opts: Options,
+    frame: OriginFrame,
+    *,
+    speed_mps=5.0,
+    static_s=10.0,
+    level_sd_rad=LEVEL_SD_RAD,
+    heading_sd_rad=HEADING_SD_RAD,
+    tuning_T=None,
+) -> Initial:
+    """Initial alignment of every sequence from its first seconds.
+
+    * Static start (every sample of the first ``static_s`` seconds still by the ZUPT
+      thresholds) in ``wgs84`` with gyros good enough to gyrocompass (heading sigma
+      ``sigma_bg / (Omega cos lat) < 5 deg``): coarse alignment -- roll and pitch from the mean
+      specific force, yaw from the levelled mean angular rate -- at the end of the window.
+    * Otherwise (moving start, flat Earth or MEMS gyros), at the first GNSS epoch whose
+      horizontal speed reaches ``speed_mps``: yaw along the GNSS velocity, pitch its climb
+      angle, roll 0 (a land vehicle), sigmas ``level_sd_rad`` and ``hypot(sigma_v / speed,
+      heading_sd_rad)``.
+    Position and velocity come from the fix at that epoch (lever arm removed, position carried
+    forward over the latency).
+
+    Sequences that never qualify start at sample K (no output).
+    """
+    dth = np.asarray(dtheta_b, float)
+    dvb = np.asarray(dv_b, float)
+    S, K = dth.shape[:2]
+    g0 = frame.g0
+    idx = np.asarray(gnss.index)
+    valid = np.asarray(gnss.valid)
+    vh = np.hypot(gnss.v_n[..., 0], gnss.v_n[..., 1])
+    moving = valid & (np.nan_to_num(vh) >= speed_mps)
+    k0 = np.full(S, K, np.int64)
+    rpy = np.zeros((S, 3))
+    sd_att = np.zeros((S, 3))
+    p0 = np.zeros((S, 3))
+    v0 = np.zeros((S, 3))
+    sd_p = np.ones((S, 3))
+    sd_v = np.ones((S, 3))
+    ns = round(static_s / dt)
+    Om = earth.OMEGA_IE * math.cos(frame.lat0_rad)
+    gyro_sd = float(np.max(tun.gyro_bias_sd))
+    can_compass = frame.model == "wgs84" and gyro_sd < math.radians(5.0) * Om
+    for s in range(S):
+        done = False
+        if can_compass and 1 <= ns < K:
+            w = dth[s, 1 : ns + 1] / dt
+            f = dvb[s, 1 : ns + 1] / dt
+            still = np.all(np.linalg.norm(w, axis=1) < opts.zupt_gyro_radps) and np.all(
+                np.abs(np.linalg.norm(f, axis=1) - g0) < opts.zupt_accel_mps2
+            )
+            je = np.searchsorted(idx, ns)
+            if still and je < len(idx) and valid[s, je]:
+                fm, wm = f.mean(0), w.mean(0)
+                roll = math.atan2(fm[1], fm[2])
+                pitch = math.atan2(fm[0], math.hypot(fm[1], fm[2]))
+                Cl = euler_to_dcm(roll, pitch, 0.0)  # body -> level (yaw 0)
+                wl = Cl @ wm
+                yaw = math.atan2(wl[0], wl[1])  # w_level = Rz(-yaw) (0, Om, .)
+                rpy[s] = roll, pitch, yaw
+                sd_att[s] = tun.accel_bias_sd[1] / g0, tun.accel_bias_sd[0] / g0, gyro_sd / Om
+                k0[s] = idx[je]
+                j0 = je
+                done = True
+        if not done:
+            js = np.flatnonzero(moving[s])
+            if len(js) == 0:
+                continue
+            j0 = js[0]
+            v = gnss.v_n[s, j0]
+            sp = math.hypot(v[0], v[1])
+            rpy[s] = 0.0, math.atan2(v[2], sp), math.atan2(v[1], v[0])
+            svh = float(gnss.sigma_v_n[s, j0, 0])
+            sd_att[s] = (
+                level_sd_rad,
+                math.hypot(level_sd_rad, svh / sp),
+                math.hypot(svh / sp, heading_sd_rad),
+            )
+            k0[s] = idx[j0]
+        C = euler_to_dcm(*rpy[s])
+        lb = gnss.params.lever_arm_b_m[s]
+        v0[s] = gnss.v_n[s, j0]
+        # the fix is late by the latency: carry it forward to the epoch
+        lat = float(gnss.params.latency_s[s]) if opts.latency else 0.0
+        p0[s] = gnss.p_n[s, j0] - C @ lb + lat * v0[s]
+        if done:
+            v0[s] = 0.0
+        sd_p[s] = gnss.sigma_p_n[s, j0]
+        sd_v[s] = gnss.sigma_v_n[s, j0]
+    q0 = dcm_to_quat(euler_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]))
+    gb = None
+    if opts.gnss_bias and tuning_T is not None:
+        gb = tuning_T[:, T_GB_SD : T_GB_SD + 3]
+        sd_p = np.sqrt(gb**2 + tuning_T[:, T_GW : T_GW + 3] ** 2)
+    P0 = initial_covariance(tun, opts, sd_p, sd_v, sd_att, gb)
+    return initial_state(k0, p0, v0, q0, P0)
+
+
+def run(
+    dtheta_b,
+    dv_b,
+    dt,
+    frame: OriginFrame,
+    gnss,
+    tun: Tuning,
+    opts: Options | None = None,
+    init: Initial | None = None,
+    *,
+    tuning_T=None,
+    store_P=False,
+    seq_chunk=64,
+) -> AidedResult:
+    """Run the filter over a batch of sequences.
+
+    Parameters
+    ----------
+    dtheta_b, dv_b : ndarray, shape (S, K, 3)
+        IMU increments as in a shard (row k: interval ending at t_k; row 0 unused).
+    dt : float
+        IMU sample interval [s].
+    frame : OriginFrame
+        Origin and Earth model (``flat`` or ``wgs84``).
+    gnss : imugen.gnss.GnssData
+        Fixes of the same S sequences (possibly altered by :mod:`imugen.scenarios`): only
+        ``index``, ``p_n``, ``v_n``, ``sigma_p_n``, ``sigma_v_n``, ``valid``,
+        ``params.lever_arm_b_m`` and ``params.latency_s`` are read.
+    tun : Tuning
+    opts : Options
+    init : Initial, optional
+        Start state; default :func:`align`.
+    tuning_T : ndarray (S, N_TUNE), optional
+        Per-sequence tuning (default :func:`tuning_matrix` with the receiver's nominal figures).
+    store_P : bool
+        Also return the full covariance at every epoch.
+    seq_chunk : int
+        Sequences per kernel call.
+    """
+    opts = opts or Options()
+    dth = np.asarray(dtheta_b, float)
+    dvb = np.asarray(dv_b, float)
+    if dth.ndim != 3 or dth.shape != dvb.shape or dth.shape[2] != 3:
+        raise InputError("aided", f"increments must be (S, K, 3), got {dth.shape}, {dvb.shape}")
+    S = dth.shape[0]
+    if gnss.p_n.shape[0] != S:
+        raise InputError("aided", f"GNSS has {gnss.p_n.shape[0]} sequences, IMU {S}")
+    if tuning_T is None:
+        tuning_T = tuning_matrix(tun, S, gnss_receiver=gnss.receiver)
+    if init is None:
+        init = align(dth, dvb, dt, gnss, tun, opts, frame, tuning_T=tuning_T)
+    n = n_states(opts.scale_factors, opts.gnss_bias)
+    if init.P0.shape[1:] != (n, n):
+        raise InputError("aided", f"P0 must be ({n}, {n}) for these options")
+    idx = np.ascontiguousarray(gnss.index, np.int64)
+    J = len(idx)
+    prm = mech.kernel_params(frame, float(dt))
+    ov = opts.vector()
+    out_x = np.empty((S, J, NX))
+    out_sd = np.empty((S, J, n))
+    out_P = np.empty((S, J if store_P else 0, n, n))
+    flags = np.zeros((S, J), np.int8)
+    zp = np.nan_to_num(np.asarray(gnss.p_n, float))
+    zv = np.nan_to_num(np.asarray(gnss.v_n, float))
+    ok = np.asarray(gnss.valid, bool)
+    lever = np.asarray(gnss.params.lever_arm_b_m, float)
+    lat = np.asarray(gnss.params.latency_s, float)
+    for a in range(0, S, seq_chunk):
+        b = min(S, a + seq_chunk)
+        _kernel(
+            np.ascontiguousarray(dth[a:b]),
+            np.ascontiguousarray(dvb[a:b]),
+            np.ascontiguousarray(init.k0[a:b], np.int64),
+            idx,
+            np.ascontiguousarray(zp[a:b]),
+            np.ascontiguousarray(zv[a:b]),
+            np.ascontiguousarray(gnss.sigma_p_n[a:b], float),
+            np.ascontiguousarray(gnss.sigma_v_n[a:b], float),
+            np.ascontiguousarray(ok[a:b]),
+            np.ascontiguousarray(lever[a:b]),
+            np.ascontiguousarray(lat[a:b]),
+            np.ascontiguousarray(init.x0[a:b]),
+            np.ascontiguousarray(init.P0[a:b]),
+            prm,
+            np.ascontiguousarray(tuning_T[a:b]),
+            ov,
+            out_x[a:b],
+            out_sd[a:b],
+            out_P[a:b],
+            flags[a:b],
+        )
+    return AidedResult(
+        time_s=np.asarray(gnss.time_s),
+        index=idx,
+        p_n=out_x[..., X_P : X_P + 3],
+        v_n=out_x[..., X_V : X_V + 3],
+        q_nb=out_x[..., X_Q : X_Q + 4],
+        gyro_bias=out_x[..., X_BG : X_BG + 3],
+        accel_bias=out_x[..., X_BA : X_BA + 3],
+        gyro_sf=out_x[..., X_SG : X_SG + 3],
+        accel_sf=out_x[..., X_SA : X_SA + 3],
+        gnss_bias=out_x[..., X_GB : X_GB + 3],
+        sd=out_sd,
+        P=out_P if store_P else None,
+        flags=flags,
+        names=state_names(opts.scale_factors, opts.gnss_bias),
+    )
+
+
+def attitude_error(q_est, q_true) -> np.ndarray:
+    """``psi`` with ``C_est = Exp(psi) C_true`` (rad, resolved in n); (..., 4) x2 -> (..., 3)."""
+    from imugen.rotations import log_dcm
+
+    return log_dcm(quat_to_dcm(q_est) @ np.swapaxes(quat_to_dcm(q_true), -1, -2))

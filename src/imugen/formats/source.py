@@ -1,0 +1,87 @@
+"""What the export formats read: the truth of a route and its shards, one sequence at a time.
+
+Every format writer sees the same two objects: :class:`TruthArrays` (the route's truth, in
+memory once: ``K`` rows of float64) and, per sequence, :class:`Sequence` (its measured IMU
+columns, ``K`` rows, its labels row and the shard's metadata). Files are read only through the
+contract layer (:mod:`imugen.tables`); shards are streamed sequence by sequence, so an export
+holds one sequence in memory whatever the number of sequences.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from imugen.tables import SEQUENCE
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+
+RATE_COLUMNS = tshard.RATES
+INCREMENT_COLUMNS = tshard.INCREMENTS
+BIAS_COLUMNS = tshard.BIAS
+
+
+@dataclass
+class TruthArrays:
+    """A route's truth (``K`` samples): time (K,), p_n, v_n (K, 3), q_nb (K, 4), rates,
+    increments (K, 3); ``meta`` is the truth file's metadata."""
+
+    time_s: np.ndarray
+    p_n: np.ndarray
+    v_n: np.ndarray
+    q_nb: np.ndarray
+    gyro: np.ndarray
+    accel: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+    meta: dict
+
+    @property
+    def K(self) -> int:
+        return len(self.time_s)
+
+    @property
+    def dt(self) -> float:
+        return float((self.time_s[-1] - self.time_s[0]) / (self.K - 1))
+
+
+def read_truth(path) -> TruthArrays:
+    """Read a truth table whole (it is one route: a few tens of MB)."""
+    t = ttruth.read(path)
+    return TruthArrays(t.time_s, t.p_n, t.v_n, t.q_nb, t.omega_ib_b, t.f_b, t.dtheta, t.dv, t.meta)
+
+
+@dataclass
+class Sequence:
+    """One measured sequence: ``id``, columns by name (K,) float64, labels, shard metadata."""
+
+    id: int
+    data: dict[str, np.ndarray]
+    labels: dict
+    meta: dict = field(repr=False)
+
+    def has(self, names) -> bool:
+        return all(n in self.data for n in names)
+
+    def stack(self, names) -> np.ndarray:
+        return np.column_stack([self.data[n] for n in names])
+
+
+def iter_sequences(shard_paths, K: int, only=None) -> Iterator[Sequence]:
+    """Yield every sequence of the shards (file order), one at a time.
+
+    ``only``: optional set of sequence ids to keep.
+    """
+    for p in map(Path, shard_paths):
+        meta = tshard.read_meta(p)
+        have = set(tshard.column_names(p))
+        names = [c for c in (*RATE_COLUMNS, *INCREMENT_COLUMNS, *BIAS_COLUMNS) if c in have]
+        labels = tshard.read_labels(p, meta).set_index(SEQUENCE)
+        for sid, block in tshard.iter_sequences(p, names, K, np.float64):
+            if only is not None and sid not in only:
+                continue
+            row = labels.loc[sid].to_dict() if sid in labels.index else {}
+            yield Sequence(sid, dict(zip(names, block, strict=True)), row, meta)

@@ -1,0 +1,18 @@
+"""The contract layer: one module per file that passes between stages.
+
+Each module owns its table's column names, units, metadata block, reader and writer (built
+on the atomic writes of :mod:`imugen.io`); no stage parses another's file by hand.
+
+- :mod:`~imugen.tables.enu`: ingestion output (route points in local ENU);
+- :mod:`~imugen.tables.truth`: truth motion and ideal IMU at the IMU rate;
+- :mod:`~imugen.tables.shard`: measured IMU shard, its labels sidecar, optional series;
+- :mod:`~imugen.tables.nav`: navigation errors per sequence and epoch;
+- :mod:`~imugen.tables.metrics`: per-sequence RMSE and final errors.
+
+``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them.
+"""
+
+from imugen.tables import enu, metrics, nav, shard, truth
+from imugen.tables._parquet import SEQUENCE, TIME
+
+__all__ = ["SEQUENCE", "TIME", "enu", "metrics", "nav", "shard", "truth"]

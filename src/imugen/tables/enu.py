@@ -1,0 +1,41 @@
+"""ENU route table: the output of ``imugen ingest``, the input of ``imugen truth``.
+
+One row per kept input point: ``time_s`` (s, timed routes only), geodetic ``lat_deg``,
+``lon_deg`` (WGS-84, degrees), ``alt_m`` (ellipsoidal height, m), and the exact local ENU
+coordinates ``e_m``, ``n_m``, ``u_m`` (m) in the topocentric frame of the origin; optionally
+``utm_e_m``, ``utm_n_m`` (``--utm``). Metadata (JSON under ``b"imugen"``): ``origin``
+{lat_deg, lon_deg, alt_m}, ``timed``, ``source`` and the ingestion report.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from imugen.io import read_meta as read_meta
+from imugen.io import write_parquet
+from imugen.tables._parquet import TIME, read_table
+
+LAT = "lat_deg"
+LON = "lon_deg"
+ALT = "alt_m"
+E = "e_m"
+N = "n_m"
+U = "u_m"
+ENU = (E, N, U)
+UTM = ("utm_e_m", "utm_n_m")
+COLUMNS = (TIME, LAT, LON, ALT, E, N, U)
+UNITS = {TIME: "s", LAT: "deg", LON: "deg", ALT: "m", **dict.fromkeys((*ENU, *UTM), "m")}
+WHAT = "ENU route table"
+
+
+def write(df: pd.DataFrame, meta: dict, out) -> Path:
+    """Write the table with its metadata atomically."""
+    return write_parquet(df, meta, out)
+
+
+def read(path) -> tuple[pd.DataFrame, dict]:
+    """The table and its metadata (InputError if unreadable or not written by imugen)."""
+    meta = read_meta(path)
+    return read_table(path, what=WHAT).to_pandas(), meta

@@ -1,0 +1,46 @@
+"""Per-sequence metrics table: the output of ``imugen evaluate`` (one file per grade).
+
+One row per sequence: ``sequence``; ``rmse_{east,north,up}_m`` and ``rmse_total_m`` (RMSE of
+the position error over the evaluation epochs, m); ``final_{east,north,up,horizontal,3d}_m``
+(error at the last epoch, m); ``final_pct_distance`` (final horizontal error, % of the
+horizontal distance travelled); ``epochs``. Metadata (JSON under ``b"imugen"``): ``stage``,
+``grade``, ``distance_horizontal_m``, ``units``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from imugen.errors import InputError
+from imugen.io import read_meta as read_meta
+from imugen.io import write_parquet
+from imugen.tables._parquet import SEQUENCE, read_table
+
+AXES = ("east", "north", "up")
+RMSE = tuple(f"rmse_{a}_m" for a in AXES)
+RMSE_TOTAL = "rmse_total_m"
+FINAL = tuple(f"final_{a}_m" for a in AXES)
+FINAL_HORIZONTAL = "final_horizontal_m"
+FINAL_3D = "final_3d_m"
+FINAL_PCT = "final_pct_distance"
+EPOCHS = "epochs"
+WHAT = "metrics table"
+
+
+def write(df: pd.DataFrame, meta: dict, out) -> Path:
+    """Write the metrics (``sequence`` as a column or as the index) atomically."""
+    if df.index.name == SEQUENCE:
+        df = df.reset_index()
+    return write_parquet(df, meta, out)
+
+
+def read(path) -> pd.DataFrame:
+    """The metrics table with ``sequence`` as a column (InputError if it is not one)."""
+    df = read_table(path, what=WHAT).to_pandas()
+    if SEQUENCE not in df.columns and df.index.name == SEQUENCE:
+        df = df.reset_index()
+    if SEQUENCE not in df.columns or RMSE_TOTAL not in df.columns:
+        raise InputError(path, f"is not a metrics table (needs {SEQUENCE}, {RMSE_TOTAL})")
+    return df

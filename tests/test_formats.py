@@ -1,0 +1,232 @@
+"""Export formats: each writer read back by its consumer's library, compared with the source."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from imugen import rotations as rot
+from imugen import simulate
+from imugen.errors import InputError
+from imugen.formats import convert, export, parse_formats
+from imugen.formats.source import iter_sequences, read_truth
+from imugen.io import write_parquet
+from imugen.truth import build_truth, enu_table
+
+M = 2
+RATE = 50.0
+
+
+@pytest.fixture(scope="module")
+def route(tmp_path_factory):
+    """A 40 s drive (a climbing curve) at 50 Hz, wgs84, two consumer sequences with rates,
+    increments and series."""
+    tmp = tmp_path_factory.mktemp("fmt")
+    t = np.arange(0.0, 41.0, 1.0)
+    enu = np.column_stack([300 * np.sin(t / 40.0), 200 * (1 - np.cos(t / 30.0)), 0.1 * t])
+    df, meta = enu_table(enu, t, origin=(45.2, 7.6, 300.0))
+    tdf, tmeta = build_truth(df, meta, rate_hz=RATE, earth="wgs84", verbose=False)
+    truth = write_parquet(tdf, tmeta, tmp / "drive" / "truth.parquet")
+    shard = tmp / "drive" / "imu" / "consumer" / "shard-000.parquet"
+    simulate.run(truth, shard, "consumer", sequences=M, seed=5, outputs="both", series=True)
+    return truth, shard, tmp
+
+
+@pytest.fixture(scope="module")
+def exported(route):
+    truth, shard, tmp = route
+    out = tmp / "export"
+    export(
+        list(parse_formats("euroc,tum,tlio,ronin,kfgins,ros2")),
+        truth,
+        [shard],
+        out,
+        log=lambda m: None,
+    )
+    return out
+
+
+def _seqs(route):
+    truth, shard, _ = route
+    tr = read_truth(truth)
+    return tr, [
+        (s.id, {k: v.copy() for k, v in s.data.items()}, dict(s.labels))
+        for s in iter_sequences([shard], tr.K)
+    ]
+
+
+# --- conversions ------------------------------------------------------------------------------
+def test_ned_frd_conversions_against_hand_cases():
+    # facing East, level: heading 90 deg, roll = pitch = 0
+    C = np.eye(3)
+    e = np.degrees(convert.euler_ned_frd(convert.dcm_ned_frd(C)))
+    assert np.allclose(e, [0.0, 0.0, 90.0])
+    # nose up by 10 deg facing North (ENU yaw +90 deg): pitch +10, heading 0
+    C = rot.euler_to_dcm(0.0, math.radians(10.0), math.radians(90.0))
+    e = np.degrees(convert.euler_ned_frd(convert.dcm_ned_frd(C)))
+    assert np.allclose(e, [0.0, 10.0, 0.0], atol=1e-9)
+    # right wing down by 5 deg (imugen roll > 0): NED roll +5
+    C = rot.euler_to_dcm(math.radians(5.0), 0.0, math.radians(90.0))
+    assert np.allclose(np.degrees(convert.euler_ned_frd(convert.dcm_ned_frd(C)))[0], 5.0)
+    v = np.array([1.0, 2.0, 3.0])
+    assert np.allclose(convert.enu_to_ned(v), [2.0, 1.0, -3.0])
+    assert np.allclose(convert.flu_to_frd(v), [1.0, -2.0, -3.0])
+    C = rot.euler_to_dcm(0.3, -0.2, 1.1)
+    Cn = convert.dcm_ned_frd(C)
+    assert np.allclose(Cn @ Cn.T, np.eye(3)) and np.isclose(np.linalg.det(Cn), 1.0)
+    # a body vector maps the same way through either frame pair
+    vb = np.array([0.4, -1.2, 2.0])
+    assert np.allclose(Cn @ convert.flu_to_frd(vb), convert.enu_to_ned(C @ vb))
+    assert np.array_equal(convert.clock([0.0, 1.5e-9, 2.0], 1e-9, 7), [7, 9, 2_000_000_007])
+
+
+def test_format_names_are_checked(route):
+    with pytest.raises(InputError, match="unknown format"):
+        parse_formats("euroc,kitti")
+    truth, shard, tmp = route
+    (tmp / "busy").mkdir()
+    with pytest.raises(InputError, match="exists"):
+        export(["tum"], truth, [shard], tmp / "busy", log=lambda m: None)
+    assert not list(tmp.glob(".busy.*"))
+
+
+# --- each format, read back --------------------------------------------------------------------
+def test_euroc_read_by_evo_and_equal_to_the_shard(route, exported):
+    evo_fi = pytest.importorskip("evo.tools.file_interface")
+    tr, seqs = _seqs(route)
+    sid, data, _ = seqs[0]
+    folder = exported / "euroc" / f"drive_consumer_{sid:06d}" / "mav0"
+    traj = evo_fi.read_euroc_csv_trajectory(
+        str(folder / "state_groundtruth_estimate0" / "data.csv")
+    )
+    assert np.allclose(traj.positions_xyz, tr.p_n, atol=1e-6)
+    assert np.allclose(traj.orientations_quat_wxyz, tr.q_nb, atol=1e-8)
+    imu = np.loadtxt(folder / "imu0" / "data.csv", delimiter=",", comments="#")
+    assert imu.shape == (tr.K, 7)
+    assert np.array_equal(imu[:, 0].astype(np.int64), np.rint(tr.time_s * 1e9).astype(np.int64))
+    w = np.column_stack([data[f"gyro_{a}_radps"] for a in "xyz"])
+    assert np.allclose(imu[:, 1:4], w, rtol=1e-8, atol=1e-12)
+    header = (folder / "imu0" / "data.csv").read_text().splitlines()[0]
+    assert header.startswith("#timestamp [ns],w_RS_S_x [rad s^-1]")
+    import yaml
+
+    s = yaml.safe_load((folder / "imu0" / "sensor.yaml").read_text())
+    assert s["rate_hz"] == RATE and s["gyroscope_noise_density"] > 0
+
+
+def test_tum_navigation_matches_the_navigation_stage(route, exported):
+    evo_fi = pytest.importorskip("evo.tools.file_interface")
+    from imugen.navigate import navigate
+
+    truth, shard, _ = route
+    tr, seqs = _seqs(route)
+    gt = evo_fi.read_tum_trajectory_file(str(exported / "tum" / "truth.tum"))
+    every = round(RATE / 10.0)
+    assert np.allclose(gt.positions_xyz, tr.p_n[::every], atol=1e-5)
+    nav = navigate(truth, shard, eval_rate_hz=10.0)
+    for sid, _, _ in seqs:
+        est = evo_fi.read_tum_trajectory_file(
+            str(exported / "tum" / f"drive_consumer_{sid:06d}.tum")
+        )
+        err = nav[nav["sequence"] == sid][["err_e_m", "err_n_m", "err_u_m"]].to_numpy()
+        assert np.allclose(est.positions_xyz - tr.p_n[::every], err, atol=2e-5 + 1e-6 * np.abs(err))
+
+
+def test_tlio_layout_and_rotation(route, exported):
+    tr, seqs = _seqs(route)
+    sid, data, _ = seqs[1]
+    folder = exported / "tlio" / f"drive_consumer_{sid:06d}"
+    arr = np.load(folder / "imu0_resampled.npy")
+    desc = json.loads((folder / "imu0_resampled_description.json").read_text())
+    assert arr.shape == (tr.K, 17) and desc["num_rows"] == tr.K
+    assert desc["columns_name(width)"][3] == "qxyzw_World_Device(4)"
+    q = np.column_stack([arr[:, 10], arr[:, 7:10]])  # back to scalar first
+    assert np.allclose(q, tr.q_nb)
+    C = rot.quat_to_dcm(q)
+    f_b = np.einsum("kji,kj->ki", C, arr[:, 4:7])  # world -> body
+    assert np.allclose(f_b, np.column_stack([data[f"accel_{a}_mps2"] for a in "xyz"]), atol=1e-9)
+    lists = {
+        p: (exported / "tlio" / f"{p}_list.txt").read_text().split()
+        for p in ("train", "val", "test")
+    }
+    assert sorted(n for v in lists.values() for n in v) == sorted(
+        f"drive_consumer_{s:06d}" for s, _, _ in seqs
+    )
+
+
+def test_ronin_hdf5(route, exported):
+    h5py = pytest.importorskip("h5py")
+    tr, seqs = _seqs(route)
+    sid, data, _ = seqs[0]
+    folder = exported / "ronin" / f"drive_consumer_{sid:06d}"
+    with h5py.File(folder / "data.hdf5", "r") as h:
+        assert np.allclose(
+            h["synced/gyro_uncalib"][:], np.column_stack([data[f"gyro_{a}_radps"] for a in "xyz"])
+        )
+        assert np.allclose(h["pose/tango_pos"][:], tr.p_n)
+        assert np.allclose(h["synced/time"][:], tr.time_s)
+    info = json.loads((folder / "info.json").read_text())
+    assert info["imu_acce_scale"] == [1.0, 1.0, 1.0] and info["ori_source"] == "game_rv"
+
+
+def test_kfgins_files_in_ned_frd(route, exported):
+    tr, seqs = _seqs(route)
+    sid, data, _ = seqs[0]
+    folder = exported / "kfgins" / f"drive_consumer_{sid:06d}"
+    imu = np.loadtxt(folder / "imu.txt")
+    assert imu.shape == (tr.K - 1, 7)
+    assert np.allclose(imu[:, 0], tr.time_s[1:])
+    dth = np.column_stack([data[f"dtheta_{a}_rad"] for a in "xyz"])[1:]
+    assert np.allclose(imu[:, 1:4], dth * [1, -1, -1], rtol=1e-10, atol=1e-15)
+    nav = np.loadtxt(folder / "truth.nav")
+    tdf = pd.read_parquet(route[0])
+    # heading from North clockwise = 90 deg - yaw (imugen yaw: 0 East, counter-clockwise)
+    heading = np.mod(90.0 - np.degrees(tdf["yaw_rad"].to_numpy()), 360.0)
+    d = np.mod(nav[:, 10] - heading + 180.0, 360.0) - 180.0
+    assert np.max(np.abs(d)) < 1e-6
+    assert np.allclose(nav[:, 8], np.degrees(tdf["roll_rad"]), atol=1e-6)
+    assert np.allclose(nav[:, 9], np.degrees(tdf["pitch_rad"]), atol=1e-6)
+    # NED velocity: vD = -vU (local level at the vehicle, within the 40 s scene's tilt)
+    assert np.allclose(nav[:, 7], -tdf["v_u_mps"], atol=1e-3)
+    assert abs(nav[0, 2] - 45.2) < 1e-7 and abs(nav[0, 3] - 7.6) < 1e-7  # spline fit: < 1 cm
+    import yaml
+
+    cfg = yaml.safe_load((folder / "kf-gins.yaml").read_text())
+    assert cfg["imudatalen"] == 7 and cfg["imudatarate"] == RATE and cfg["imunoise"]["arw"] > 0
+
+
+def test_ros2_bag_read_by_rosbags(route, exported):
+    pytest.importorskip("rosbags")
+    from rosbags.highlevel import AnyReader
+
+    tr, seqs = _seqs(route)
+    sid, data, _ = seqs[0]
+    folder = exported / "ros2" / f"drive_consumer_{sid:06d}"
+    counts, first = {}, {}
+    with AnyReader([folder]) as reader:
+        for conn, ts, raw in reader.messages():
+            counts[conn.topic] = counts.get(conn.topic, 0) + 1
+            if conn.topic not in first:
+                first[conn.topic] = (ts, reader.deserialize(raw, conn.msgtype))
+    assert counts["/imu/data"] == tr.K and counts["/ground_truth/odom"] == tr.K
+    ts, imu = first["/imu/data"]
+    assert ts == 0 and imu.orientation_covariance[0] == -1.0
+    assert np.isclose(imu.angular_velocity.x, data["gyro_x_radps"][0])
+    _, od = first["/ground_truth/odom"]
+    q = od.pose.pose.orientation
+    assert np.allclose([q.w, q.x, q.y, q.z], tr.q_nb[0])
+
+
+def test_ros2_truth_read_by_evo(route, exported):
+    evo_fi = pytest.importorskip("evo.tools.file_interface")
+    from rosbags.rosbag2 import Reader
+
+    tr, seqs = _seqs(route)
+    folder = exported / "ros2" / f"drive_consumer_{seqs[0][0]:06d}"
+    with Reader(folder) as reader:
+        traj = evo_fi.read_bag_trajectory(reader, "/ground_truth/odom")
+    assert np.allclose(traj.positions_xyz, tr.p_n) and np.allclose(traj.timestamps, tr.time_s)
