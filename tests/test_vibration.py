@@ -163,7 +163,7 @@ def test_coning_rectification_matches_its_closed_form():
     B, f_hz, dt, K = 1e-3, 20.0, 1e-3, 1001  # 20 periods
     sv = _coning(B, f_hz, dt, K)
     w, f, dth, dv = _still(K, dt)
-    gyro, _, dth_c, _ = sv.apply(0, w, f, dth, dv)
+    gyro, _, dth_c, _ = sv.apply(0, w, f, dth, dv, raw=True)  # integrals of the rate
     Om = 2 * math.pi * f_hz
     # dtheta_v = B (sin Om t, cos Om t - 1, 0): the case returns to its start every period, yet
     # the integrated rate drifts about z by B^2 Om / 2 per second (second order in B)
@@ -197,6 +197,15 @@ def test_coning_rectification_matches_its_closed_form():
     # samples: one-sided differences, left out)
     np.testing.assert_allclose(gyro[1:-1], omega[::n][1:-1], rtol=0, atol=3 * B**3 * Om)
     assert drift == pytest.approx(inc[:, 2].sum(), rel=1e-4)
+    # compensated increments are rotation vectors: they compose back to the case's attitude,
+    # identity after whole periods (no drift to correct)
+    _, _, comp, _ = sv.apply(0, w, f, dth, dv)
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    for k in range(1, K):
+        q = quat_mul(q, exp_quat(comp[k]))
+        if k % 100 == 37:
+            np.testing.assert_allclose(q, exp_quat(th[k * n]), atol=1e-12)
+    np.testing.assert_allclose(q, [1.0, 0.0, 0.0, 0.0], atol=1e-12)
 
 
 def _navigate(vibration, grade=NO_ERRORS, seconds=60.0, rate=100.0, seed=3):

@@ -577,7 +577,7 @@ def _loop(plan: _Plan, sink, progress=None):
             if raw:
                 dth, dv = truth.raw_chunk(k0, L)
             if plan.vib is not None:
-                w_b, f_b, dth, dv = plan.vib[j].apply(k0, w_b, f_b, dth, dv)
+                w_b, f_b, dth, dv = plan.vib[j].apply(k0, w_b, f_b, dth, dv, raw=raw)
             dT = None
             if temp is not None:
                 # time since turn-on of the sample before the chunk and of each sample

@@ -30,13 +30,16 @@ What the IMU measures (case frame ``c = b Exp(dtheta_v)``; ``omega``, ``f``, ``d
     rate: ``omega_c = omega - dtheta_v x omega + d(dtheta_v)/dt - 1/2 dtheta_v x
     d(dtheta_v)/dt`` (second order in the angle, a few 1e-5 rad, so the omitted third-order
     terms are ~1e-10 relative), ``f_c = Exp(-dtheta_v) (f + a_v)`` (exact);
-    increments (interval ``[t_{k-1}, t_k]``, mean body rate ``w = dtheta / dt``):
-    ``dtheta_c = dtheta + dtheta_v(t_k) - dtheta_v(t_{k-1}) - (int dtheta_v) x w
-    - 1/2 int dtheta_v x d(dtheta_v)/dt`` -- the last term is the coning rectification of
-    synchronous angular vibration, integrated in closed form for every pair of components;
+    compensated increments (interval ``[t_{k-1}, t_k]``, mean body rate ``w = dtheta / dt``):
+    ``dtheta_c = Log(Exp(-dtheta_v(t_{k-1})) Exp(dtheta) Exp(dtheta_v(t_k)))`` (exact);
     ``dv_c = Exp(-dtheta_v(t_{k-1})) (dv + int a_v + w x int (t - t_{k-1}) a_v)`` -- exact
     for the case rotation, first order in the body rotation within the interval (relative
-    error ``(|w| dt)^2 / 6``, 4e-6 at 0.5 rad/s and 100 Hz).
+    error ``(|w| dt)^2 / 6``, 4e-6 at 0.5 rad/s and 100 Hz);
+    raw increments (plain integrals): ``dtheta_c = dtheta + dtheta_v(t_k) - dtheta_v(t_{k-1})
+    - (int dtheta_v) x w - 1/2 int dtheta_v x d(dtheta_v)/dt`` -- the last term is the coning
+    rectification of synchronous angular vibration, integrated in closed form for every pair of
+    components; ``dv_c = dv + int a_v - (int dtheta_v) x dv / dt`` (first order in the case
+    angle: the product of angular and linear vibration, ~1e-5 of ``a_v``, is left out).
 Rate samples are instantaneous: lines above the Nyquist frequency alias in them as in an
 unfiltered sampled sensor; increments integrate every line exactly.
 """
@@ -266,6 +269,40 @@ def _rot_minus(th, v, out):
 
 
 @njit(cache=True)
+def _qexp(v, q):
+    """q = Exp(v), scalar first."""
+    a = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    h = 0.5 - a * a / 48.0 if a < 1e-4 else math.sin(0.5 * a) / a
+    q[0] = math.cos(0.5 * a)
+    q[1] = h * v[0]
+    q[2] = h * v[1]
+    q[3] = h * v[2]
+
+
+@njit(cache=True)
+def _qmul(p, q, out):
+    out[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
+    out[1] = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
+    out[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
+    out[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
+
+
+@njit(cache=True)
+def _qlog(q, v):
+    """v = Log(q) (rotation vector, |v| <= pi)."""
+    w = q[0]
+    sgn = 1.0 if w >= 0.0 else -1.0
+    n = math.sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if n < 1e-12:
+        k = 2.0 / (sgn * w)
+    else:
+        k = 2.0 * math.atan2(n, sgn * w) / n
+    v[0] = sgn * k * q[1]
+    v[1] = sgn * k * q[2]
+    v[2] = sgn * k * q[3]
+
+
+@njit(cache=True)
 def _apply_kernel(
     k0,
     dt,
@@ -290,6 +327,7 @@ def _apply_kernel(
     f_c,
     dth,
     dv_c,
+    raw,
 ):
     L = omega_b.shape[0]
     Cl = l_amp.shape[0]
@@ -314,6 +352,10 @@ def _apply_kernel(
     int_ta = np.zeros(3)
     tmp = np.zeros(3)
     out = np.zeros(3)
+    qa = np.zeros(4)
+    qb = np.zeros(4)
+    qc = np.zeros(4)
+    qd = np.zeros(4)
     for j in range(L):
         k = k0 + j
         kp = k - 1 if k > 0 else 0
@@ -420,20 +462,43 @@ def _apply_kernel(
             + th_dot[2]
             - 0.5 * (th[0] * th_dot[1] - th[1] * th_dot[0])
         )
-        dth[j, 0] = dtheta[j, 0] + th[0] - th_p[0] - (int_th[1] * wm2 - int_th[2] * wm1) + con[0]
-        dth[j, 1] = dtheta[j, 1] + th[1] - th_p[1] - (int_th[2] * wm0 - int_th[0] * wm2) + con[1]
-        dth[j, 2] = dtheta[j, 2] + th[2] - th_p[2] - (int_th[0] * wm1 - int_th[1] * wm0) + con[2]
         for i in range(3):
             tmp[i] = f_b[j, i] + a_v[i]
         _rot_minus(th, tmp, out)
         for i in range(3):
             f_c[j, i] = out[i]
-        tmp[0] = dv[j, 0] + int_a[0] + (wm1 * int_ta[2] - wm2 * int_ta[1])
-        tmp[1] = dv[j, 1] + int_a[1] + (wm2 * int_ta[0] - wm0 * int_ta[2])
-        tmp[2] = dv[j, 2] + int_a[2] + (wm0 * int_ta[1] - wm1 * int_ta[0])
-        _rot_minus(th_p, tmp, out)
-        for i in range(3):
-            dv_c[j, i] = out[i]
+        if raw:
+            # integrals of the case's rate and specific force
+            dth[j, 0] = dtheta[j, 0] + th[0] - th_p[0] - (int_th[1] * wm2 - int_th[2] * wm1)
+            dth[j, 1] = dtheta[j, 1] + th[1] - th_p[1] - (int_th[2] * wm0 - int_th[0] * wm2)
+            dth[j, 2] = dtheta[j, 2] + th[2] - th_p[2] - (int_th[0] * wm1 - int_th[1] * wm0)
+            fm0, fm1, fm2 = dv[j, 0] / dt, dv[j, 1] / dt, dv[j, 2] / dt
+            dv_c[j, 0] = dv[j, 0] + int_a[0] - (int_th[1] * fm2 - int_th[2] * fm1)
+            dv_c[j, 1] = dv[j, 1] + int_a[1] - (int_th[2] * fm0 - int_th[0] * fm2)
+            dv_c[j, 2] = dv[j, 2] + int_a[2] - (int_th[0] * fm1 - int_th[1] * fm0)
+            for i in range(3):
+                dth[j, i] += con[i]
+        else:
+            # rotation vector of Exp(-th_p) Exp(dtheta) Exp(th) (exact), and the velocity
+            # change in the case frame at the interval start
+            for i in range(3):
+                tmp[i] = -th_p[i]
+            _qexp(tmp, qa)
+            for i in range(3):
+                tmp[i] = dtheta[j, i]
+            _qexp(tmp, qb)
+            _qmul(qa, qb, qc)
+            _qexp(th, qa)
+            _qmul(qc, qa, qd)
+            _qlog(qd, out)
+            for i in range(3):
+                dth[j, i] = out[i]
+            tmp[0] = dv[j, 0] + int_a[0] + (wm1 * int_ta[2] - wm2 * int_ta[1])
+            tmp[1] = dv[j, 1] + int_a[1] + (wm2 * int_ta[0] - wm0 * int_ta[2])
+            tmp[2] = dv[j, 2] + int_a[2] + (wm0 * int_ta[1] - wm1 * int_ta[0])
+            _rot_minus(th_p, tmp, out)
+            for i in range(3):
+                dv_c[j, i] = out[i]
         if k == 0:
             for i in range(3):
                 dth[j, i] = 0.0
@@ -577,11 +642,13 @@ class SequenceVibration:
         }
 
     # --- application -------------------------------------------------------------------
-    def apply(self, k0, omega_b, f_b, dtheta, dv):
+    def apply(self, k0, omega_b, f_b, dtheta, dv, raw=False):
         """Truth chunk (samples ``k0 .. k0 + L - 1``) -> what the vibrating case measures.
 
         Parameters and returns: ``omega_b, f_b, dtheta, dv`` (L, 3) arrays (new arrays; the
-        inputs are not modified). Increments of row ``k0 = 0`` stay zero.
+        inputs are not modified). Increments of row ``k0 = 0`` stay zero. ``raw``: the
+        increments are plain integrals of rate and specific force (else compensated: rotation
+        vector and velocity change in the frame at the interval start).
         """
         v, cl, ca = self.vib, self.lin, self.ang
         out = [np.empty((len(omega_b), 3)) for _ in range(4)]
@@ -603,6 +670,7 @@ class SequenceVibration:
             ca["phi0"],
             *(np.ascontiguousarray(x, dtype=np.float64) for x in (omega_b, f_b, dtheta, dv)),
             *out,
+            bool(raw),
         )
         return tuple(out)
 
