@@ -116,6 +116,7 @@ def _cmd_simulate(a) -> int:
         shard_size=a.shard_size,
         route=a.route,
         increments=a.increments,
+        vibration=a.vibration,
     )
     print(
         f"{a.output}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
@@ -415,6 +416,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="error levels drawn in the grade's ranges per sequence, or nominal for all",
     )
     p.add_argument("--terms", help="comma-separated error terms to keep (default: all)")
+    p.add_argument(
+        "--vibration",
+        choices=["off", "car", "aircraft", "vehicle"],
+        default="off",
+        help="vibration of the IMU case (vehicle: the truth's vehicle class; default off)",
+    )
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
     p.add_argument(
         "--series",

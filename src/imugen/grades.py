@@ -26,7 +26,12 @@ Terms (per sensor; all optional; an absent term is off)
                        ``model: gauss_markov`` (one first-order GM, ``correlation_time``) or
                        ``model: flicker`` (a sum of ``components`` GM processes with
                        log-spaced correlation times in ``flicker_band`` approximating 1/f noise,
-                       ``allan_floor`` only).
+                       ``allan_floor`` only); ``start: zero`` (the in-run wander, starting
+                       at 0 around the turn-on value; the default beside a ``turn_on_bias``)
+                       or ``start: stationary`` (one process that is the whole slow bias,
+                       started from its stationary law; the default without a
+                       ``turn_on_bias``, and refused beside one: it would count the initial
+                       bias twice).
 ``white_noise``        density (ARW / VRW).
 ``rate_random_walk``   density of the bias derivative (RRW).
 ``scale_factor``       1-sigma per axis (dimensionless).
@@ -38,6 +43,12 @@ Terms (per sensor; all optional; an absent term is off)
 ``temperature_bias``   1-sigma per axis of the bias temperature coefficient.
 ``temperature_scale_factor``  1-sigma per axis of the scale-factor temperature coefficient.
 
+Grade keys besides the sensors: ``variant`` (``uncalibrated``, default: the part's turn-on
+figures; or ``calibrated``: residuals after a calibration, which ``calibration`` names with its
+source) and ``calibrated_at_rest`` (calibrated grades: the bias was measured at rest and level,
+so it also removed the static error on gravity: the gyro g-sensitivity's ``G (0, 0, g0)``
+and the accelerometer scale factor and cross-coupling's ``E (0, 0, g0)``).
+
 Every entry: ``value`` (scalar or three per-axis values), optional ``range: [lo, hi]`` (same
 unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate`), ``unit``,
 ``kind`` where required, ``source``. Values are converted to SI once, here.
@@ -46,6 +57,7 @@ unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate`
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import json
 import math
@@ -127,8 +139,24 @@ FIXED_TERMS = ("quantization", "range")
 """Terms that are device constants (no Monte-Carlo range)."""
 
 _ENTRY_KEYS = {"value", "range", "unit", "kind", "source", "note"}
-_BI_KEYS = _ENTRY_KEYS | {"model", "correlation_time", "flicker_band", "components"}
-_GRADE_KEYS = {"id", "description", "source", "notes", "reading", "gyro", "accel"}
+_BI_KEYS = _ENTRY_KEYS | {"model", "correlation_time", "flicker_band", "components", "start"}
+_GRADE_KEYS = {
+    "id",
+    "description",
+    "source",
+    "notes",
+    "reading",
+    "variant",
+    "calibration",
+    "calibrated_at_rest",
+    "gyro",
+    "accel",
+}
+VARIANTS = ("uncalibrated", "calibrated")
+"""What a grade's bias figures describe: the part as it turns on, or the residual after a
+factory or field calibration (``calibration`` then says which, with its source)."""
+STARTS = ("stationary", "zero")
+"""Initial law of the in-run bias process (``bias_instability.start``)."""
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 PRESET_FILE = "grades.yaml"
 
@@ -250,6 +278,10 @@ class BiasInstability:
         Smallest and largest correlation time [s] of the flicker components.
     components : int
         Number of GM components (1 for ``gauss_markov``).
+    start : str
+        ``"stationary"``: the process starts from its stationary law and is the whole slow
+        bias (its sigma is the turn-on spread; no ``turn_on_bias`` may be configured beside
+        it). ``"zero"``: it starts at 0 and is the in-run wander around the turn-on value.
     """
 
     level: Param
@@ -257,6 +289,7 @@ class BiasInstability:
     correlation_time: Param | None
     flicker_band: tuple[float, float] | None
     components: int
+    start: str = "stationary"
 
     def sigma_from_level(self, level_si: float) -> float:
         """GM sigma of each component for a drawn level (Allan floor or GM sigma) [SI]."""
@@ -289,6 +322,11 @@ class SensorSpec:
     range: Param | None = None
     temperature_bias: Param | None = None
     temperature_scale_factor: Param | None = None
+    static_g_removed: bool = False
+    """Sensor of a grade calibrated at rest and level: the bias estimate also absorbed the
+    static error on gravity -- ``G (0, 0, g0)`` for a gyro's g-sensitivity, ``E (0, 0, g0)``
+    for an accelerometer's scale factor and cross-coupling ``E`` -- so only the errors on
+    ``f - (0, 0, g0)`` act."""
 
     def configured(self) -> tuple[str, ...]:
         """Names of the configured terms."""
@@ -311,6 +349,10 @@ class Grade:
         Where the grade was loaded from (preset file or user file).
     config_json : str
         The grade's configuration as given (datasheet units), JSON.
+    variant : str
+        ``"uncalibrated"`` (turn-on figures of the part) or ``"calibrated"`` (residuals).
+    calibration : str
+        For a calibrated grade: the calibration its residuals assume, and the source.
     """
 
     name: str
@@ -322,6 +364,8 @@ class Grade:
     accel: SensorSpec
     origin: str
     config_json: str = field(repr=False)
+    variant: str = "uncalibrated"
+    calibration: str = ""
 
     @property
     def config(self) -> dict:
@@ -399,12 +443,25 @@ def _param(entry, dims, kinds, default_kind, origin, where, fixed=False) -> Para
     return Param(val, lo, hi, uname, kind, src, ds)
 
 
-def _bias_instability(entry, sensor, origin, where) -> BiasInstability:
+def _bias_instability(entry, sensor, origin, where, has_turn_on) -> BiasInstability:
     if not isinstance(entry, dict):
         raise _err(origin, where, f"expected a mapping, got {entry!r}")
     extra = set(entry) - _BI_KEYS
     if extra:
         raise _err(origin, where, f"unknown key(s) {sorted(extra)}; allowed {sorted(_BI_KEYS)}")
+    start = entry.get("start", "zero" if has_turn_on else "stationary")
+    if start not in STARTS:
+        raise _err(origin, where, f"start must be one of {', '.join(STARTS)}, got {start!r}")
+    if start == "stationary" and has_turn_on:
+        # one bias model per source: a process started from its stationary law already holds
+        # the run-to-run spread, so a turn-on draw beside it counts the initial bias twice
+        raise _err(
+            origin,
+            where,
+            "start: stationary beside a turn_on_bias counts the initial bias twice; give "
+            "either a turn_on_bias plus an in-run process (start: zero) or one process "
+            "started from its stationary law (no turn_on_bias)",
+        )
     dims, kinds, dk = _TERMS["bias_instability"]
     base = {k: v for k, v in entry.items() if k in _ENTRY_KEYS}
     level = _param(base, dims[sensor], kinds, dk, origin, where)
@@ -424,7 +481,7 @@ def _bias_instability(entry, sensor, origin, where) -> BiasInstability:
         )
         if min(ct.value) <= 0:
             raise _err(origin, where, "correlation_time must be > 0")
-        return BiasInstability(level, model, ct, None, 1)
+        return BiasInstability(level, model, ct, None, 1, start)
     if model == "flicker":
         if level.kind != "allan_floor":
             raise _err(origin, where, "model flicker takes kind allan_floor")
@@ -443,7 +500,7 @@ def _bias_instability(entry, sensor, origin, where) -> BiasInstability:
         n = entry.get("components", max(2, round(2 * math.log10(hi / lo)) + 1))
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 32:
             raise _err(origin, where, "components must be an integer in 1..32")
-        return BiasInstability(level, model, None, (lo, hi), n)
+        return BiasInstability(level, model, None, (lo, hi), n, start)
     raise _err(origin, where, f"model must be gauss_markov or flicker, got {model!r}")
 
 
@@ -462,7 +519,7 @@ def _sensor(cfg, sensor, origin, where) -> SensorSpec:
             continue
         w = f"{where}.{t}"
         if t == "bias_instability":
-            kw[t] = _bias_instability(entry, sensor, origin, w)
+            kw[t] = _bias_instability(entry, sensor, origin, w, cfg.get("turn_on_bias") is not None)
         else:
             dims, kinds, dk = _TERMS[t]
             kw[t] = _param(entry, dims[sensor], kinds, dk, origin, w, fixed=t in FIXED_TERMS)
@@ -505,10 +562,23 @@ def grade_from_config(name: str, cfg: dict, origin: str = "<config>") -> Grade:
         cj = json.dumps(cfg, sort_keys=True)
     except TypeError as exc:
         raise _err(origin, where, f"not serializable: {exc}") from None
-    text = {k: cfg.get(k, "") for k in ("description", "source", "reading")}
+    text = {k: cfg.get(k, "") for k in ("description", "source", "reading", "calibration")}
     for k, v in text.items():
         if not isinstance(v, str):
             raise _err(origin, where, f"{k} must be text")
+    variant = cfg.get("variant", "uncalibrated")
+    if variant not in VARIANTS:
+        raise _err(origin, where, f"variant must be one of {', '.join(VARIANTS)}, got {variant!r}")
+    if variant == "calibrated" and not text["calibration"]:
+        raise _err(
+            origin, where, "a calibrated grade needs 'calibration': which one, and its source"
+        )
+    at_rest = cfg.get("calibrated_at_rest", False)
+    if not isinstance(at_rest, bool) or (at_rest and variant != "calibrated"):
+        raise _err(origin, where, "calibrated_at_rest is true or false, and only for calibrated")
+    if at_rest:
+        gyro = dataclasses.replace(gyro, static_g_removed=True)
+        accel = dataclasses.replace(accel, static_g_removed=True)
     return Grade(
         name,
         gid,
@@ -519,6 +589,8 @@ def grade_from_config(name: str, cfg: dict, origin: str = "<config>") -> Grade:
         accel,
         str(origin),
         cj,
+        variant,
+        text["calibration"],
     )
 
 
@@ -605,8 +677,10 @@ def get_grade(spec, grades_file=None) -> Grade:
 def budget_figures(grade: Grade | str) -> GradeFigures:
     """Nominal figures of a grade for the ``--earth auto`` budget (SI, axis means).
 
-    Bias: root sum square of the turn-on bias (1 sigma) and the in-run bias-instability Allan
-    floor; scale factor and white-noise densities as configured; absent terms are 0.
+    Bias at the start of a run: the turn-on bias (1 sigma) and the in-run Allan floor in root
+    sum square, or, for one process started from its stationary law, its stationary sigma
+    (summed in variance over flicker components); scale factor and white-noise densities as
+    configured; absent terms are 0.
     """
     g = get_grade(grade)
 
@@ -616,8 +690,12 @@ def budget_figures(grade: Grade | str) -> GradeFigures:
     def bias(s: SensorSpec) -> float:
         on = mean(s.turn_on_bias)
         bi = s.bias_instability
-        floor = 0.0 if bi is None else bi.allan_floor_from_level(mean(bi.level))
-        return float(np.hypot(on, floor))
+        if bi is None:
+            return on
+        lvl = mean(bi.level)
+        if bi.start == "stationary":
+            return float(bi.sigma_from_level(lvl) * math.sqrt(bi.components))
+        return float(np.hypot(on, bi.allan_floor_from_level(lvl)))
 
     return GradeFigures(
         name=g.name,

@@ -10,7 +10,9 @@ slow bias (state at sample ``t_k``)
     * ``b_on`` turn-on bias, constant over the run;
     * ``x_c`` first-order Gauss-Markov (bias instability), exact discretization
       ``x_k = phi x_{k-1} + sigma sqrt(1 - phi^2) xi``, ``phi = exp(-dt/T)``, started from
-      its stationary law ``x_0 ~ N(0, sigma^2)``; a sum of several (log-spaced ``T``)
+      its stationary law ``x_0 ~ N(0, sigma^2)`` when it is the whole slow bias, or from
+      ``x_0 = 0`` when it is the in-run wander beside a turn-on bias (grade key ``start``);
+      a sum of several (log-spaced ``T``)
       approximates flicker (1/f) noise;
     * ``r`` rate random walk, ``r_k = r_{k-1} + K sqrt(dt) xi``, ``r_0 = 0`` (the turn-on bias
       is the initial value);
@@ -59,6 +61,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imugen import units
 from imugen.grades import TERMS, SensorSpec
 from imugen.jit import njit
 
@@ -78,7 +81,9 @@ class SensorParams:
 
     Attributes
     ----------
-    b_on : (S, 3)      turn-on bias [rad/s | m/s^2]
+    b_on : (S, 3)      turn-on bias [rad/s | m/s^2] (for a grade calibrated at rest, minus the
+                       static error on gravity the calibration removed: ``G (0, 0, g0)`` for
+                       a gyro, ``E (0, 0, g0)`` for an accelerometer)
     bi_level : (S, 3)  drawn bias-instability level in the configured kind (Allan floor or
                        GM sigma) [rad/s | m/s^2]
     bi_floor : (S, 3)  Allan-deviation floor (peak for one GM) of the in-run bias
@@ -93,6 +98,9 @@ class SensorParams:
     ts : (S, 3)        scale-factor temperature coefficient [1/K]
     lsb : float        quantization step of the rate output (0: off)
     full_scale : float measurement range (inf: off)
+    bi_x0 : (S, 3, C)  standard deviation of each GM component's initial state: ``bi_sigma``
+                       (start from the stationary law) or 0 (in-run wander from the turn-on
+                       value); None means ``bi_sigma``
     """
 
     b_on: np.ndarray
@@ -109,6 +117,11 @@ class SensorParams:
     ts: np.ndarray
     lsb: float
     full_scale: float
+    bi_x0: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.bi_x0 is None:
+            self.bi_x0 = self.bi_sigma
 
     @property
     def components(self) -> int:
@@ -132,6 +145,7 @@ class SensorParams:
             "gs",
             "tb",
             "ts",
+            "bi_x0",
         ):
             kw[name] = np.concatenate([getattr(p, name) for p in items])
         return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale)
@@ -226,6 +240,7 @@ def draw_sensor(
     bi_level = np.zeros(3)
     bi_floor = np.zeros(3)
     bi_sigma = np.zeros((3, C))
+    bi_x0 = bi_sigma
     bi_tau = np.ones(C)
     lv = lvl("bias_instability")
     if lv is not None:
@@ -237,6 +252,7 @@ def draw_sensor(
 
             bi_tau = flicker_taus(bi.flicker_band, C)
         bi_sigma = np.array([[bi.sigma_from_level(x)] * C for x in lv])
+        bi_x0 = bi_sigma if bi.start == "stationary" else np.zeros_like(bi_sigma)
         bi_floor = np.array([bi.allan_floor_from_level(x) for x in lv])
     w = lvl("white_noise")
     r = lvl("rate_random_walk")
@@ -249,6 +265,13 @@ def draw_sensor(
             cc[i, j] = c[i] * z[6 + k]
     g = lvl("g_sensitivity")
     gs = np.zeros((3, 3)) if g is None else g[:, None] * z[12:21].reshape(3, 3)
+    if spec.static_g_removed:
+        # calibrated at rest and level: the bias estimate absorbed the static error on gravity,
+        # (E + G) (0, 0, g0) with E = diag(sf) + cross-coupling, G the g-sensitivity
+        E = cc + np.diag(sf)
+        if spec.sensor == "accel":
+            b_on = b_on - E[:, 2] * units.G0
+        b_on = b_on - gs[:, 2] * units.G0
     tbl = lvl("temperature_bias")
     tb = zero3 if tbl is None else tbl * z[21:24]
     tsl = lvl("temperature_scale_factor")
@@ -272,6 +295,7 @@ def draw_sensor(
         ts=ts[None],
         lsb=float(lsb),
         full_scale=float(full_scale),
+        bi_x0=bi_x0[None],
     )
 
 
@@ -533,7 +557,7 @@ class SensorModel:
             self.use_r and zr is not None,
             self.use_b and zb is not None,
             p.b_on,
-            p.bi_sigma,
+            p.bi_x0,
             self.phi,
             self.drv,
             p.white,

@@ -58,7 +58,8 @@ from imugen.sensors import SensorModel, SensorParams, draw_sensor
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.shard import SEQUENCE
-from imugen.tables.truth import ACCEL, DTHETA, DV, GYRO, TIME
+from imugen.tables.truth import ACCEL, DTHETA, DV, GYRO, TIME, VEL
+from imugen.vibration import setup_vibration
 
 CHUNK = 8192
 """Samples per sequence processed per step (a constant; results do not depend on it)."""
@@ -70,6 +71,7 @@ STREAMS = {
     "accel_rrw": 4,
     "gyro_bi": 5,
     "accel_bi": 6,
+    "vibration": 7,
 }
 """Per-sequence random streams: last element of the spawn key."""
 OUTPUTS = tshard.OUTPUTS
@@ -136,6 +138,7 @@ class ArrayTruth(Truth):
             raise InputError(source, "time_s is not a uniform grid")
         self.meta = dict(meta or {})
         self._raw = None
+        self.speed_mps = None  # vehicle speed per sample when known (vibration model)
 
     def chunk(self, k0, L):
         s = slice(k0, k0 + L)
@@ -157,7 +160,7 @@ class ArrayTruth(Truth):
         miss = [c for c in need if c not in df.columns]
         if miss:
             raise InputError(source, f"not a truth table: missing column(s) {', '.join(miss)}")
-        return cls(
+        out = cls(
             df[TIME].to_numpy(),
             df[list(GYRO)].to_numpy(),
             df[list(ACCEL)].to_numpy(),
@@ -166,11 +169,16 @@ class ArrayTruth(Truth):
             meta,
             source,
         )
+        if set(VEL) <= set(df.columns):
+            out.speed_mps = np.linalg.norm(df[list(VEL)].to_numpy(), axis=1)
+        return out
 
     @classmethod
     def read(cls, path) -> ArrayTruth:
         """Read a truth file; the provenance kept names it by file name and checksum only."""
-        tr = ttruth.read(path, columns=[TIME, *GYRO, *ACCEL, *DTHETA, *DV], need_meta=False)
+        has_vel = set(VEL) <= set(ttruth.column_names(path))
+        cols = [TIME, *GYRO, *ACCEL, *DTHETA, *DV, *(VEL if has_vel else ())]
+        tr = ttruth.read(path, columns=cols, need_meta=False)
         keep = {
             k: tr.meta[k]
             for k in ("origin", "earth", "rate_hz", "vehicle", "route")
@@ -180,7 +188,10 @@ class ArrayTruth(Truth):
         # on how paths were spelled; the checksum names the truth and its provenance
         keep["file"] = Path(path).name
         keep["sha256"] = ttruth.checksum(path)
-        return cls(tr.time_s, tr.omega_ib_b, tr.f_b, tr.dtheta, tr.dv, keep, str(path))
+        out = cls(tr.time_s, tr.omega_ib_b, tr.f_b, tr.dtheta, tr.dv, keep, str(path))
+        if has_vel:
+            out.speed_mps = np.linalg.norm(tr.v_n, axis=1)
+        return out
 
 
 class StaticTruth(Truth):
@@ -491,6 +502,7 @@ class _Plan:
     raw: bool
     names: list
     meta: dict
+    vib: list | None = None  # one imugen.vibration.SequenceVibration per sequence
 
     def labels(self) -> pd.DataFrame:
         """One row per sequence: ids, provenance and every drawn parameter."""
@@ -505,6 +517,9 @@ class _Plan:
         }
         d.update(SensorParams.stack(self.gp).labels("gyro", "radps"))
         d.update(SensorParams.stack(self.ap).labels("accel", "mps2"))
+        if self.vib is not None:
+            for name in self.vib[0].labels():
+                d[name] = np.array([v.labels()[name] for v in self.vib])
         return pd.DataFrame(d)
 
 
@@ -561,6 +576,8 @@ def _loop(plan: _Plan, sink, progress=None):
             t, w_b, f_b, dth, dv = truth.chunk(k0, L)
             if raw:
                 dth, dv = truth.raw_chunk(k0, L)
+            if plan.vib is not None:
+                w_b, f_b, dth, dv = plan.vib[j].apply(k0, w_b, f_b, dth, dv, raw=raw)
             dT = None
             if temp is not None:
                 # time since turn-on of the sample before the chunk and of each sample
@@ -653,6 +670,7 @@ def _plan(
     route=None,
     increments="compensated",
     dtype="float32",
+    vibration=None,
 ) -> _Plan:
     tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
     route = route_name(truth, tr, route)
@@ -721,15 +739,27 @@ def _plan(
         "samples_per_sequence": tr.K,
         "truth": tr.meta,
         "temperature": temperature,
+        "vibration": None,
         "rows": "sorted by sequence then time; increments on row k are the interval ending at "
         "t_k; row 0 of each sequence is zero",
         "derived": None,
     }
     names = tshard.groups(outputs, series)
+    vib, meta["vibration"] = _vibrations(tr, vibration, seed, rid, grade, shard, M)
     return _Plan(
         tr, grade, M, seed, shard, rid, ids, enabled, temp, gp, ap, outputs, bool(series),
-        increments == "raw", names, meta,
+        increments == "raw", names, meta, vib,
     )  # fmt: skip
+
+
+def _vibrations(truth, option, seed, rid, grade, shard, M):
+    """Per-sequence vibrations (stream ``vibration``) and their metadata, or (None, meta)."""
+    v = setup_vibration(truth, option)
+    meta = None if option in (None, "off") else {"option": option, "profile": None}
+    if v is None:
+        return None, meta
+    meta["profile"] = v.profile.as_dict()
+    return [v.draw(_rng(seed, rid, grade.id, shard, j, "vibration")) for j in range(M)], meta
 
 
 def simulate(
@@ -752,6 +782,7 @@ def simulate(
     shard_size=None,
     route=None,
     increments="compensated",
+    vibration=None,
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
@@ -785,12 +816,15 @@ def simulate(
     increments : {"compensated", "raw"}
         Increment semantics (:mod:`imugen.tables.shard`): the truth's compensated increments,
         or plain integrals of rate and specific force (``Truth.raw_chunk``).
+    vibration : {"off", "car", "aircraft", "vehicle"}, optional
+        Vibration of the IMU case (:mod:`imugen.vibration`; ``vehicle``: the truth's class).
     """
     plan = _plan(
         truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
         temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
         static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
         shard_size=shard_size, route=route, increments=increments, dtype=np.float64,
+        vibration=vibration,
     )  # fmt: skip
     tr = plan.truth
     sink = _MemorySink(plan.M, tr.K, plan.names)
@@ -824,6 +858,7 @@ def run(
     shard_size=None,
     route=None,
     increments="compensated",
+    vibration=None,
 ) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically.
 
@@ -847,6 +882,7 @@ def run(
         temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
         static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
         shard_size=shard_size, route=route, increments=increments, dtype=dtype,
+        vibration=vibration,
     )  # fmt: skip
     from imugen.progress import Progress
 

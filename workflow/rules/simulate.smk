@@ -16,7 +16,7 @@ rule simulate:
     input:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
-        code=stage_code("simulate", "sensors", "grades", "units"),
+        code=stage_code("simulate", "sensors", "grades", "units", "vibration"),
         presets=PRESETS,
     output:
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
@@ -32,6 +32,7 @@ rule simulate:
         outputs=SIM["outputs"],
         series="--series" if SIM["series"] else "",
         increments=SIM["increments"],
+        vibration=SIM["vibration"] or "off",
         shard=lambda wc: int(wc.shard),
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
@@ -39,6 +40,7 @@ rule simulate:
         "IMUGEN_CONSOLE_FD=3 imugen simulate {input.truth:q} -o {output.shard:q} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
         "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
+        "--vibration {params.vibration} "
         "3>&2 > {log:q} 2>&1"
 
 
