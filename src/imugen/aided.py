@@ -634,7 +634,6 @@ def _kernel(
                     # dp - [(C l) x] psi (+ gnss bias)
                     h[a] = 1.0
                     hz[0] = a
-                    m = 1
                     b1 = (a + 1) % 3
                     b2 = (a + 2) % 3
                     # row a of -[c x]: entries (a, b1) = c[b2], (a, b2) = -c[b1]
@@ -643,6 +642,10 @@ def _kernel(
                     hz[1] = 6 + b1
                     hz[2] = 6 + b2
                     m = 3
+                    if L > 0.0:  # the fix is p(t - L) = p - L v: velocity error enters too
+                        h[3 + a] = -L
+                        hz[m] = 3 + a
+                        m += 1
                     var = sp[s, jj, a] ** 2
                     r = pred[a] - zp[s, jj, a]
                     if gb_on:
