@@ -338,3 +338,24 @@ def test_innovation_gate_rejects_a_spoofed_jump(flat_car):
             assert np.all(e < 5.0) and np.mean(rej) > 0.9, (e, np.mean(rej))
         else:
             assert np.all(e > 12.0) and not np.any(rej), e
+
+
+def test_static_gyrocompass_alignment_within_its_covariance():
+    """Still, level IMU in wgs84 (body axes = ENU): navigation-grade gyros find north."""
+    M, Ts = 40, 60.0
+    frame = OriginFrame.from_deg(*SIM.DEFAULT_STATIC_ORIGIN, model="wgs84")
+    sh = SIM.simulate(
+        None, "navigation", M, seed=6, draw="nominal", terms=TERMS, static_s=Ts + 5.0,
+        static_earth="wgs84",
+    )  # fmt: skip
+    t, p, v, q, w = still_truth(Ts + 5.0)
+    gn = G.simulate_gnss(t, p, v, q, w, "standalone", M, seed=6, draw="nominal")
+    tun = A.Tuning.from_grade("navigation")
+    init = A.align(sh.data["dtheta"], sh.data["dv"], 0.01, gn, tun, A.Options(), frame, static_s=Ts)
+    assert np.all(init.k0 == round(Ts / 0.01))
+    psi = A.attitude_error(init.x0[:, A.X_Q : A.X_Q + 4], q[init.k0])
+    sd = np.sqrt(init.P0[:, [6, 7, 8], [6, 7, 8]])
+    assert np.all(sd[:, 2] < math.radians(1.0))  # north found to better than a degree
+    z2 = np.sum((psi / sd) ** 2, axis=0)
+    assert np.all(z2 < chi2.ppf(0.999, M)), z2 / M
+    np.testing.assert_array_equal(init.x0[:, A.X_V : A.X_V + 3], 0.0)

@@ -634,7 +634,6 @@ def _kernel(
                     # dp - [(C l) x] psi (+ gnss bias)
                     h[a] = 1.0
                     hz[0] = a
-                    m = 1
                     b1 = (a + 1) % 3
                     b2 = (a + 2) % 3
                     # row a of -[c x]: entries (a, b1) = c[b2], (a, b2) = -c[b1]
@@ -643,6 +642,10 @@ def _kernel(
                     hz[1] = 6 + b1
                     hz[2] = 6 + b2
                     m = 3
+                    if L > 0.0:  # the fix is p(t - L) = p - L v: velocity error enters too
+                        h[3 + a] = -L
+                        hz[m] = 3 + a
+                        m += 1
                     var = sp[s, jj, a] ** 2
                     r = pred[a] - zp[s, jj, a]
                     if gb_on:
@@ -884,8 +887,9 @@ def align(
 
     * Static start (every sample of the first ``static_s`` seconds still by the ZUPT
       thresholds) in ``wgs84`` with gyros good enough to gyrocompass (heading sigma
-      ``sigma_bg / (Omega cos lat) < 5 deg``): coarse alignment -- roll and pitch from the mean
-      specific force, yaw from the levelled mean angular rate -- at the end of the window.
+      ``sqrt(sigma_bg^2 + N_g^2 / T) / (Omega cos lat) < 5 deg`` over the window ``T``): coarse
+      alignment -- roll and pitch from the mean specific force (sigma ``sqrt(sigma_ba^2 +
+      N_a^2 / T) / g``), yaw from the levelled mean angular rate -- at the end of the window.
     * Otherwise (moving start, flat Earth or MEMS gyros), at the first GNSS epoch whose
       horizontal speed reaches ``speed_mps``: yaw along the GNSS velocity, pitch its climb
       angle, roll 0 (a land vehicle), sigmas ``level_sd_rad`` and ``hypot(sigma_v / speed,
@@ -912,7 +916,12 @@ def align(
     sd_v = np.ones((S, 3))
     ns = round(static_s / dt)
     Om = earth.OMEGA_IE * math.cos(frame.lat0_rad)
-    gyro_sd = float(np.max(tun.gyro_bias_sd))
+    # coarse alignment errors: bias plus the white noise averaged over the window
+    Tw = max(ns, 1) * dt
+    gyro_sd = math.sqrt(
+        float(np.max(tun.gyro_bias_sd)) ** 2 + float(np.max(tun.gyro_white)) ** 2 / Tw
+    )
+    acc_sd = np.sqrt(tun.accel_bias_sd**2 + tun.accel_white**2 / Tw)
     can_compass = frame.model == "wgs84" and gyro_sd < math.radians(5.0) * Om
     for s in range(S):
         done = False
@@ -931,7 +940,7 @@ def align(
                 wl = Cl @ wm
                 yaw = math.atan2(wl[0], wl[1])  # w_level = Rz(-yaw) (0, Om, .)
                 rpy[s] = roll, pitch, yaw
-                sd_att[s] = tun.accel_bias_sd[1] / g0, tun.accel_bias_sd[0] / g0, gyro_sd / Om
+                sd_att[s] = acc_sd[1] / g0, acc_sd[0] / g0, gyro_sd / Om
                 k0[s] = idx[je]
                 j0 = je
                 done = True
