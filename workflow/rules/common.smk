@@ -15,6 +15,18 @@ SIM = config["simulate"]
 N_SEQ = SIM["sequences"]
 PER_SHARD = SIM["sequences_per_shard"]
 SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
+WRITE_IMU = SIM["write_imu"]
+# the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
+# read shards (export_mat, the figures' IMU panels) are not scheduled
+IMU_OUTPUTS = (
+    [
+        "results/{route}/imu/{grade}/shard-{shard}.parquet",
+        "results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
+    ]
+    if WRITE_IMU
+    else []
+)
+IMU_GRADES = GRADES if WRITE_IMU else []
 FIG = config["figures"]
 
 

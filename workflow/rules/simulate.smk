@@ -12,15 +12,19 @@ rule custom_grade:
         "printf '%s\\n' {params.doc:q} > {output:q} 2> {log:q}"
 
 
+# One job per shard from noise to navigation errors: the shard is synthesized, written (unless
+# simulate.write_imu is false) and navigated in the same process, never re-read.
 rule simulate:
     input:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
-        code=stage_code("simulate", "sensors", "grades", "units"),
+        code=stage_code(
+            "simulate", "sensors", "grades", "units", "navigate", "mechanize", "earth", "rotations"
+        ),
         presets=PRESETS,
     output:
-        shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
-        labels="results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
+        nav="results/{route}/nav/{grade}/shard-{shard}.parquet",
+        imu=IMU_OUTPUTS,
     params:
         grade=grade_arg,
         spec=lambda wc: config["grades"][wc.grade],
@@ -33,10 +37,13 @@ rule simulate:
         series="--series" if SIM["series"] else "",
         increments=SIM["increments"],
         shard=lambda wc: int(wc.shard),
+        imu=lambda wc, output: f"-o {shlex.quote(output.imu[0])}" if WRITE_IMU else "",
+        eval_rate_hz=config["navigate"]["eval_rate_hz"],
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
-        "imugen simulate {input.truth:q} -o {output.shard:q} --route {wildcards.route:q} --grade {params.grade:q} "
+        "imugen simulate {input.truth:q} {params.imu} --navigate {output.nav:q} "
+        "--eval-rate-hz {params.eval_rate_hz} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
         "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
         "> {log:q} 2>&1"
