@@ -581,6 +581,9 @@ def _loop(plan: _Plan, sink):
     K, dt = truth.K, truth.dt
     want_inc = outputs in ("increments", "both")
     want_rate = outputs in ("rates", "both")
+    # outputs in the storage dtype: the kernel rounds its float64 results straight into them
+    # (its outputs are write-only), so no float64 copy is made and converted afterwards
+    odt = np.dtype(plan.meta["dtype"])
     bufs = {}
     for name in (
         "gyro_rate",
@@ -596,7 +599,7 @@ def _loop(plan: _Plan, sink):
         "accel_err_rate",
         "accel_err_inc",
     ):
-        bufs[name] = np.empty((1, CHUNK, 3))
+        bufs[name] = np.empty((1, CHUNK, 3), odt)
     nz = {}
     normals = 0
     for j in range(M):
