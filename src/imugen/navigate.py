@@ -44,8 +44,18 @@ def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
     return int(max(1, min(256, budget // (2 * 3 * 8 * max(int(samples), 1)))))
 
 
-class _Navigator:
-    """Mechanizes batches of increments against one truth and tabulates their errors."""
+class Navigator:
+    """Mechanizes batches of increments against one truth and tabulates their errors (used by
+    :func:`navigate` on a shard file and by ``imugen simulate --navigate`` on the sequences as
+    they are generated: the same arithmetic, hence the same table).
+
+    Parameters
+    ----------
+    truth : imugen.tables.truth.Truth
+        Needs ``time_s``, ``p_n``, ``v_n``, ``q_nb`` and the metadata's origin and Earth model.
+    eval_rate_hz : float
+        Error epochs per second.
+    """
 
     def __init__(self, truth: ttruth.Truth, eval_rate_hz: float):
         self.t = truth.time_s
@@ -111,7 +121,7 @@ def _iter_errors(truth_path, shard_path, eval_rate_hz, batch):
     """Error-table columns of each batch of sequences of a shard (a generator)."""
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     smeta = tshard.read_meta(shard_path)
-    nav = _Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
+    nav = Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
     K = nav.K
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
@@ -200,7 +210,7 @@ def navigate_arrays(
     """
     if not isinstance(truth, ttruth.Truth):
         truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS, arrow=True)
-    nav = _Navigator(truth, eval_rate_hz)
+    nav = Navigator(truth, eval_rate_hz)
     dth, dv, ids, kind = _as_increments(increments, nav.K)
     kind = semantics or kind or "compensated"
     if kind not in tshard.INCREMENT_KINDS:

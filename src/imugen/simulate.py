@@ -945,7 +945,7 @@ def _nav_sink(stack, inner, plan, truth, out, nav_out, eval_rate_hz, dtype) -> _
     ``imugen navigate`` would record for the written shard."""
     from imugen import navigate as nv
 
-    nav = nv._Navigator(ttruth.read(truth, columns=nv.NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
+    nav = nv.Navigator(ttruth.read(truth, columns=nv.NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
     if nav.K != plan.truth.K:
         raise InputError(truth, "changed while being read")
     meta = nv.table_meta(
