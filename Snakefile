@@ -46,7 +46,6 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/truth.smk"
 include: "workflow/rules/simulate.smk"
-include: "workflow/rules/navigate.smk"
 include: "workflow/rules/aid.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/figures.smk"
@@ -66,7 +65,7 @@ rule all:
         expand(
             "results/{route}/datasets/{grade}.mat",
             route=ROUTES,
-            grade=GRADES if config["exports"]["mat"] else [],
+            grade=GRADES if config["exports"]["mat"] and WRITE_IMU else [],
         ),
         expand(
             "results/{route}/datasets/{grade}",

@@ -6,7 +6,6 @@ dry-run job list); -j1 and -j2 give identical tables and bit-identical datasets;
 
 import copy
 import hashlib
-import os
 import re
 import shutil
 import subprocess
@@ -46,9 +45,8 @@ TINY = {
 
 def snakemake(workdir, *args):
     bindir = Path(sys.executable).parent
-    env = {"PATH": f"{bindir}:/usr/bin:/bin", "HOME": str(workdir)}
-    if os.environ.get("PYTHONPATH"):  # a worktree's own src/ (else the installed imugen)
-        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
+    # the `imugen` the rules call runs this checkout's code, whatever the venv's install points to
+    env = {"PATH": f"{bindir}:/usr/bin:/bin", "HOME": str(workdir), "PYTHONPATH": str(REPO / "src")}
     return subprocess.run(
         [
             sys.executable,
@@ -133,11 +131,11 @@ def test_edit_one_grade_reruns_only_that_grade(done, tmp_path):
     cfg["grades"]["mine"]["gyro"]["white_noise"]["value"] = 0.3
     write_config(wd, cfg)
     jobs = planned_jobs(wd)
-    # 2 routes x 2 shards of "mine" + its Allan check; gathers of each route; nothing else
+    # 2 routes x 2 shards of "mine" (one job each: synthesis + navigation) + its Allan check;
+    # gathers of each route; nothing else
     assert jobs == {
         "custom_grade": 1,
         "simulate": 4,
-        "navigate": 4,
         "evaluate": 2,
         "tables": 2,
         "allan_static": 1,
@@ -157,7 +155,6 @@ def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):
     # one new (short) shard per route and grade: 2 routes x 3 grades
     assert jobs == {
         "simulate": 6,
-        "navigate": 6,
         "evaluate": 6,
         "tables": 2,
         "figures": 2,
@@ -189,6 +186,26 @@ def test_figure_option_reruns_only_figures(done, tmp_path):
     cfg["figures"] = {"zoom_fraction": 0.3}
     write_config(wd, cfg)
     assert planned_jobs(wd) == {"figures": 2, "all": 1}
+
+
+def test_without_imu_shards_errors_only(done, tmp_path):
+    """simulate.write_imu: false keeps the navigation errors and drops every rule that needs
+    shards; the errors do not depend on it, so a finished run's shard jobs do not rerun."""
+    wd = copy_run(done, tmp_path / "wd")
+    cfg = copy.deepcopy(TINY)
+    cfg["simulate"]["write_imu"] = False
+    write_config(wd, cfg)
+    jobs = planned_jobs(wd)
+    assert "export_mat" not in jobs and "simulate" not in jobs, jobs
+    fresh = tmp_path / "fresh"
+    fresh.mkdir()
+    write_config(fresh, cfg)
+    proc = snakemake(fresh, "-j2", "results/paper/rmse.csv")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert not (fresh / "results" / "paper" / "imu").exists()
+    a = pd.read_csv(done / "results" / "paper" / "rmse.csv")
+    b = pd.read_csv(fresh / "results" / "paper" / "rmse.csv")
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
 
 
 def test_report_has_figures_and_tables(done, tmp_path):

@@ -117,9 +117,12 @@ def _cmd_simulate(a) -> int:
         route=a.route,
         increments=a.increments,
         vibration=a.vibration,
+        navigate=a.navigate,
+        eval_rate_hz=a.eval_rate_hz,
     )
+    written = " + ".join(p for p in (a.output, a.navigate) if p is not None)
     print(
-        f"{a.output}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
+        f"{written}: grade {meta['grade']['name']!r}, {a.sequences} sequences, shard {a.shard}, "
         f"seed {a.seed}",
         file=sys.stderr,
     )
@@ -388,7 +391,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="truth (or a still IMU) -> one shard of erroneous IMU")
     p.add_argument("truth", nargs="?", help="truth Parquet written by `imugen truth`")
-    p.add_argument("-o", "--output", required=True, help="shard Parquet (labels go beside it)")
+    p.add_argument(
+        "-o", "--output", help="shard Parquet (labels go beside it); optional with --navigate"
+    )
+    p.add_argument(
+        "--navigate",
+        metavar="NAV.parquet",
+        help="also navigate the shard in the same pass and write its error table here (as "
+        "`imugen navigate` would, without re-reading the shard); without -o no shard is written",
+    )
+    p.add_argument(
+        "--eval-rate-hz", type=float, default=1.0, help="with --navigate: error epochs per second"
+    )
     p.add_argument("--grade", required=True, help="preset name, or FILE.yaml:NAME")
     p.add_argument("--sequences", type=int, required=True, help="sequences in this shard (M)")
     p.add_argument("--seed", type=int, required=True, help="base seed of the experiment")

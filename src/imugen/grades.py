@@ -161,6 +161,12 @@ _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 PRESET_FILE = "grades.yaml"
 
 
+def _yaml(text: str):
+    """``yaml.safe_load`` with libyaml's C loader when available (same documents, ~10x
+    faster: the shipped presets parse in a few ms at every job's start)."""
+    return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+
+
 # --- Gauss-Markov Allan deviation (used to convert an Allan floor to a GM sigma) ---------------
 def gm_avar(tau, sigma, T):
     """Allan variance of a first-order Gauss-Markov process.
@@ -613,9 +619,7 @@ def grades_from_document(doc: Any, origin: str) -> dict[str, Grade]:
 def _presets() -> MappingProxyType:
     ref = resources.files("imugen") / "data" / PRESET_FILE
     text = ref.read_text(encoding="utf-8")
-    return MappingProxyType(
-        grades_from_document(yaml.safe_load(text), f"imugen/data/{PRESET_FILE}")
-    )
+    return MappingProxyType(grades_from_document(_yaml(text), f"imugen/data/{PRESET_FILE}"))
 
 
 def presets() -> MappingProxyType:
@@ -632,7 +636,7 @@ def load_grades(path) -> dict[str, Grade]:
     """Read custom grades from a YAML (or JSON) file; ids must not collide with presets."""
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = _yaml(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     except yaml.YAMLError as exc:

@@ -16,12 +16,15 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen.errors import InputError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 METADATA_KEY = b"imugen"
 """Key of the JSON metadata in the Parquet schema metadata."""

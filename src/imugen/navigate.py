@@ -22,7 +22,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from imugen import __version__
 from imugen.errors import InputError
@@ -45,8 +44,18 @@ def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
     return int(max(1, min(256, budget // (2 * 3 * 8 * max(int(samples), 1)))))
 
 
-class _Navigator:
-    """Mechanizes batches of increments against one truth and tabulates their errors."""
+class Navigator:
+    """Mechanizes batches of increments against one truth and tabulates their errors (used by
+    :func:`navigate` on a shard file and by ``imugen simulate --navigate`` on the sequences as
+    they are generated: the same arithmetic, hence the same table).
+
+    Parameters
+    ----------
+    truth : imugen.tables.truth.Truth
+        Needs ``time_s``, ``p_n``, ``v_n``, ``q_nb`` and the metadata's origin and Earth model.
+    eval_rate_hz : float
+        Error epochs per second.
+    """
 
     def __init__(self, truth: ttruth.Truth, eval_rate_hz: float):
         self.t = truth.time_s
@@ -58,8 +67,15 @@ class _Navigator:
         self.q_true = truth.q_nb
         self.x0 = (self.p_true[0], truth.v_n[0], self.q_true[0])
 
-    def errors(self, seq_ids, dth, dvb) -> pd.DataFrame:
-        """Errors of increments ``dth``, ``dvb`` (b, K-1, 3) (compensated, row 0 dropped)."""
+    def errors(self, seq_ids, dth, dvb):
+        """:meth:`columns` as a DataFrame."""
+        import pandas as pd
+
+        return pd.DataFrame(self.columns(seq_ids, dth, dvb))
+
+    def columns(self, seq_ids, dth, dvb) -> dict:
+        """Error-table columns (:data:`imugen.tables.nav.COLUMNS` -> 1-D arrays) of increments
+        ``dth``, ``dvb`` (b, K-1, 3) float64 (compensated, row 0 dropped)."""
         p0, v0, q0 = self.x0
         nav = mechanize(dth, dvb, self.dt, p0, v0, q0, self.frame, every=self.every,
                         outputs=("p", "q"))  # fmt: skip
@@ -68,33 +84,44 @@ class _Navigator:
         dq = quat_mul(quat_conj(self.q_true[idx])[None], nav.q_nb)
         att = np.linalg.norm(log_quat(dq), axis=-1)
         n_seq, n_ep = err.shape[:2]
-        return pd.DataFrame(
-            {
-                SEQUENCE: np.repeat(np.asarray(seq_ids, np.int64), n_ep),
-                TIME: np.tile(self.t[idx], n_seq),
-                tnav.ERR_POS[0]: err[..., 0].ravel(),
-                tnav.ERR_POS[1]: err[..., 1].ravel(),
-                tnav.ERR_POS[2]: err[..., 2].ravel(),
-                tnav.ERR_ATT: att.ravel(),
-            }
-        )
+        return {
+            SEQUENCE: np.repeat(np.asarray(seq_ids, np.int64), n_ep),
+            TIME: np.tile(self.t[idx], n_seq),
+            tnav.ERR_POS[0]: err[..., 0].ravel(),
+            tnav.ERR_POS[1]: err[..., 1].ravel(),
+            tnav.ERR_POS[2]: err[..., 2].ravel(),
+            tnav.ERR_ATT: att.ravel(),
+        }
+
+    def measured(self, kind: str, raw: bool, a, b):
+        """Compensated increments (b, K-1, 3) from a batch of a shard's measurements: ``kind``
+        ``"increments"`` (row 0 dropped; ``raw``: two-sample coning/sculling correction, in
+        place) or ``"rates"`` (b, K, 3)."""
+        if kind == "increments":
+            return compensate_raw(a, b) if raw else (a, b)
+        return increments_from_rates(a, b, self.dt)
 
 
-def navigate(
-    truth_path,
-    shard_path,
-    *,
-    eval_rate_hz: float = 1.0,
-    batch: int | None = None,
-) -> pd.DataFrame:
+def navigate(truth_path, shard_path, *, eval_rate_hz: float = 1.0, batch: int | None = None):
     """Mechanize every sequence of a shard and return its errors at the evaluation epochs.
 
     ``batch`` sequences are mechanized together (default :func:`batch_size`, from a fixed
-    memory budget); the result does not depend on it.
+    memory budget); the result does not depend on it. Returns a DataFrame (the table of
+    :mod:`imugen.tables.nav`).
     """
+    import pandas as pd
+
+    frames = [pd.DataFrame(c) for c in _iter_errors(truth_path, shard_path, eval_rate_hz, batch)]
+    if not frames:
+        raise InputError(shard_path, "holds no sequences")
+    return pd.concat(frames, ignore_index=True)
+
+
+def _iter_errors(truth_path, shard_path, eval_rate_hz, batch):
+    """Error-table columns of each batch of sequences of a shard (a generator)."""
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     smeta = tshard.read_meta(shard_path)
-    nav = _Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS), eval_rate_hz)
+    nav = Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
     K = nav.K
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
@@ -105,28 +132,8 @@ def navigate(
     if batch is None:
         batch = batch_size(K)
     skip = 1 if kind == "increments" else 0
-    frames = []
-    from imugen.progress import Progress
-
-    total = int(smeta.get("sequences", 0)) or None
-    progress = (
-        Progress(f"navigate {shard_path.parent.name}/{shard_path.name}", total or 0)
-        if total
-        else None
-    )
-    done = 0
     for seq_ids, a, b in tshard.iter_blocks(shard_path, columns, K, int(batch), skip):
-        if kind == "increments":
-            dth, dvb = compensate_raw(a, b) if raw else (a, b)
-        else:
-            dth, dvb = increments_from_rates(a, b, nav.dt)
-        frames.append(nav.errors(seq_ids, dth, dvb))
-        done += len(seq_ids)
-        if progress is not None:
-            progress.update(done)
-    if not frames:
-        raise InputError(shard_path, "holds no sequences")
-    return pd.concat(frames, ignore_index=True)
+        yield nav.columns(seq_ids, *nav.measured(kind, raw, a, b))
 
 
 def _as_increments(increments, K: int):
@@ -175,7 +182,7 @@ def navigate_arrays(
     semantics: str | None = None,
     eval_rate_hz: float = 1.0,
     sequence_ids=None,
-) -> pd.DataFrame:
+):
     """Navigate increments held in memory against a truth; no files written.
 
     Parameters
@@ -202,8 +209,8 @@ def navigate_arrays(
         ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``.
     """
     if not isinstance(truth, ttruth.Truth):
-        truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS)
-    nav = _Navigator(truth, eval_rate_hz)
+        truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS, arrow=True)
+    nav = Navigator(truth, eval_rate_hz)
     dth, dv, ids, kind = _as_increments(increments, nav.K)
     kind = semantics or kind or "compensated"
     if kind not in tshard.INCREMENT_KINDS:
@@ -219,17 +226,15 @@ def navigate_arrays(
     return nav.errors(ids, dth, dv)
 
 
-def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = None) -> Path:
-    """Navigate a shard and write its error table atomically (Parquet with metadata)."""
-    out = Path(out)
-    df = navigate(truth, shard, eval_rate_hz=eval_rate_hz, batch=batch)
-    smeta = tshard.read_meta(shard)
-    meta = {
+def table_meta(truth_name, truth_sha256, shard_name, smeta: dict, eval_rate_hz) -> dict:
+    """Metadata of the error table of a shard (``smeta``: the shard's metadata; ``shard_name``
+    None when the shard was navigated in memory and not written)."""
+    return {
         "stage": "navigate",
         "imugen_version": __version__,
-        "truth": Path(truth).name,
-        "truth_sha256": ttruth.checksum(truth),
-        "shard": Path(shard).name,
+        "truth": truth_name,
+        "truth_sha256": truth_sha256,
+        "shard": shard_name,
         "grade": smeta.get("grade"),
         "route": smeta.get("route"),
         "eval_rate_hz": eval_rate_hz,
@@ -237,5 +242,19 @@ def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = Non
         "derived": smeta.get("derived"),
         "error": "navigation minus truth, ENU of the route origin",
     }
-    tnav.write(df, meta, out)
+
+
+def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = None) -> Path:
+    """Navigate a shard and stream its error table to ``out`` atomically (one row group per
+    batch: memory stays flat in the shard's size)."""
+    out = Path(out)
+    smeta = tshard.read_meta(shard)
+    meta = table_meta(
+        Path(truth).name, ttruth.checksum(truth), Path(shard).name, smeta, eval_rate_hz
+    )
+    with tnav.writer(out, meta) as w:
+        for cols in _iter_errors(truth, shard, eval_rate_hz, batch):
+            w.put(cols)
+        if w.rows == 0:
+            raise InputError(shard, "holds no sequences")
     return out

@@ -44,17 +44,19 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import sys
 from abc import ABC, abstractmethod
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from imugen import __version__
 from imugen.errors import InputError
 from imugen.grades import TERMS, Grade, get_grade, preset_text
 from imugen.sensors import SensorModel, SensorParams, draw_sensor
+from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.shard import SEQUENCE
@@ -155,7 +157,7 @@ class ArrayTruth(Truth):
         return self._raw[0][s], self._raw[1][s]
 
     @classmethod
-    def from_frame(cls, df: pd.DataFrame, meta=None, source="<frame>") -> ArrayTruth:
+    def from_frame(cls, df, meta=None, source="<frame>") -> ArrayTruth:
         need = (TIME, *GYRO, *ACCEL, *DTHETA, *DV)
         miss = [c for c in need if c not in df.columns]
         if miss:
@@ -178,7 +180,7 @@ class ArrayTruth(Truth):
         """Read a truth file; the provenance kept names it by file name and checksum only."""
         has_vel = set(VEL) <= set(ttruth.column_names(path))
         cols = [TIME, *GYRO, *ACCEL, *DTHETA, *DV, *(VEL if has_vel else ())]
-        tr = ttruth.read(path, columns=cols, need_meta=False)
+        tr = ttruth.read(path, columns=cols, need_meta=False, arrow=True)
         keep = {
             k: tr.meta[k]
             for k in ("origin", "earth", "rate_hz", "vehicle", "route")
@@ -387,6 +389,56 @@ class _WriterSink:
         self.w.put(int(self.ids[j]), t, outs)
 
 
+class _NavSink:
+    """Navigates the sequences as they are produced, passing every chunk on to ``inner``.
+
+    Keeps one batch of measurements (float64 buffers holding the values as stored, i.e.
+    rounded to the shard's ``dtype``), mechanizes the batch when its last sequence is
+    complete and streams its errors to ``nav_writer``: the same numbers as ``imugen navigate``
+    on the written shard (same batches, same arithmetic), without re-reading it.
+    """
+
+    def __init__(self, inner, navigator, plan: _Plan, dtype, nav_writer, batch):
+        self.inner = inner
+        self.nav = navigator
+        self.kind = "increments" if plan.outputs in ("increments", "both") else "rates"
+        self.groups = ("dtheta", "dv") if self.kind == "increments" else ("gyro", "accel")
+        self.raw = plan.raw and self.kind == "increments"
+        self.skip = 1 if self.kind == "increments" else 0
+        self.K = plan.truth.K
+        self.dtype = np.dtype(dtype)
+        self.ids = plan.ids
+        self.w = nav_writer
+        self.batch = int(batch)
+        width = self.K - self.skip
+        self.bufs = tuple(np.empty((self.batch, width, 3)) for _ in self.groups)
+        self.first = 0  # sequence index of the batch's first row
+        self.n = 0  # complete sequences in the buffers
+
+    def put(self, j, k0, L, t, outs):
+        if self.inner is not None:
+            self.inner.put(j, k0, L, t, outs)
+        lo = max(k0, self.skip)
+        if lo < k0 + L:
+            for buf, g in zip(self.bufs, self.groups, strict=True):
+                # the stored rounding (float32 by default), widened exactly to float64
+                buf[self.n, lo - self.skip : k0 + L - self.skip] = outs[g][lo - k0 :].astype(
+                    self.dtype, copy=False
+                )
+        if k0 + L == self.K:
+            self.n += 1
+            if self.n == self.batch:
+                self.flush()
+
+    def flush(self):
+        if self.n:
+            a, b = (buf[: self.n] for buf in self.bufs)
+            ids = self.ids[self.first : self.first + self.n]
+            self.w.put(self.nav.columns(ids, *self.nav.measured(self.kind, self.raw, a, b)))
+            self.first += self.n
+            self.n = 0
+
+
 # --- the generator ---------------------------------------------------------------------------------------
 @dataclass
 class Shard:
@@ -407,7 +459,7 @@ class Shard:
 
     time_s: np.ndarray
     data: dict
-    labels: pd.DataFrame
+    labels: object
     gyro: SensorParams
     accel: SensorParams
     meta: dict
@@ -453,7 +505,8 @@ def _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> Tru
         return StaticTruth(float(static_s), rate_hz, static_earth, static_origin)
     if static_s is not None:
         raise InputError("--static", "give either a truth table or --static, not both")
-    if isinstance(truth, pd.DataFrame):
+    pd = sys.modules.get("pandas")  # a DataFrame can only exist once pandas is imported
+    if pd is not None and isinstance(truth, pd.DataFrame):
         return ArrayTruth.from_frame(truth)
     if isinstance(truth, dict):
         return ArrayTruth(
@@ -504,8 +557,14 @@ class _Plan:
     meta: dict
     vib: list | None = None  # one imugen.vibration.SequenceVibration per sequence
 
-    def labels(self) -> pd.DataFrame:
-        """One row per sequence: ids, provenance and every drawn parameter."""
+    def labels(self):
+        """One row per sequence: ids, provenance and every drawn parameter (a DataFrame)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.label_columns())
+
+    def label_columns(self) -> dict:
+        """:meth:`labels` as a dict of columns (no pandas)."""
         M = self.M
         d = {
             SEQUENCE: self.ids,
@@ -520,7 +579,7 @@ class _Plan:
         if self.vib is not None:
             for name in self.vib[0].labels():
                 d[name] = np.array([v.labels()[name] for v in self.vib])
-        return pd.DataFrame(d)
+        return d
 
 
 def _loop(plan: _Plan, sink, progress=None):
@@ -536,6 +595,9 @@ def _loop(plan: _Plan, sink, progress=None):
     K, dt = truth.K, truth.dt
     want_inc = outputs in ("increments", "both")
     want_rate = outputs in ("rates", "both")
+    # outputs in the storage dtype: the kernel rounds its float64 results straight into them
+    # (its outputs are write-only), so no float64 copy is made and converted afterwards
+    odt = np.dtype(plan.meta["dtype"])
     bufs = {}
     for name in (
         "gyro_rate",
@@ -551,7 +613,7 @@ def _loop(plan: _Plan, sink, progress=None):
         "accel_err_rate",
         "accel_err_inc",
     ):
-        bufs[name] = np.empty((1, CHUNK, 3))
+        bufs[name] = np.empty((1, CHUNK, 3), odt)
     nz = {}
     normals = 0
     for j in range(M):
@@ -859,8 +921,11 @@ def run(
     route=None,
     increments="compensated",
     vibration=None,
+    navigate=None,
+    eval_rate_hz=1.0,
 ) -> dict:
-    """Generate one shard and write it (Parquet + labels sidecar) atomically.
+    """Generate one shard and write it (Parquet + labels sidecar) atomically; optionally
+    navigate it in the same pass.
 
     Parameters are those of :func:`simulate`, plus ``out`` (the shard path; the sidecar is
     :func:`~imugen.tables.shard.labels_path`), ``dtype`` of the measurement columns
@@ -868,13 +933,24 @@ def run(
     noise-like floats do not compress, see benchmarks/README.md). ``rate_hz`` and ``static_*``
     only apply to ``static_s`` (a truth table has its own rate).
 
+    ``navigate`` (a path) also writes the navigation error table of the shard
+    (:mod:`imugen.tables.nav`), computed from the sequences as they are generated -- the
+    shard is never re-read -- at ``eval_rate_hz`` epochs per second: the same table, bit for
+    bit, as :func:`imugen.navigate.run` on the written shard. ``out=None`` with ``navigate``
+    writes the errors only (no IMU shard). Needs a truth file.
+
     Returns
     -------
     dict
-        The metadata written to the shard.
+        The shard's metadata (as written when ``out`` is given).
     """
-    if out is None:
-        raise InputError("-o", "an output path is required")
+    if out is None and navigate is None:
+        raise InputError("-o", "give an output shard (-o) and/or --navigate NAV.parquet")
+    if navigate is not None:
+        if not isinstance(truth, str | Path):
+            raise InputError("--navigate", "needs a truth file (not --static or arrays)")
+        if not (isinstance(eval_rate_hz, int | float) and 0 < eval_rate_hz < math.inf):
+            raise InputError("--eval-rate-hz", f"must be > 0, got {eval_rate_hz!r}")
     if dtype not in ("float32", "float64"):
         raise InputError("--dtype", f"must be float32 or float64, got {dtype!r}")
     plan = _plan(
@@ -886,8 +962,39 @@ def run(
     )  # fmt: skip
     from imugen.progress import Progress
 
-    progress = Progress(f"simulate {Path(out).parent.name}/{Path(out).name}", plan.M)
-    with tshard.writer(out, plan.meta, plan.names, dtype, compression=compression) as w:
-        _loop(plan, _WriterSink(w, plan.ids), progress)
-        w.labels = plan.labels()
-    return tshard.read_meta(out)
+    label = f"simulate {Path(out).parent.name}/{Path(out).name}" if out else "simulate"
+    progress = Progress(label, plan.M)
+    with ExitStack() as stack:
+        sink = w = None
+        if out is not None:
+            w = stack.enter_context(
+                tshard.writer(out, plan.meta, plan.names, dtype, compression=compression)
+            )
+            sink = _WriterSink(w, plan.ids)
+        if navigate is not None:
+            sink = _nav_sink(stack, sink, plan, truth, out, navigate, eval_rate_hz, dtype)
+        _loop(plan, sink, progress)
+        if navigate is not None:
+            sink.flush()
+        if w is not None:
+            w.labels = plan.label_columns()
+    return tshard.read_meta(out) if out is not None else plan.meta
+
+
+def _nav_sink(stack, inner, plan, truth, out, nav_out, eval_rate_hz, dtype) -> _NavSink:
+    """A :class:`_NavSink` writing to ``nav_out`` (entered on ``stack``), with the metadata
+    ``imugen navigate`` would record for the written shard."""
+    from imugen import navigate as nv
+
+    nav = nv.Navigator(ttruth.read(truth, columns=nv.NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
+    if nav.K != plan.truth.K:
+        raise InputError(truth, "changed while being read")
+    meta = nv.table_meta(
+        plan.truth.meta["file"],
+        plan.truth.meta["sha256"],
+        None if out is None else Path(out).name,
+        json.loads(json.dumps(plan.meta)),
+        eval_rate_hz,
+    )
+    nw = stack.enter_context(tnav.writer(nav_out, meta))
+    return _NavSink(inner, nav, plan, dtype, nw, nv.batch_size(nav.K))

@@ -33,6 +33,18 @@ PER_SHARD = SIM["sequences_per_shard"]
 # shard-000 ... shard-999, then shard-1000, ...: at least three digits, no other leading
 # zeros, so adding shards never renames existing ones
 SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
+WRITE_IMU = SIM["write_imu"]
+# the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
+# read shards (export_mat, the figures' IMU panels) are not scheduled
+IMU_OUTPUTS = (
+    [
+        "results/{route}/imu/{grade}/shard-{shard}.parquet",
+        "results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
+    ]
+    if WRITE_IMU
+    else []
+)
+IMU_GRADES = GRADES if WRITE_IMU else []
 FIG = config["figures"]
 
 

@@ -7,7 +7,7 @@ rule figures:
             f"results/{wc.route}/nav/{g}/shard-{s}.parquet" for g in GRADES for s in SHARDS
         ],
         metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
-        imu=expand("results/{{route}}/imu/{grade}/shard-000.parquet", grade=GRADES),
+        imu=expand("results/{{route}}/imu/{grade}/shard-000.parquet", grade=IMU_GRADES),
         code=stage_code("figures"),
     output:
         report(
@@ -29,7 +29,9 @@ rule figures:
             labels={"route": "{route}", "figure": "errors against time"},
         ),
         report(
-            expand("results/{{route}}/figures/imu_{grade}.{ext}", grade=GRADES, ext=FIG["formats"]),
+            expand(
+                "results/{{route}}/figures/imu_{grade}.{ext}", grade=IMU_GRADES, ext=FIG["formats"]
+            ),
             caption="../report/imu.rst",
             category="Figures",
             labels={"route": "{route}", "figure": "IMU signals"},

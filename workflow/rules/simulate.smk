@@ -12,15 +12,20 @@ rule custom_grade:
         "printf '%s\\n' {params.doc:q} > {output:q} 2> {log:q}"
 
 
+# One job per shard from noise to navigation errors: the shard is synthesized, written (unless
+# simulate.write_imu is false) and navigated in the same process, never re-read.
 rule simulate:
     input:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
-        code=stage_code("simulate", "sensors", "grades", "units", "vibration"),
+        code=stage_code(
+            "simulate", "sensors", "grades", "units", "vibration", "navigate", "mechanize",
+            "earth", "rotations",
+        ),
         presets=PRESETS,
     output:
-        shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
-        labels="results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
+        nav="results/{route}/nav/{grade}/shard-{shard}.parquet",
+        imu=IMU_OUTPUTS,
     params:
         grade=grade_arg,
         spec=lambda wc: config["grades"][wc.grade],
@@ -34,10 +39,14 @@ rule simulate:
         increments=SIM["increments"],
         vibration=SIM["vibration"] or "off",
         shard=lambda wc: int(wc.shard),
+        imu=lambda wc, output: f"-o {shlex.quote(output.imu[0])}" if WRITE_IMU else "",
+        eval_rate_hz=config["navigate"]["eval_rate_hz"],
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
-        "IMUGEN_CONSOLE_FD=3 imugen simulate {input.truth:q} -o {output.shard:q} --route {wildcards.route:q} --grade {params.grade:q} "
+        "IMUGEN_CONSOLE_FD=3 "
+        "imugen simulate {input.truth:q} {params.imu} --navigate {output.nav:q} "
+        "--eval-rate-hz {params.eval_rate_hz} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
         "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
         "--vibration {params.vibration} "

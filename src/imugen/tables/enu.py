@@ -10,8 +10,7 @@ coordinates ``e_m``, ``n_m``, ``u_m`` (m) in the topocentric frame of the origin
 from __future__ import annotations
 
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from imugen.io import read_meta as read_meta
 from imugen.io import write_parquet
@@ -28,6 +27,9 @@ UTM = ("utm_e_m", "utm_n_m")
 COLUMNS = (TIME, LAT, LON, ALT, E, N, U)
 UNITS = {TIME: "s", LAT: "deg", LON: "deg", ALT: "m", **dict.fromkeys((*ENU, *UTM), "m")}
 WHAT = "ENU route table"
+
+if TYPE_CHECKING:  # pandas is imported by the readers' to_pandas only when used
+    import pandas as pd
 
 
 def write(df: pd.DataFrame, meta: dict, out) -> Path:

@@ -10,8 +10,7 @@ horizontal distance travelled); ``epochs``. Metadata (JSON under ``b"imugen"``):
 from __future__ import annotations
 
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from imugen.errors import InputError
 from imugen.io import read_meta as read_meta
@@ -27,6 +26,9 @@ FINAL_3D = "final_3d_m"
 FINAL_PCT = "final_pct_distance"
 EPOCHS = "epochs"
 WHAT = "metrics table"
+
+if TYPE_CHECKING:  # pandas is imported by the readers' to_pandas only when used
+    import pandas as pd
 
 
 def write(df: pd.DataFrame, meta: dict, out) -> Path:

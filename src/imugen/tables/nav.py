@@ -10,13 +10,18 @@ Metadata (JSON under ``b"imugen"``): ``stage``, ``truth`` and ``shard`` (file na
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-import pandas as pd
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
+from imugen.io import METADATA_KEY, atomic_output
 from imugen.io import read_meta as read_meta
-from imugen.io import write_parquet
-from imugen.tables._parquet import SEQUENCE, TIME, read_table
+from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, read_table
 
 ERR_POS = ("err_e_m", "err_n_m", "err_u_m")
 """Position error columns, metres, ENU."""
@@ -26,11 +31,48 @@ UNITS = {SEQUENCE: "1", TIME: "s", **dict.fromkeys(ERR_POS, "m"), ERR_ATT: "rad"
 WHAT = "navigation error table"
 
 
-def write(df: pd.DataFrame, meta: dict, out) -> Path:
-    """Write the error table with its metadata (``units`` added) atomically."""
-    return write_parquet(df, {**meta, "units": UNITS}, out)
+def _schema(meta: dict) -> pa.Schema:
+    fields = [pa.field(SEQUENCE, pa.int64()), pa.field(TIME, pa.float64())]
+    fields += [pa.field(c, pa.float64()) for c in (*ERR_POS, ERR_ATT)]
+    md = {METADATA_KEY: json.dumps({**meta, "units": UNITS}).encode()}
+    return pa.schema(fields, metadata=md)
 
 
-def read(path, columns=None, filters=None) -> pd.DataFrame:
+class Writer:
+    """Appends blocks of rows (one row group each) to an error table being written."""
+
+    def __init__(self, pw, schema):
+        self.pw = pw
+        self.schema = schema
+        self.rows = 0
+
+    def put(self, cols: dict) -> None:
+        """Append a block: ``cols`` maps every column of :data:`COLUMNS` to a 1-D array."""
+        arrays = [from_numpy(cols[f.name], f.type) for f in self.schema]
+        self.pw.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        self.rows += len(arrays[0])
+
+
+@contextmanager
+def writer(out, meta: dict) -> Iterator[Writer]:
+    """Stream an error table to ``out`` atomically: yields a :class:`Writer`.
+
+    Each block put becomes a row group, so a job holds one block, never the whole table.
+    """
+    schema = _schema(meta)
+    with atomic_output(out) as tmp:
+        with pq.ParquetWriter(tmp, schema) as pw:
+            w = Writer(pw, schema)
+            yield w
+
+
+def write(df, meta: dict, out) -> Path:
+    """Write an error table held in a DataFrame (or a dict of columns) atomically."""
+    with writer(out, meta) as w:
+        w.put({c: np.asarray(df[c]) for c in COLUMNS})
+    return Path(out)
+
+
+def read(path, columns=None, filters=None):
     """Columns (default all) of a navigation error table, rows kept by ``filters``."""
     return read_table(path, columns, filters, WHAT).to_pandas()

@@ -39,17 +39,29 @@ import json
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen.errors import InputError
 from imugen.io import METADATA_KEY, atomic_output, with_meta
 from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, names, num_rows, open_file, read_table
+from imugen.tables._parquet import (
+    SEQUENCE,
+    TIME,
+    from_numpy,
+    names,
+    num_rows,
+    open_file,
+    read_table,
+    to_numpy,
+)
 from imugen.tables.truth import ACCEL, DTHETA, DV, GYRO
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FORMAT = "imugen-shard"
 LABELS_FORMAT = "imugen-shard-labels"
@@ -173,7 +185,7 @@ class Writer:
         self.groups = {g: GROUPS[g][0] for g in group_names}
         self.rows = rows
         self.n = 0
-        self.labels: pd.DataFrame | None = None
+        self.labels: pd.DataFrame | dict | None = None
         self.buf = {SEQUENCE: np.empty(rows, np.int64), TIME: np.empty(rows)}
         for cols in self.groups.values():
             for c in cols:
@@ -200,7 +212,7 @@ class Writer:
     def flush(self) -> None:
         if self.n == 0:
             return
-        arrays = [pa.array(self.buf[f.name][: self.n]) for f in self.schema]
+        arrays = [from_numpy(self.buf[f.name][: self.n]) for f in self.schema]
         self.w.write_table(
             pa.Table.from_arrays(arrays, schema=self.schema), row_group_size=self.rows
         )
@@ -211,7 +223,8 @@ class Writer:
 def writer(
     out, meta: dict, group_names, dtype="float32", *, compression="none", row_group=None
 ) -> Iterator[Writer]:
-    """Write a shard atomically: yields a :class:`Writer`; set ``w.labels`` before the end.
+    """Write a shard atomically: yields a :class:`Writer`; set ``w.labels`` (a DataFrame, or a
+    dict of equal-length columns) before the end.
 
     The shard and its labels each go to a temporary name; both are renamed only when both
     are complete, the shard last: a shard at its path always has its labels beside it.
@@ -239,9 +252,14 @@ def writer(
             raise RuntimeError("shard writer closed without labels")
         lmeta = {**meta, "format": LABELS_FORMAT, "shard_file": out.name}
         with atomic_output(lab_path) as tmp_lab:
-            pq.write_table(
-                with_meta(pa.Table.from_pandas(w.labels, preserve_index=False), lmeta), tmp_lab
-            )
+            pq.write_table(with_meta(_labels_table(w.labels), lmeta), tmp_lab)
+
+
+def _labels_table(labels) -> pa.Table:
+    """Arrow table of the labels: a dict of columns (no pandas needed) or a DataFrame."""
+    if isinstance(labels, dict):
+        return pa.table({k: from_numpy(np.asarray(v)) for k, v in labels.items()})
+    return pa.Table.from_pandas(labels, preserve_index=False)
 
 
 def write(out, time_s, data: dict, ids, labels: pd.DataFrame, meta: dict, dtype="float32") -> Path:
@@ -389,8 +407,8 @@ def iter_blocks(path, columns, samples: int, batch: int, skip: int = 0):
     for rb in pf.iter_batches(
         batch_size=READ_ROWS, columns=[SEQUENCE, *columns], use_threads=False
     ):
-        seq = rb.column(0).to_numpy(zero_copy_only=False)
-        data = [rb.column(i + 1).to_numpy(zero_copy_only=False) for i in range(len(columns))]
+        seq = to_numpy(rb.column(0))
+        data = [to_numpy(rb.column(i + 1)) for i in range(len(columns))]
         r, R = 0, len(seq)
         while r < R:
             m = min(R - r, K - k)

@@ -21,14 +21,18 @@ import json
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from imugen.io import METADATA_KEY, write_parquet
 from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import TIME, num_rows, open_file, read_table, require
+from imugen.tables._parquet import TIME, num_rows, open_file, read_table, require, to_numpy
 from imugen.tables.enu import E, N, U
+
+if TYPE_CHECKING:
+    import pandas as pd
+    import pyarrow as pa
 
 POS = (E, N, U)
 VEL = ("v_e_mps", "v_n_mps", "v_u_mps")
@@ -77,18 +81,22 @@ def checksum(path) -> str:
 
 @dataclass
 class Truth:
-    """A truth table in memory: columns as a DataFrame, metadata, and its path if read.
+    """A truth table in memory: columns (a DataFrame, or a pyarrow Table when read with
+    ``arrow=True``), metadata, and its path if read.
 
     The array properties are float64 views/copies of the columns: ``time_s`` (K,), ``p_n``,
     ``v_n``, ``omega_ib_b``, ``f_b``, ``dtheta``, ``dv`` (K, 3), ``q_nb`` (K, 4).
     """
 
-    frame: pd.DataFrame
+    frame: pd.DataFrame | pa.Table
     meta: dict = field(default_factory=dict)
     path: Path | None = None
 
     def _cols(self, names) -> np.ndarray:
-        return self.frame[list(names)].to_numpy(dtype=np.float64)
+        f = self.frame
+        if hasattr(f, "column"):  # pyarrow.Table
+            return np.column_stack([to_numpy(f.column(c)) for c in names]).astype(np.float64)
+        return f[list(names)].to_numpy(dtype=np.float64)
 
     @property
     def K(self) -> int:
@@ -96,7 +104,7 @@ class Truth:
 
     @cached_property
     def time_s(self) -> np.ndarray:
-        return self.frame[TIME].to_numpy(dtype=np.float64)
+        return self._cols([TIME])[:, 0]
 
     @property
     def rate_hz(self) -> float:
@@ -141,13 +149,17 @@ class Truth:
         return origin_frame(self.meta)
 
 
-def read(path, columns=None, *, need_meta: bool = True) -> Truth:
+def read(path, columns=None, *, need_meta: bool = True, arrow: bool = False) -> Truth:
     """Read a truth file (``columns`` default all) and its metadata.
 
     ``need_meta=False`` accepts a table without imugen metadata (``meta = {}``): enough to
-    simulate from, not to navigate (which needs the origin and Earth model).
+    simulate from, not to navigate (which needs the origin and Earth model). ``arrow=True``
+    keeps the columns as a pyarrow Table (no pandas import: the stages that only need the
+    arrays start faster).
     """
-    df = read_table(path, columns=columns, what=WHAT).to_pandas()
+    df = read_table(path, columns=columns, what=WHAT)
+    if not arrow:
+        df = df.to_pandas()
     if need_meta:
         meta = read_meta(path)
     else:

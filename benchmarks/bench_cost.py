@@ -1,0 +1,330 @@
+"""Cost of one shard job (noise -> IMU shard -> navigation errors) in CPU seconds, against its floor.
+
+The machine this project runs on is shared: wall time depends on what else runs, CPU seconds
+(user + system, from ``/usr/bin/time`` of each job, or ``time.process_time`` in-process) are what
+compare between runs. Every figure is recorded with the load average at the time.
+
+Measures (results in ``benchmarks/results/cost.{json,md}``, chart ``docs/figures/cost_vs_work``):
+
+* floors, in CPU seconds on one core: NumPy's normal variates (PCG64 ``standard_normal`` into a
+  reused ``(CHUNK, 3)`` buffer; the grade's normals per sample from its sensor models) and the
+  mechanization kernel (``imugen.mechanize.mechanize`` on in-memory increments);
+* injection: the generation loop of a shard into a null sink (in-process, CPU time) and its rate
+  against the normal-variate bound ``normals/s / normals per sample``; the same through the
+  Parquet writer;
+* start-up: ``imugen simulate --help`` and a 1-sequence job, fused (``imugen simulate TRUTH -o
+  SHARD --navigate NAV``) and the former two jobs (``imugen simulate`` then ``imugen navigate``);
+* growth: fused jobs of ``--growth`` sequences on the paper scene at 100 Hz (CPU, wall, peak
+  RSS), a least-squares fit ``CPU = a + b * work`` (work = sequences x samples), and from it the
+  10,000-sequence run in shards of ``--per-shard`` against its floor (normals + mechanization;
+  the disk is not counted in the floor, so the ratio is conservative). The 10,000-sequence figure
+  is an extrapolation of the fit, labelled as such, unless ``--full`` runs it.
+
+Usage::
+
+    python benchmarks/bench_cost.py [--grade industrial] [--growth 1 10 50 250] [--per-shard 250]
+        [--scratch /tmp/imugen-cost] [--full]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+ROUTE = ROOT / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
+ORIGIN = "31.63,-7.99,480.6"
+OUT = ROOT / "benchmarks" / "results"
+FIG = ROOT / "docs" / "figures" / "cost_vs_work"
+IMUGEN = [sys.executable, "-m", "imugen"]
+
+
+def log(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def load() -> list[float]:
+    return [round(x, 2) for x in os.getloadavg()]
+
+
+def timed(args, env=None) -> dict:
+    """Run a command under ``/usr/bin/time``: wall, user+sys CPU, peak RSS."""
+    fmt = "%e %U %S %M"
+    r = subprocess.run(
+        ["/usr/bin/time", "-f", fmt, *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    if r.returncode:
+        raise RuntimeError(r.stderr[-2000:])
+    e, u, s, m = r.stderr.strip().splitlines()[-1].split()
+    return {"wall_s": float(e), "cpu_s": float(u) + float(s), "rss_mib": int(m) / 1024}
+
+
+def best(args, repeats=3) -> dict:
+    """The run of least CPU among ``repeats`` (the others paid for cache misses or contention)."""
+    runs = [timed(args) for _ in range(repeats)]
+    return min(runs, key=lambda r: r["cpu_s"])
+
+
+def prepare_truth(scratch: Path) -> Path:
+    truth = scratch / "paper" / "truth.parquet"
+    if not truth.exists():
+        enu = scratch / "paper" / "enu.parquet"
+        enu.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.run([*IMUGEN, "ingest", ROUTE, "-o", enu, "--origin", ORIGIN, "--dt", "1.0"],
+                       check=True, capture_output=True)  # fmt: skip
+        subprocess.run([*IMUGEN, "truth", enu, "-o", truth, "--rate-hz", "100"],
+                       check=True, capture_output=True)  # fmt: skip
+    return truth
+
+
+# --- floors (in-process CPU time) -----------------------------------------------------------
+def normals_rate(seconds: float = 2.0) -> float:
+    """Normal variates per CPU second (PCG64, float64, into the injection's chunk buffer)."""
+    from imugen.simulate import CHUNK
+
+    rng = np.random.default_rng(0)
+    buf = np.empty((CHUNK, 3))
+    rng.standard_normal(out=buf)
+    n, t0 = 0, time.process_time()
+    while time.process_time() - t0 < seconds:
+        rng.standard_normal(out=buf)
+        n += buf.size
+    return n / (time.process_time() - t0)
+
+
+def mech_rate(truth_path: Path, batch: int = 16) -> float:
+    """Mechanization kernel: sample-sequences per CPU second (flat Earth, in memory)."""
+    from imugen.mechanize import mechanize
+    from imugen.tables import truth as ttruth
+
+    tr = ttruth.read(truth_path, arrow=True)
+    dth = np.ascontiguousarray(np.broadcast_to(tr.dtheta[1:], (batch, tr.K - 1, 3)))
+    dv = np.ascontiguousarray(np.broadcast_to(tr.dv[1:], (batch, tr.K - 1, 3)))
+    x0 = (tr.p_n[0], tr.v_n[0], tr.q_nb[0])
+    frame = tr.origin_frame()
+    mechanize(dth[:1, :100], dv[:1, :100], tr.dt, *x0, frame, every=100, outputs=("p", "q"))
+    best_ = 0.0
+    for _ in range(3):
+        t0 = time.process_time()
+        mechanize(dth, dv, tr.dt, *x0, frame, every=100, outputs=("p", "q"))
+        best_ = max(best_, batch * (tr.K - 1) / (time.process_time() - t0))
+    return best_
+
+
+class _Null:
+    def put(self, *a):
+        pass
+
+
+def injection(truth_path: Path, grade: str, M: int) -> dict:
+    """Generation loop of an M-sequence shard: into a null sink, and through the writer."""
+    from imugen import simulate as S
+
+    S._loop(S._plan(str(truth_path), grade, 1, 1, 0), _Null())  # kernels loaded
+    plan = S._plan(str(truth_path), grade, M, 1, 0)
+    t0 = time.process_time()
+    nps = S._loop(plan, _Null())
+    null = time.process_time() - t0
+    t0 = time.process_time()
+    S.run(str(truth_path), str(truth_path.parent / "inj.parquet"), grade, M, 1, 0)
+    written = time.process_time() - t0
+    (truth_path.parent / "inj.parquet").unlink()
+    (truth_path.parent / "inj.labels.parquet").unlink()
+    work = M * plan.truth.K
+    return {
+        "sequences": M,
+        "samples": plan.truth.K,
+        "normals_per_sample": nps,
+        "null_cpu_s": null,
+        "write_cpu_s": written,
+        "null_samples_per_cpu_s": work / null,
+        "write_samples_per_cpu_s": work / written,
+    }
+
+
+def fit_line(x, y):
+    A = np.column_stack([np.ones(len(x)), np.asarray(x, float)])
+    (a, b), *_ = np.linalg.lstsq(A, np.asarray(y, float), rcond=None)
+    return float(a), float(b)
+
+
+def chart(runs, fit, floor_per_work, out_stem: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    x = np.array([r["work"] for r in runs], float)
+    y = np.array([r["cpu_s"] for r in runs], float)
+    xx = np.geomspace(x.min() / 2, max(x.max(), 1e10 / 4) * 1.5, 200)
+    fig, ax = plt.subplots(figsize=(7, 4.6), layout="constrained")
+    ax.loglog(x, y, "o", ms=7, label="fused shard job (measured CPU, user+sys)")
+    a, b = fit
+    ax.loglog(xx, a + b * xx, "k-", lw=1, label=f"fit {a:.2f} s + {b * 1e9:.0f} s per 1e9")
+    ax.loglog(xx, floor_per_work * xx, "r--", lw=1, label="floor: normals + mechanization")
+    ax.set_xlabel("work = sequences x samples per sequence")
+    ax.set_ylabel("CPU seconds per job")
+    ax.set_title("Cost of one shard job (synthesis + write + navigation)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    out_stem.parent.mkdir(parents=True, exist_ok=True)
+    for ext in ("png", "svg"):
+        fig.savefig(out_stem.with_suffix(f".{ext}"), dpi=120)
+    plt.close(fig)
+
+
+def markdown(res: dict) -> str:
+    f, inj, st = res["floors"], res["injection"], res["startup"]
+    L = [
+        f"Machine: {res['machine']['cpu']}, {res['machine']['cores']} cores, shared; load average "
+        f"{res['load_start']} at the start, {res['load_end']} at the end. CPU seconds (user + "
+        "sys) are the comparable figures; wall time is shown beside them for the record.",
+        "",
+        "| quantity | CPU s | wall s | note |",
+        "|---|--:|--:|---|",
+        f"| `imugen simulate --help` | {st['help']['cpu_s']:.2f} | {st['help']['wall_s']:.2f} | "
+        "parser only |",
+        f"| 1-sequence fused job (`simulate --navigate`) | {st['fused_1']['cpu_s']:.2f} | "
+        f"{st['fused_1']['wall_s']:.2f} | peak RSS {st['fused_1']['rss_mib']:.0f} MiB |",
+        f"| 1-sequence `simulate` + `navigate` (two jobs) | {st['two_1']['cpu_s']:.2f} | "
+        f"{st['two_1']['wall_s']:.2f} | before: two start-ups |",
+        "",
+        f"Floors (one core, CPU time): normals {f['normals_per_cpu_s'] / 1e6:.1f} M/s x "
+        f"{inj['normals_per_sample']:g} per sample; mechanization "
+        f"{f['mech_per_cpu_s'] / 1e6:.1f} M sample-sequences/s: "
+        f"{f['per_work_s'] * 1e9:.0f} CPU-s per 1e9 sample-sequences.",
+        "",
+        f"Injection ({inj['sequences']} x {inj['samples']} samples, grade {res['grade']}): "
+        f"{inj['null_samples_per_cpu_s'] / 1e6:.2f} M samples/CPU-s into a null sink against a "
+        f"normal-variate bound of {f['normal_bound'] / 1e6:.2f} M: ratio "
+        f"**{inj['ratio_null']:.2f}**; through the Parquet writer "
+        f"{inj['write_samples_per_cpu_s'] / 1e6:.2f} M/CPU-s (ratio {inj['ratio_write']:.2f}).",
+        "",
+        "| sequences | samples | work | CPU s | wall s | peak RSS MiB | load |",
+        "|--:|--:|--:|--:|--:|--:|---|",
+    ]
+    for r in res["growth"]:
+        L.append(
+            f"| {r['sequences']} | {r['samples']} | {r['work']:.3g} | {r['cpu_s']:.2f} | "
+            f"{r['wall_s']:.1f} | {r['rss_mib']:.0f} | {r['load']} |"
+        )
+    a, b = res["fit"]
+    p = res["projection"]
+    L += [
+        "",
+        f"Fit: CPU = {a:.2f} s per job + {b * 1e9:.0f} s per 1e9 sample-sequences.",
+        "",
+        f"{'Measured' if p['measured'] else 'Projected from the fit (not run)'}: "
+        f"{p['sequences']} sequences x {p['samples']} samples in {p['shards']} shards of "
+        f"{p['per_shard']}: **{p['cpu_s']:.0f} CPU-s** against a floor of {p['floor_s']:.0f} "
+        f"CPU-s (normals + mechanization): **{p['ratio']:.2f}x** (target 1.5x). Snakemake's own "
+        "CPU and the truth and gather jobs are not included.",
+    ]
+    return "\n".join(L) + "\n"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--grade", default="industrial")
+    ap.add_argument("--growth", type=int, nargs="+", default=[1, 10, 50, 250])
+    ap.add_argument("--per-shard", type=int, default=250)
+    ap.add_argument("--sequences", type=int, default=10_000, help="size of the projected run")
+    ap.add_argument("--injection-sequences", type=int, default=50)
+    ap.add_argument("--scratch", default="/tmp/imugen-cost")
+    ap.add_argument("--full", action="store_true", help="run the projected shards for real")
+    ap.add_argument("--out", default=str(OUT))
+    a = ap.parse_args()
+    scratch = Path(a.scratch)
+    scratch.mkdir(parents=True, exist_ok=True)
+    res = {"grade": a.grade, "load_start": load()}
+    res["machine"] = {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()}
+    truth = prepare_truth(scratch)
+    log("floors")
+    nr, mr = normals_rate(), mech_rate(truth)
+    log("injection")
+    inj = injection(truth, a.grade, a.injection_sequences)
+    bound = nr / inj["normals_per_sample"]
+    inj["ratio_null"] = inj["null_samples_per_cpu_s"] / bound
+    inj["ratio_write"] = inj["write_samples_per_cpu_s"] / bound
+    per_work = inj["normals_per_sample"] / nr + 1.0 / mr
+    res["floors"] = {"normals_per_cpu_s": nr, "mech_per_cpu_s": mr, "normal_bound": bound,
+                     "per_work_s": per_work}  # fmt: skip
+    res["injection"] = inj
+    log("start-up")
+    d = scratch / "jobs"
+    shutil.rmtree(d, ignore_errors=True)
+    d.mkdir()
+    common = ["--grade", a.grade, "--seed", "1", "--shard", "0"]
+    res["startup"] = {
+        "help": best([*IMUGEN, "simulate", "--help"]),
+        "fused_1": best(
+            [
+                *IMUGEN,
+                "simulate",
+                truth,
+                "-o",
+                d / "s.parquet",
+                "--navigate",
+                d / "n.parquet",
+                "--sequences",
+                "1",
+                *common,
+            ]
+        ),
+    }
+    two = []
+    for _ in range(3):
+        s = timed([*IMUGEN, "simulate", truth, "-o", d / "s.parquet", "--sequences", "1", *common])
+        n = timed([*IMUGEN, "navigate", truth, d / "s.parquet", "-o", d / "n.parquet"])
+        two.append({k: s[k] + n[k] for k in ("cpu_s", "wall_s")})
+    res["startup"]["two_1"] = min(two, key=lambda r: r["cpu_s"])
+    growth = []
+    for M in a.growth:
+        log(f"growth: {M} sequences")
+        r = best([*IMUGEN, "simulate", truth, "-o", d / "s.parquet", "--navigate", d / "n.parquet",
+                  "--sequences", str(M), *common], repeats=2 if M <= 50 else 1)  # fmt: skip
+        K = inj["samples"]
+        growth.append({**r, "sequences": M, "samples": K, "work": M * K, "load": load()})
+    res["growth"] = growth
+    fit = fit_line([g["work"] for g in growth], [g["cpu_s"] for g in growth])
+    res["fit"] = fit
+    N, M, K = a.sequences, a.per_shard, inj["samples"]
+    shards = -(-N // M)
+    if a.full:
+        cpu = 0.0
+        for k in range(shards):
+            m = min(M, N - k * M)
+            cpu += timed([*IMUGEN, "simulate", truth, "-o", d / "s.parquet", "--navigate",
+                          d / "n.parquet", "--sequences", str(m), "--shard-size", str(M),
+                          "--grade", a.grade, "--seed", "1", "--shard", str(k)])["cpu_s"]  # fmt: skip
+    else:
+        cpu = shards * fit[0] + fit[1] * N * K
+    floor = per_work * N * K
+    res["projection"] = {"sequences": N, "per_shard": M, "shards": shards, "samples": K,
+                         "cpu_s": cpu, "floor_s": floor, "ratio": cpu / floor,
+                         "measured": a.full}  # fmt: skip
+    res["load_end"] = load()
+    shutil.rmtree(d, ignore_errors=True)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "cost.json").write_text(json.dumps(res, indent=1))
+    (out / "cost.md").write_text(markdown(res))
+    chart(growth, fit, per_work, FIG)
+    print(markdown(res))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
