@@ -228,6 +228,52 @@ def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> 
 
 
 # --- numba helpers ------------------------------------------------------------------------------
+
+# --- the filter's own strapdown step (trapezoidal, Earth-fixed n frame) ------------------------
+# parameter vector: the Earth model's (earth.N_PARAMS) then these slots
+A_DT = earth.N_PARAMS  # dt
+A_A = A_DT + 1  # A(dt) = Exp(W dt), 9 row-major
+A_D = A_A + 9  # D = A(dt)^T - I, 9 (computed without cancellation)
+A_MT = A_D + 9  # (I + dt/2 W)^{-1}, 9
+A_QW = A_MT + 9  # quaternion of Exp(-Omega dt) minus (1, 0, 0, 0), 4
+N_STEP_PARAMS = A_QW + 4
+
+
+def step_params(frame, dt: float) -> np.ndarray:
+    """Parameters of the filter's strapdown step: the Earth model's and precomputed rotations."""
+    prm = np.zeros(N_STEP_PARAMS)
+    prm[: earth.N_PARAMS] = frame.params()
+    prm[A_DT] = dt
+    w = np.asarray(earth.earth_rate_n(frame), float).reshape(3)
+    wn = float(np.linalg.norm(w))
+    W = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if wn > 0.0:
+        th = wn * dt
+        s1 = math.sin(th) / wn
+        s2 = 2.0 * math.sin(th / 2.0) ** 2 / wn**2  # (1 - cos) / |w|^2
+        A = np.eye(3) + s1 * W + s2 * (W @ W)
+        D = -s1 * W + s2 * (W @ W)
+        qw = np.array([-2.0 * math.sin(th / 4.0) ** 2, *(-math.sin(th / 2.0) * w / wn)])
+    else:
+        A, D, qw = np.eye(3), np.zeros((3, 3)), np.zeros(4)
+    c = dt / 2.0
+    MT = (np.eye(3) - c * W + c * c * np.outer(w, w)) / (1.0 + c * c * (w @ w))
+    prm[A_A : A_A + 9] = A.ravel()
+    prm[A_D : A_D + 9] = D.ravel()
+    prm[A_MT : A_MT + 9] = MT.ravel()
+    prm[A_QW : A_QW + 4] = qw
+    return prm
+
+
+@njit(cache=True, inline="always")
+def _mv(m, o, x, y, z):
+    return (
+        m[o] * x + m[o + 1] * y + m[o + 2] * z,
+        m[o + 3] * x + m[o + 4] * y + m[o + 5] * z,
+        m[o + 6] * x + m[o + 7] * y + m[o + 8] * z,
+    )
+
+
 @njit(cache=True, inline="always")
 def _dcm(q0, q1, q2, q3, C):
     C[0, 0] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
@@ -304,7 +350,7 @@ def _kernel(
     J = ep_idx.shape[0]
     n = P0.shape[1]
     wgs = prm[earth.P_MODEL] != 0.0
-    dt = prm[mech.K_DT]
+    dt = prm[A_DT]
     g0 = prm[earth.P_G0]
     w0 = prm[earth.P_OMEGA]
     w1 = prm[earth.P_OMEGA + 1]
@@ -454,17 +500,17 @@ def _kernel(
                         prm, px + 0.5 * dt * (sx + vx), py + 0.5 * dt * (sy + vy),
                         pz + 0.5 * dt * (sz + vz),
                     )  # fmt: skip
-                    AGx, AGy, AGz = mech._mv(prm, mech.K_A, Gnx, Gny, Gnz)
+                    AGx, AGy, AGz = _mv(prm, A_A, Gnx, Gny, Gnz)
                     Jx = 0.5 * dt * (AGx + Gx)
                     Jy = 0.5 * dt * (AGy + Gy)
                     Jz = 0.5 * dt * (AGz + Gz)
-                    dsx, dsy, dsz = mech._mv(
-                        prm, mech.K_D, vx + wrx + ax + Jx, vy + wry + ay + Jy, vz + wrz + az + Jz
+                    dsx, dsy, dsz = _mv(
+                        prm, A_D, vx + wrx + ax + Jx, vy + wry + ay + Jy, vz + wrz + az + Jz
                     )
                     ex = ax + Jx + dsx - dt * wvx
                     ey = ay + Jy + dsy - dt * wvy
                     ez = az + Jz + dsz - dt * wvz
-                    ddx, ddy, ddz = mech._mv(prm, mech.K_MT, ex, ey, ez)
+                    ddx, ddy, ddz = _mv(prm, A_MT, ex, ey, ez)
                     vx += ddx
                     vy += ddy
                     vz += ddz
@@ -481,8 +527,8 @@ def _kernel(
                 q0, q1, q2, q3 = mech._qmul(q0, q1, q2, q3, e0, e1, e2, e3)
                 if wgs:
                     q0, q1, q2, q3 = mech._qmul(
-                        1.0 + prm[mech.K_QW], prm[mech.K_QW + 1], prm[mech.K_QW + 2],
-                        prm[mech.K_QW + 3], q0, q1, q2, q3,
+                        1.0 + prm[A_QW], prm[A_QW + 1], prm[A_QW + 2],
+                        prm[A_QW + 3], q0, q1, q2, q3,
                     )  # fmt: skip
                 nq = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
                 q0 *= nq
@@ -1034,7 +1080,7 @@ def run(
         raise InputError("aided", f"P0 must be ({n}, {n}) for these options")
     idx = np.ascontiguousarray(gnss.index, np.int64)
     J = len(idx)
-    prm = mech.kernel_params(frame, float(dt))
+    prm = step_params(frame, float(dt))
     ov = opts.vector()
     out_x = np.empty((S, J, NX))
     out_sd = np.empty((S, J, n))
