@@ -230,3 +230,61 @@ def test_ros2_truth_read_by_evo(route, exported):
     with Reader(folder) as reader:
         traj = evo_fi.read_bag_trajectory(reader, "/ground_truth/odom")
     assert np.allclose(traj.positions_xyz, tr.p_n) and np.allclose(traj.timestamps, tr.time_s)
+
+
+def test_gnss_epochs_go_to_kfgins_and_ros2(route, tmp_path):
+    pytest.importorskip("rosbags")
+    from rosbags.highlevel import AnyReader
+
+    from imugen.tables import gnss as tgnss
+
+    truth, shard, _ = route
+    tr, seqs = _seqs(route)
+    rows = []
+    for sid, _, _ in seqs:
+        t = tr.time_s[:: int(RATE)]  # 1 Hz
+        fix = np.where((t > 10) & (t < 15), 0, 1).astype(np.int8)  # a 4 s outage
+        p = tr.p_n[:: int(RATE)] + 0.5
+        p[fix == 0] = np.nan
+        df = pd.DataFrame({"sequence": np.int64(sid), "time_s": t})
+        for i, c in enumerate(tgnss.P):
+            df[c] = p[:, i]
+        for c in (*tgnss.V, *tgnss.OFFSET_P, *tgnss.OFFSET_V, *tgnss.ATTACK_P, *tgnss.ATTACK_V):
+            df[c] = 0.0
+        for c, sd in zip(tgnss.SIGMA_P, (1.0, 2.0, 3.0), strict=True):
+            df[c] = sd
+        for c in tgnss.SIGMA_V:
+            df[c] = 0.1
+        df[tgnss.FIX], df[tgnss.STATE] = fix, (1 - fix).astype(np.int8)
+        rows.append(df)
+    labels = pd.DataFrame({"sequence": [s for s, _, _ in seqs], "gnss_lever_arm_x_m": 0.5})
+    labels["gnss_lever_arm_y_m"], labels["gnss_lever_arm_z_m"] = 0.2, 1.0
+    g = tgnss.write(
+        pd.concat(rows), labels, pd.DataFrame({"sequence": []}), {}, tmp_path / "g.parquet"
+    )
+    out = tmp_path / "exp"
+    export(["kfgins", "ros2"], truth, [shard], out, gnss_paths=[g], log=lambda m: None)
+    sid = seqs[0][0]
+    pos = np.loadtxt(out / "kfgins" / f"drive_consumer_{sid:06d}" / "gnss.pos")
+    assert len(pos) == int((rows[0]["fix"] > 0).sum())
+    from imugen.tables.truth import origin_frame
+
+    frame = origin_frame(tr.meta)
+    lat, lon, h = frame.geodetic_from_n(rows[0][list(tgnss.P)].to_numpy()[rows[0]["fix"] > 0])
+    assert np.allclose(pos[:, 2], np.degrees(lon), atol=1e-10)
+    assert np.allclose(pos[:, 1], np.degrees(lat), atol=1e-10) and np.allclose(
+        pos[:, 3], h, atol=1e-3
+    )
+    assert np.allclose(pos[:, 4:], [2.0, 1.0, 3.0])  # sigma lat (north), lon (east), height
+    import yaml
+
+    cfg = yaml.safe_load(
+        (out / "kfgins" / f"drive_consumer_{sid:06d}" / "kf-gins.yaml").read_text()
+    )
+    assert cfg["gnsspath"] == "gnss.pos" and cfg["antlever"] == [0.5, -0.2, -1.0]  # FRD
+    fixes = []
+    with AnyReader([out / "ros2" / f"drive_consumer_{sid:06d}"]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/gnss/fix"]
+        for conn, _, raw in reader.messages(connections=conns):
+            fixes.append(reader.deserialize(raw, conn.msgtype).status.status)
+    assert len(fixes) == len(rows[0]) and fixes.count(-1) == int((rows[0]["fix"] == 0).sum())

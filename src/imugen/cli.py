@@ -272,6 +272,7 @@ def _cmd_export(a) -> int:
         sequences=a.sequences,
         storage=a.storage,
         overwrite=a.overwrite,
+        gnss_paths=a.gnss,
     )
     return 0
 
@@ -610,6 +611,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS 2 bag storage"
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument(
+        "--gnss",
+        nargs="+",
+        metavar="GNSS.parquet",
+        help="GNSS epoch tables of `imugen aid` for these shards (KF-GINS gnss.pos, ROS /gnss/fix)",
+    )
     p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("grade", help="import a Kalibr/VINS/i2Nav IMU description; export Kalibr")

@@ -20,6 +20,7 @@ rule export_formats:
     input:
         truth="results/{route}/truth.parquet",
         shards=shard_paths("imu"),
+        gnss=shard_paths("gnss") if AID_ON else [],
         code=stage_code(
             "formats/__init__", "formats/source", "formats/common", "formats/convert",
             *(f"formats/{f}" for f in config["exports"]["formats"]),
@@ -29,9 +30,10 @@ rule export_formats:
     params:
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],
+        gnss=lambda wc, input: ("--gnss " + " ".join(map(shlex.quote, input.gnss))) if input.gnss else "",
     log:
         "logs/{route}/export_formats/{grade}.log",
     shell:
         "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
         "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
-        "--overwrite > {log:q} 2>&1"
+        "--overwrite {params.gnss} > {log:q} 2>&1"

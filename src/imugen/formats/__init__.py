@@ -116,11 +116,14 @@ def export(
     sequences=None,
     storage: str = "sqlite3",
     overwrite: bool = False,
+    gnss_paths=None,
     log=None,
 ) -> dict:
     """Write the sequences of ``shard_paths`` in each of ``formats`` under ``out_dir``.
 
-    Returns ``{format: number of files written}`` and prints one line per format to ``log``.
+    ``gnss_paths``: the GNSS epoch tables of ``imugen aid`` for these shards (optional): KF-GINS
+    then gets ``gnss.pos`` and ROS 2 bags a ``/gnss/fix`` topic. Returns ``{format: number of
+    files written}`` and prints one line per format to ``log``.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
     formats = parse_formats(formats)
@@ -146,7 +149,7 @@ def export(
             (tmp / "tum").mkdir()
             tum.write_truth(truth, tmp / "tum" / "truth.tum", every)
             counts["tum"] += 1
-        for seq in iter_sequences(shard_paths, truth.K, only):
+        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths):
             name = f"{route}_{grade}_{seq.id:06d}"
             keys.append((route, seq.id, name))
             for fmt in formats:

@@ -8,7 +8,8 @@ with a warning (their coning/sculling would be counted twice, an error of the or
 correction itself). ``truth.nav``: ``week sow lat lon h vN vE vD roll pitch heading`` (deg,
 m, m/s; NED at the vehicle, FRD body). ``kf-gins.yaml``: KF-GINS' configuration with the true
 initial state and this sequence's noise figures (``imunoise``: arw, vrw, gbstd, abstd, gsstd,
-asstd, corrtime). No GNSS file is written yet (``gnsspath`` is left for the user).
+asstd, corrtime). With the GNSS epochs of ``imugen aid``: ``gnss.pos`` (``sow lat lon h
+sigma_lat sigma_lon sigma_h``, epochs with a fix) and the antenna lever arm in the config.
 """
 
 from __future__ import annotations
@@ -76,6 +77,13 @@ def write(seq: Sequence, truth: TruthArrays, folder: Path, warn=print, **_) -> l
     nav = nav_rows(truth)
     with open(folder / "truth.nav", "w") as fh:
         write_rows(fh, nav, "%d %.6f %.11f %.11f %.4f %.6f %.6f %.6f %.8f %.8f %.8f")
+    files = [folder / "imu.txt", folder / "truth.nav", folder / "kf-gins.yaml"]
+    antlever = [0.0, 0.0, 0.0]
+    if seq.gnss is not None:
+        files.append(write_gnss_pos(seq.gnss, truth, folder / "gnss.pos"))
+        gl = seq.gnss.attrs.get("labels", {})
+        arm = [float(gl.get(f"gnss_lever_arm_{a}_m", 0.0)) for a in "xyz"]
+        antlever = [float(x) for x in flu_to_frd(np.asarray(arm))]
     lab = seq.labels
 
     def axes(stem, scale):
@@ -96,7 +104,7 @@ def write(seq: Sequence, truth: TruthArrays, folder: Path, warn=print, **_) -> l
     tau = [float(lab.get(f"{s}_bias_instability_tau0_s", 3600.0)) for s in ("gyro", "accel")]
     cfg = {
         "imupath": "imu.txt",
-        "gnsspath": "",
+        "gnsspath": "gnss.pos" if seq.gnss is not None else "",
         "outputpath": ".",
         "imudatalen": 7,
         "imudatarate": float(round(1.0 / truth.dt, 9)),
@@ -118,7 +126,7 @@ def write(seq: Sequence, truth: TruthArrays, folder: Path, warn=print, **_) -> l
             "asstd": float(np.mean(np.abs(axes("accel_scale_factor_{a}", 1e6)))),
             "corrtime": float(np.mean(tau) / 3600.0),
         },
-        "antlever": [0.0, 0.0, 0.0],
+        "antlever": antlever,
     }
     head = (
         f"# KF-GINS configuration for imugen sequence {seq.id} (true initial state; "
@@ -126,4 +134,29 @@ def write(seq: Sequence, truth: TruthArrays, folder: Path, warn=print, **_) -> l
         "estimates them, their true values are in the labels)\n"
     )
     (folder / "kf-gins.yaml").write_text(head + yaml.safe_dump(cfg, sort_keys=False))
-    return [folder / "imu.txt", folder / "truth.nav", folder / "kf-gins.yaml"]
+    return files
+
+
+def write_gnss_pos(gnss, truth: TruthArrays, path: Path, sow0: float = 0.0) -> Path:
+    """KF-GINS ``gnss.pos``: ``sow lat lon h sigma_lat sigma_lon sigma_h`` (deg, deg, m, m, m, m)
+    of the epochs with a fix, antenna position as the receiver reports it (errors, attacks)."""
+    from imugen.tables import gnss as tgnss
+
+    ok = (gnss[tgnss.FIX].to_numpy() > 0) & np.isfinite(gnss[tgnss.P[0]].to_numpy())
+    g = gnss[ok]
+    lat, lon, h = _frame(truth).geodetic_from_n(g[list(tgnss.P)].to_numpy())
+    sd = g[list(tgnss.SIGMA_P)].to_numpy()
+    rows = np.column_stack(
+        [
+            sow0 + g[ttruth.TIME].to_numpy(),
+            np.degrees(lat),
+            np.degrees(lon),
+            h,
+            sd[:, 1],
+            sd[:, 0],
+            sd[:, 2],
+        ]
+    )
+    with open(path, "w") as fh:
+        write_rows(fh, rows, "%.6f %.11f %.11f %.4f %.4f %.4f %.4f")
+    return path

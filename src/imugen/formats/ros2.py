@@ -9,7 +9,10 @@ One bag per sequence (``<seq>/``, rosbag2 with sqlite3 storage, or MCAP with
 * ``/ground_truth/odom`` ``nav_msgs/msg/Odometry``: true pose in ``map`` and true twist in
   ``base_link`` (linear ``C_bn v_n``, angular ``omega_ib_b``), at every truth sample;
 * ``/ground_truth/fix`` ``sensor_msgs/msg/NavSatFix``: the true geodetic position (WGS-84)
-  at the navigation rate (a truth topic, not a receiver: it has zero covariance).
+  at the navigation rate (a truth topic, not a receiver: it has zero covariance);
+* ``/gnss/fix`` ``sensor_msgs/msg/NavSatFix`` (with the GNSS epochs of ``imugen aid``): the
+  simulated receiver, frame ``gnss_antenna``, status FIX or NO_FIX (outages, lost jamming),
+  covariance diagonal from the reported sigmas (East, North, Up).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ TOPICS = {
     "imu": ("/imu/data", "sensor_msgs/msg/Imu"),
     "odom": ("/ground_truth/odom", "nav_msgs/msg/Odometry"),
     "fix": ("/ground_truth/fix", "sensor_msgs/msg/NavSatFix"),
+    "gnss": ("/gnss/fix", "sensor_msgs/msg/NavSatFix"),
 }
 
 
@@ -132,4 +136,27 @@ def write(
                 position_covariance_type=2,
             )
             wr.write(conn["fix"], int(ns_t[k]), ts.serialize_cdr(msg, Fix.__msgtype__))
+        if seq.gnss is not None:
+            from imugen.tables import gnss as tgnss
+
+            g = seq.gnss
+            pg = g[list(tgnss.P)].to_numpy()
+            sg = g[list(tgnss.SIGMA_P)].to_numpy()
+            fix = g[tgnss.FIX].to_numpy() > 0
+            glat, glon, gh = frame.geodetic_from_n(np.nan_to_num(pg))
+            ns_g = clock(g["time_s"].to_numpy(), 1e-9, start_ns)
+            for i in range(len(g)):
+                ok = bool(fix[i] and np.isfinite(pg[i]).all())
+                cov = np.zeros(9)
+                cov[[0, 4, 8]] = np.nan_to_num(sg[i]) ** 2
+                msg = Fix(
+                    header=header(ns_g[i], "gnss_antenna"),
+                    status=Status(status=0 if ok else -1, service=1),
+                    latitude=float(np.degrees(glat[i])) if ok else float("nan"),
+                    longitude=float(np.degrees(glon[i])) if ok else float("nan"),
+                    altitude=float(gh[i]) if ok else float("nan"),
+                    position_covariance=cov,
+                    position_covariance_type=2 if ok else 0,
+                )
+                wr.write(conn["gnss"], int(ns_g[i]), ts.serialize_cdr(msg, Fix.__msgtype__))
     return [folder]

@@ -62,6 +62,7 @@ class Sequence:
     data: dict[str, np.ndarray]
     labels: dict
     meta: dict = field(repr=False)
+    gnss: object = None  # the sequence's GNSS epochs (DataFrame, imugen.tables.gnss), if given
 
     def has(self, names) -> bool:
         return all(n in self.data for n in names)
@@ -70,10 +71,26 @@ class Sequence:
         return np.column_stack([self.data[n] for n in names])
 
 
-def iter_sequences(shard_paths, K: int, only=None) -> Iterator[Sequence]:
+def gnss_of(gnss_paths, sid: int):
+    """The GNSS epochs of sequence ``sid`` (DataFrame with its receiver labels in ``attrs``)
+    from whichever file holds it, or None; reads only that sequence's rows."""
+    from imugen.tables import gnss as tgnss
+
+    for g in gnss_paths or ():
+        df = tgnss.read(g, filters=[(SEQUENCE, "==", int(sid))])
+        if len(df):
+            lab = tgnss.read_labels(g)
+            row = lab[lab[SEQUENCE] == sid]
+            df.attrs["labels"] = row.iloc[0].to_dict() if len(row) else {}
+            return df.sort_values(ttruth.TIME, kind="stable").reset_index(drop=True)
+    return None
+
+
+def iter_sequences(shard_paths, K: int, only=None, gnss_paths=None) -> Iterator[Sequence]:
     """Yield every sequence of the shards (file order), one at a time.
 
-    ``only``: optional set of sequence ids to keep.
+    ``only``: optional set of sequence ids to keep; ``gnss_paths``: GNSS epoch tables
+    (``imugen aid``) whose epochs of each sequence ride along as ``Sequence.gnss``.
     """
     for p in map(Path, shard_paths):
         meta = tshard.read_meta(p)
@@ -84,4 +101,6 @@ def iter_sequences(shard_paths, K: int, only=None) -> Iterator[Sequence]:
             if only is not None and sid not in only:
                 continue
             row = labels.loc[sid].to_dict() if sid in labels.index else {}
-            yield Sequence(sid, dict(zip(names, block, strict=True)), row, meta)
+            yield Sequence(
+                sid, dict(zip(names, block, strict=True)), row, meta, gnss_of(gnss_paths, sid)
+            )
