@@ -137,7 +137,11 @@ def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
     cfg.update({k: 0.0 for k in G.FIGURES if k not in cfg})
     cfg["position_white_h_m"] = cfg["position_white_v_m"] = 1e-3  # 1 mm: R > 0
     rec = G.receiver_from_config("quiet", cfg)
-    params = AID.AidParams(receiver=rec, draw="nominal", gnss_bias_states=False, zupt=False)
+    # no NHC: the truth's car may slip sideways by up to a degree in corners (the ground-vehicle
+    # attitude model), so the constraint is not exact for it
+    params = AID.AidParams(
+        receiver=rec, draw="nominal", gnss_bias_states=False, zupt=False, nhc=False
+    )
     AID.run(scene / "truth.parquet", tmp_path / "ideal.parquet", tmp_path / "g.parquet",
             tmp_path / "a.parquet", params)  # fmt: skip
     a = taided.read(tmp_path / "a.parquet")

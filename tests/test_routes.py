@@ -42,9 +42,10 @@ def test_no_two_route_grade_sequence_share_a_draw():
     assert len(draws) == 2 * len(ROUTES) * 2 * 3
     rows = np.array(list(draws.values()))
     assert len({r.tobytes() for r in rows}) == len(rows)  # no draw repeated anywhere
-    # no shared component either: every pair of turn-on biases differs in every axis
-    b = rows[:, 0]
-    assert len(np.unique(b)) == len(b)
+    # no shared component either: the first noisy increments (white noise, present in every
+    # grade; some presets have no turn-on bias) differ between every pair of draws
+    b = {r[6:].tobytes() for r in rows}
+    assert len(b) == len(rows)
     for grade, got in ids.items():
         assert len(set(got)) == len(got), grade  # unique across routes within a grade
     # the same (route, index) has the same id in another grade

@@ -385,7 +385,9 @@ def _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, how):
 
 
 def _rep_label(g, r, how):
-    return f"{g}: RMSE {format_length(r['rmse'])} (sequence {r['sequence']}, {how} of {r['count']})"
+    # the sequence's index within its route (ids are route-scoped: route_id << 31 | index)
+    index = int(tshard.split_ids(np.array([r["sequence"]], np.int64))[1][0])
+    return f"{g}: RMSE {format_length(r['rmse'])} (sequence {index}, {how} of {r['count']})"
 
 
 # ----------------------------------------------------------------------------------------
