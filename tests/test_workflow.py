@@ -28,7 +28,7 @@ TINY = {
         "example": {"file": str(ROUTE)},
         "paper": {"file": str(PAPER), "origin": [31.63, -7.99, 480.6], "dt_s": 1.0},
     },
-    "truth": {"rate_hz": 10, "earth": "auto"},
+    "truth": {"rate_hz": 10, "earth": "wgs84"},
     "grades": {
         "consumer": {},
         "tactical": {},
@@ -144,6 +144,17 @@ def test_edit_one_grade_reruns_only_that_grade(done, tmp_path):
         "export_mat": 2,
         "all": 1,
     }
+
+
+def test_under_auto_a_custom_grade_feeds_the_truth(tmp_path):
+    # `earth: auto` budgets every configured grade: editing a custom grade reruns the truth
+    cfg = copy.deepcopy(TINY)
+    cfg["truth"]["earth"] = "auto"
+    write_config(tmp_path, cfg)
+    proc = snakemake(tmp_path, "-n", "-j1", "--quiet", "rules")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = snakemake(tmp_path, "-n", "-j1", "results/example/truth.parquet")
+    assert "results/grades/mine.yaml" in out.stdout + out.stderr
 
 
 def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):

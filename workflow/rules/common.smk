@@ -121,6 +121,9 @@ def auto_grades():
     )
 
 
+AUTO_EARTH = config["truth"]["earth"] == "auto"
+
+
 def custom_grade_files():
     """YAML files of all custom grades (inputs of the truth's `--earth auto` budget)."""
     return [f"results/grades/{g}.yaml" for g in GRADES if is_custom(g)]

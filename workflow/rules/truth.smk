@@ -23,15 +23,17 @@ rule truth:
             "tables/truth",
             "grades",
         ),
-        grade_files=custom_grade_files(),
-        presets=PRESETS,
+        # the grades feed only the `earth: auto` budget: with an explicit Earth model the truth
+        # does not depend on them (editing a grade then reruns only that grade's jobs)
+        grade_files=custom_grade_files() if AUTO_EARTH else [],
+        presets=PRESETS if AUTO_EARTH else [],
     output:
         "results/{route}/truth.parquet",
     params:
         rate_hz=config["truth"]["rate_hz"],
         earth=config["truth"]["earth"],
         vehicle=lambda wc: config["routes"][wc.route]["vehicle"],
-        grades=auto_grades(),
+        grades=auto_grades() if AUTO_EARTH else "",
     log:
         "logs/{route}/truth.log",
     shell:
