@@ -300,6 +300,19 @@ def _skew(x, y, z, M):
     M[2, 2] = 0.0
 
 
+@njit(cache=True, inline="always")
+def _sparse_rows_times(Phi, nnz, nzc, P, T, n):
+    """``T = Phi P`` using only the ``nnz[i]`` non-zero columns ``nzc[i, :]`` of each row of Phi."""
+    for i in range(n):
+        for j in range(n):
+            T[i, j] = 0.0
+        for m in range(nnz[i]):
+            c = nzc[i, m]
+            f = Phi[i, c]
+            for j in range(n):
+                T[i, j] += f * P[c, j]
+
+
 @njit(cache=True)
 def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
     """One scalar update ``z_pred - z = h dx + noise`` (r = z_pred - z); returns accepted.
@@ -592,25 +605,11 @@ def _kernel(
                         qdiag[i_sg + a] = tun[s, T_QS] * Tint
                 # P <- Phi (Phi P)^T (= Phi P Phi^T for symmetric P): two sparse-row products
                 # with contiguous inner loops, then the transpose in between
-                for i in range(n):
-                    for j in range(n):
-                        T[i, j] = 0.0
-                    for m in range(nnz[i]):
-                        c = nzc[i, m]
-                        f = Phi[i, c]
-                        for j in range(n):
-                            T[i, j] += f * P[c, j]
+                _sparse_rows_times(Phi, nnz, nzc, P, T, n)
                 for i in range(n):
                     for j in range(n):
                         P[i, j] = T[j, i]
-                for i in range(n):
-                    for j in range(n):
-                        T[i, j] = 0.0
-                    for m in range(nnz[i]):
-                        c = nzc[i, m]
-                        f = Phi[i, c]
-                        for j in range(n):
-                            T[i, j] += f * P[c, j]
+                _sparse_rows_times(Phi, nnz, nzc, P, T, n)
                 for i in range(n):
                     for j in range(i, n):
                         acc = 0.5 * (T[i, j] + T[j, i])
