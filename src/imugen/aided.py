@@ -54,32 +54,38 @@ from imugen.jit import njit
 from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
 
 # --- nominal state layout (one row per sequence) ------------------------------------------------
-X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB = 0, 3, 6, 10, 13, 16, 19, 22
-NX = 25
+X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB = 0, 3, 6, 10, 13, 16, 19, 22, 25, 26
+NX = 27
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
 # --- tuning vector (per sequence) ---------------------------------------------------------------
 T_NG, T_NA, T_QBG, T_QBA, T_GB_SD, T_GB_TAU, T_GW, T_QS = 0, 3, 6, 9, 12, 15, 16, 19
-N_TUNE = 20
+T_OSF_SD, T_BB_SD, T_BB_TAU = 20, 21, 22
+N_TUNE = 23
 # --- options vector (shared) --------------------------------------------------------------------
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
-N_OPT = 12
+O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
+N_OPT = 15
+# --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
+C_ODO, C_ODO_VAR, C_BARO, C_BARO_VAR = 0, 1, 2, 3
 # --- flags per epoch ----------------------------------------------------------------------------
-F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED = 1, 2, 4, 8, 16, 32
+F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED, F_ODO, F_BARO = 1, 2, 4, 8, 16, 32, 64, 128
 LEVEL_SD_RAD = math.radians(1.0)
 """Roll/pitch 1-sigma of a moving-start alignment (land vehicle assumed level)."""
 HEADING_SD_RAD = math.radians(0.5)
 """Heading-along-velocity 1-sigma margin of a moving-start alignment."""
 
 
-def n_states(scale_factors: bool, gnss_bias: bool) -> int:
-    """Size of the error state."""
-    return N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors)
+def n_states(scale_factors: bool, gnss_bias: bool, odo_sf: bool = False, baro: bool = False) -> int:
+    """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift)."""
+    return N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
 
 
-def state_names(scale_factors: bool, gnss_bias: bool) -> list[str]:
+def state_names(
+    scale_factors: bool, gnss_bias: bool, odo_sf: bool = False, baro: bool = False
+) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
     names[9:15] = [f"{g}_{a}" for g in ("dbg", "dba") for a in "xyz"]
@@ -87,6 +93,10 @@ def state_names(scale_factors: bool, gnss_bias: bool) -> list[str]:
         names += [f"dgnss_bias_{a}" for a in "enu"]
     if scale_factors:
         names += [f"dsg_{a}" for a in "xyz"] + [f"dsa_{a}" for a in "xyz"]
+    if odo_sf:
+        names.append("dodo_sf")
+    if baro:
+        names.append("dbaro_bias")
     return names
 
 
@@ -165,7 +175,10 @@ class Options:
     Gauss-Markov position bias as states (needs ``gnss_bias_sd_m``, ``gnss_bias_tau_s``,
     ``gnss_white_m`` per axis); ``nhc``: non-holonomic constraint (cars); ``zupt``: zero-velocity
     updates at detected stops; ``use_velocity``: GNSS velocity updates; ``latency``:
-    compensate the GNSS latency to first order; ``gate_sigma``: innovation gate (0: off).
+    compensate the GNSS latency to first order; ``gate_sigma``: innovation gate (0: off);
+    ``odometer``: odometer distance updates (needs :class:`CompanionEpochs`), with an
+    odometer scale-factor state if ``odo_scale_state`` (else the noise is inflated by the
+    scale factor's prior); ``baro``: barometric height updates with a drift state.
     """
 
     scale_factors: bool = False
@@ -180,6 +193,23 @@ class Options:
     gate_sigma: float = 0.0
     use_velocity: bool = True
     latency: bool = True
+    odometer: bool = False
+    odo_scale_state: bool = True
+    baro: bool = False
+
+    @property
+    def n(self) -> int:
+        """Size of the error state."""
+        return n_states(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro)
+
+    @property
+    def odo_sf(self) -> bool:
+        """The odometer scale factor is a state."""
+        return self.odometer and self.odo_scale_state
+
+    def names(self) -> list[str]:
+        """Names of the error-state components."""
+        return state_names(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro)
 
     def vector(self) -> np.ndarray:
         o = np.zeros(N_OPT)
@@ -195,7 +225,43 @@ class Options:
         o[O_GATE] = self.gate_sigma
         o[O_USE_VEL] = self.use_velocity
         o[O_LATENCY] = self.latency
+        o[O_ODO] = self.odometer
+        o[O_ODO_SF] = self.odo_sf
+        o[O_BARO] = self.baro
         return o
+
+
+@dataclass
+class CompanionEpochs:
+    """Companion measurements on the filter's GNSS epoch grid (see
+    :func:`imugen.companions.filter_input`).
+
+    Attributes
+    ----------
+    z : (S, J, 4)       per epoch ``C_ODO`` odometer distance [m] over the window ending at the
+                        epoch (from the previous marked epoch), ``C_ODO_VAR`` its variance [m^2],
+                        ``C_BARO`` barometric height above the origin's [m], ``C_BARO_VAR`` its
+                        variance [m^2]; NaN where absent
+    mark : (J,) int8    1 where the epoch is an odometer epoch (a window boundary)
+    lever_b_m : (S, 3)  odometer reference point in the body frame [m]
+    odo_sf_sd : (S,)    prior 1-sigma of the odometer scale factor
+    baro_sd_m, baro_tau_s : (S,)  barometer drift model (stationary sigma [m], tau [s])
+    """
+
+    z: np.ndarray
+    mark: np.ndarray
+    lever_b_m: np.ndarray
+    odo_sf_sd: np.ndarray
+    baro_sd_m: np.ndarray
+    baro_tau_s: np.ndarray
+
+    def tune(self, T: np.ndarray) -> np.ndarray:
+        """A copy of the tuning matrix ``T`` (S, N_TUNE) with the companion columns set."""
+        T = np.array(T, float)
+        T[:, T_OSF_SD] = self.odo_sf_sd
+        T[:, T_BB_SD] = self.baro_sd_m
+        T[:, T_BB_TAU] = self.baro_tau_s
+        return T
 
 
 def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> np.ndarray:
@@ -211,6 +277,7 @@ def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> 
     T[:, T_QBA : T_QBA + 3] = tun.accel_bias_q
     T[:, T_QS] = tun.sf_q
     T[:, T_GB_TAU] = 60.0
+    T[:, T_BB_TAU] = 3600.0
     if gnss_params is not None:
         T[:, T_GB_SD : T_GB_SD + 3] = gnss_params.axis("position_bias_h_m", "position_bias_v_m")
         T[:, T_GB_TAU] = gnss_params.position_bias_tau_s
@@ -347,9 +414,52 @@ def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
 
 
 @njit(cache=True)
+def _odometer_update(P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf_state, gate):
+    """Odometer distance ``z`` over a window: ``z_pred = (1 + k) d`` with ``d`` the predicted
+    forward distance; ``hv``, ``hpsi`` its sensitivities to the velocity and attitude errors
+    (``int C^T e_x dt``, ``int (C e_x) x v dt``; errors taken constant over the window)."""
+    for i in range(P.shape[0]):
+        h[i] = 0.0
+    g = 1.0 + k_hat
+    for a in range(3):
+        h[3 + a] = g * hv[a]
+        hz[a] = 3 + a
+        h[6 + a] = g * hpsi[a]
+        hz[3 + a] = 6 + a
+    m = 6
+    if sf_state:
+        h[i_od] = d_hat
+        hz[6] = i_od
+        m = 7
+    return _scalar_update(P, dx, h, hz, m, g * d_hat - z, var, gate, PHt)
+
+
+@njit(cache=True)
+def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
+    """Barometric height above the origin's: ``z_pred = p_u (+ (p_e^2 + p_n^2) / 2R in wgs84)
+    + b`` with ``b`` the drift state."""
+    for i in range(P.shape[0]):
+        h[i] = 0.0
+    pred = pz + b_hat
+    h[2] = 1.0
+    hz[0] = 2
+    m = 1
+    if wgs:
+        pred += (px * px + py * py) / (2.0 * earth.R_MEAN)
+        h[0] = px / earth.R_MEAN
+        h[1] = py / earth.R_MEAN
+        hz[1] = 0
+        hz[2] = 1
+        m = 3
+    h[i_bb] = 1.0
+    hz[m] = i_bb
+    return _scalar_update(P, dx, h, hz, m + 1, pred - z, var, gate, PHt)
+
+
+@njit(cache=True)
 def _kernel(
     dth, dvb, k0, ep_idx, zp, zv, sp, sv, ok, lever, lat, x0, P0, prm, tun, opt,
-    out_x, out_sd, out_P, out_flag,
+    out_x, out_sd, out_P, out_flag, cz, cmark, clever,
 ):  # fmt: skip
     """Filter every sequence from its start sample ``k0[s]`` through the epochs ``ep_idx``.
 
@@ -357,7 +467,8 @@ def _kernel(
     GNSS position/velocity and reported sigmas; ok : (S, J) usable epochs; lever : (S, 3);
     lat : (S,) latency [s]; x0 : (S, NX) state at t_{k0}; P0 : (S, n, n); outputs per epoch:
     out_x (S, J, NX) (NaN before the start), out_sd (S, J, n), out_P (S, J or 0, n, n),
-    out_flag (S, J).
+    out_flag (S, J); companions (:class:`CompanionEpochs`): cz (S, J, 4), cmark (J,),
+    clever (S, 3).
     """
     S = dth.shape[0]
     J = ep_idx.shape[0]
@@ -373,6 +484,13 @@ def _kernel(
     i_gb = N_BASE
     i_sg = N_BASE + (3 if gb_on else 0)
     i_sa = i_sg + 3
+    odo_on = opt[O_ODO] != 0.0
+    osf_on = opt[O_ODO_SF] != 0.0
+    baro_on = opt[O_BARO] != 0.0
+    i_od = i_sa + 3 if sf_on else i_sg
+    i_bb = i_od + (1 if osf_on else 0)
+    hv = np.zeros(3)
+    hpsi = np.zeros(3)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
     nzc = np.zeros((n, n), np.int64)
@@ -439,6 +557,13 @@ def _kernel(
             Gx, Gy, Gz = earth.gravitation_nb(prm, px, py, pz)
         else:
             Gx, Gy, Gz = 0.0, 0.0, -g0
+        # odometer window: predicted forward distance and its sensitivities since the last mark
+        armed = False
+        dist = 0.0
+        for a in range(3):
+            hv[a] = 0.0
+            hpsi[a] = 0.0
+        olx, oly, olz = clever[s, 0], clever[s, 1], clever[s, 2]
         for jj in range(J):
             ke = ep_idx[jj]
             if ke < k:
@@ -535,6 +660,18 @@ def _kernel(
                 px += 0.5 * dt * (vx + ovx)
                 py += 0.5 * dt * (vy + ovy)
                 pz += 0.5 * dt * (vz + ovz)
+                if odo_on:
+                    mx = 0.5 * (vx + ovx)
+                    my = 0.5 * (vy + ovy)
+                    mz = 0.5 * (vz + ovz)
+                    dist += dt * (C[0, 0] * mx + C[1, 0] * my + C[2, 0] * mz)
+                    dist += ty * olz - tz * oly  # (omega x l)_x dt
+                    hv[0] += dt * C[0, 0]
+                    hv[1] += dt * C[1, 0]
+                    hv[2] += dt * C[2, 0]
+                    hpsi[0] += dt * (C[1, 0] * mz - C[2, 0] * my)
+                    hpsi[1] += dt * (C[2, 0] * mx - C[0, 0] * mz)
+                    hpsi[2] += dt * (C[0, 0] * my - C[1, 0] * mx)
                 e0, e1, e2, e3 = mech._qexpm1(tx, ty, tz)
                 e0 += 1.0
                 q0, q1, q2, q3 = mech._qmul(q0, q1, q2, q3, e0, e1, e2, e3)
@@ -603,6 +740,10 @@ def _kernel(
                 if sf_on:
                     for a in range(6):
                         qdiag[i_sg + a] = tun[s, T_QS] * Tint
+                if baro_on:
+                    phib = math.exp(-Tint / tun[s, T_BB_TAU])
+                    Phi[i_bb, i_bb] = phib
+                    qdiag[i_bb] = tun[s, T_BB_SD] ** 2 * (1.0 - phib * phib)
                 # P <- Phi (Phi P)^T (= Phi P Phi^T for symmetric P): two sparse-row products
                 # with contiguous inner loops, then the transpose in between
                 _sparse_rows_times(Phi, nnz, nzc, P, T, n)
@@ -769,6 +910,32 @@ def _kernel(
                         hz[3 + b] = 6 + b
                     _scalar_update(P, dx, h, hz, 6, vb, opt[O_NHC_SD] ** 2, 0.0, PHt)
                 flag |= F_NHC
+            # --- companions: odometer distance over the window, barometric height -------------
+            if odo_on and cmark[jj] != 0:
+                zo = cz[s, jj, C_ODO]
+                if armed and ke > k0[s] and math.isfinite(zo):
+                    vo = cz[s, jj, C_ODO_VAR]
+                    if not osf_on:
+                        vo += (tun[s, T_OSF_SD] * zo) ** 2
+                    if _odometer_update(
+                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, x[X_OSF], i_od, osf_on, gate
+                    ):
+                        flag |= F_ODO
+                    else:
+                        flag |= F_REJECT
+                armed = True
+                dist = 0.0
+                for a in range(3):
+                    hv[a] = 0.0
+                    hpsi[a] = 0.0
+            if baro_on and math.isfinite(cz[s, jj, C_BARO]):
+                if _baro_update(
+                    P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], px, py, pz,
+                    x[X_BB], i_bb, wgs, gate,
+                ):  # fmt: skip
+                    flag |= F_BARO
+                else:
+                    flag |= F_REJECT
             # --- feedback ------------------------------------------------------------------------
             px -= dx[0]
             py -= dx[1]
@@ -791,6 +958,10 @@ def _kernel(
                 if sf_on:
                     x[X_SG + a] -= dx[i_sg + a]
                     x[X_SA + a] -= dx[i_sa + a]
+            if osf_on:
+                x[X_OSF] -= dx[i_od]
+            if baro_on:
+                x[X_BB] -= dx[i_bb]
             x[0], x[1], x[2] = px, py, pz
             x[3], x[4], x[5] = vx, vy, vz
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
@@ -815,6 +986,8 @@ def _kernel(
                 phin = math.exp(-(ep_idx[jj + 1] - ke) * dt / tun[s, T_GB_TAU])
                 for a in range(3):
                     x[X_GB + a] *= phin
+            if baro_on and jj + 1 < J:
+                x[X_BB] *= math.exp(-(ep_idx[jj + 1] - ke) * dt / tun[s, T_BB_TAU])
 
 
 # --- Python drivers -----------------------------------------------------------------------------
@@ -841,7 +1014,10 @@ class AidedResult:
     gnss_bias : (S, J, 3)       estimated receiver position bias [m]
     sd : (S, J, n)              1-sigma of every error state (:func:`state_names`)
     P : (S, J, n, n) or None    full covariance (``store_P``)
-    flags : (S, J) int8         bits F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED
+    odo_sf : (S, J)             estimated odometer scale factor (zeros when not estimated)
+    baro_bias : (S, J)          estimated barometer drift [m] (zeros when not estimated)
+    flags : (S, J) int16        bits F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED,
+                                F_ODO, F_BARO
     names : list of str         error-state names
     """
 
@@ -859,6 +1035,8 @@ class AidedResult:
     P: np.ndarray | None
     flags: np.ndarray
     names: list
+    odo_sf: np.ndarray | None = None
+    baro_bias: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -881,17 +1059,18 @@ def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> In
 
 
 def initial_covariance(
-    tun: Tuning, opts: Options, sd_p, sd_v, sd_att, gnss_bias_sd=None
-) -> np.ndarray:
+    tun: Tuning, opts: Options, sd_p, sd_v, sd_att, gnss_bias_sd=None, odo_sf_sd=0.0,
+    baro_sd_m=0.0,
+) -> np.ndarray:  # fmt: skip
     """Block-diagonal initial covariance from per-axis sigmas (arrays broadcast to (S, 3)).
 
     With GNSS bias states, a position taken from a fix has error ``b + w``: its covariance
-    with the bias error ``-b`` is ``-sigma_b^2`` (``gnss_bias_sd``).
+    with the bias error ``-b`` is ``-sigma_b^2`` (``gnss_bias_sd``). ``odo_sf_sd``,
+    ``baro_sd_m`` (scalars or (S,)): priors of the companion states (when in ``opts``).
     """
     sd_p, sd_v, sd_att = (np.atleast_2d(np.asarray(a, float)) for a in (sd_p, sd_v, sd_att))
     S = max(len(sd_p), len(sd_v), len(sd_att))
-    n = n_states(opts.scale_factors, opts.gnss_bias)
-    P = np.zeros((S, n, n))
+    P = np.zeros((S, opts.n, opts.n))
     ix = np.arange(3)
     P[:, ix, ix] = np.broadcast_to(sd_p, (S, 3)) ** 2
     P[:, 3 + ix, 3 + ix] = np.broadcast_to(sd_v, (S, 3)) ** 2
@@ -910,6 +1089,12 @@ def initial_covariance(
     if opts.scale_factors:
         P[:, i + ix, i + ix] = tun.gyro_sf_sd**2
         P[:, i + 3 + ix, i + 3 + ix] = tun.accel_sf_sd**2
+        i += 6
+    if opts.odo_sf:
+        P[:, i, i] = np.broadcast_to(np.asarray(odo_sf_sd, float), (S,)) ** 2
+        i += 1
+    if opts.baro:
+        P[:, i, i] = np.broadcast_to(np.asarray(baro_sd_m, float), (S,)) ** 2
     return P
 
 
@@ -1019,7 +1204,8 @@ def align(
     if opts.gnss_bias and tuning_T is not None:
         gb = tuning_T[:, T_GB_SD : T_GB_SD + 3]
         sd_p = np.sqrt(gb**2 + tuning_T[:, T_GW : T_GW + 3] ** 2)
-    P0 = initial_covariance(tun, opts, sd_p, sd_v, sd_att, gb)
+    osd, bsd = (0.0, 0.0) if tuning_T is None else (tuning_T[:, T_OSF_SD], tuning_T[:, T_BB_SD])
+    P0 = initial_covariance(tun, opts, sd_p, sd_v, sd_att, gb, osd, bsd)
     return initial_state(k0, p0, v0, q0, P0)
 
 
@@ -1036,6 +1222,7 @@ def run(
     tuning_T=None,
     store_P=False,
     seq_chunk=64,
+    companions: CompanionEpochs | None = None,
 ) -> AidedResult:
     """Run the filter over a batch of sequences.
 
@@ -1056,11 +1243,15 @@ def run(
     init : Initial, optional
         Start state; default :func:`align`.
     tuning_T : ndarray (S, N_TUNE), optional
-        Per-sequence tuning (default :func:`tuning_matrix` with the receiver's nominal figures).
+        Per-sequence tuning (default :func:`tuning_matrix` with the receiver's nominal figures);
+        its companion columns are taken from ``companions`` when given.
     store_P : bool
         Also return the full covariance at every epoch.
     seq_chunk : int
         Sequences per kernel call.
+    companions : CompanionEpochs, optional
+        Odometer and barometer measurements at the GNSS epochs (needed by ``opts.odometer``
+        and ``opts.baro``; :func:`imugen.companions.filter_input`).
     """
     opts = opts or Options()
     dth = np.asarray(dtheta_b, float)
@@ -1072,9 +1263,20 @@ def run(
         raise InputError("aided", f"GNSS has {gnss.p_n.shape[0]} sequences, IMU {S}")
     if tuning_T is None:
         tuning_T = tuning_matrix(tun, S, gnss_receiver=gnss.receiver)
+    J = len(gnss.index)
+    if companions is None:
+        if opts.odometer or opts.baro:
+            raise InputError("aided", "odometer/barometer updates need companion measurements")
+        companions = CompanionEpochs(
+            np.full((S, J, 4), np.nan), np.zeros(J, np.int8), np.zeros((S, 3)), *np.zeros((3, S))
+        )
+    else:
+        tuning_T = companions.tune(tuning_T)
+    if companions.z.shape != (S, J, 4):
+        raise InputError("aided", f"companion epochs {companions.z.shape}, expected {(S, J, 4)}")
     if init is None:
         init = align(dth, dvb, dt, gnss, tun, opts, frame, tuning_T=tuning_T)
-    n = n_states(opts.scale_factors, opts.gnss_bias)
+    n = opts.n
     if init.P0.shape[1:] != (n, n):
         raise InputError("aided", f"P0 must be ({n}, {n}) for these options")
     idx = np.ascontiguousarray(gnss.index, np.int64)
@@ -1084,7 +1286,10 @@ def run(
     out_x = np.empty((S, J, NX))
     out_sd = np.empty((S, J, n))
     out_P = np.empty((S, J if store_P else 0, n, n))
-    flags = np.zeros((S, J), np.int8)
+    flags = np.zeros((S, J), np.int16)
+    cz = np.asarray(companions.z, float)
+    cmark = np.ascontiguousarray(companions.mark, np.int8)
+    clever = np.asarray(companions.lever_b_m, float)
     zp = np.nan_to_num(np.asarray(gnss.p_n, float))
     zv = np.nan_to_num(np.asarray(gnss.v_n, float))
     ok = np.asarray(gnss.valid, bool)
@@ -1113,6 +1318,9 @@ def run(
             out_sd[a:b],
             out_P[a:b],
             flags[a:b],
+            np.ascontiguousarray(cz[a:b]),
+            cmark,
+            np.ascontiguousarray(clever[a:b]),
         )
     return AidedResult(
         time_s=np.asarray(gnss.time_s),
@@ -1128,7 +1336,9 @@ def run(
         sd=out_sd,
         P=out_P if store_P else None,
         flags=flags,
-        names=state_names(opts.scale_factors, opts.gnss_bias),
+        names=opts.names(),
+        odo_sf=out_x[..., X_OSF],
+        baro_bias=out_x[..., X_BB],
     )
 
 
