@@ -13,14 +13,18 @@ For every sequence of the shard (streamed in batches, memory bounded as in
    ``align_speed_mps``);
 3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels; streamed
    one row group per batch) and the aided errors at the evaluation epochs
-   (:mod:`imugen.tables.aided`, small: kept until the end) are written.
+   (:mod:`imugen.tables.aided`, small: kept until the end) are written;
+4. with an odometer and/or a barometer configured (``companions``), their epochs are drawn
+   from the truth (:mod:`imugen.companions`), used by the filter (at the GNSS epochs that are
+   also companion epochs) and written to the companion table (:mod:`imugen.tables.companions`).
 
 Randomness: sequence ``i`` (its index in the route, ``shard * shard_size + j``) of route id
 ``r`` draws its receiver, its scenario and the jamming noise from ``SeedSequence([seed, r, i],
 spawn_key=(KEY, ...))`` with the receiver's and the scenarios' own keys and streams
 (``shard = j = 0`` inside those keys: the identity is in the entropy). The draw therefore
 depends on neither the IMU grade (grades are compared on the same GNSS, common random
-numbers), nor the shard size, nor the other sequences.
+numbers), nor the shard size, nor the other sequences. The companions draw likewise from the
+same entropy with their own key (:data:`imugen.companions.COMPANION_KEY`), sensor kind and id.
 """
 
 from __future__ import annotations
@@ -34,13 +38,16 @@ import pandas as pd
 
 from imugen import __version__
 from imugen import aided as A
+from imugen import companions as CP
 from imugen import gnss as G
 from imugen import scenarios as SC
 from imugen.earth import earth_rate_n
 from imugen.errors import InputError
 from imugen.mechanize import compensate_raw, increments_from_rates
 from imugen.navigate import batch_size
+from imugen.rotations import quat_to_dcm
 from imugen.tables import aided as taided
+from imugen.tables import companions as tcomp
 from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
@@ -78,6 +85,13 @@ class AidParams:
     eval_rate_hz: float = 1.0
     seed: int | None = None
     grade: str | None = None
+    odometer: str | None = None
+    odometer_rate_hz: float | None = None
+    odometer_lever_b_m: tuple = (0.0, 0.0, 0.0)
+    odometer_scale_state: bool = True
+    barometer: str | None = None
+    barometer_rate_hz: float | None = None
+    companion_draw: str = "ranges"
     intervals_parsed: tuple = field(default=(), repr=False)
 
     def __post_init__(self):
@@ -98,6 +112,15 @@ class AidParams:
             raise InputError("--align-speed", "must be > 0 m/s")
         if self.eval_rate_hz <= 0:
             raise InputError("--eval-rate-hz", "must be > 0")
+        object.__setattr__(
+            self, "odometer_lever_b_m", tuple(float(x) for x in self.odometer_lever_b_m)
+        )
+        if self.odometer is not None:
+            CP.get_sensor("odometer", self.odometer)
+        if self.barometer is not None:
+            CP.get_sensor("barometer", self.barometer)
+        if self.companion_draw not in ("ranges", "nominal"):
+            raise InputError("--companion-draw", "must be ranges or nominal")
 
     def options(self, vehicle: str | None) -> A.Options:
         nhc = (vehicle == "car") if self.nhc is None else bool(self.nhc)
@@ -107,6 +130,9 @@ class AidParams:
             nhc=nhc,
             zupt=self.zupt,
             gate_sigma=self.gate_sigma,
+            odometer=self.odometer is not None,
+            odo_scale_state=self.odometer_scale_state,
+            baro=self.barometer is not None,
         )
 
 
@@ -209,6 +235,49 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int) -> SC.Scena
     return _stack(parts)
 
 
+def _stack_companion(parts: list[CP.CompanionData]) -> CP.CompanionData:
+    """Concatenate one-sequence companion data along the sequence axis."""
+    p0 = parts[0]
+    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in (
+        "value", "true", "ticks", "count", "bias")}  # fmt: skip
+    params = {k: np.concatenate([p.params[k] for p in parts]) for k in p0.params}
+    labels = pd.concat([p.labels for p in parts], ignore_index=True)
+    return replace(p0, **cat, params=params, labels=labels)
+
+
+def companions_for(truth: ttruth.Truth, ids, params: AidParams, seed: int):
+    """``(odometer, barometer)`` :class:`imugen.companions.CompanionData` of the sequences
+    ``ids`` (global ids), each None when not configured."""
+    t = truth.time_s
+    frame = truth.origin_frame()
+    out = []
+    w_eb = None
+    if params.odometer is not None:
+        C = quat_to_dcm(truth.q_nb)
+        w_eb = truth.omega_ib_b - np.einsum("kji,j->ki", C, earth_rate_n(frame))
+    for kind, preset in (("odometer", params.odometer), ("barometer", params.barometer)):
+        if preset is None:
+            out.append(None)
+            continue
+        parts = []
+        for sid in np.asarray(ids, np.int64):
+            ent = sequence_entropy(seed, int(sid))
+            if kind == "odometer":
+                d = CP.simulate_odometer(
+                    t, truth.v_n, truth.q_nb, w_eb, preset, 1, ent, 0,
+                    rate_hz=params.odometer_rate_hz, draw=params.companion_draw,
+                    lever_arm_b_m=params.odometer_lever_b_m, first=int(sid),
+                )  # fmt: skip
+            else:
+                d = CP.simulate_barometer(
+                    t, truth.p_n, frame, preset, 1, ent, 0, rate_hz=params.barometer_rate_hz,
+                    draw=params.companion_draw, first=int(sid),
+                )  # fmt: skip
+            parts.append(d)
+        out.append(_stack_companion(parts))
+    return tuple(out)
+
+
 def _increments(a, c, kind, raw, dt):
     """(b, K, 3) angle and velocity increments, row 0 unused, from a shard block (skip 0)."""
     if kind == "increments":
@@ -263,11 +332,15 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int)
     return pd.DataFrame(rows)
 
 
-def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, sink=None):
+def aid(
+    truth_path, shard_path, params: AidParams, *, batch: int | None = None, sink=None,
+    companion_sink=None,
+):  # fmt: skip
     """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
 
     ``sink(meta, df)``, when given, receives the GNSS rows batch by batch (and ``gnss rows`` is
-    then None), so a shard's GNSS table never sits whole in memory.
+    then None), so a shard's GNSS table never sits whole in memory. ``companion_sink(rows,
+    labels)`` receives the companion-table rows and labels of each batch.
     """
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     truth = ttruth.read(truth_path, columns=AID_TRUTH_COLUMNS)
@@ -311,6 +384,8 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
         "tuning_level": params.tuning_level,
         "align_speed_mps": params.align_speed_mps,
         "eval_rate_hz": params.eval_rate_hz,
+        "odometer": params.odometer,
+        "barometer": params.barometer,
         "error": "filter minus truth, ENU of the route origin",
     }
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
@@ -319,11 +394,24 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
         ids = ids.copy()
         dth, dvb = _increments(a, c, kind, raw, truth.dt)
         scen = gnss_for(truth, ids, params, seed)
-        T = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver)
+        odo, baro = companions_for(truth, ids, params, seed)
+        ce = CP.filter_input(
+            scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,
+            lever_arm_b_m=params.odometer_lever_b_m,
+        )  # fmt: skip
+        T = ce.tune(A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver))
         init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
                        speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
         never += int(np.sum(init.k0 >= K))
-        res = A.run(dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T)
+        res = A.run(
+            dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce
+        )
+        if companion_sink is not None:
+            clab = pd.DataFrame({SEQUENCE: ids})
+            for d in (odo, baro):
+                if d is not None:
+                    clab = clab.join(d.labels.drop(columns="sequence"))
+            companion_sink(tcomp.frame(ids, odo, baro), clab)
         if sink is None:
             gnss_rows.append(tgnss.frame(ids, scen))
         else:
@@ -352,19 +440,52 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
     )
 
 
-def run(truth, shard, out_gnss, out_nav, params: AidParams | None = None, *, batch=None):
-    """Run the stage on one shard and write the GNSS table (with sidecars) and the aided
-    error table atomically. Returns ``(out_gnss, out_nav)`` paths."""
+def run(
+    truth, shard, out_gnss, out_nav, params: AidParams | None = None, *, batch=None,
+    out_companions=None,
+):  # fmt: skip
+    """Run the stage on one shard and write the GNSS table (with sidecars), the aided error
+    table and, when ``out_companions`` is given, the companion table (with its labels; no rows
+    when no companion is configured) atomically. Returns ``(out_gnss, out_nav)`` paths."""
     params = params or AidParams()
+    if out_companions is None and (params.odometer or params.barometer):
+        raise InputError("--companions-out", "needed with an odometer or a barometer")
+    crow, clab = [], []
+
+    def csink(rows, labels):
+        crow.append(rows)
+        clab.append(labels)
+
     with tgnss.writer(out_gnss) as w:
 
         def sink(meta, df):
             w.meta = {**meta, "stage": "aid-gnss"}
             w.put(df)
 
-        _, w.labels, w.intervals, nav, meta = aid(truth, shard, params, batch=batch, sink=sink)
+        _, w.labels, w.intervals, nav, meta = aid(
+            truth, shard, params, batch=batch, sink=sink, companion_sink=csink
+        )
+        if out_companions is not None:
+            cmeta = {
+                k: meta[k] for k in ("imugen_version", "truth", "shard", "grade", "route", "seed")
+            }
+            cmeta.update(
+                stage="aid-companions", odometer=params.odometer, barometer=params.barometer,
+                odometer_rate_hz=_rate("odometer", params.odometer, params.odometer_rate_hz),
+                barometer_rate_hz=_rate("barometer", params.barometer, params.barometer_rate_hz),
+            )  # fmt: skip
+            tcomp.write(
+                pd.concat(crow, ignore_index=True), pd.concat(clab, ignore_index=True), cmeta,
+                out_companions,
+            )  # fmt: skip
         taided.write(nav, {**meta, "stage": "aid", "gnss": Path(out_gnss).name}, out_nav)
     return Path(out_gnss), Path(out_nav)
 
 
-__all__ = ["AidParams", "aid", "aided_errors", "eval_mask", "gnss_for", "run"]
+def _rate(kind, preset, rate):
+    if preset is None:
+        return None
+    return float(rate or CP.get_sensor(kind, preset).rate_hz)
+
+
+__all__ = ["AidParams", "aid", "aided_errors", "companions_for", "eval_mask", "gnss_for", "run"]

@@ -563,7 +563,7 @@ def _kernel(
         for a in range(3):
             hv[a] = 0.0
             hpsi[a] = 0.0
-        olx, oly, olz = clever[s, 0], clever[s, 1], clever[s, 2]
+        oly, olz = clever[s, 1], clever[s, 2]  # (omega x l)_x needs l_y, l_z
         for jj in range(J):
             ke = ep_idx[jj]
             if ke < k:

@@ -158,10 +158,25 @@ def _cmd_aid(a) -> int:
         gnss_bias_states=not a.no_gnss_bias_states, scale_factors=a.scale_factors, nhc=a.nhc,
         zupt=not a.no_zupt, gate_sigma=a.gate_sigma, align_speed_mps=a.align_speed,
         eval_rate_hz=a.eval_rate_hz, seed=a.seed,
-        grade=a.grade, **parse_scenarios(a.scenario),
+        grade=a.grade, odometer=a.odometer, odometer_rate_hz=a.odometer_rate_hz,
+        odometer_lever_b_m=_xyz(a.odometer_lever, "--odometer-lever"),
+        odometer_scale_state=not a.no_odometer_scale_state, barometer=a.baro,
+        barometer_rate_hz=a.baro_rate_hz, companion_draw=a.companion_draw,
+        **parse_scenarios(a.scenario),
     )  # fmt: skip
-    run(a.truth, a.shard, a.gnss_out, a.output, params)
+    run(a.truth, a.shard, a.gnss_out, a.output, params, out_companions=a.companions_out)
     return 0
+
+
+def _xyz(text: str, option: str) -> list[float]:
+    """``"X,Y,Z"`` metres -> three floats (InputError naming ``option`` otherwise)."""
+    try:
+        out = [float(x) for x in text.split(",")]
+    except ValueError:
+        out = []
+    if len(out) != 3:
+        raise InputError(option, f"expected X,Y,Z in metres, got {text!r}")
+    return out
 
 
 def _seconds_list(text: str) -> list[float]:
@@ -518,6 +533,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-rate-hz", type=float, default=1.0, help="evaluation epochs per second")
     p.add_argument("--seed", type=int, help="root seed (default: the shard's)")
     p.add_argument("--grade", help="grade of the filter tuning (default: the shard's)")
+    p.add_argument("--odometer", help="odometer preset (abs, encoder); default none")
+    p.add_argument("--odometer-rate-hz", type=float, help="odometer epochs per second")
+    p.add_argument(
+        "--odometer-lever", default="0,0,0", metavar="X,Y,Z", help="odometer point, body, m"
+    )
+    p.add_argument(
+        "--no-odometer-scale-state",
+        action="store_true",
+        help="no odometer scale-factor state (noise inflated by its prior instead)",
+    )
+    p.add_argument("--baro", help="barometer preset (bmp388, ms5611); default none")
+    p.add_argument("--baro-rate-hz", type=float, help="barometer epochs per second")
+    p.add_argument(
+        "--companion-draw",
+        default="ranges",
+        choices=["ranges", "nominal"],
+        help="companion error levels drawn in the presets' ranges per sequence, or nominal",
+    )
+    p.add_argument("--companions-out", help="companion-sensor Parquet (+ .labels)")
     p.set_defaults(func=_cmd_aid)
 
     p = sub.add_parser("evaluate", help="navigation errors of one grade -> per-sequence RMSE")

@@ -360,10 +360,10 @@ def filter_input(
         T = 1.0 / float(o.labels["odo_rate_hz"].iloc[0])
         c = o.params["tick_m"]
         sw = fig(o, "white_mps")
-        for a, b in zip(js[:-1], js[1:], strict=True):
-            nep = (idx[b] - idx[a]) / step
-            z[:, b, C_ODO] = (cnt[:, pos[b]] - cnt[:, pos[a]]) * c
-            z[:, b, C_ODO_VAR] = nep * (sw * T) ** 2 + c**2 / 6.0
+        a, b = js[:-1], js[1:]
+        nep = (idx[b] - idx[a]) / step
+        z[:, b, C_ODO] = (cnt[:, pos[b]] - cnt[:, pos[a]]) * c[:, None]
+        z[:, b, C_ODO_VAR] = nep * ((sw * T) ** 2)[:, None] + (c**2 / 6.0)[:, None]
         osd = fig(o, "scale_factor_sd")
     if barometer is not None:
         b = barometer

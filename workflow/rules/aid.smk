@@ -1,5 +1,6 @@
 # GNSS-denied scenarios and the aided baseline: per route, grade and shard, GNSS fixes with the
-# configured scenarios and the loosely-coupled filter on the shard's IMU (config `gnss.enabled`).
+# configured scenarios, the companion sensors (config `companions`) and the loosely-coupled
+# filter on the shard's IMU (config `gnss.enabled`).
 
 
 rule aid:
@@ -7,12 +8,14 @@ rule aid:
         truth="results/{route}/truth.parquet",
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
         grade=grade_files,
-        code=stage_code("aid", "aided", "gnss", "scenarios", "mechanize", "earth"),
+        code=stage_code("aid", "aided", "gnss", "scenarios", "companions", "mechanize", "earth"),
     output:
         gnss="results/{route}/gnss/{grade}/shard-{shard}.parquet",
         labels="results/{route}/gnss/{grade}/shard-{shard}.labels.parquet",
         intervals="results/{route}/gnss/{grade}/shard-{shard}.intervals.parquet",
         aided="results/{route}/aided/{grade}/shard-{shard}.parquet",
+        companions="results/{route}/companions/{grade}/shard-{shard}.parquet",
+        companion_labels="results/{route}/companions/{grade}/shard-{shard}.labels.parquet",
     params:
         opts=aid_opts,
         grade=grade_arg,
@@ -21,4 +24,5 @@ rule aid:
         "logs/{route}/aid/{grade}/shard-{shard}.log",
     shell:
         "imugen aid {input.truth:q} {input.shard:q} --gnss-out {output.gnss:q} -o {output.aided:q} "
-        "--grade {params.grade:q} --eval-rate-hz {params.eval_rate_hz} {params.opts} > {log:q} 2>&1"
+        "--companions-out {output.companions:q} --grade {params.grade:q} "
+        "--eval-rate-hz {params.eval_rate_hz} {params.opts} > {log:q} 2>&1"

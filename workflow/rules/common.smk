@@ -180,6 +180,7 @@ def run_summary():
 GNSS = config["gnss"]
 SCEN = config["scenarios"]
 AIDED = config["aided"]
+COMP = config["companions"]
 AID_ON = bool(GNSS["enabled"])
 
 
@@ -209,4 +210,17 @@ def aid_opts(wildcards):
         opts.append("--no-zupt")
     opts.append(f"--gate-sigma {float(AIDED['gate_sigma'])!r}")
     opts.append(f"--align-speed {float(AIDED['align_speed_mps'])!r}")
+    opts.append(f"--companion-draw {COMP['draw']}")
+    if COMP["odometer"] is not None:
+        opts.append(f"--odometer {COMP['odometer']}")
+        if COMP["odometer_rate_hz"] is not None:
+            opts.append(f"--odometer-rate-hz {float(COMP['odometer_rate_hz'])!r}")
+        lever = ",".join(repr(float(x)) for x in COMP["odometer_lever_b_m"])
+        opts.append(f"--odometer-lever {lever}")
+        if not COMP["odometer_scale_state"]:
+            opts.append("--no-odometer-scale-state")
+    if COMP["barometer"] is not None:
+        opts.append(f"--baro {COMP['barometer']}")
+        if COMP["barometer_rate_hz"] is not None:
+            opts.append(f"--baro-rate-hz {float(COMP['barometer_rate_hz'])!r}")
     return " ".join(opts)

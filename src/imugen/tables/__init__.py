@@ -9,12 +9,24 @@ on the atomic writes of :mod:`imugen.io`); no stage parses another's file by han
 - :mod:`~imugen.tables.nav`: navigation errors per sequence and epoch;
 - :mod:`~imugen.tables.metrics`: per-sequence RMSE and final errors;
 - :mod:`~imugen.tables.gnss`: GNSS epochs of ``imugen aid`` with receiver and scenario labels;
-- :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors.
+- :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors;
+- :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels.
 
 ``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them.
 """
 
-from imugen.tables import aided, enu, gnss, metrics, nav, shard, truth
+from imugen.tables import aided, companions, enu, gnss, metrics, nav, shard, truth
 from imugen.tables._parquet import SEQUENCE, TIME
 
-__all__ = ["SEQUENCE", "TIME", "aided", "enu", "gnss", "metrics", "nav", "shard", "truth"]
+__all__ = [
+    "SEQUENCE",
+    "TIME",
+    "aided",
+    "companions",
+    "enu",
+    "gnss",
+    "metrics",
+    "nav",
+    "shard",
+    "truth",
+]
