@@ -586,6 +586,13 @@ def _kernel(
             sgx, sgy, sgz = x[X_SG], x[X_SG + 1], x[X_SG + 2]
             sax, say, saz = x[X_SA], x[X_SA + 1], x[X_SA + 2]
             ovx, ovy, ovz = vx, vy, vz
+            if odo_on:  # forward speed at t_k (lever-arm term: the first interval's rate)
+                _dcm(q0, q1, q2, q3, C)
+                u0 = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                if ke > k:
+                    u0 += (
+                        (dth[s, k + 1, 1] - bgy * dt) * olz - (dth[s, k + 1, 2] - bgz * dt) * oly
+                    ) / dt
             for i in range(k + 1, ke + 1):
                 tx = (dth[s, i, 0] - bgx * dt) / (1.0 + sgx)
                 ty = (dth[s, i, 1] - bgy * dt) / (1.0 + sgy)
@@ -660,18 +667,6 @@ def _kernel(
                 px += 0.5 * dt * (vx + ovx)
                 py += 0.5 * dt * (vy + ovy)
                 pz += 0.5 * dt * (vz + ovz)
-                if odo_on:
-                    mx = 0.5 * (vx + ovx)
-                    my = 0.5 * (vy + ovy)
-                    mz = 0.5 * (vz + ovz)
-                    dist += dt * (C[0, 0] * mx + C[1, 0] * my + C[2, 0] * mz)
-                    dist += ty * olz - tz * oly  # (omega x l)_x dt
-                    hv[0] += dt * C[0, 0]
-                    hv[1] += dt * C[1, 0]
-                    hv[2] += dt * C[2, 0]
-                    hpsi[0] += dt * (C[1, 0] * mz - C[2, 0] * my)
-                    hpsi[1] += dt * (C[2, 0] * mx - C[0, 0] * mz)
-                    hpsi[2] += dt * (C[0, 0] * my - C[1, 0] * mx)
                 e0, e1, e2, e3 = mech._qexpm1(tx, ty, tz)
                 e0 += 1.0
                 q0, q1, q2, q3 = mech._qmul(q0, q1, q2, q3, e0, e1, e2, e3)
@@ -685,6 +680,19 @@ def _kernel(
                 q1 *= nq
                 q2 *= nq
                 q3 *= nq
+                if odo_on:  # trapezoid of the forward speed, as the odometer's truth
+                    cx = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
+                    cy = 2.0 * (q1 * q2 + q0 * q3)
+                    cz_ = 2.0 * (q1 * q3 - q0 * q2)
+                    u1 = cx * vx + cy * vy + cz_ * vz + (ty * olz - tz * oly) / dt
+                    dist += 0.5 * dt * (u0 + u1)
+                    u0 = u1
+                    hv[0] += 0.5 * dt * (C[0, 0] + cx)
+                    hv[1] += 0.5 * dt * (C[1, 0] + cy)
+                    hv[2] += 0.5 * dt * (C[2, 0] + cz_)
+                    hpsi[0] += dt * (cy * vz - cz_ * vy)
+                    hpsi[1] += dt * (cz_ * vx - cx * vz)
+                    hpsi[2] += dt * (cx * vy - cy * vx)
             Tint = (ke - k) * dt
             if ke > k:  # acceleration of the last IMU interval (latency of the fix)
                 acx = (vx - ovx) / dt

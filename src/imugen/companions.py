@@ -7,8 +7,10 @@ Odometer (preset in ``imugen/data/companions.yaml``, rate ``f_o``, epoch ``m`` a
     body frame of the truth). Its true distance ``s(t)`` is the trapezoid integral of ``u`` on
     the IMU grid. The wheel counts ``N_m = floor(D_m / c)`` ticks of ``c = circumference_m /
     ticks_per_rev``, with ``D_m = (1 + k) s(t_m) + sum_{i <= m} s_w T_o xi_i + phi c``: scale
-    factor ``k ~ N(0, s_k^2)`` per sequence (tyre radius), white speed noise ``s_w`` per epoch,
-    initial tick phase ``phi ~ U(0, 1)``. Epoch ``m >= 1`` outputs ``ticks = N_m - N_{m-1}``
+    factor ``k ~ N(0, s_k^2)`` per sequence (tyre radius), white speed noise ``s_w`` on every
+    interval in which the vehicle moves (a wheel at rest emits no ticks), initial tick phase
+    ``phi ~ U(0, 1)``. Epoch ``m >= 1`` outputs ``ticks = N_m - N_{m-1}`` (signed: a
+    direction-aware sensor; negative only when reversing or crawling below the noise)
     and ``speed = ticks c / T_o``; its true value is the mean forward speed over the interval,
     ``(s(t_m) - s(t_{m-1})) / T_o``.
 
@@ -256,9 +258,11 @@ def simulate_odometer(
     S = s[idx]
     J = len(idx)
     count = np.zeros((M, J), np.int64)
+    moving = np.abs(np.diff(S)) > 1e-9  # a wheel at rest emits no ticks
     for j in range(M):
         xi = _rng(seed, sen, shard, j, "white").standard_normal(J)
         xi[0] = 0.0
+        xi[1:] *= moving
         c = par["tick_m"][j]
         D = (1.0 + par["scale_factor"][j]) * S + np.cumsum(par["white_mps"][j] * T * xi)
         count[j] = np.floor(D / c + par["phase"][j]).astype(np.int64)
