@@ -12,7 +12,9 @@ the cores):
 * 18 states (+ GNSS Gauss-Markov bias), the default;
 * 18 states + NHC + ZUPT (a car);
 * 24 states (+ gyro and accelerometer scale factors) + NHC + ZUPT;
-* the same in ``wgs84``.
+* 20 states (18 + odometer scale factor + barometer drift) + NHC + ZUPT + odometer (``abs``,
+  10 Hz) and barometer (``bmp388``, 10 Hz) updates;
+* 18 states + NHC + ZUPT in ``wgs84``.
 
 ``--outage`` instead measures the horizontal error at the end of a 30 s and a 60 s GNSS outage
 starting at t = 100 s on the same scene (consumer and industrial, every configured error term,
@@ -41,6 +43,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from imugen import aided as A  # noqa: E402
+from imugen import companions as CP  # noqa: E402
 from imugen import gnss as G  # noqa: E402
 from imugen import simulate as SIM  # noqa: E402
 from imugen import truth as T  # noqa: E402
@@ -74,6 +77,14 @@ def scene(earth: str, M: int):
     def tile(a):
         return np.ascontiguousarray(np.concatenate([a] * reps)[:M])
 
+    od = CP.simulate_odometer(t, v, q, w, "abs", base, seed=1)
+    ba = CP.simulate_barometer(t, p, frame, "bmp388", base, seed=1)
+    ce = CP.filter_input(gn.index, base, od, ba, h0_m=frame.h0_m)
+    from dataclasses import replace as _r
+
+    ce = _r(ce, z=tile(ce.z), lever_b_m=tile(ce.lever_b_m), odo_sf_sd=tile(ce.odo_sf_sd),
+            baro_sd_m=tile(ce.baro_sd_m), baro_tau_s=tile(ce.baro_tau_s))  # fmt: skip
+
     dth, dv = tile(sh.data["dtheta"]), tile(sh.data["dv"])
     from dataclasses import replace
 
@@ -90,19 +101,24 @@ def scene(earth: str, M: int):
             latency_s=tile(gn.params.latency_s),
         ),
     )
-    return frame, dth, dv, gn, p, v, q
+    return frame, dth, dv, gn, p, v, q, ce
 
 
-def bench(frame, dth, dv, gn, p, v, q, opts, repeat):
+def bench(frame, dth, dv, gn, p, v, q, ce, opts, repeat):
+    from dataclasses import replace
+
     M, K = dth.shape[:2]
     tun = A.Tuning.from_grade("consumer")
-    P0 = A.initial_covariance(tun, opts, 2.0, 0.1, [0.02, 0.02, 0.05], 1.0)
+    P0 = A.initial_covariance(tun, opts, 2.0, 0.1, [0.02, 0.02, 0.05], 1.0, 0.01, 0.66)
     init = A.initial_state(0, p[0], v[0], q[0], np.repeat(P0, M, 0))
-    A.run(dth[:2], dv[:2], 0.01, frame, _head(gn, 2), tun, opts, _init_head(init, 2))
+    ce2 = replace(ce, z=ce.z[:2], lever_b_m=ce.lever_b_m[:2], odo_sf_sd=ce.odo_sf_sd[:2],
+                  baro_sd_m=ce.baro_sd_m[:2], baro_tau_s=ce.baro_tau_s[:2])  # fmt: skip
+    A.run(dth[:2], dv[:2], 0.01, frame, _head(gn, 2), tun, opts, _init_head(init, 2),
+          companions=ce2)  # fmt: skip
     best, best_cpu = np.inf, np.inf
     for _ in range(repeat):
         t0, c0 = time.perf_counter(), time.process_time()
-        A.run(dth, dv, 0.01, frame, gn, tun, opts, init)
+        A.run(dth, dv, 0.01, frame, gn, tun, opts, init, companions=ce)
         best = min(best, time.perf_counter() - t0)
         best_cpu = min(best_cpu, time.process_time() - c0)
     return M * (K - 1) / best / 1e6, M * (K - 1) / best_cpu / 1e6
@@ -131,7 +147,7 @@ def _init_head(init, n):
 def outage_table(M: int) -> dict:
     from imugen import scenarios as SC
 
-    frame, _, _, _, p, v, q = scene("flat", 1)
+    frame, _, _, _, p, v, q, _ = scene("flat", 1)
     pts = np.array(
         [[0, 0, 0], [400, 0, 0], [400, 200, 0], [0, 200, 0], [0, 0, 0], [400, 0, 0], [400, 200, 0]],
         float,
@@ -180,6 +196,9 @@ def main():
         "18 states + NHC + ZUPT": A.Options(nhc=True, zupt=True),
         "24 states (+ scale factors) + NHC + ZUPT": A.Options(
             scale_factors=True, nhc=True, zupt=True
+        ),
+        "20 states + NHC + ZUPT + odometer + barometer": A.Options(
+            nhc=True, zupt=True, odometer=True, baro=True
         ),
     }
     out = {}

@@ -307,3 +307,87 @@ def test_zero_error_companions_stay_on_truth(flat_car):
     assert np.max(np.abs(e[:, :3])) < 1e-3, np.abs(e[:, :3]).max(axis=0)
     assert np.max(np.abs(e[:, 3:6])) < 1e-3
     assert np.max(np.abs(r.odo_sf)) < 1e-5 and np.max(np.abs(r.baro_bias)) < 1e-3
+
+
+@pytest.fixture(scope="module")
+def stage(tmp_path_factory):
+    """The aid stage on a 3-sequence consumer shard with odometer and barometer, and the same
+    with one sequence per batch."""
+    from imugen import aid as AID
+    from imugen.tables import truth as ttruth
+
+    d = tmp_path_factory.mktemp("companions")
+    enu = pd.DataFrame(RECTANGLE, columns=["e_m", "n_m", "u_m"])
+    meta = {"origin": dict(zip(("lat_deg", "lon_deg", "alt_m"), ORIGIN, strict=True))}
+    meta["timed"] = False
+    df, tm = TR.build_truth(enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False)
+    ttruth.write(df, tm, d / "truth.parquet")
+    SIM.run(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=5, shard=1,
+            shard_size=3, route="car", dtype="float64")  # fmt: skip
+    params = AID.AidParams(
+        intervals=({"kind": "outage", "start_s": 80.0, "duration_s": 30.0},),
+        odometer="abs", barometer="ms5611", barometer_rate_hz=5.0,
+    )  # fmt: skip
+    for b in (3, 1):
+        AID.run(d / "truth.parquet", d / "imu.parquet", d / f"g{b}.parquet", d / f"a{b}.parquet",
+                params, batch=b, out_companions=d / f"c{b}.parquet")  # fmt: skip
+    return d, df
+
+
+def test_stage_writes_the_companion_table(stage):
+    from imugen.tables import companions as tc
+    from imugen.tables import shard as tshard
+
+    d, df = stage
+    t, p, v, q, _ = arrays(df)
+    tab = tc.read(d / "c3.parquet")
+    assert list(tab.columns) == list(tc.COLUMNS)
+    lab = tc.read_labels(d / "c3.parquet")
+    ids = tshard.read_labels(d / "imu.parquet")["sequence"].to_numpy()
+    np.testing.assert_array_equal(lab["sequence"], ids)
+    meta = tc.read_meta(d / "c3.parquet")
+    assert meta["odometer"] == "abs" and meta["barometer_rate_hz"] == 5.0
+    # a draw depends on the sequence, not on the batch
+    pd.testing.assert_frame_equal(tab, tc.read(d / "c1.parquet"))
+    pd.testing.assert_frame_equal(lab, tc.read_labels(d / "c1.parquet"))
+    odo, baro = tc.read_odometer(d / "c3.parquet"), tc.read_barometer(d / "c3.parquet")
+    assert len(odo) == 3 * (len(t) - 1) // 10 and len(baro) == 3 * ((len(t) - 1) // 20 + 1)
+    # odometer rows against the truth and the labels
+    _, s = CP.forward_distance(t, v, q)
+    L = lab.set_index("sequence")
+    for sid, r in odo.groupby("sequence"):
+        k = np.rint(r["time_s"].to_numpy() * 100).astype(int)
+        np.testing.assert_allclose(r["odo_true_speed_mps"], (s[k] - s[k - 10]) / 0.1, atol=1e-9)
+        np.testing.assert_allclose(
+            r["odo_speed_mps"], r["odo_ticks"] * L.loc[sid, "odo_tick_m"] / 0.1
+        )
+        np.testing.assert_allclose(r["odo_error_mps"], r["odo_speed_mps"] - r["odo_true_speed_mps"])
+        gain = r["odo_error_mps"].sum() / r["odo_true_speed_mps"].sum()
+        assert abs(gain - L.loc[sid, "odo_scale_factor"]) < 5e-4
+    # barometer rows: true altitude = origin height + up, error = drift + white
+    for _, r in baro.groupby("sequence"):
+        k = np.rint(r["time_s"].to_numpy() * 100).astype(int)
+        np.testing.assert_allclose(r["baro_true_altitude_m"], ORIGIN[2] + p[k, 2], atol=1e-9)
+        w = r["baro_error_m"] - r["baro_drift_m"]
+        np.testing.assert_allclose(
+            r["baro_altitude_m"] - r["baro_true_altitude_m"], r["baro_error_m"]
+        )
+        assert w.std() < 0.5
+    # the filter ran with them: its outage-end errors exist and differ from a GNSS-only run
+    from imugen.tables import aided as taided
+
+    a = taided.read(d / "a3.parquet")
+    assert len(a) > 100 and np.isfinite(a[list(taided.ERR_POS)].to_numpy()).all()
+
+
+def test_companion_options_are_checked(stage, tmp_path, cli):
+    from imugen import aid as AID
+    from imugen.errors import InputError
+
+    d, _ = stage
+    with pytest.raises(InputError, match="unknown preset"):
+        AID.AidParams(odometer="tyre")
+    r = cli("aid", str(d / "truth.parquet"), str(d / "imu.parquet"), "--gnss-out",
+            str(tmp_path / "g.parquet"), "-o", str(tmp_path / "a.parquet"), "--baro", "bmp388")  # fmt: skip
+    assert r.returncode == 2 and "--companions-out" in r.stderr
+    assert not (tmp_path / "g.parquet").exists() and not (tmp_path / "a.parquet").exists()
