@@ -231,11 +231,11 @@ def test_scale_factor_converges_to_label(rect):
     j = _epoch(gn, 100.0)  # end of the GNSS phase
     sd = res.sd[:, j, i_o]
     e = res.odo_sf[:, j] - od.params["scale_factor"]
-    # converged to a tenth of its prior, and the error within its reported sigma; the filter
-    # is conservative here (mean (e / sd)^2 about 0.15): it takes the two tick-count
+    # converged below 15 % of its prior (9.7 % measured), the error within its reported
+    # sigma; the filter is conservative here (mean (e / sd)^2 0.10): it takes the two tick-count
     # residuals of each window as white (c^2 / 6 per window), while they telescope over
     # consecutive windows
-    assert np.all(sd < 0.1 * od.params["scale_factor_sd"]), sd
+    assert np.all(sd < 0.15 * od.params["scale_factor_sd"]), sd
     assert np.mean((e / sd) ** 2) < chi2.ppf(0.995, len(e)) / len(e)
     assert np.all(np.abs(e) < 3 * sd)
 
@@ -255,7 +255,7 @@ def test_odometer_and_barometer_bound_outage_drift(straight):
         return (r.p_n[:, j] - p[k]) - (r.p_n[:, j0] - p[k0])
 
     along_on, along_off = drift(res) @ a, drift(runs[False][0]) @ a
-    # measured: 0.2 m with the odometer, 11 m without
+    # measured: 0.18 m with the odometer, 12.3 m without
     assert rms(along_on) < 0.1 * rms(along_off), (rms(along_on), rms(along_off))
     # closed form of odometer dead reckoning over the outage: the scale-factor error at its
     # start times the distance, plus the white speed noise integrated (T_o sqrt(n) s_w) and
@@ -267,7 +267,7 @@ def test_odometer_and_barometer_bound_outage_drift(straight):
     c = od.params["tick_m"]
     noise = n * (od.params["white_mps"] * 0.1) ** 2 + c**2 / 6
     ratio = rms(along_on) / math.sqrt(np.mean((D * ek) ** 2 + noise))
-    assert 0.7 < ratio < 1.6, ratio  # 1.27 measured: the filter blends in the IMU
+    assert 0.7 < ratio < 1.6, ratio  # 0.95 measured
     # and the filter's reported sigma covers it (from P at the outage start)
     i_o = res.names.index("dodo_sf")
     closed = D**2 * res.P[:, j0, i_o, i_o] + noise
@@ -391,3 +391,28 @@ def test_companion_options_are_checked(stage, tmp_path, cli):
             str(tmp_path / "g.parquet"), "-o", str(tmp_path / "a.parquet"), "--baro", "bmp388")  # fmt: skip
     assert r.returncode == 2 and "--companions-out" in r.stderr
     assert not (tmp_path / "g.parquet").exists() and not (tmp_path / "a.parquet").exists()
+
+
+def test_workflow_passes_the_companion_keys(tmp_path):
+    """Dry run (the subprocess keeps this worktree's PYTHONPATH): the aid jobs get the
+    companion options and outputs; an unknown preset is refused by the schema."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "_wf", Path(__file__).with_name("test_workflow.py")
+    )
+    W = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(W)
+    cfg = {k: v for k, v in W.TINY.items() if k != "grades"}
+    cfg["grades"] = {"consumer": {}}
+    comp = {"odometer": "abs", "barometer": "ms5611", "barometer_rate_hz": 5}
+    W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": comp})
+    proc = W.snakemake(tmp_path, "-n", "-j1", "-p")
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out
+    assert "--odometer abs" in out and "--baro ms5611 --baro-rate-hz 5.0" in out
+    assert "--companions-out" in out and "companions/consumer/shard-" in out
+    W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": {"odometer": "x"}})
+    proc = W.snakemake(tmp_path, "-n", "-j1")
+    assert proc.returncode != 0 and "odometer" in proc.stdout + proc.stderr
