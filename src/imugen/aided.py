@@ -970,6 +970,9 @@ def _kernel(
                 x[X_OSF] -= dx[i_od]
             if baro_on:
                 x[X_BB] -= dx[i_bb]
+            if odo_on and armed:  # a window spans this epoch: correct its distance so far
+                for a in range(3):
+                    dist -= hv[a] * dx[3 + a] + hpsi[a] * dx[6 + a]
             x[0], x[1], x[2] = px, py, pz
             x[3], x[4], x[5] = vx, vy, vz
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
