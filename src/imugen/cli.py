@@ -647,10 +647,11 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate (default 100)")
     p.add_argument(
         "--earth",
-        choices=["flat", "wgs84", "auto"],
+        choices=["flat", "wgs84", "geodetic", "auto"],
         default="auto",
         help="Earth model; auto picks flat when every term it drops stays below 10 %% of the "
-        "grades' error effect (as the workflow does)",
+        "grades' error effect, geodetic (ECEF, any distance) when the route reaches beyond "
+        "64 km from its origin (as the workflow does)",
     )
     p.add_argument(
         "--vehicle",
