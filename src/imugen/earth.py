@@ -473,11 +473,15 @@ class OriginFrame:
         return out
 
     def ecef_from_n(self, p_n) -> np.ndarray:
-        """ENU positions relative to the origin -> ECEF, shape (..., 3)."""
+        """ENU positions relative to the origin -> ECEF, shape (..., 3) (a copy in ``geodetic``)."""
+        if self.model == "geodetic":
+            return np.array(p_n, dtype=float)
         return self.r0_e + np.asarray(p_n, dtype=float) @ self.C_en
 
     def n_from_ecef(self, r_e) -> np.ndarray:
-        """ECEF -> ENU positions relative to the origin, shape (..., 3)."""
+        """ECEF -> ENU positions relative to the origin, shape (..., 3) (a copy in ``geodetic``)."""
+        if self.model == "geodetic":
+            return np.array(r_e, dtype=float)
         return (np.asarray(r_e, dtype=float) - self.r0_e) @ self.C_en.T
 
     def geodetic_from_n(self, p_n):

@@ -79,10 +79,13 @@ class EarthField:
         """Horizontal speed ``v_h`` (m,) and, with ``a``, its rate (m,): in n's East-North
         plane in ``flat`` and ``wgs84``, in the local level at the vehicle in ``geodetic``
         (``a_l = C_ln a - omega_nl_l x v_l``)."""
+        if self.ecef and a is None:  # |v - (v . up) up| with the geodetic up at p
+            sl, cl, co, so, _ = ea._geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
+            vu = cl * (co * v[:, 0] + so * v[:, 1]) + sl * v[:, 2]
+            return np.sqrt(np.maximum(np.einsum("mi,mi->m", v, v) - vu * vu, 0.0)), None
         if self.ecef:
             C_ln, v, w_nl = self.local(p, v)
-            if a is not None:
-                a = np.einsum("mij,mj->mi", C_ln, a) - np.cross(w_nl, v)
+            a = np.einsum("mij,mj->mi", C_ln, a) - np.cross(w_nl, v)
         vh = np.hypot(v[:, 0], v[:, 1])
         if a is None:
             return vh, None

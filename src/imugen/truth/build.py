@@ -131,17 +131,19 @@ class EcefMotion:
         self.C_en = enu.C_en
         self.r0_e = enu.r0_e
 
+    def _rotate(self, x):
+        return np.einsum("mi,ij->mj", x, self.C_en)  # C_ne x per row (einsum: no BLAS call)
+
     def position(self, t):
-        return self.r0_e + self.inner.position(t) @ self.C_en
+        return self.r0_e + self._rotate(self.inner.position(t))
 
     def velocity(self, t):
-        return self.inner.velocity(t) @ self.C_en
+        return self._rotate(self.inner.velocity(t))
 
     def eval(self, t):
         """(r, v, a, j) in ECEF, each shape (m, 3), at times ``t`` (m,)."""
         p, v, a, j = self.inner.eval(t)
-        C = self.C_en
-        return self.r0_e + p @ C, v @ C, a @ C, j @ C
+        return self.r0_e + self._rotate(p), self._rotate(v), self._rotate(a), self._rotate(j)
 
 
 def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
