@@ -341,7 +341,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-speed-kmh", type=float, default=1200.0, help="refuse faster implied speeds"
     )
     p.add_argument(
-        "--max-extent-km", type=float, default=100.0, help="largest distance from origin"
+        "--max-extent-km",
+        type=float,
+        default=None,
+        help="refuse points farther than this from the origin (a sanity limit of your own; "
+        "default none: routes of any length, simulated in ECEF when long)",
     )
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
     p.add_argument(
