@@ -130,8 +130,8 @@ def closure(
         Any route file ingestion reads.
     rate_hz : float
         IMU rate.
-    earth : {"flat", "wgs84", "auto"}
-        Earth model of truth and mechanization.
+    earth : {"flat", "wgs84", "geodetic", "auto"}
+        Earth model of truth and mechanization (``geodetic``: ECEF, routes of any length).
     path, origin, dt
         Ingestion options (path selection, ENU origin ``"LAT,LON,H"``, uniform time step of
         an untimed path).
