@@ -51,8 +51,8 @@ class Route:
         u = math.cos(self.th0) * self.n + math.sin(self.th0) * (
             np.cos(s)[:, None] * self.a + np.sin(s)[:, None] * self.b
         )
-        lat_gc = np.arcsin(u[:, 2])
-        lat = np.arctan(np.tan(lat_gc) / (1.0 - E.E2_WGS84))
+        # geodetic latitude of the surface point along u (well conditioned at the poles)
+        lat = np.arctan2(u[:, 2], (1.0 - E.E2_WGS84) * np.hypot(u[:, 0], u[:, 1]))
         return E.ecef_from_geodetic(lat, np.arctan2(u[:, 1], u[:, 0]), self.height(t))
 
     def velocity(self, t, h=1e-3):
@@ -109,11 +109,20 @@ def airliner():
     )  # fmt: skip
 
 
+def polar():
+    # north over the North Pole at 250 m/s, 9 km: passes within metres of it at ~2,350 s
+    return Route(
+        85.05, 30.0, 0.0, math.pi / 2, _ramp(250.0, 150.0, 60.0),
+        lambda t: 10.0 + 4500.0 * (1.0 + np.tanh((t - 300.0) / 100.0)),
+    )  # fmt: skip
+
+
 # stand-in, vehicle, window of input times (s): far from the origin (the route's start)
 SCENES = {
     "road 264 km": (road, "car", 10_000.0),  # 250 km from the start
     "flight 429 km": (flight, "aircraft", 1_700.0),  # 330 km out, 6.8 km up
     "airliner 7,600 km": (airliner, "aircraft", 14_300.0),  # crossing 180 deg
+    "polar 1,100 km": (polar, "aircraft", 2_200.0),  # over the North Pole
 }
 SPAN_S = 240.0
 
@@ -164,6 +173,11 @@ def test_truth_is_the_route_far_from_the_origin(truths, name):
     if name.startswith("airliner"):
         assert g[:, 1].max() > 179.9 and g[:, 1].min() < -179.9  # across the antimeridian
         assert far > 3000e3  # 3,580 km flown
+    if name.startswith("polar"):
+        assert g[:, 0].max() > 89.9999  # within 11 m of the pole
+        # yaw relative to the local North turns by 180 deg as the pole is passed
+        yaw = df["yaw_rad"].to_numpy()
+        assert abs(abs(yaw[-1] - yaw[0]) - math.pi) < 1e-3
     assert tm["units"]["lat_deg"] == "deg"
 
 
@@ -244,6 +258,22 @@ def test_auto_picks_geodetic_by_distance_only():
         p[:, 0] = np.linspace(0.0, d_km * 1e3, 601)
         b = E.choose_earth_model(t, p, 0.8, fig)
         assert b.model == model, (d_km, b.lines)
+
+
+def test_truth_file_carries_the_frame(truths, tmp_path):
+    """Written and read back: metadata names the frame, ``Truth.geodetic`` reads the columns (and
+    converts the position of an origin-frame truth), ``origin_frame`` is the ECEF model."""
+    _, df, tm = truths["road 264 km"]
+    col.write(df, tm, tmp_path / "t.parquet")
+    tr = col.read(tmp_path / "t.parquet")
+    assert tr.meta["nav_frame"] == "ECEF" and tr.origin_frame().model == "geodetic"
+    lat, lon, h = tr.geodetic()
+    lat2, lon2, h2 = E.geodetic_from_ecef(tr.p_n)
+    assert np.allclose(lat, lat2, atol=1e-12) and np.allclose(lon, lon2, atol=1e-12)
+    assert np.allclose(h, h2, atol=1e-6)
+    flat = col.Truth(df[list(col.COLUMNS)], {**tm, "earth": "wgs84", "nav_frame": "ECEF"})
+    lat3 = flat.geodetic()[0]  # no columns: converted through the (here wrong) origin frame
+    assert not np.allclose(lat3, lat, atol=1e-3)
 
 
 def test_short_route_unchanged_in_origin_frames():
