@@ -48,7 +48,7 @@ def earth_budget(motion, samples, lat0_rad, grades=None, fraction=0.1):
         ea.choose_earth_model(bt, pts, lat0_rad, grade_figures(g), fraction=fraction)
         for g in grades
     ]
-    # the most demanding grade decides: any grade that needs wgs84 gets it for all
+    # the most demanding model decides: any grade that needs wgs84 gets it for all
     rank = {"flat": 0, "wgs84": 1, "geodetic": 2}
     top = max(rank[b.model] for b in budgets)
     if top == 0:

@@ -220,8 +220,9 @@ def build_truth(
         A key of :data:`imugen.truth.VEHICLES`.
     grade : str, Grade, GradeFigures or a list of them, optional
         Sensor grade(s) for the ``auto`` budget (default ``consumer``): preset names,
-        ``FILE.yaml:NAME`` custom grades, grade objects or budget figures; with several, any
-        grade whose budget needs ``wgs84`` makes the truth ``wgs84``.
+        ``FILE.yaml:NAME`` custom grades, grade objects or budget figures; with several, the
+        most demanding model any grade's budget needs decides (``geodetic`` > ``wgs84`` >
+        ``flat``; ``geodetic`` depends on the scene's extent only).
     verbose : bool
         Print the ``auto`` budget and the plausibility report to stderr.
     **options
