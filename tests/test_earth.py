@@ -235,10 +235,14 @@ def test_auto_budget_picks_by_grade_and_scene():
     # a 2-minute walk with a consumer IMU: Coriolis on 150 m is far below the bias effect
     t, p = _line(120.0, 150.0)
     assert E.choose_earth_model(t, p, lat, CONSUMER).model == "flat"
-    # an hour-long 100 km drive: the dropped terms (Schuler, tilt) are large for any grade
-    t, p = _line(3600.0, 1e5)
+    # an hour-long 50 km drive: the dropped terms (Schuler, tilt) are large for any grade
+    t, p = _line(3600.0, 5e4)
     for fig in (NAV, CONSUMER):
         assert E.choose_earth_model(t, p, lat, fig).model == "wgs84"
+    # 100 km from the origin: its vertical tilts by 0.016 rad there -> geodetic, any grade
+    t, p = _line(3600.0, 1e5)
+    for fig in (NAV, CONSUMER):
+        assert E.choose_earth_model(t, p, lat, fig).model == "geodetic"
     # a 10-minute car scene: consumer -> flat, navigation grade -> wgs84
     t, p = _line(600.0, 6000.0)
     assert E.choose_earth_model(t, p, lat, CONSUMER).model == "flat"

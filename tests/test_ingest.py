@@ -138,7 +138,6 @@ def test_duplicates_and_clock_rules(tmp_path):
             [(1, 2, 0, T(0)), (1.01, 2, 0, T(1)), (1.02, 2, 0, T(2))],
             "implied speed 3,9\\d\\d km/h between points [12] and [23]",
         ),
-        ([(0, 0), (0, 2)], "limited to 100 km"),
     ],
 )
 def test_validation_refusals(tmp_path, points, message):
@@ -156,6 +155,35 @@ def test_small_route_across_antimeridian_is_handled(tmp_path):
     ]
     np.testing.assert_allclose(seg, geod, rtol=1e-5)
     assert any("antimeridian" in w for w in ing.warnings)
+
+
+def test_long_route_across_antimeridian(tmp_path):
+    """A 7,600 km timed route across 180 deg (airliner speed, 11 km): accepted, ENU continuous
+    and exact (segment lengths = ECEF chords), geodesic horizontal length, limit only when set."""
+    lon0, lat0, az = 139.78, 35.55, 55.0
+    dist = np.linspace(0.0, 7.6e6, 761)  # 40 s apart at 250 m/s
+    lon, lat, _ = GEOD.fwd(
+        np.full_like(dist, lon0), np.full_like(dist, lat0), np.full_like(dist, az), dist
+    )
+    pts = [(la, lo, 11000.0, T(d / 250.0)) for la, lo, d in zip(lat, lon, dist, strict=True)]
+    f = gpx(pts, tmp=tmp_path)
+    ing = ingest(f)
+    assert ing.meta["crosses_antimeridian"]
+    assert ing.meta["max_distance_from_origin_m"] > 5e6
+    assert ing.meta["length_horizontal_m"] == pytest.approx(7.6e6, rel=1e-6)
+    enu = ing.table[["e_m", "n_m", "u_m"]].to_numpy()
+    from imugen.earth import ecef_from_geodetic
+
+    r = ecef_from_geodetic(
+        *np.radians(ing.table[["lat_deg", "lon_deg"]].to_numpy().T), ing.table["alt_m"].to_numpy()
+    )
+    np.testing.assert_allclose(
+        np.linalg.norm(np.diff(enu, axis=0), axis=1),
+        np.linalg.norm(np.diff(r, axis=0), axis=1),
+        rtol=1e-9,
+    )
+    with pytest.raises(InputError, match="beyond --max-extent-km 1000"):
+        ingest(f, max_extent_km=1000.0)
 
 
 def test_path_selection(tmp_path):
@@ -256,9 +284,16 @@ def test_real_central_park_time_span(shared_file):
     assert 1700 < ing.meta["duration_s"] < 1900 and 9.0e3 < ing.meta["length_horizontal_m"] < 1.05e4
 
 
+def test_real_pacific_route_is_accepted(shared_file):
+    """The trans-Pacific route (across the antimeridian, thousands of km) ingests whole; a limit
+    of one's own still refuses it."""
+    ing = ingest(shared_file("f_pacific_route_antimeridian.kml"))
+    assert ing.meta["crosses_antimeridian"] and ing.meta["max_distance_from_origin_m"] > 1e6
+    with pytest.raises(InputError, match=r"beyond --max-extent-km 100"):
+        ingest(shared_file("f_pacific_route_antimeridian.kml"), max_extent_km=100.0)
+
+
 def test_real_refusals(shared_file):
-    with pytest.raises(InputError, match=r"antimeridian.*limited to 100 km"):
-        ingest(shared_file("f_pacific_route_antimeridian.kml"))
     with pytest.raises(InputError, match="6 candidate paths"):
         ingest(shared_file("c_google_kml_samples.kml"))
     # two track segments, the second split at a time gap into two parts

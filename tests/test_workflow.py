@@ -260,6 +260,21 @@ def test_bad_route_fails_cleanly(tmp_path):
     assert not (tmp_path / "results" / "bad" / "route.csv").exists()
 
 
+def test_max_extent_km_is_a_route_limit(tmp_path):
+    """``max_extent_km`` in a route's config is accepted by the schema and reaches ingestion as
+    ``--max-extent-km``: a 222 km path beyond a 100 km limit is refused (without a limit it is
+    accepted: tests/test_ingest.py)."""
+    far = tmp_path / "far.gpx"
+    far.write_text(
+        '<gpx><trk><trkseg><trkpt lat="0" lon="0"/><trkpt lat="0" lon="2"/></trkseg></trk></gpx>'
+    )
+    write_config(tmp_path, {"routes": {"far": {"file": str(far), "max_extent_km": 100}}})
+    proc = snakemake(tmp_path, "-j1", "results/far/enu.parquet")
+    assert proc.returncode != 0
+    log = (tmp_path / "logs" / "far" / "ingest_csv.log").read_text()
+    assert "beyond --max-extent-km 100" in log and "Traceback" not in log
+
+
 def test_schema_refuses_bad_config(tmp_path):
     write_config(tmp_path, {"routes": {"ex": {"file": "x.kml", "dt_s": -1}}})
     proc = snakemake(tmp_path, "-n", "-j1")

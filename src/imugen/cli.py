@@ -356,7 +356,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-speed-kmh", type=float, default=1200.0, help="refuse faster implied speeds"
     )
     p.add_argument(
-        "--max-extent-km", type=float, default=100.0, help="largest distance from origin"
+        "--max-extent-km",
+        type=float,
+        default=None,
+        help="refuse points farther than this from the origin (a sanity limit of your own; "
+        "default none: routes of any length, simulated in ECEF when long)",
     )
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
     p.add_argument(
@@ -681,10 +685,11 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate (default 100)")
     p.add_argument(
         "--earth",
-        choices=["flat", "wgs84", "auto"],
+        choices=["flat", "wgs84", "geodetic", "auto"],
         default="auto",
         help="Earth model; auto picks flat when every term it drops stays below 10 %% of the "
-        "grades' error effect (as the workflow does)",
+        "grades' error effect, geodetic (ECEF, any distance) when the route reaches beyond "
+        "64 km from its origin (as the workflow does)",
     )
     p.add_argument(
         "--vehicle",

@@ -26,8 +26,10 @@ mechanization see the same field bit for bit.
 
 ``choose_earth_model`` implements ``--earth auto``: it estimates the position effect of every
 term ``flat`` drops and of the chosen sensor grade over the scene, picks ``flat`` when all
-dropped terms stay below a fraction (default 10 %) of the grade effect, and returns the
-budget as printable lines.
+dropped terms stay below a fraction (default 10 %) of the grade effect, else ``wgs84``, and
+``geodetic`` whenever the scene reaches so far from its origin that the origin's ENU axes
+no longer describe East, North and Up at the vehicle (:data:`GEODETIC_TILT_RAD`); it returns
+the budget as printable lines.
 """
 
 from __future__ import annotations
@@ -471,11 +473,15 @@ class OriginFrame:
         return out
 
     def ecef_from_n(self, p_n) -> np.ndarray:
-        """ENU positions relative to the origin -> ECEF, shape (..., 3)."""
+        """ENU positions relative to the origin -> ECEF, shape (..., 3) (a copy in ``geodetic``)."""
+        if self.model == "geodetic":
+            return np.array(p_n, dtype=float)
         return self.r0_e + np.asarray(p_n, dtype=float) @ self.C_en
 
     def n_from_ecef(self, r_e) -> np.ndarray:
-        """ECEF -> ENU positions relative to the origin, shape (..., 3)."""
+        """ECEF -> ENU positions relative to the origin, shape (..., 3) (a copy in ``geodetic``)."""
+        if self.model == "geodetic":
+            return np.array(r_e, dtype=float)
         return (np.asarray(r_e, dtype=float) - self.r0_e) @ self.C_en.T
 
     def geodetic_from_n(self, p_n):
@@ -592,6 +598,11 @@ def _gravity_batch_nb(prm, p_n, out, gravitation):
 # --- earth model budget (--earth auto) ---------------------------------------------------------
 DEG_PER_H = math.pi / 180.0 / 3600.0
 MICRO_G = 9.80665e-6
+GEODETIC_TILT_RAD = 0.01
+"""``auto`` picks ``geodetic`` when the local vertical at the scene's farthest point tilts by
+more than this from the origin's (``D / R``: 64 km). Beyond it errors and attitudes resolved
+in the origin's ENU mix the vertical into the horizontal by more than 1 %, and the road grade
+and distance travelled measured in its East-North plane depart from the local ones."""
 
 
 @dataclass(frozen=True)
@@ -616,7 +627,7 @@ class EarthBudget:
     Attributes
     ----------
     model : str
-        ``"flat"`` or ``"wgs84"``.
+        ``"flat"``, ``"wgs84"`` or ``"geodetic"``.
     grade_effect_m : float
         Position effect of the grade's gyro and accelerometer biases over the scene [m].
     terms_m : dict
@@ -636,7 +647,11 @@ class EarthBudget:
 
 
 def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.1) -> EarthBudget:
-    """Pick ``flat`` or ``wgs84`` for a scene from a position-error budget (``--earth auto``).
+    """Pick ``flat``, ``wgs84`` or ``geodetic`` for a scene (``--earth auto``).
+
+    ``flat`` or ``wgs84`` from a position-error budget; ``geodetic`` (with the exact Earth of
+    ``wgs84``) when the largest horizontal distance ``D`` from the origin tilts the local
+    vertical by ``D / R > GEODETIC_TILT_RAD``, whatever the grade.
 
     Estimates (order of magnitude, distance from the origin taken to grow linearly in time):
 
@@ -701,6 +716,9 @@ def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.
     }
     limit = fraction * grade_m
     model = "flat" if all(v < limit for v in terms.values()) and T > 0.0 else "wgs84"
+    tilt = D / R
+    if tilt > GEODETIC_TILT_RAD:
+        model = "geodetic"
     lines = [
         f"earth model budget (grade {figures.name}: gyro bias {bg / DEG_PER_H:g} deg/h, accel "
         f"bias {ba / MICRO_G:g} ug, gyro SF {sg * 1e6:g} ppm, ARW "
@@ -718,5 +736,9 @@ def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.
             if grade_m > 0
             else f"  {name:<55s} {val:11.4g} m"
         )
+    lines.append(
+        f"  tilt of the origin's vertical at the farthest point D/R {tilt:11.4g} rad  (geodetic "
+        f"above {GEODETIC_TILT_RAD:g}) {'EXCEEDS' if tilt > GEODETIC_TILT_RAD else 'ok'}"
+    )
     lines.append(f"-> earth model: {model}")
     return EarthBudget(model, grade_m, terms, fraction, lines, figures.name)

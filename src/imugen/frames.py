@@ -3,13 +3,14 @@
 The local frame is the topocentric frame of an origin point: geodetic coordinates go to
 ECEF (``cart``) and are rotated into East-North-Up about the origin (``topocentric``),
 one :class:`pyproj.Transformer` per origin, built once and reused. The conversion is
-exact at any distance (it is a rigid transform of ECEF), but the *meaning* of the axes is
-local: ``u_m`` is height above the origin's tangent plane, not above the ground. At a
-horizontal distance ``d`` from the origin the tangent plane lies ``d^2 / (2 R)`` above
-the ellipsoid and the local vertical is tilted by ``d / R`` from the frame's up axis. We
-refuse routes reaching farther than :data:`MAX_EXTENT_M` (100 km: 785 m of curvature
-drop and 0.9 deg of vertical tilt), where "East, North, Up" stops describing the route;
-the limit is an option of ``imugen ingest``.
+exact at any distance and across the antimeridian (it is a rigid transform of ECEF), but
+the *meaning* of the axes is local: ``u_m`` is height above the origin's tangent plane, not
+above the ground. At a horizontal distance ``d`` from the origin the tangent plane lies
+``d^2 / (2 R)`` above the ellipsoid and the local vertical is tilted by ``d / R`` from the
+frame's up axis. So the coordinates of a long route are exact Cartesian coordinates the
+truth can fit, not East/North/Up at the vehicle: the truth's ``geodetic`` model (chosen by
+``--earth auto`` beyond 64 km) expresses them in ECEF and reports everything in the local
+level at the vehicle.
 """
 
 from __future__ import annotations
@@ -18,9 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from pyproj import CRS, Transformer
-
-#: default largest horizontal distance of a route point from the origin, metres
-MAX_EXTENT_M = 100_000.0
 
 
 @dataclass(frozen=True)

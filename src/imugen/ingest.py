@@ -10,7 +10,10 @@ Path choice
 Validation (each failure: one line naming the file, exit status 2, no output)
     At least two points; no NaN/inf; latitude in [-90, 90], longitude in [-180, 180],
     height in [-11 km, 100 km]; a non-zero path length; no point farther than
-    ``max_extent_km`` (default 100 km) from the origin (see :mod:`imugen.frames`); for timed
+    ``max_extent_km`` from the origin when that limit is given (a sanity check of one's own;
+    by default routes of any length are accepted, and E N U rows only within
+    :data:`ENU_SPAN_M` of the first row, the farthest two points near the Earth can be: a
+    larger value is a unit error); for timed
     paths, no implied speed above ``max_speed_kmh`` (default 1,200 km/h) between
     consecutive points once outliers are removed.
 Cleaning
@@ -49,7 +52,7 @@ from pyproj import Geod
 from imugen import __version__, limits
 from imugen.clean import clean_path
 from imugen.errors import InputError
-from imugen.frames import MAX_EXTENT_M, LocalFrame, Origin, to_utm, utm_crs
+from imugen.frames import LocalFrame, Origin, to_utm, utm_crs
 from imugen.io import atomic_output
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
@@ -68,6 +71,9 @@ UNITS = {
     "utm_n_m": "m",
 }
 _GEOD = Geod(ellps="WGS84")
+ENU_SPAN_M = 2.0 * 6378137.0 + 200e3
+"""Largest distance [m] between two points within 100 km of the Earth's surface (E N U rows
+farther from the first row are a unit error)."""
 
 
 @dataclass
@@ -105,8 +111,6 @@ def _path_length_m(p: RoutePath) -> float:
     if ok.sum() < 2:
         return float("nan")
     return float(_GEOD.line_length(p.lon_deg[ok], p.lat_deg[ok]))
-
-
 
 
 def _describe(i: int, p: RoutePath) -> str:
@@ -296,7 +300,7 @@ def ingest(
     dt: float | None = None,
     utm: bool = False,
     max_speed_kmh: float = 1200.0,
-    max_extent_km: float = MAX_EXTENT_M / 1000.0,
+    max_extent_km: float | None = None,
     gap_warn_s: float = 60.0,
     vehicle: str = "car",
     max_gap_s: float | None = None,
@@ -317,7 +321,7 @@ def ingest(
     utm : bool
         Also output UTM easting/northing in the zone of the origin.
     max_speed_kmh, max_extent_km, gap_warn_s : float
-        Validation limits (see the module docstring).
+        Validation limits (see the module docstring); ``max_extent_km`` None: no limit.
     vehicle : str
         Vehicle class whose limits decide what is an outlier (:mod:`imugen.clean`).
     max_gap_s, gaps : float or None, {"split", "bridge"}
@@ -343,7 +347,7 @@ def _ingest(
     src = Path(src)
     for name, value in (
         ("--max-speed-kmh", max_speed_kmh),
-        ("--max-extent-km", max_extent_km),
+        ("--max-extent-km", 1.0 if max_extent_km is None else max_extent_km),
         ("--gap-warn-s", gap_warn_s),
     ):
         if not (np.isfinite(value) and value > 0):
@@ -384,14 +388,20 @@ def _ingest(
             )
         enu_first = p.enu_m - p.enu_m[0]
         _check_enu(enu_first, src)  # differences of finite huge values may overflow
-        far = ~(np.hypot(enu_first[:, 0], enu_first[:, 1]) <= max_extent_km * 1000.0)
-        far |= ~(np.abs(enu_first[:, 2]) <= max_extent_km * 1000.0)
+        span = ENU_SPAN_M if max_extent_km is None else min(ENU_SPAN_M, max_extent_km * 1e3)
+        far = ~(np.hypot(enu_first[:, 0], enu_first[:, 1]) <= span)
+        far |= ~(np.abs(enu_first[:, 2]) <= span)
         if far.any():
             i = _first_bad(far)
+            why = (
+                "farther than two points near the Earth can be"
+                if span == ENU_SPAN_M
+                else "beyond --max-extent-km"
+            )
             raise InputError(
                 src,
-                f"row {i + 1} lies more than {max_extent_km:g} km from the first row "
-                "(the local ENU frame's limit); check the units (metres) or raise --max-extent-km",
+                f"row {i + 1} lies more than {span / 1e3:,.0f} km from the first row ({why}); "
+                "check the units (metres)",
             )
         frame = LocalFrame(origin)
         lat, lon, alt = frame.to_geodetic(enu_first)
@@ -433,15 +443,13 @@ def _ingest(
     horiz = np.hypot(enu[:, 0], enu[:, 1])
     lon_jump = np.abs(np.diff(lon)) > 180.0
     crosses = bool(lon_jump.any())
-    if not horiz.max() <= max_extent_km * 1000.0:  # NaN-safe
+    if max_extent_km is not None and not horiz.max() <= max_extent_km * 1000.0:  # NaN-safe
         i = int(np.argmax(np.where(np.isfinite(horiz), horiz, np.inf)))
-        why = " and crosses the antimeridian" if crosses else ""
         raise InputError(
             src,
-            f"path {p.name!r} reaches {horiz[i] / 1000:,.0f} km from its origin{why}; a local ENU "
-            f"frame is limited to {max_extent_km:g} km (beyond it the tangent plane departs from "
-            "the Earth's surface by more than 785 m and the vertical tilts by more than 0.9 deg); "
-            "split the route or raise --max-extent-km",
+            f"path {p.name!r} reaches {horiz[i] / 1000:,.0f} km from its origin, beyond "
+            f"--max-extent-km {max_extent_km:g}; raise or drop the limit (routes of any length "
+            "are simulated in ECEF)",
         )
     if crosses:
         warnings.append(
@@ -506,8 +514,9 @@ def _ingest(
         "points_in": n_in,
         "points_out": len(table),
         "length_3d_m": length_3d,
-        "length_horizontal_m": float(np.hypot(*np.diff(enu[:, :2], axis=0).T).sum()),
+        "length_horizontal_m": float(_GEOD.line_length(lon, lat)),
         "max_distance_from_origin_m": float(horiz.max()),
+        "crosses_antimeridian": crosses,
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
         "cleaning": cleaning,

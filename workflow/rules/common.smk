@@ -90,7 +90,7 @@ def shard_sequences(wildcards):
 
 
 def ingest_opts(wildcards):
-    """Command-line options of `imugen ingest` for this route (path, origin, dt)."""
+    """Command-line options of `imugen ingest` for this route (path, origin, dt, extent)."""
     r = config["routes"][wildcards.route]
     opts = []
     if r.get("path") is not None:
@@ -99,6 +99,8 @@ def ingest_opts(wildcards):
         opts += ["--origin", ",".join(repr(float(x)) for x in r["origin"])]
     if r.get("dt_s") is not None:
         opts += ["--dt", repr(float(r["dt_s"]))]
+    if r.get("max_extent_km") is not None:
+        opts += ["--max-extent-km", repr(float(r["max_extent_km"]))]
     return " ".join(opts)
 
 

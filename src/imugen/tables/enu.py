@@ -2,7 +2,10 @@
 
 One row per kept input point: ``time_s`` (s, timed routes only), geodetic ``lat_deg``,
 ``lon_deg`` (WGS-84, degrees), ``alt_m`` (ellipsoidal height, m), and the exact local ENU
-coordinates ``e_m``, ``n_m``, ``u_m`` (m) in the topocentric frame of the origin; optionally
+coordinates ``e_m``, ``n_m``, ``u_m`` (m) in the topocentric frame of the origin (a rigid
+transform of ECEF: exact Cartesian coordinates at any distance and across the antimeridian, but
+their axes are the origin's: far from it ``u_m`` is no height and the geodetic columns are the
+position at the vehicle; the truth's ``geodetic`` model uses them so); optionally
 ``utm_e_m``, ``utm_n_m`` (``--utm``). Metadata (JSON under ``b"imugen"``): ``origin``
 {lat_deg, lon_deg, alt_m}, ``timed``, ``source`` and the ingestion report.
 """

@@ -1,8 +1,12 @@
 """Truth table: the output of ``imugen truth``; one row per IMU sample, float64.
 
-Columns (:data:`COLUMNS`): ``time_s``; position ``p_n`` ``e_m, n_m, u_m`` (m, ENU of the route
-origin); velocity relative to the Earth ``v_e_mps, v_n_mps, v_u_mps``; attitude ``C_nb`` as a
-scalar-first quaternion ``q_w .. q_z``; ``roll_rad, pitch_rad, yaw_rad`` relative to the local
+Columns (:data:`COLUMNS`): ``time_s``; position ``p_n`` ``e_m, n_m, u_m`` (m); velocity
+relative to the Earth ``v_e_mps, v_n_mps, v_u_mps``; attitude ``C_nb`` as a scalar-first
+quaternion ``q_w .. q_z``. These are in the navigation coordinates of the truth's Earth model
+(metadata ``earth``, ``nav_frame``): ENU of the route origin in ``flat`` and ``wgs84``; ECEF
+(x, y, z; velocity resolved in ECEF; ``C_eb``) in ``geodetic``, whose truths also carry
+:data:`GEODETIC` ``lat_deg, lon_deg, alt_m`` (WGS-84, ellipsoidal height) of every sample. In
+every model ``OriginFrame.ecef_from_n`` gives ECEF and ``C_ln`` the local level; ``roll_rad, pitch_rad, yaw_rad`` relative to the local
 level at the vehicle (unwrapped; ``C_lb = Rz(yaw) Ry(-pitch) Rx(roll)``, yaw 0 faces East);
 instantaneous ``gyro_{x,y,z}_radps`` (``omega_ib_b``) and ``accel_{x,y,z}_mps2`` (``f_b``);
 exact compensated increments ``dtheta_{x,y,z}_rad`` (rotation vector of the attitude change of
@@ -10,7 +14,8 @@ the interval) and ``dv_{x,y,z}_mps`` (velocity change in the body frame frozen a
 start, sculling included). Increments on row ``k`` belong to ``[t_{k-1}, t_k]``; row 0 is zero.
 
 Metadata (JSON under ``b"imugen"``): ``origin`` {lat_deg, lon_deg, alt_m}, ``earth``
-(``flat``/``wgs84``), ``rate_hz``, ``samples``, ``duration_s``, ``vehicle``, optionally
+(``flat``/``wgs84``/``geodetic``), ``nav_frame`` (``"ENU of the origin"`` or ``"ECEF"``;
+absent in older truths: ENU), ``rate_hz``, ``samples``, ``duration_s``, ``vehicle``, optionally
 ``route`` (the route name), fit and timing reports, ``units``.
 """
 
@@ -28,7 +33,7 @@ import numpy as np
 from imugen.io import METADATA_KEY, write_parquet
 from imugen.io import read_meta as read_meta
 from imugen.tables._parquet import TIME, num_rows, open_file, read_table, require, to_numpy
-from imugen.tables.enu import E, N, U
+from imugen.tables.enu import ALT, LAT, LON, E, N, U
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -43,7 +48,14 @@ ACCEL = ("accel_x_mps2", "accel_y_mps2", "accel_z_mps2")
 DTHETA = ("dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad")
 DV = ("dv_x_mps", "dv_y_mps", "dv_z_mps")
 COLUMNS = (TIME, *POS, *VEL, *QUAT, *EULER, *GYRO, *ACCEL, *DTHETA, *DV)
+GEODETIC = (LAT, LON, ALT)
+"""Optional columns (``geodetic`` truths): position of the vehicle in degrees and metres."""
+NAV_FRAMES = {"flat": "ENU of the origin", "wgs84": "ENU of the origin", "geodetic": "ECEF"}
+"""The ``nav_frame`` of each Earth model: what the position, velocity and quaternion hold."""
 UNITS = {
+    LAT: "deg",
+    LON: "deg",
+    ALT: "m",
     TIME: "s",
     **dict.fromkeys(POS, "m"),
     **dict.fromkeys(VEL, "m/s"),
@@ -147,6 +159,16 @@ class Truth:
     def origin_frame(self):
         """Navigation frame and Earth model (:func:`origin_frame`)."""
         return origin_frame(self.meta)
+
+    def geodetic(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(lat_rad, lon_rad, h_m)`` of every sample, each (K,): the :data:`GEODETIC`
+        columns when present, else converted from the navigation position."""
+        f = self.frame
+        names = f.column_names if hasattr(f, "column_names") else list(f.columns)
+        if all(c in names for c in GEODETIC):
+            g = self._cols(GEODETIC)
+            return np.radians(g[:, 0]), np.radians(g[:, 1]), g[:, 2]
+        return self.origin_frame().geodetic_from_n(self.p_n)
 
 
 def read(path, columns=None, *, need_meta: bool = True, arrow: bool = False) -> Truth:

@@ -26,6 +26,14 @@ acceleration bound and the non-negative speed; ``s(t)`` is a C^3 piecewise quart
 the filtering lifts the lateral acceleration above the limit, the limit is lowered there and
 the profile rebuilt. Position is ``G(s(t))``; derivatives by the chain rule.
 
+Routes of any length (``earth="geodetic"``; ``auto`` beyond 64 km from the origin)
+-----------------------------------------------------------------------------------
+The motion is fitted as above in the origin's ENU coordinates (exact Cartesian at any range)
+and expressed in ECEF by :class:`imugen.truth.build.EcefMotion`; the attitude below is built
+in the local level at the vehicle and expressed in ECEF (``C_eb = C_el C_lb``); the table's
+position, velocity and quaternion are then ECEF, with ``lat_deg, lon_deg, alt_m`` columns
+(:mod:`imugen.tables.truth`).
+
 Attitude (per vehicle class, :mod:`imugen.truth.vehicles`)
 ----------------------------------------------------------
 *Ground vehicles* (car, bicycle, pedestrian; an aircraft below its take-off speed): the

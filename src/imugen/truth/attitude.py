@@ -67,7 +67,32 @@ class EarthField:
     def __init__(self, frame: ea.OriginFrame):
         self.frame = frame
         self.flat = frame.model == "flat"
+        self.ecef = frame.model == "geodetic"
         self.Omega = ea.earth_rate_n(frame)
+
+    def height(self, p):
+        """Height of the vehicle for the attitude logic, (m,) [m]: n's Up in ``flat`` and
+        ``wgs84`` (scenes near their origin), the ellipsoidal height in ``geodetic``."""
+        return self.frame.geodetic_from_n(p)[2] if self.ecef else p[:, 2]
+
+    def horizontal_speed(self, p, v, a=None):
+        """Horizontal speed ``v_h`` (m,) and, with ``a``, its rate (m,): in n's East-North
+        plane in ``flat`` and ``wgs84``, in the local level at the vehicle in ``geodetic``
+        (``a_l = C_ln a - omega_nl_l x v_l``)."""
+        if self.ecef and a is None:  # |v - (v . up) up| with the geodetic up at p
+            sl, cl, co, so, _ = ea._geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
+            vu = cl * (co * v[:, 0] + so * v[:, 1]) + sl * v[:, 2]
+            return np.sqrt(np.maximum(np.einsum("mi,mi->m", v, v) - vu * vu, 0.0)), None
+        if self.ecef:
+            C_ln, v, w_nl = self.local(p, v)
+            a = np.einsum("mij,mj->mi", C_ln, a) - np.cross(w_nl, v)
+        vh = np.hypot(v[:, 0], v[:, 1])
+        if a is None:
+            return vh, None
+        vh_d = np.divide(
+            v[:, 0] * a[:, 0] + v[:, 1] * a[:, 1], vh, out=np.zeros_like(vh), where=vh > 0
+        )
+        return vh, vh_d
 
     def gravity(self, p):
         return ea.gravity_n(p, self.frame)
@@ -98,15 +123,6 @@ class EarthField:
         e = np.divide(v, spd, out=np.zeros_like(v), where=spd > 0)
         hstep = 10.0
         return (self.gravity(p + hstep * e) - self.gravity(p - hstep * e)) * (spd / (2 * hstep))
-
-
-def _level_attitude(up):
-    """C_nb with body z = ``up`` and body x toward n's East projected on the level; (3,) -> (3, 3)."""
-    x = np.array([1.0, 0.0, 0.0]) - up * up[0]
-    if np.linalg.norm(x) < 1e-6:
-        x = np.array([0.0, 1.0, 0.0]) - up * up[1]
-    x = x / np.linalg.norm(x)
-    return np.stack([x, np.cross(up, x), up], axis=-1)
 
 
 _QX = np.array([0.0, 1.0, 0.0, 0.0])  # rotation by pi about body x
@@ -149,7 +165,7 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
     if ground is not None and air:
         q_g = np.empty((K, 4))
         w_g = np.empty((K, 3))
-        h_low = float(motion.position(np.linspace(motion.t0, motion.t1, 20001))[:, 2].min())
+        h_low = float(E.height(motion.position(np.linspace(motion.t0, motion.t1, 20001))).min())
     acc_ss, acc_max, jerk_max = 0.0, 0.0, 0.0
     s_prev = 0.0
     for k0 in range(0, K, chunk):
@@ -181,9 +197,11 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
         if air:
             # airborne: fast, or well above the lowest point of the route (a slow glider)
             bs, dbs = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
-            bh, dbh = _smoothstep(p[:, 2] - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m)
+            hgt = E.height(p)
+            bh, dbh = _smoothstep(hgt - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m)
+            h_d = E.local(p, v)[1][:, 2] if E.ecef else v[:, 2]
             beta[k0:k1] = 1.0 - (1.0 - bs) * (1.0 - bh)
-            beta_d[k0:k1] = dbs * spd_d * (1.0 - bh) + dbh * v[:, 2] * (1.0 - bs)
+            beta_d[k0:k1] = dbs * spd_d * (1.0 - bh) + dbh * h_d * (1.0 - bs)
             q_g[k0:k1] = rot.dcm_to_quat(C)
             w_g[k0:k1] = w
         else:
@@ -253,7 +271,7 @@ def _blend_holds(out, ci, sigma, sigma_d, E, vp):
             q_h = out[i1, sQ].copy()
         else:  # never a defined attitude: level, facing East of the local level
             C_ln, _, _ = E.local(out[:1, iP], np.zeros((1, 3)))
-            q_h = rot.dcm_to_quat(_level_attitude(C_ln[0, 2]))
+            q_h = rot.dcm_to_quat(np.ascontiguousarray(C_ln[0].T))
         sl = slice(i0, i1)
         sg = sigma[sl]
         q_rel = rot.quat_mul(rot.quat_conj(q_h)[None, :], out[sl, sQ])
@@ -431,10 +449,13 @@ class GroundAttitude:
 
     def distance_steps(self, motion, t):
         """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre
-        quadrature of the horizontal speed in n), shape (len(t) - 1,) [m]."""
+        quadrature of the horizontal speed, :meth:`EarthField.horizontal_speed`), shape
+        (len(t) - 1,) [m]."""
         tq, wq = _gl_nodes(t)
-        v = motion.velocity(tq.ravel())
-        vh = np.hypot(v[:, 0], v[:, 1]).reshape(wq.shape)
+        tq = tq.ravel()
+        v = motion.velocity(tq)
+        p = motion.position(tq) if self.E.ecef else None
+        vh = self.E.horizontal_speed(p, v)[0].reshape(wq.shape)
         return np.sum(wq * vh, axis=1)
 
     def attitude(self, s, p, v, a):
@@ -442,11 +463,8 @@ class GroundAttitude:
         velocity and acceleration in n (m,3)."""
         vp = self.vp
         C_ln, _, w_nl = self.E.local(p, v)
-        # ds/dt: horizontal speed in n (the distance s is its integral)
-        vh = np.hypot(v[:, 0], v[:, 1])
-        vh_d = np.divide(
-            v[:, 0] * a[:, 0] + v[:, 1] * a[:, 1], vh, out=np.zeros_like(vh), where=vh > 0
-        )
+        # ds/dt: the horizontal speed whose integral is the distance s
+        vh, vh_d = self.E.horizontal_speed(p, v, a)
         s = np.clip(s, 0.0, self.length_m)
         psi = self.Psi(s)
         k1 = self.Psi(s, 1)

@@ -28,7 +28,8 @@ def earth_budget(motion, samples, lat0_rad, grades=None, fraction=0.1):
     lat0_rad : float
         Origin latitude [rad].
     grades : str, Grade, GradeFigures or a list of them, optional
-        Default ``consumer``. With several, any grade whose budget needs ``wgs84`` decides.
+        Default ``consumer``. With several, the most demanding model decides (``geodetic``,
+        then ``wgs84``, then ``flat``).
     fraction : float
         ``flat`` when every dropped term is below ``fraction`` x the grade effect.
 
@@ -47,11 +48,12 @@ def earth_budget(motion, samples, lat0_rad, grades=None, fraction=0.1):
         ea.choose_earth_model(bt, pts, lat0_rad, grade_figures(g), fraction=fraction)
         for g in grades
     ]
-    # the most demanding grade decides: any grade that needs wgs84 gets it for all
-    return next(
-        (b for b in budgets if b.model == "wgs84"),
-        min(budgets, key=lambda b: b.grade_effect_m),
-    )
+    # the most demanding model decides: any grade that needs wgs84 gets it for all
+    rank = {"flat": 0, "wgs84": 1, "geodetic": 2}
+    top = max(rank[b.model] for b in budgets)
+    if top == 0:
+        return min(budgets, key=lambda b: b.grade_effect_m)
+    return next(b for b in budgets if rank[b.model] == top)
 
 
 def budget_meta(budget: ea.EarthBudget, grades) -> dict:

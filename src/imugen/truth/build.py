@@ -107,13 +107,55 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
     return motion, fit, timing
 
 
+class EcefMotion:
+    """A motion fitted in the route origin's ENU coordinates, expressed in ECEF.
+
+    The origin's ENU is an exact Cartesian frame (a rigid transform of ECEF, at any
+    distance), so the fitted motion is a physical motion however long the route; this adapter
+    rotates it into the ``geodetic`` model's navigation coordinates:
+    ``r_e = r0_e + C_ne p``, derivatives rotated by ``C_ne``.
+
+    Parameters
+    ----------
+    motion : TimedMotion or PathMotion
+        Positions in the ENU of ``origin`` [m].
+    origin : imugen.earth.OriginFrame
+        The route origin (any model: only its ``r0_e`` and ``C_en`` of the ENU axes are used).
+    """
+
+    def __init__(self, motion, origin: ea.OriginFrame):
+        self.inner = motion
+        self.kind = motion.kind
+        self.t0, self.t1 = motion.t0, motion.t1
+        enu = origin.with_model("wgs84")
+        self.C_en = enu.C_en
+        self.r0_e = enu.r0_e
+
+    def _rotate(self, x):
+        return np.einsum("mi,ij->mj", x, self.C_en)  # C_ne x per row (einsum: no BLAS call)
+
+    def position(self, t):
+        return self.r0_e + self._rotate(self.inner.position(t))
+
+    def velocity(self, t):
+        return self._rotate(self.inner.velocity(t))
+
+    def eval(self, t):
+        """(r, v, a, j) in ECEF, each shape (m, 3), at times ``t`` (m,)."""
+        p, v, a, j = self.inner.eval(t)
+        return self.r0_e + self._rotate(p), self._rotate(v), self._rotate(a), self._rotate(j)
+
+
 def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
     """The ground-vehicle attitude of the motion; heights from the input points of a timed
     route (their own noise), else from the smoothed path."""
     if motion.kind != "timed":
         return GroundAttitude(motion, E, vp)
     y = enu[list(tenu.ENU)].to_numpy(dtype=float)
-    h = y[:, 2] if E.flat else E.frame.geodetic_from_n(y)[2]
+    if E.flat:
+        h = y[:, 2]
+    else:  # ellipsoidal heights of the input points (y is ENU of the origin)
+        h = E.frame.with_model("wgs84").geodetic_from_n(y)[2]
     noise_up = float(fit["noise_estimate_m"][2])
     return GroundAttitude(motion, E, vp, (enu[col.TIME].to_numpy(float), h), noise_up)
 
@@ -169,14 +211,18 @@ def build_truth(
         Ingestion's metadata: ``origin`` {lat_deg, lon_deg, alt_m}, ``timed``.
     rate_hz : float
         IMU rate; samples at ``t0 + k / rate_hz`` over the route.
-    earth : {"flat", "wgs84", "auto"}
-        Earth model (``auto``: budget stored in the metadata).
+    earth : {"flat", "wgs84", "geodetic", "auto"}
+        Earth model (``auto``: budget stored in the metadata). In ``geodetic`` the route is
+        fitted in its origin's ENU (exact Cartesian) and the truth is expressed in ECEF
+        (:class:`EcefMotion`), with ``lat_deg, lon_deg, alt_m`` columns; the attitude is
+        relative to the local level at the vehicle in every model.
     vehicle : str
         A key of :data:`imugen.truth.VEHICLES`.
     grade : str, Grade, GradeFigures or a list of them, optional
         Sensor grade(s) for the ``auto`` budget (default ``consumer``): preset names,
-        ``FILE.yaml:NAME`` custom grades, grade objects or budget figures; with several, any
-        grade whose budget needs ``wgs84`` makes the truth ``wgs84``.
+        ``FILE.yaml:NAME`` custom grades, grade objects or budget figures; with several, the
+        most demanding model any grade's budget needs decides (``geodetic`` > ``wgs84`` >
+        ``flat``; ``geodetic`` depends on the scene's extent only).
     verbose : bool
         Print the ``auto`` budget and the plausibility report to stderr.
     **options
@@ -188,8 +234,8 @@ def build_truth(
     (DataFrame, dict)
         Truth table (float64) and its metadata.
     """
-    if earth not in ("flat", "wgs84", "auto"):
-        raise InputError("--earth", f"unknown Earth model {earth!r}; flat, wgs84 or auto")
+    if earth not in (*ea.MODELS, "auto"):
+        raise InputError("--earth", f"unknown Earth model {earth!r}; flat, wgs84, geodetic or auto")
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InputError("--rate-hz", f"IMU rate must be a positive number, got {rate_hz}")
     unknown = set(options) - set(TruthOptions.__dataclass_fields__)
@@ -215,6 +261,8 @@ def build_truth(
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)
         model = budget.model
     E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+    if E.ecef:
+        motion = EcefMotion(motion, E.frame)
     ground = _ground(motion, E, vp, enu, fit)
 
     ci = _column_slices()
@@ -227,17 +275,25 @@ def build_truth(
         raise InputError(None, "truth generation produced non-finite values (report this route)")
 
     df = pd.DataFrame(out, columns=list(col.COLUMNS), copy=False)
+    columns = list(col.COLUMNS)
+    if E.ecef:
+        lat, lon, h = E.frame.geodetic_from_n(out[:, ci["pos"]])
+        df[col.LAT], df[col.LON], df[col.ALT] = np.degrees(lat), np.degrees(lon), h
+        columns += col.GEODETIC
     airborne = stats.pop("airborne")
     stats["speed_max_mps"] = float(np.linalg.norm(out[:, ci["vel"]], axis=1).max())
-    y_in = enu[list(tenu.ENU)].to_numpy(dtype=float)
+    y_in = enu[list(tenu.ENU)].to_numpy(dtype=float)  # its length is frame-independent
     t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
-    plaus = plausibility(df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne)
+    plaus = plausibility(
+        df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne, frame=E.frame
+    )
     tmeta = {
         "stage": "truth",
         "imugen_version": __version__,
         "source": meta.get("source"),
         "origin": {"lat_deg": lat0, "lon_deg": lon0, "alt_m": h0},
         "earth": model,
+        "nav_frame": col.NAV_FRAMES[model],
         "earth_requested": earth,
         "earth_budget": None if budget is None else budget_meta(budget, opts.grade),
         "rate_hz": float(rate_hz),
@@ -250,10 +306,10 @@ def build_truth(
         "motion": stats,
         "ground_attitude": ground.report,
         "plausibility": plaus,
-        "conventions": "n = ENU of the origin, b = FLU; C_nb = Rz(yaw) Ry(-pitch) Rx(roll) "
-        "relative to the local level at the vehicle; quaternion scalar first; increments on the "
-        "row ending their interval (row 0 zeros)",
-        "units": {c: col.UNITS[c] for c in col.COLUMNS},
+        "conventions": f"n = {col.NAV_FRAMES[model]}, b = FLU; l = ENU at the vehicle; "
+        "C_lb = C_ln C_nb = Rz(yaw) Ry(-pitch) Rx(roll); quaternion scalar first; increments on "
+        "the row ending their interval (row 0 zeros)",
+        "units": {c: col.UNITS[c] for c in columns},
     }
     if verbose:
         for line in messages(tmeta):

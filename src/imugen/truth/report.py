@@ -61,11 +61,18 @@ def _invented(t, p, v, t_in):
     return float(np.sum(np.maximum(L - arc, 0.0)))
 
 
+def local_velocity(p_n, v_n, frame):
+    """Velocity in the local level at the vehicle (ENU there), (K, 3) [m/s]."""
+    return np.einsum("kij,kj->ki", frame.C_ln(p_n), v_n)
+
+
 def _path_length(p):
     return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
 
 
-def plausibility(df, vp, *, input_enu=None, input_time=None, fit=None, airborne=None) -> dict:
+def plausibility(
+    df, vp, *, input_enu=None, input_time=None, fit=None, airborne=None, frame=None
+) -> dict:
     """Plausibility figures and warnings of a truth table.
 
     Parameters
@@ -82,6 +89,9 @@ def plausibility(df, vp, *, input_enu=None, input_time=None, fit=None, airborne=
         Fit report of the truth (``rms_distance_m``, ``max_distance_m``).
     airborne : ndarray of bool, shape (K,), optional
         Samples in flight (ground-vehicle limits do not apply there).
+    frame : imugen.earth.OriginFrame, optional
+        The truth's Earth model; in ``geodetic`` (ECEF) the horizontal speed is taken in the
+        local level at the vehicle (default: n's East-North plane).
 
     Returns
     -------
@@ -98,7 +108,8 @@ def plausibility(df, vp, *, input_enu=None, input_time=None, fit=None, airborne=
     dth = df[list(col.DTHETA)].to_numpy()[1:]
     air = np.zeros(K, bool) if airborne is None else np.asarray(airborne, bool)
     gnd = ~air
-    vh = np.hypot(v[:, 0], v[:, 1])
+    v_h = v if frame is None or frame.model != "geodetic" else local_velocity(p, v, frame)
+    vh = np.hypot(v_h[:, 0], v_h[:, 1])
     speed = np.linalg.norm(v, axis=1)
     acc = np.diff(v, axis=0) / dt[:, None]
     jerk = np.diff(acc, axis=0) / (0.5 * (dt[1:] + dt[:-1]))[:, None] if K > 2 else acc[:0]
