@@ -81,10 +81,10 @@ class FlightPlan:
         base = max(h0, h1)
         tops = np.linspace(base, max(vp.cruise_alt_m, base + 1.0), 2001)
         xs = np.linspace(0.0, tops[-1] - h0, 4001)
-        vc = self._sched(xs, vp.rotate_mps)
+        vc = self._sched(h0 + xs, h0, vp.rotate_mps)
         dc = np.r_[0.0, np.cumsum(0.5 * (vc[1:] + vc[:-1]) * np.diff(xs))] / roc
-        v_top_c = self._sched(tops - h0, vp.rotate_mps)
-        v_top_d = self._sched(tops - h1, vp.approach_mps)
+        v_top_c = self._sched(tops, h0, vp.rotate_mps)
+        v_top_d = self._sched(tops, h1, vp.approach_mps)
         w_toc = _SMOOTHSTEP_PEAK * v_top_c * roc / av
         w_tod = _SMOOTHSTEP_PEAK * v_top_d**2 * tan_d / av
         need = np.interp(tops - h0, xs, dc) + (tops - h1) / tan_d + 0.5 * (w_toc + w_tod)
@@ -132,12 +132,12 @@ class FlightPlan:
         roll_m = (d >= vp.taxi_m) & (d <= lo)
         v[roll_m] = vp.rotate_mps
         air = (d > lo) & (d < d_toc)
-        v[air] = self._sched(h_raw[air] - h0, vp.rotate_mps)
+        v[air] = self._sched(h_raw[air], h0, vp.rotate_mps)
         cr = (d >= d_toc) & (d <= d_tod)
         f = (d[cr] - d_toc) / max(d_tod - d_toc, 1e-9)
         v[cr] = (1.0 - f) * v_top_c[k] + f * v_top_d[k]
         dsc = (d > d_tod) & (d <= D - vp.taxi_m)
-        v[dsc] = self._sched(h_raw[dsc] - h1, vp.approach_mps)
+        v[dsc] = self._sched(h_raw[dsc], h1, vp.approach_mps)
         self.v_cap = v
         self.report.update(
             phases="taxi, take-off roll, climb, cruise, descent, approach, landing roll, taxi",
@@ -150,13 +150,16 @@ class FlightPlan:
             transitions_m=[w_lo, float(w_toc[k]), float(w_tod[k]), w_td],
         )
 
-    def _sched(self, x, v_ground):
-        """Speed [m/s] at ``x`` [m] above the runway: ``v_ground`` there, ``climb_speed_mps``
-        at ``speed_limit_alt_m``, ``cruise_mps`` at ``cruise_alt_m`` (linear between)."""
+    def _sched(self, h, h_rwy, v_ground):
+        """Speed [m/s] at height ``h`` [m]: ``v_ground`` at the runway's ``h_rwy``,
+        ``climb_speed_mps`` ``speed_limit_alt_m`` above it, ``cruise_mps`` at ``cruise_alt_m``
+        (linear between)."""
         vp = self.vp
-        hc = max(vp.cruise_alt_m, vp.speed_limit_alt_m + 1.0)
+        hs = h_rwy + vp.speed_limit_alt_m
         return np.interp(
-            x, [0.0, vp.speed_limit_alt_m, hc], [v_ground, vp.climb_speed_mps, vp.cruise_mps]
+            h,
+            [h_rwy, hs, max(vp.cruise_alt_m, hs + 1.0)],
+            [v_ground, vp.climb_speed_mps, vp.cruise_mps],
         )
 
     def cap(self, d):
