@@ -2,6 +2,7 @@
 plausibility of whole truths on a 429 km and a 7,600 km (antimeridian) route."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -14,6 +15,7 @@ from imugen.geodesic import densify
 from imugen.tables import truth as col
 from imugen.truth import build_truth
 from imugen.truth.flight import FlightPlan
+from imugen.truth.report import _warnings
 from imugen.truth.vehicles import VEHICLES, vehicle_params
 
 GEOD = Geod(ellps="WGS84")
@@ -104,6 +106,10 @@ def _check_truth(tr, meta, vp, origin):
     assert rate.max() <= vp.climb_rate_mps * 1.01
     assert rate.min() >= -speed.max() * math.sin(vp.descent_angle_rad) * 1.01
     assert rep["max_abs_roll_airborne_deg"] <= math.degrees(math.atan(vp.lat_accel_mps2 / 9.78))
+    # coordinated flight: pitch is the flight-path angle, steepest just after rotation
+    assert rep["max_abs_pitch_airborne_deg"] <= math.degrees(
+        math.atan(vp.climb_rate_mps / vp.rotate_mps)
+    ) * (1 + 1e-3)
     assert rep["max_abs_roll_deg"] == 0.0 or rep["max_abs_roll_deg"] < 1e-6
     assert rep["max_accel_mps2"] <= vp.accel_mps2 * 1.05
     assert rep["time_airborne_s"] > 0.8 * (t[-1] - t[0])
@@ -122,6 +128,16 @@ def test_429_km_flight_at_6800_m_is_plausible():
     *_, h = _check_truth(tr, tm, vp, (lat[0], lon[0], 100.0))
     assert tm["timing"]["flight"]["top_m"] == 6800.0
     assert h.min() >= 100.0 - 1e-3  # never below the runways
+    rep = tm["plausibility"]
+    tight = replace(
+        vp,
+        max_pitch_airborne_rad=math.radians(rep["max_abs_pitch_airborne_deg"] - 0.1),
+        max_yaw_rate_airborne_radps=math.radians(rep["max_yaw_rate_airborne_dps"] - 0.01),
+    )
+    assert [w.split(" reaches")[0] for w in _warnings(rep, tight)] == [
+        "|pitch| in flight",
+        "turn rate in flight",
+    ]
     # flown at the phases' speed caps except while accelerating: the time along the plan at
     # its caps is a lower bound, exceeded by little
     plan = FlightPlan(tm["timing"]["flight"]["length_m"], 100.0, 100.0, vp)

@@ -24,7 +24,8 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
 * fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
   ``fit_floor_m``.
 * plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
-  ``max_accel_mps2`` and the attitude bounds above.
+  ``max_accel_mps2``, the attitude bounds above and, in flight, ``max_pitch_airborne_rad``
+  and ``max_yaw_rate_airborne_radps`` (default unbounded).
 * flight phases of untimed routes (``phases``, :mod:`imugen.truth.flight`): ``taxi_mps``,
   ``taxi_m``, ``rotate_mps``, ``climb_rate_mps``, ``climb_speed_mps``,
   ``speed_limit_alt_m``, ``cruise_alt_m``, ``descent_angle_rad``, ``approach_mps``,
@@ -69,6 +70,8 @@ class VehicleParams:
     stop_radius_m: float = 1.0
     fit_tol_max_m: float = 5.0
     fit_floor_m: float = 1e-3
+    max_pitch_airborne_rad: float = math.inf
+    max_yaw_rate_airborne_radps: float = math.inf
     phases: bool = False
     taxi_mps: float = 8.0
     taxi_m: float = 1000.0
@@ -157,7 +160,8 @@ VEHICLES = {
     # FL350 (10,668 m) at Mach 0.80 (236 m/s TAS, 850 km/h); descent on a 3 deg path (the
     # glide slope; 3 NM per 1,000 ft) to Vapp 70 m/s (136 kt), braking at 2 m/s^2; changes
     # of flight-path angle at <= 1 m/s^2 (0.1 g) vertical; turns at <= 25 deg bank (4.57
-    # m/s^2 lateral), plausible up to 35 deg; waypoint corners rounded over 5 km; the ground
+    # m/s^2 lateral), plausible up to 35 deg bank, 15 deg pitch and 5 deg/s of turn (a
+    # rate-one turn is 3 deg/s); waypoint corners rounded over 5 km; the ground
     # model (a taxiing vehicle) below 80 m/s and 20 m above the runway, flight above 100 m/s
     # or 40 m
     "airliner": VehicleParams(
@@ -172,6 +176,8 @@ VEHICLES = {
         heading_smooth_m=5.0,
         grade_smooth_m=50.0,
         max_roll_rad=0.61,
+        max_pitch_airborne_rad=0.26,
+        max_yaw_rate_airborne_radps=0.087,
         max_speed_mps=300.0,
         max_accel_mps2=30.0,
         airborne_speed_mps=100.0,
