@@ -111,7 +111,7 @@ def _check_truth(tr, meta, vp, origin):
         math.atan(vp.climb_rate_mps / vp.rotate_mps)
     ) * (1 + 1e-3)
     assert rep["max_abs_roll_deg"] == 0.0 or rep["max_abs_roll_deg"] < 1e-6
-    assert rep["max_accel_mps2"] <= vp.accel_mps2 * 1.05
+    assert rep["max_accel_mps2"] <= math.hypot(vp.accel_mps2, vp.lat_accel_mps2) * 1.02
     assert rep["time_airborne_s"] > 0.8 * (t[-1] - t[0])
     return lat, lon, h
 

@@ -161,7 +161,8 @@ VEHICLES = {
     # glide slope; 3 NM per 1,000 ft) to Vapp 70 m/s (136 kt), braking at 2 m/s^2; changes
     # of flight-path angle at <= 1 m/s^2 (0.1 g) vertical; turns at <= 25 deg bank (4.57
     # m/s^2 lateral), plausible up to 35 deg bank, 15 deg pitch and 5 deg/s of turn (a
-    # rate-one turn is 3 deg/s); waypoint corners rounded over 5 km; the ground
+    # rate-one turn is 3 deg/s); waypoint corners rounded over 2 km (a 30 deg
+    # waypoint is then turned at ~22 deg bank at 214 m/s, cut by ~330 m like a fly-by turn); the ground
     # model (a taxiing vehicle) below 80 m/s and 20 m above the runway, flight above 100 m/s
     # or 40 m
     "airliner": VehicleParams(
@@ -170,7 +171,7 @@ VEHICLES = {
         2.0,
         4.57,
         1.0,
-        5_000.0,
+        2_000.0,
         max_curvature_1pm=0.05,
         max_pitch_rad=0.087,
         heading_smooth_m=5.0,
