@@ -174,3 +174,30 @@ def test_route_with_heights_keeps_them_and_other_classes_have_no_phases():
     assert G2 is G and L2 == L and rep["heights"] == "route's own"
     assert cap(0.0) == VP.taxi_mps
     assert not any(VEHICLES[v].phases for v in ("car", "bicycle", "pedestrian", "aircraft"))
+
+
+def test_speed_profile_follows_the_phase_caps():
+    """Under each cap but for the jerk filter's rounding of the profile's corners: its
+    triangular kernel of half-width Tf lifts the end of a braking at ``accel`` by at most
+    ``accel Tf / 6`` (the mean of the kernel's positive half); time within 3 % of the time
+    at the caps."""
+    from scipy.interpolate import make_interp_spline
+
+    from imugen.truth.profile import speed_profile
+
+    D = 150e3
+    s = np.linspace(0.0, D, 1001)
+    G = make_interp_spline(s, np.column_stack([s, 0 * s, 0 * s]), k=5)
+    plan = FlightPlan(D, 0.0, 0.0, VP)
+    pp, rep = speed_profile(
+        G, D, cruise_mps=VP.cruise_mps, accel_mps2=VP.accel_mps2,
+        lat_accel_mps2=VP.lat_accel_mps2, jerk_mps3=VP.jerk_mps3, vmax_mps=plan.cap,
+    )  # fmt: skip
+    t = np.linspace(0.0, pp.x[-1], 200_001)
+    v = pp.derivative()(t)
+    excess = v - plan.cap(pp(t))
+    bound = VP.accel_mps2 * rep["filter_width_s"] / 6.0
+    assert 0.5 * bound < excess.max() <= bound + 1e-6
+    assert float(pp(pp.x[-1])) == pytest.approx(D) and abs(v[0]) + abs(v[-1]) < 1e-9
+    t_cap = float(np.sum(np.diff(plan.d) / (0.5 * (plan.v_cap[1:] + plan.v_cap[:-1]))))
+    assert t_cap <= pp.x[-1] <= 1.03 * t_cap
