@@ -84,6 +84,10 @@ def test_short_flight_levels_off_below_cruise_and_a_hop_is_taxied():
     higher = FlightPlan(150e3, 0.0, 0.0, vehicle_params("airliner", {"cruise_alt_m": 1e5}))
     assert higher.report["top_m"] == pytest.approx(r["top_m"], rel=0.01)
     assert r["top_of_climb_m"] <= r["top_of_descent_m"]
+    for D in (15e3, 20e3, 40e3):  # short hops: the transitions never overlap nor undershoot
+        p = FlightPlan(D, 0.0, 0.0, VP)
+        assert p.report["top_m"] > VP.airborne_height_m and p.h.min() >= 0.0
+        assert p.h.max() == pytest.approx(p.report["top_m"], abs=1e-6)
     hop = FlightPlan(6e3, 0.0, 0.0, VP)
     assert hop.report["top_m"] is None and np.all(hop.v_cap == VP.taxi_mps)
 

@@ -87,8 +87,13 @@ class FlightPlan:
         v_top_d = self._sched(tops, h1, vp.approach_mps)
         w_toc = _SMOOTHSTEP_PEAK * v_top_c * roc / av
         w_tod = _SMOOTHSTEP_PEAK * v_top_d**2 * tan_d / av
-        need = np.interp(tops - h0, xs, dc) + (tops - h1) / tan_d + 0.5 * (w_toc + w_tod)
-        ok = (need <= td - lo) & (tops - base >= vp.airborne_height_m)
+        climb_m = np.interp(tops - h0, xs, dc)
+        desc_m = (tops - h1) / tan_d
+        # the climb and descent fit, and no two transitions overlap
+        ok = (climb_m + desc_m + 0.5 * (w_toc + w_tod) <= td - lo) & (
+            tops - base >= vp.airborne_height_m
+        )
+        ok &= (climb_m >= 0.5 * (w_lo + w_toc)) & (desc_m >= 0.5 * (w_tod + w_td))
         self.report = {
             "taxi_m": vp.taxi_m,
             "takeoff_roll_m": roll,
@@ -97,7 +102,6 @@ class FlightPlan:
         }
         if not ok.any():
             self.h = np.interp(self.d, [0.0, D], [h0, h1])
-            self.h_raw = self.h
             self.v_cap = np.full_like(self.d, vp.taxi_mps)
             self.report.update(phases="taxi only (too short to fly)", top_m=None)
             return
@@ -126,7 +130,7 @@ class FlightPlan:
             m = np.abs(d - dk) < 0.5 * w
             x = d[m] - dk
             h[m] += dg * (w * _ramp_integral(x / w + 0.5) - np.maximum(x, 0.0))
-        self.h_raw, self.h = h_raw, h
+        self.h = h
         # the speed cap of each phase (continuous: the schedule of the raw height)
         v = np.full_like(d, vp.taxi_mps)
         roll_m = (d >= vp.taxi_m) & (d <= lo)
