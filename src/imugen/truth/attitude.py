@@ -149,8 +149,7 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
     if ground is not None and air:
         q_g = np.empty((K, 4))
         w_g = np.empty((K, 3))
-        p_s = motion.position(np.linspace(motion.t0, motion.t1, 20001))
-        h_low = float(_height_rate(E, p_s, p_s)[0].min())
+        h_low = float(_height(E, motion.position(np.linspace(motion.t0, motion.t1, 20001))).min())
     acc_ss, acc_max, jerk_max = 0.0, 0.0, 0.0
     s_prev = 0.0
     for k0 in range(0, K, chunk):
@@ -182,8 +181,10 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
         if air:
             # airborne: fast, or well above the lowest point of the route (a slow glider)
             bs, dbs = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
-            h, h_d = _height_rate(E, p, v)
-            bh, dbh = _smoothstep(h - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m)
+            h_d = v[:, 2] if E.flat else E.local(p, v)[1][:, 2]  # up velocity at the vehicle
+            bh, dbh = _smoothstep(
+                _height(E, p) - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m
+            )
             beta[k0:k1] = 1.0 - (1.0 - bs) * (1.0 - bh)
             beta_d[k0:k1] = dbs * spd_d * (1.0 - bh) + dbh * h_d * (1.0 - bs)
             q_g[k0:k1] = rot.dcm_to_quat(C)
@@ -209,12 +210,10 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
     return f_n_all, stats
 
 
-def _height_rate(E, p, v):
-    """Height above the ellipsoid [m] (``u`` when flat) and its rate, the up velocity at the
-    vehicle [m/s], each shape (m,): far from the origin ``u`` is not a height."""
-    if E.flat:
-        return p[:, 2], v[:, 2]
-    return E.frame.geodetic_from_n(p)[2], E.local(p, v)[1][:, 2]
+def _height(E, p):
+    """Height above the ellipsoid [m] (``u`` when flat), shape (m,): far from the origin ``u``
+    is not a height."""
+    return p[:, 2] if E.flat else E.frame.geodetic_from_n(p)[2]
 
 
 def _blend_ground_air(out, ci, q_g, w_g, beta, beta_d):
