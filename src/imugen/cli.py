@@ -693,7 +693,7 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--vehicle",
-        choices=["car", "bicycle", "pedestrian", "aircraft"],
+        choices=["car", "bicycle", "pedestrian", "aircraft", "airliner"],
         default="car",
         help="vehicle model of the truth motion",
     )

@@ -31,7 +31,9 @@ Time
     1 point per second); it is ignored (with a warning) when the file has a usable clock.
 Untimed paths
     Consecutive repeated positions are dropped (a path without a clock has no stops); the truth
-    stage later gives it a clock from a speed profile.
+    stage later gives it a clock from a speed profile. Geodetic vertices farther apart than
+    500 m are joined by the WGS-84 geodesic (points added every <= 500 m, height linear in
+    distance; :mod:`imugen.geodesic`), not by the chord; meta ``geodesic``.
 Origin
     ``origin`` if given, else the origin recorded by an earlier ``imugen ingest`` (CSV stage),
     else the first point. E N U rows are placed on the Earth by putting their first row at the
@@ -53,6 +55,7 @@ from imugen import __version__, limits
 from imugen.clean import clean_path
 from imugen.errors import InputError
 from imugen.frames import LocalFrame, Origin, to_utm, utm_crs
+from imugen.geodesic import GEODESIC_STEP_M, densify, sagitta_m
 from imugen.io import atomic_output
 from imugen.readers import read_route_file
 from imugen.route import RoutePath, iso_utc
@@ -341,6 +344,20 @@ def ingest(
         )  # fmt: skip
 
 
+def _densify_untimed(lat, lon, alt):
+    """Untimed geodetic path: vertices joined by geodesics (:func:`imugen.geodesic.densify`);
+    returns the densified lat, lon, alt and the metadata entry."""
+    n = len(lat)
+    lat, lon, alt, _ = densify(lat, lon, alt, GEODESIC_STEP_M)
+    meta = {
+        "method": "WGS-84 geodesics between the vertices (pyproj.Geod), height linear in distance",
+        "step_m": GEODESIC_STEP_M,
+        "sagitta_m": sagitta_m(GEODESIC_STEP_M),
+        "points_added": len(lat) - n,
+    }
+    return lat, lon, alt, meta
+
+
 def _ingest(
     src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s, vehicle, max_gap_s, gaps
 ) -> Ingested:
@@ -430,6 +447,9 @@ def _ingest(
             f"path {p.name!r} has fewer than two distinct points: all points are the same location",
         )
 
+    geodesic = None
+    if not timed and p.enu_m is None:
+        lat, lon, alt, geodesic = _densify_untimed(lat, lon, alt)
     if origin is None:
         origin = Origin(float(lat[0]), float(lon[0]), float(alt[0]))
         origin_from = "first point"
@@ -520,6 +540,7 @@ def _ingest(
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
         "cleaning": cleaning,
+        "geodesic": geodesic,
         "segments": segments,
         "utm": utm_meta,
         "notes": list(p.notes),

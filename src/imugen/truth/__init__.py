@@ -51,9 +51,10 @@ are the Euler-angle rates plus the transport rate of the local level, exact.
 perpendicular to it (coordinated turn, no sideslip; loops and vertical flight work because
 nothing is measured in Euler angles); rates analytic from velocity, acceleration and jerk;
 held below ``hold_speed_mps`` by ``q_hold Exp(w Log(q_hold^-1 q_target))``. Between the
-ground (slow and low) and flight (fast, or high above the route's lowest point: see
-``airborne_speed_mps``, ``airborne_height_m``) the attitudes are blended the same way, with the
-exact rate of the blend.
+ground (slow and low) and flight (fast, or high above the route's lowest point, in ellipsoidal
+height: see ``airborne_speed_mps``, ``airborne_height_m``) the attitudes are blended the same
+way, with the exact rate of the blend; ground limits are checked where the ground attitude is
+used alone. Untimed ``airliner`` routes are flown in phases (:mod:`imugen.truth.flight`).
 
 Every truth carries a plausibility report (:mod:`imugen.truth.report`).
 

@@ -71,9 +71,9 @@ class EarthField:
         self.Omega = ea.earth_rate_n(frame)
 
     def height(self, p):
-        """Height of the vehicle for the attitude logic, (m,) [m]: n's Up in ``flat`` and
-        ``wgs84`` (scenes near their origin), the ellipsoidal height in ``geodetic``."""
-        return self.frame.geodetic_from_n(p)[2] if self.ecef else p[:, 2]
+        """Height of the vehicle for the attitude logic, (m,) [m]: n's Up in ``flat``, the
+        ellipsoidal height otherwise (far from the origin ``u`` is not a height)."""
+        return p[:, 2] if self.flat else self.frame.geodetic_from_n(p)[2]
 
     def horizontal_speed(self, p, v, a=None):
         """Horizontal speed ``v_h`` (m,) and, with ``a``, its rate (m,): in n's East-North
@@ -197,9 +197,10 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
         if air:
             # airborne: fast, or well above the lowest point of the route (a slow glider)
             bs, dbs = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
-            hgt = E.height(p)
-            bh, dbh = _smoothstep(hgt - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m)
-            h_d = E.local(p, v)[1][:, 2] if E.ecef else v[:, 2]
+            h_d = v[:, 2] if E.flat else E.local(p, v)[1][:, 2]  # up velocity at the vehicle
+            bh, dbh = _smoothstep(
+                E.height(p) - h_low, 0.5 * vp.airborne_height_m, vp.airborne_height_m
+            )
             beta[k0:k1] = 1.0 - (1.0 - bs) * (1.0 - bh)
             beta_d[k0:k1] = dbs * spd_d * (1.0 - bh) + dbh * h_d * (1.0 - bs)
             q_g[k0:k1] = rot.dcm_to_quat(C)
@@ -220,7 +221,8 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
         stats["max_blend_angle_rad"] = phi_max
         if ground is not None:
             stats["max_ground_air_angle_rad"] = _blend_ground_air(out, ci, q_g, w_g, beta, beta_d)
-    stats["airborne"] = beta >= 0.5 if air else np.zeros(K, dtype=bool)
+    # airborne: any flight attitude blended in (ground limits hold where the ground model is alone)
+    stats["airborne"] = beta > 0.0 if air else np.zeros(K, dtype=bool)
     return f_n_all, stats
 
 
@@ -433,7 +435,7 @@ class GroundAttitude:
             t_in, h_in = heights
             s_in = np.interp(t_in, tg, sg)
         else:
-            s_in, h_in = sg, self._height(motion.position(tg))
+            s_in, h_in = sg, self.E.height(motion.position(tg))
         H, grep = fit_height_profile(
             s_in, h_in, noise_up_m, vp.grade_bin_m, vp.grade_smooth_m, vp.fit_floor_m
         )
@@ -443,9 +445,6 @@ class GroundAttitude:
             theta, _ = soft_bound(np.arctan(H.derivative(1)(sn)), vp.max_pitch_rad)
         self.Theta = _node_spline(theta, ds)
         self.report["grade"] = grep
-
-    def _height(self, p):
-        return p[:, 2] if self.E.flat else self.E.frame.geodetic_from_n(p)[2]
 
     def distance_steps(self, motion, t):
         """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre

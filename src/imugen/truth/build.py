@@ -17,6 +17,7 @@ from imugen.tables import truth as col
 from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
+from imugen.truth.flight import flight_geometry
 from imugen.truth.increments import imu_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
@@ -95,15 +96,21 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
         timing = {"timed": True, "source": "input clock"}
     else:
         G, L, fit = fit_path(y, vp, opts.corner_m)
+        vmax, plan = None, None
+        if vp.phases:
+            alt = enu[tenu.ALT].to_numpy(float) if tenu.ALT in enu.columns else y[:, 2]
+            G, L, vmax, plan = flight_geometry(G, L, _origin(meta), alt, vp)
         prof = {
             "cruise_mps": opts.cruise_mps or vp.cruise_mps,
             "accel_mps2": opts.accel_mps2 or vp.accel_mps2,
             "lat_accel_mps2": opts.lat_accel_mps2 or vp.lat_accel_mps2,
             "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
         }
-        s_pp, rep = speed_profile(G, L, **prof)
+        s_pp, rep = speed_profile(G, L, **prof, vmax_mps=vmax)
         motion = PathMotion(G, s_pp, L)
         timing = {"timed": False, "source": "speed profile", **rep}
+        if plan is not None:
+            timing["flight"] = plan
     return motion, fit, timing
 
 

@@ -371,11 +371,7 @@ def fit_path(y, vp: VehicleParams, corner_m=None):
     s = np.r_[0.0, np.cumsum(0.5 * h * (speed @ wg))]
     L = float(s[-1])
     G = make_interp_spline(s, g(uf), k=K_SPLINE)
-    # distance from input vertices to the smoothed curve (nearest fine sample)
-    from scipy.spatial import cKDTree
-
-    sf = np.linspace(0.0, L, max(2, int(np.ceil(L / (step / 8.0))) + 1))
-    d, _ = cKDTree(G(sf)).query(y)
+    d = _distance_to_curve(G, L, y, step / 8.0)
     report = {
         "method": "quintic penalized smoothing spline of the densified polyline vs chord "
         "length, re-parameterized by arc length",
@@ -386,6 +382,27 @@ def fit_path(y, vp: VehicleParams, corner_m=None):
         "length_m": L,
     }
     return G, L, report
+
+
+def _distance_to_curve(G, L, y, spacing):
+    """Distance [m] of each point ``y`` (N, 3) to the curve ``G(s)``, s in [0, L]: to the
+    polyline of samples ``spacing`` apart next to the nearest sample (chord error
+    ``spacing^2 kappa / 8``, not the ``spacing / 2`` of the nearest sample alone)."""
+    from scipy.spatial import cKDTree
+
+    sf = np.linspace(0.0, L, max(2, int(np.ceil(L / spacing)) + 1))
+    P = G(sf)
+    _, k = cKDTree(P).query(y)
+    best = np.full(len(y), np.inf)
+    for a in (np.maximum(k - 1, 0), k):
+        b = np.minimum(a + 1, len(P) - 1)
+        seg = P[b] - P[a]
+        w = np.einsum("ij,ij->i", y - P[a], seg) / np.maximum(
+            np.einsum("ij,ij->i", seg, seg), 1e-30
+        )
+        q = P[a] + np.clip(w, 0.0, 1.0)[:, None] * seg
+        best = np.minimum(best, np.linalg.norm(y - q, axis=1))
+    return best
 
 
 # ------------------------------------------------------------------------------------------

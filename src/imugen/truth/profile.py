@@ -65,12 +65,15 @@ def speed_profile(
     accel_mps2,
     lat_accel_mps2,
     jerk_mps3,
+    vmax_mps=None,
     max_iter=30,
     lat_tol=0.01,
 ):
     """Speed profile s(t) along the geometry; returns (PPoly s(t), report).
 
     The profile starts and ends at rest; see the module docstring for the construction.
+    ``vmax_mps`` (callable of the arc length [m], optional) caps the speed along the path
+    (the phases of a flight, :mod:`imugen.truth.flight`).
     """
     for name, val in (
         ("cruise speed", cruise_mps),
@@ -86,8 +89,10 @@ def speed_profile(
     kappa = curvature(G, s)
     A = accel_mps2
     scale_lim = np.ones_like(s)
+    cap2 = np.full_like(s, cruise_mps**2) if vmax_mps is None else np.asarray(vmax_mps(s)) ** 2
+    cap2 = np.minimum(cap2, cruise_mps**2)
     for it in range(max_iter):  # noqa: B007 (reported below)
-        vlim2 = np.minimum(cruise_mps**2, lat_accel_mps2 / np.maximum(kappa, 1e-12)) * scale_lim
+        vlim2 = np.minimum(cap2, lat_accel_mps2 / np.maximum(kappa, 1e-12)) * scale_lim
         vlim2[0] = vlim2[-1] = 0.0
         fwd = 2 * A * s + np.minimum.accumulate(vlim2 - 2 * A * s)
         bwd = -2 * A * s + np.minimum.accumulate((vlim2 + 2 * A * s)[::-1])[::-1]

@@ -139,6 +139,7 @@ def plausibility(
         "max_abs_pitch_airborne_deg": math.degrees(mx(pitch, air)),
         "max_abs_roll_airborne_deg": math.degrees(mx(roll, air)),
         "max_yaw_rate_dps": math.degrees(mx(yaw_rate)),
+        "max_yaw_rate_airborne_dps": math.degrees(mx(yaw_rate, air[1:] & air[:-1])),
         "max_yaw_rate_excess_dps": math.degrees(max(0.0, float(np.max(yaw_excess[gi], initial=0)))),
         "max_speed_mps": float(speed.max()),
         "max_accel_mps2": mx(np.linalg.norm(acc, axis=1)),
@@ -176,6 +177,16 @@ def _warnings(r, vp) -> list[str]:
         )
     if r["max_abs_roll_airborne_deg"] > math.degrees(vp.max_roll_rad) + 1e-6:
         out.append(f"bank reaches {r['max_abs_roll_airborne_deg']:.1f} deg")
+    if r["max_abs_pitch_airborne_deg"] > math.degrees(vp.max_pitch_airborne_rad):
+        out.append(
+            f"|pitch| in flight reaches {r['max_abs_pitch_airborne_deg']:.1f} deg "
+            f"(limit {math.degrees(vp.max_pitch_airborne_rad):.1f})"
+        )
+    if r["max_yaw_rate_airborne_dps"] > math.degrees(vp.max_yaw_rate_airborne_radps):
+        out.append(
+            f"turn rate in flight reaches {r['max_yaw_rate_airborne_dps']:.2f} deg/s "
+            f"(limit {math.degrees(vp.max_yaw_rate_airborne_radps):.2f})"
+        )
     if r["max_yaw_rate_excess_dps"] > math.degrees(YAW_EXCESS_TOL_RADPS):
         out.append(
             f"yaw rate exceeds speed x max curvature ({vp.max_curvature_1pm:g}/m) by "

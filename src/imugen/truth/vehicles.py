@@ -24,7 +24,13 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
 * fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
   ``fit_floor_m``.
 * plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
-  ``max_accel_mps2`` and the attitude bounds above.
+  ``max_accel_mps2``, the attitude bounds above and, in flight, ``max_pitch_airborne_rad``
+  and ``max_yaw_rate_airborne_radps`` (default unbounded).
+* flight phases of untimed routes (``phases``, :mod:`imugen.truth.flight`): ``taxi_mps``,
+  ``taxi_m``, ``rotate_mps``, ``climb_rate_mps``, ``climb_speed_mps``,
+  ``speed_limit_alt_m``, ``cruise_alt_m``, ``descent_angle_rad``, ``approach_mps``,
+  ``vertical_accel_mps2``; ``cruise_mps`` is the speed at ``cruise_alt_m`` and
+  ``accel_mps2`` that of the take-off roll and of the braking after touchdown.
 """
 
 from __future__ import annotations
@@ -64,6 +70,19 @@ class VehicleParams:
     stop_radius_m: float = 1.0
     fit_tol_max_m: float = 5.0
     fit_floor_m: float = 1e-3
+    max_pitch_airborne_rad: float = math.inf
+    max_yaw_rate_airborne_radps: float = math.inf
+    phases: bool = False
+    taxi_mps: float = 8.0
+    taxi_m: float = 1000.0
+    rotate_mps: float = 75.0
+    climb_rate_mps: float = 10.16
+    climb_speed_mps: float = 128.6
+    speed_limit_alt_m: float = 3048.0
+    cruise_alt_m: float = 10668.0
+    descent_angle_rad: float = 0.0524
+    approach_mps: float = 70.0
+    vertical_accel_mps2: float = 1.0
 
 
 VEHICLES = {
@@ -133,6 +152,43 @@ VEHICLES = {
         stop_speed_mps=0.5,
         stop_radius_m=3.0,
         fit_tol_max_m=20.0,
+    ),
+    # airliner (A320 / B737-800 class), flown in phases when untimed (imugen.truth.flight):
+    # taxi 8 m/s (~15 kt) for 1 km at each end; take-off roll at 2 m/s^2 (0.2 g; ~1.4 km to
+    # rotation) to Vr 75 m/s (146 kt); climb 2,000 ft/min (10.16 m/s) with 250 kt
+    # (128.6 m/s) at FL100 (the speed limit below 10,000 ft, 14 CFR 91.117) and cruise at
+    # FL350 (10,668 m) at Mach 0.80 (236 m/s TAS, 850 km/h); descent on a 3 deg path (the
+    # glide slope; 3 NM per 1,000 ft) to Vapp 70 m/s (136 kt), braking at 2 m/s^2; changes
+    # of flight-path angle at <= 1 m/s^2 (0.1 g) vertical; turns at <= 25 deg bank (4.57
+    # m/s^2 lateral), plausible up to 35 deg bank, 15 deg pitch and 5 deg/s of turn (a
+    # rate-one turn is 3 deg/s); waypoint corners rounded over 2 km (a 30 deg
+    # waypoint is then turned at ~22 deg bank at 214 m/s, cut by ~330 m like a fly-by turn); the ground
+    # model (a taxiing vehicle) below 80 m/s and 20 m above the runway, flight above 100 m/s
+    # or 40 m
+    "airliner": VehicleParams(
+        "coordinated",
+        236.0,
+        2.0,
+        4.57,
+        1.0,
+        2_000.0,
+        max_curvature_1pm=0.05,
+        max_pitch_rad=0.087,
+        heading_smooth_m=5.0,
+        grade_smooth_m=50.0,
+        max_roll_rad=0.61,
+        max_pitch_airborne_rad=0.26,
+        max_yaw_rate_airborne_radps=0.087,
+        max_speed_mps=300.0,
+        max_accel_mps2=30.0,
+        airborne_speed_mps=100.0,
+        airborne_height_m=40.0,
+        hold_speed_mps=(0.5, 2.0),
+        hold_perp=(0.3, 1.0),
+        stop_speed_mps=0.5,
+        stop_radius_m=3.0,
+        fit_tol_max_m=20.0,
+        phases=True,
     ),
 }
 
