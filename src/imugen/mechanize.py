@@ -45,6 +45,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 from imugen import earth
 from imugen.earth import OriginFrame
@@ -175,6 +178,33 @@ def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -
 
 
 # --- numba kernel --------------------------------------------------------------------------------
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (the CPU's fused multiply-add; float64 only).
+
+    Explicit, so results do not depend on where a compiler chooses to contract (numba's
+    ``fastmath`` would also reach every callee, e.g. the shared gravitation).
+    """
+    if not all(isinstance(x, types.Float) for x in (a, b, c)):
+        return None
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(d, [d, d, d]), "llvm.fma.f64"
+        )
+        return builder.call(
+            fn,
+            [
+                context.cast(builder, v, t, types.float64)
+                for v, t in zip(args, signature.args, strict=True)
+            ],
+        )
+
+    return sig, codegen
+
+
 @njit(cache=True, inline="always")
 def _qexpm1(x, y, z):
     """Exp of a rotation vector as a quaternion minus identity: (cos(t/2) - 1, sin(t/2)/t v).
@@ -182,13 +212,17 @@ def _qexpm1(x, y, z):
     Series for |t| < 0.1 (exact in float64), closed form otherwise; no cancellation in the
     scalar part.
     """
-    t2 = x * x + y * y + z * z
+    t2 = _fma(x, x, _fma(y, y, z * z))
     if t2 < 1e-2:
         a2 = 0.25 * t2
-        cm1 = -a2 * (0.5 - a2 * (1.0 / 24.0 - a2 * (1.0 / 720.0 - a2 * (1.0 / 40320.0))))
-        s = 0.5 * (
-            1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0 - a2 * (1.0 / 5040.0 - a2 / 362880.0)))
-        )
+        c = _fma(a2, -1.0 / 40320.0, 1.0 / 720.0)
+        c = _fma(a2, -c, 1.0 / 24.0)
+        c = _fma(a2, -c, 0.5)
+        cm1 = -a2 * c
+        s = _fma(a2, -1.0 / 362880.0, 1.0 / 5040.0)
+        s = _fma(a2, -s, 1.0 / 120.0)
+        s = _fma(a2, -s, 1.0 / 6.0)
+        s = _fma(-0.5 * a2, s, 0.5)
     else:
         t = math.sqrt(t2)
         sq = math.sin(0.25 * t)
@@ -208,15 +242,26 @@ def _qmul(aw, ax, ay, az, bw, bx, by, bz):
 
 
 @njit(cache=True, inline="always")
+def _qmul_f(aw, ax, ay, az, bw, bx, by, bz):
+    """``_qmul`` with fused multiply-adds, in two balanced halves (short dependency chain)."""
+    return (
+        _fma(aw, bw, -ax * bx) - _fma(ay, by, az * bz),
+        _fma(aw, bx, ax * bw) + _fma(ay, bz, -az * by),
+        _fma(aw, by, -ax * bz) + _fma(ay, bw, az * bx),
+        _fma(aw, bz, ax * by) + _fma(-ay, bx, az * bw),
+    )
+
+
+@njit(cache=True, inline="always")
 def _qrot(qw, qx, qy, qz, vx, vy, vz):
     """Rotate v by q (C(q) v): v + w t + q_vec x t with t = 2 q_vec x v."""
-    tx = 2.0 * (qy * vz - qz * vy)
-    ty = 2.0 * (qz * vx - qx * vz)
-    tz = 2.0 * (qx * vy - qy * vx)
+    tx = 2.0 * _fma(qy, vz, -qz * vy)
+    ty = 2.0 * _fma(qz, vx, -qx * vz)
+    tz = 2.0 * _fma(qx, vy, -qy * vx)
     return (
-        vx + qw * tx + (qy * tz - qz * ty),
-        vy + qw * ty + (qz * tx - qx * tz),
-        vz + qw * tz + (qx * ty - qy * tx),
+        _fma(qw, tx, vx) + _fma(qy, tz, -qz * ty),
+        _fma(qw, ty, vy) + _fma(qz, tx, -qx * tz),
+        _fma(qw, tz, vz) + _fma(qx, ty, -qy * tx),
     )
 
 
@@ -604,18 +649,16 @@ def _att_step(q0, q1, q2, q3, qc0, qc1, qc2, qc3, x, y, z):
     """q <- q (x) Exp(dtheta), as q + dq with dq computed from small quantities, renormalized
     to first order and added with a compensated sum (no systematic rounding drift)."""
     em0, e1, e2, e3 = _qexpm1(x, y, z)
-    d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
+    d0, d1, d2, d3 = _qmul_f(q0, q1, q2, q3, em0, e1, e2, e3)
     # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
-    eps = (
-        ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
-        + 2.0 * (q0 * d0 + q1 * d1 + q2 * d2 + q3 * d3)
-        + (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
-    )
-    h = -0.5 * eps
-    d0 += h * (q0 + d0)
-    d1 += h * (q1 + d1)
-    d2 += h * (q2 + d2)
-    d3 += h * (q3 + d3)
+    # = (|q|^2 - 1) + |q|^2 (|1 + e|^2 - 1) (|q (x) x| = |q| |x|): off the q -> dq chain
+    ne = _fma(em0, 2.0 + em0, _fma(e1, e1, _fma(e2, e2, e3 * e3)))
+    nq = _fma(q0, q0, q1 * q1) + _fma(q2, q2, q3 * q3)
+    h = -0.5 * _fma(nq, ne, nq - 1.0)
+    d0 = _fma(h, q0 + d0, d0)
+    d1 = _fma(h, q1 + d1, d1)
+    d2 = _fma(h, q2 + d2, d2)
+    d3 = _fma(h, q3 + d3, d3)
     q0, qc0 = _kahan(q0, qc0, d0)
     q1, qc1 = _kahan(q1, qc1, d1)
     q2, qc2 = _kahan(q2, qc2, d2)
