@@ -400,9 +400,9 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                     nx = Ax + ax
                     ny = Ay + ay
                     nz = Az + az
-                    Px += c12 * (5.0 * nx + 8.0 * Ax - bx)
-                    Py += c12 * (5.0 * ny + 8.0 * Ay - by)
-                    Pz += c12 * (5.0 * nz + 8.0 * Az - bz)
+                    Px = _fma(c12, _fma(5.0, nx, _fma(8.0, Ax, -bx)), Px)
+                    Py = _fma(c12, _fma(5.0, ny, _fma(8.0, Ay, -by)), Py)
+                    Pz = _fma(c12, _fma(5.0, nz, _fma(8.0, Az, -bz)), Pz)
                     bx = Ax
                     by = Ay
                     bz = Az
@@ -590,9 +590,9 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 py, pcy = _kahan(py, pcy, hdt * (vy + ovy))
                 pz, pcz = _kahan(pz, pcz, hdt * (vz + ovz))
             else:
-                px, pcx = _kahan(px, pcx, c12 * (5.0 * vx + 8.0 * ovx - vpx))
-                py, pcy = _kahan(py, pcy, c12 * (5.0 * vy + 8.0 * ovy - vpy))
-                pz, pcz = _kahan(pz, pcz, c12 * (5.0 * vz + 8.0 * ovz - vpz))
+                px, pcx = _kahan(px, pcx, c12 * _fma(5.0, vx, _fma(8.0, ovx, -vpx)))
+                py, pcy = _kahan(py, pcy, c12 * _fma(5.0, vy, _fma(8.0, ovy, -vpy)))
+                pz, pcz = _kahan(pz, pcz, c12 * _fma(5.0, vz, _fma(8.0, ovz, -vpz)))
             q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
                 q0, q1, q2, q3, qc0, qc1, qc2, qc3, dth[s, i, 0], dth[s, i, 1], dth[s, i, 2]
             )
