@@ -363,6 +363,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     abuf = np.empty((m + 1, 3))  # A_j: sums of the resolved specific-force increments
     pbuf = np.empty((m + 1, 3))  # QA_j: their position effect
     qbuf = np.empty((m + 1, 4))
+    fbuf = np.empty((m, 3))  # a_j = C_Ib dv_j of the block's steps
     abuf[0] = 0.0
     pbuf[0] = 0.0
     for s in range(S):
@@ -384,46 +385,57 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 # specific force: running sums A_j and their 3-point position effect QA_j
                 # (relative to the block start; v_k-1 - v_k enters the first step)
                 inner = every - kw < m  # samples to store inside the block (buffers needed)
-                bx = vpx - vx  # A_(j-1), starting with v_(k-1) - v_k
-                by = vpy - vy
-                bz = vpz - vz
-                Ax = 0.0
-                Ay = 0.0
-                Az = 0.0
-                Px = 0.0
-                Py = 0.0
-                Pz = 0.0
+                # two short loops (few live values each, no register spills): attitude and
+                # resolved increments a_j, then A_j and the 3-point position effect
+                # QA_J = dt/12 (12 sum_(j<J) A_j + 5 A_J + A_(J-1) - A_(-1)), A_0 = 0
                 for j in range(m):
                     ax, ay, az = _qrot(
                         q0, q1, q2, q3, dvb[s, i + j, 0], dvb[s, i + j, 1], dvb[s, i + j, 2]
                     )
-                    nx = Ax + ax
-                    ny = Ay + ay
-                    nz = Az + az
-                    Px = _fma(c12, _fma(5.0, nx, _fma(8.0, Ax, -bx)), Px)
-                    Py = _fma(c12, _fma(5.0, ny, _fma(8.0, Ay, -by)), Py)
-                    Pz = _fma(c12, _fma(5.0, nz, _fma(8.0, Az, -bz)), Pz)
-                    bx = Ax
-                    by = Ay
-                    bz = Az
-                    Ax = nx
-                    Ay = ny
-                    Az = nz
+                    fbuf[j, 0] = ax
+                    fbuf[j, 1] = ay
+                    fbuf[j, 2] = az
                     q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
                         q0, q1, q2, q3, qc0, qc1, qc2, qc3,
                         dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
                     )  # fmt: skip
                     if inner:
-                        abuf[j + 1, 0] = Ax
-                        abuf[j + 1, 1] = Ay
-                        abuf[j + 1, 2] = Az
-                        pbuf[j + 1, 0] = Px
-                        pbuf[j + 1, 1] = Py
-                        pbuf[j + 1, 2] = Pz
                         qbuf[j + 1, 0] = q0 - qc0
                         qbuf[j + 1, 1] = q1 - qc1
                         qbuf[j + 1, 2] = q2 - qc2
                         qbuf[j + 1, 3] = q3 - qc3
+                b0x = vpx - vx  # A_(-1) = v_(k-1) - v_k
+                b0y = vpy - vy
+                b0z = vpz - vz
+                bx = b0x  # A_(j-1)
+                by = b0y
+                bz = b0z
+                Ax = 0.0
+                Ay = 0.0
+                Az = 0.0
+                Sx = 0.0  # sum_(j' < j) A_j'
+                Sy = 0.0
+                Sz = 0.0
+                for j in range(m):
+                    Sx += Ax
+                    Sy += Ay
+                    Sz += Az
+                    bx = Ax
+                    by = Ay
+                    bz = Az
+                    Ax += fbuf[j, 0]
+                    Ay += fbuf[j, 1]
+                    Az += fbuf[j, 2]
+                    if inner:
+                        abuf[j + 1, 0] = Ax
+                        abuf[j + 1, 1] = Ay
+                        abuf[j + 1, 2] = Az
+                        pbuf[j + 1, 0] = c12 * (_fma(12.0, Sx, _fma(5.0, Ax, bx)) - b0x)
+                        pbuf[j + 1, 1] = c12 * (_fma(12.0, Sy, _fma(5.0, Ay, by)) - b0y)
+                        pbuf[j + 1, 2] = c12 * (_fma(12.0, Sz, _fma(5.0, Az, bz)) - b0z)
+                Px = c12 * (_fma(12.0, Sx, _fma(5.0, Ax, bx)) - b0x)
+                Py = c12 * (_fma(12.0, Sy, _fma(5.0, Ay, by)) - b0y)
+                Pz = c12 * (_fma(12.0, Sz, _fma(5.0, Az, bz)) - b0z)
                 # predicted end position: gravitation extrapolated linearly from the nodes
                 e0 = QC[m, 0] + QC[m, 1]
                 e1 = QC[m, 1]
