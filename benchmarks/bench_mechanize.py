@@ -282,7 +282,9 @@ def run_pyins(df, frame, python, reps):
         return {"skipped": f"pyins interpreter {python!r} not found"}
     r = subprocess.run([python, "-c", "import pyins"], capture_output=True, text=True)
     if r.returncode != 0:
-        return {"skipped": f"pyins not importable with {python}: {r.stderr.strip()[-200:]}"}
+        return {
+            "skipped": f"pyins not importable with {python}: {r.stderr.strip().splitlines()[-1]}"
+        }
     T_ne = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # ENU -> NED
     T_bf = np.diag([1.0, -1.0, -1.0])  # FLU <-> FRD
     dth = df[list(col.DTHETA)].to_numpy()[1:] @ T_bf
