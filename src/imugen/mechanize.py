@@ -45,6 +45,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 from imugen import earth
 from imugen.earth import OriginFrame
@@ -175,6 +178,33 @@ def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -
 
 
 # --- numba kernel --------------------------------------------------------------------------------
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (the CPU's fused multiply-add; float64 only).
+
+    Explicit, so results do not depend on where a compiler chooses to contract (numba's
+    ``fastmath`` would also reach every callee, e.g. the shared gravitation).
+    """
+    if not all(isinstance(x, types.Float) for x in (a, b, c)):
+        return None
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(d, [d, d, d]), "llvm.fma.f64"
+        )
+        return builder.call(
+            fn,
+            [
+                context.cast(builder, v, t, types.float64)
+                for v, t in zip(args, signature.args, strict=True)
+            ],
+        )
+
+    return sig, codegen
+
+
 @njit(cache=True, inline="always")
 def _qexpm1(x, y, z):
     """Exp of a rotation vector as a quaternion minus identity: (cos(t/2) - 1, sin(t/2)/t v).
@@ -182,13 +212,17 @@ def _qexpm1(x, y, z):
     Series for |t| < 0.1 (exact in float64), closed form otherwise; no cancellation in the
     scalar part.
     """
-    t2 = x * x + y * y + z * z
+    t2 = _fma(x, x, _fma(y, y, z * z))
     if t2 < 1e-2:
         a2 = 0.25 * t2
-        cm1 = -a2 * (0.5 - a2 * (1.0 / 24.0 - a2 * (1.0 / 720.0 - a2 * (1.0 / 40320.0))))
-        s = 0.5 * (
-            1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0 - a2 * (1.0 / 5040.0 - a2 / 362880.0)))
-        )
+        c = _fma(a2, -1.0 / 40320.0, 1.0 / 720.0)
+        c = _fma(a2, -c, 1.0 / 24.0)
+        c = _fma(a2, -c, 0.5)
+        cm1 = -a2 * c
+        s = _fma(a2, -1.0 / 362880.0, 1.0 / 5040.0)
+        s = _fma(a2, -s, 1.0 / 120.0)
+        s = _fma(a2, -s, 1.0 / 6.0)
+        s = _fma(-0.5 * a2, s, 0.5)
     else:
         t = math.sqrt(t2)
         sq = math.sin(0.25 * t)
@@ -208,15 +242,26 @@ def _qmul(aw, ax, ay, az, bw, bx, by, bz):
 
 
 @njit(cache=True, inline="always")
+def _qmul_f(aw, ax, ay, az, bw, bx, by, bz):
+    """``_qmul`` with fused multiply-adds, in two balanced halves (short dependency chain)."""
+    return (
+        _fma(aw, bw, -ax * bx) - _fma(ay, by, az * bz),
+        _fma(aw, bx, ax * bw) + _fma(ay, bz, -az * by),
+        _fma(aw, by, -ax * bz) + _fma(ay, bw, az * bx),
+        _fma(aw, bz, ax * by) + _fma(-ay, bx, az * bw),
+    )
+
+
+@njit(cache=True, inline="always")
 def _qrot(qw, qx, qy, qz, vx, vy, vz):
     """Rotate v by q (C(q) v): v + w t + q_vec x t with t = 2 q_vec x v."""
-    tx = 2.0 * (qy * vz - qz * vy)
-    ty = 2.0 * (qz * vx - qx * vz)
-    tz = 2.0 * (qx * vy - qy * vx)
+    tx = 2.0 * _fma(qy, vz, -qz * vy)
+    ty = 2.0 * _fma(qz, vx, -qx * vz)
+    tz = 2.0 * _fma(qx, vy, -qy * vx)
     return (
-        vx + qw * tx + (qy * tz - qz * ty),
-        vy + qw * ty + (qz * tx - qx * tz),
-        vz + qw * tz + (qx * ty - qy * tx),
+        _fma(qw, tx, vx) + _fma(qy, tz, -qz * ty),
+        _fma(qw, ty, vy) + _fma(qz, tx, -qx * tz),
+        _fma(qw, tz, vz) + _fma(qx, ty, -qy * tx),
     )
 
 
@@ -318,6 +363,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     abuf = np.empty((m + 1, 3))  # A_j: sums of the resolved specific-force increments
     pbuf = np.empty((m + 1, 3))  # QA_j: their position effect
     qbuf = np.empty((m + 1, 4))
+    fbuf = np.empty((m, 3))  # a_j = C_Ib dv_j of the block's steps
     abuf[0] = 0.0
     pbuf[0] = 0.0
     for s in range(S):
@@ -339,46 +385,57 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 # specific force: running sums A_j and their 3-point position effect QA_j
                 # (relative to the block start; v_k-1 - v_k enters the first step)
                 inner = every - kw < m  # samples to store inside the block (buffers needed)
-                bx = vpx - vx  # A_(j-1), starting with v_(k-1) - v_k
-                by = vpy - vy
-                bz = vpz - vz
-                Ax = 0.0
-                Ay = 0.0
-                Az = 0.0
-                Px = 0.0
-                Py = 0.0
-                Pz = 0.0
+                # two short loops (few live values each, no register spills): attitude and
+                # resolved increments a_j, then A_j and the 3-point position effect
+                # QA_J = dt/12 (12 sum_(j<J) A_j + 5 A_J + A_(J-1) - A_(-1)), A_0 = 0
                 for j in range(m):
                     ax, ay, az = _qrot(
                         q0, q1, q2, q3, dvb[s, i + j, 0], dvb[s, i + j, 1], dvb[s, i + j, 2]
                     )
-                    nx = Ax + ax
-                    ny = Ay + ay
-                    nz = Az + az
-                    Px += c12 * (5.0 * nx + 8.0 * Ax - bx)
-                    Py += c12 * (5.0 * ny + 8.0 * Ay - by)
-                    Pz += c12 * (5.0 * nz + 8.0 * Az - bz)
-                    bx = Ax
-                    by = Ay
-                    bz = Az
-                    Ax = nx
-                    Ay = ny
-                    Az = nz
+                    fbuf[j, 0] = ax
+                    fbuf[j, 1] = ay
+                    fbuf[j, 2] = az
                     q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
                         q0, q1, q2, q3, qc0, qc1, qc2, qc3,
                         dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
                     )  # fmt: skip
                     if inner:
-                        abuf[j + 1, 0] = Ax
-                        abuf[j + 1, 1] = Ay
-                        abuf[j + 1, 2] = Az
-                        pbuf[j + 1, 0] = Px
-                        pbuf[j + 1, 1] = Py
-                        pbuf[j + 1, 2] = Pz
                         qbuf[j + 1, 0] = q0 - qc0
                         qbuf[j + 1, 1] = q1 - qc1
                         qbuf[j + 1, 2] = q2 - qc2
                         qbuf[j + 1, 3] = q3 - qc3
+                b0x = vpx - vx  # A_(-1) = v_(k-1) - v_k
+                b0y = vpy - vy
+                b0z = vpz - vz
+                bx = b0x  # A_(j-1)
+                by = b0y
+                bz = b0z
+                Ax = 0.0
+                Ay = 0.0
+                Az = 0.0
+                Sx = 0.0  # sum_(j' < j) A_j'
+                Sy = 0.0
+                Sz = 0.0
+                for j in range(m):
+                    Sx += Ax
+                    Sy += Ay
+                    Sz += Az
+                    bx = Ax
+                    by = Ay
+                    bz = Az
+                    Ax += fbuf[j, 0]
+                    Ay += fbuf[j, 1]
+                    Az += fbuf[j, 2]
+                    if inner:
+                        abuf[j + 1, 0] = Ax
+                        abuf[j + 1, 1] = Ay
+                        abuf[j + 1, 2] = Az
+                        pbuf[j + 1, 0] = c12 * (_fma(12.0, Sx, _fma(5.0, Ax, bx)) - b0x)
+                        pbuf[j + 1, 1] = c12 * (_fma(12.0, Sy, _fma(5.0, Ay, by)) - b0y)
+                        pbuf[j + 1, 2] = c12 * (_fma(12.0, Sz, _fma(5.0, Az, bz)) - b0z)
+                Px = c12 * (_fma(12.0, Sx, _fma(5.0, Ax, bx)) - b0x)
+                Py = c12 * (_fma(12.0, Sy, _fma(5.0, Ay, by)) - b0y)
+                Pz = c12 * (_fma(12.0, Sz, _fma(5.0, Az, bz)) - b0z)
                 # predicted end position: gravitation extrapolated linearly from the nodes
                 e0 = QC[m, 0] + QC[m, 1]
                 e1 = QC[m, 1]
@@ -545,9 +602,9 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 py, pcy = _kahan(py, pcy, hdt * (vy + ovy))
                 pz, pcz = _kahan(pz, pcz, hdt * (vz + ovz))
             else:
-                px, pcx = _kahan(px, pcx, c12 * (5.0 * vx + 8.0 * ovx - vpx))
-                py, pcy = _kahan(py, pcy, c12 * (5.0 * vy + 8.0 * ovy - vpy))
-                pz, pcz = _kahan(pz, pcz, c12 * (5.0 * vz + 8.0 * ovz - vpz))
+                px, pcx = _kahan(px, pcx, c12 * _fma(5.0, vx, _fma(8.0, ovx, -vpx)))
+                py, pcy = _kahan(py, pcy, c12 * _fma(5.0, vy, _fma(8.0, ovy, -vpy)))
+                pz, pcz = _kahan(pz, pcz, c12 * _fma(5.0, vz, _fma(8.0, ovz, -vpz)))
             q0, q1, q2, q3, qc0, qc1, qc2, qc3 = _att_step(
                 q0, q1, q2, q3, qc0, qc1, qc2, qc3, dth[s, i, 0], dth[s, i, 1], dth[s, i, 2]
             )
@@ -604,18 +661,16 @@ def _att_step(q0, q1, q2, q3, qc0, qc1, qc2, qc3, x, y, z):
     """q <- q (x) Exp(dtheta), as q + dq with dq computed from small quantities, renormalized
     to first order and added with a compensated sum (no systematic rounding drift)."""
     em0, e1, e2, e3 = _qexpm1(x, y, z)
-    d0, d1, d2, d3 = _qmul(q0, q1, q2, q3, em0, e1, e2, e3)
+    d0, d1, d2, d3 = _qmul_f(q0, q1, q2, q3, em0, e1, e2, e3)
     # first-order renormalization: scale by 1 - eps/2, eps = |q + dq|^2 - 1
-    eps = (
-        ((q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3) - 1.0)
-        + 2.0 * (q0 * d0 + q1 * d1 + q2 * d2 + q3 * d3)
-        + (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
-    )
-    h = -0.5 * eps
-    d0 += h * (q0 + d0)
-    d1 += h * (q1 + d1)
-    d2 += h * (q2 + d2)
-    d3 += h * (q3 + d3)
+    # = (|q|^2 - 1) + |q|^2 (|1 + e|^2 - 1) (|q (x) x| = |q| |x|): off the q -> dq chain
+    ne = _fma(em0, 2.0 + em0, _fma(e1, e1, _fma(e2, e2, e3 * e3)))
+    nq = _fma(q0, q0, q1 * q1) + _fma(q2, q2, q3 * q3)
+    h = -0.5 * _fma(nq, ne, nq - 1.0)
+    d0 = _fma(h, q0 + d0, d0)
+    d1 = _fma(h, q1 + d1, d1)
+    d2 = _fma(h, q2 + d2, d2)
+    d3 = _fma(h, q3 + d3, d3)
     q0, qc0 = _kahan(q0, qc0, d0)
     q1, qc1 = _kahan(q1, qc1, d1)
     q2, qc2 = _kahan(q2, qc2, d2)
