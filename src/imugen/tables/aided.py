@@ -148,5 +148,3 @@ def has_state(path) -> bool:
     """Whether the table holds the navigation state columns (tables of this version do)."""
     have = set(names(path, WHAT))
     return all(c in have for c in STATE_COLUMNS)
-
-
