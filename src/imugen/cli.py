@@ -273,6 +273,7 @@ def _cmd_export(a) -> int:
         storage=a.storage,
         overwrite=a.overwrite,
         gnss_paths=a.gnss,
+        aided_paths=a.aided,
     )
     return 0
 
@@ -616,6 +617,12 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="+",
         metavar="GNSS.parquet",
         help="GNSS epoch tables of `imugen aid` for these shards (KF-GINS gnss.pos, ROS /gnss/fix)",
+    )
+    p.add_argument(
+        "--aided",
+        nargs="+",
+        metavar="AIDED.parquet",
+        help="aided navigation tables of `imugen aid` for these shards (TUM <seq>.aided.tum)",
     )
     p.set_defaults(func=_cmd_export)
 
