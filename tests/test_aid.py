@@ -206,7 +206,8 @@ def test_meaningless_free_inertial_flag():
 
 def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     """Dry runs (the subprocess keeps this worktree's PYTHONPATH): no aid job by default; one
-    per route, grade and shard with ``gnss.enabled``; a bad receiver refused by the schema."""
+    per route, grade and shard with ``gnss.enabled`` (and one outage figure per route); a bad
+    receiver refused by the schema."""
     import importlib.util
     from pathlib import Path
 
@@ -219,11 +220,13 @@ def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     cfg = {k: v for k, v in W.TINY.items() if k != "grades"}
     cfg["grades"] = {"consumer": {}, "tactical": {}}
     W.write_config(tmp_path, cfg)
-    assert "aid" not in W.planned_jobs(tmp_path)
+    jobs = W.planned_jobs(tmp_path)
+    assert "aid" not in jobs and "outage_figure" not in jobs
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "scenarios": {"outages_s": [60]}})
     jobs = W.planned_jobs(tmp_path)
     shards = cfg["simulate"]["sequences"] // cfg["simulate"]["sequences_per_shard"]
     assert jobs["aid"] == len(cfg["routes"]) * len(cfg["grades"]) * shards
+    assert jobs["outage_figure"] == len(cfg["routes"])  # the outage figure of each route
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True, "receiver": "galileo"}})
     proc = W.snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "galileo" in proc.stdout + proc.stderr

@@ -206,6 +206,19 @@ def _pairs(items, option):
     return out
 
 
+def _cmd_outage_figure(a) -> int:
+    from imugen.figures_outage import outage_growth
+
+    outage_growth(
+        _pairs(a.aided, "--aided"),
+        _pairs(a.nav, "--nav"),
+        a.output,
+        formats=tuple(a.formats),
+        dpi=a.dpi,
+    )
+    return 0
+
+
 def _cmd_figures(a) -> int:
     from pathlib import Path
 
@@ -560,6 +573,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="which sequence represents a grade in Figure 8 (by total RMSE)",
     )
     p.set_defaults(func=_cmd_figures)
+
+    p = sub.add_parser(
+        "outage-figure",
+        help="aided error growth during GNSS outages per grade, free inertial beside",
+    )
+    p.add_argument("-o", "--output", required=True, help="figure path without extension")
+    p.add_argument(
+        "--aided", action="append", required=True, metavar="GRADE=PATH", help="aided tables"
+    )
+    p.add_argument("--nav", action="append", metavar="GRADE=PATH", help="navigation errors")
+    p.add_argument("--formats", nargs="+", default=["png", "svg"], help="figure formats")
+    p.add_argument("--dpi", type=int, default=150, help="raster resolution of PNG figures")
+    p.set_defaults(func=_cmd_outage_figure)
 
     p = sub.add_parser("export-mat", help="one grade's truth, IMU, labels, errors -> MATLAB .mat")
     p.add_argument("--truth", required=True, help="truth Parquet")
