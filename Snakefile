@@ -61,6 +61,11 @@ rule all:
     input:
         expand("results/{route}/rmse.csv", route=ROUTES),
         expand("results/{route}/figures/figure8.{ext}", route=ROUTES, ext=FIG["formats"]),
+        expand(
+            "results/{route}/figures/outage_growth.{ext}",
+            route=ROUTES if AID_ON else [],
+            ext=FIG["formats"],
+        ),
         expand("results/allan/{grade}/allan.json", grade=GRADES),
         expand(
             "results/{route}/datasets/{grade}.mat",

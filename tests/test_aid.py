@@ -9,6 +9,7 @@ workflow schedules the aid jobs only when ``gnss.enabled``.
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 
 from imugen import aid as AID
@@ -89,6 +90,8 @@ def test_draw_does_not_depend_on_batch(scene, tmp_path):
     pd.testing.assert_frame_equal(
         taided.read(tmp_path / "a.parquet"), taided.read(scene / "a.parquet")
     )
+    # streamed: one row group per batch of one sequence (a shard's table never sits whole)
+    assert pq.ParquetFile(tmp_path / "a.parquet").num_row_groups == 3
 
 
 def test_outage_end_equals_filter_in_memory(scene):
@@ -128,6 +131,26 @@ def test_outage_end_equals_filter_in_memory(scene):
     np.testing.assert_allclose(m["aided_total_m"], r.loc[m.index])
     # the filter's sigma is in the file: errors normalized by it are of order 1
     assert 0.1 < m["aided_nees_pos"].median() < 10
+    # full state: every row equals the filter's output at its epoch, sigmas its covariance
+    assert list(a.columns) == list(taided.COLUMNS)
+    j = np.searchsorted(scen.gnss.time_s, a["time_s"].to_numpy())
+    s = np.searchsorted(ids, a["sequence"].to_numpy())
+    for cols, arr in (
+        (ttruth.POS, res.p_n), (ttruth.VEL, res.v_n), (ttruth.QUAT, res.q_nb),
+        (taided.GYRO_BIAS, res.gyro_bias), (taided.ACCEL_BIAS, res.accel_bias),
+        (taided.SD_VEL, res.sd[..., 3:6]), (taided.SD_ATT, res.sd[..., 6:9]),
+        (taided.SD_GYRO_BIAS, res.sd[..., 9:12]), (taided.SD_ACCEL_BIAS, res.sd[..., 12:15]),
+    ):  # fmt: skip
+        np.testing.assert_array_equal(a[list(cols)].to_numpy(), arr[s, j])
+    # closure with the truth: position minus truth is the error column; attitude error angle
+    ti = res.index[j]
+    np.testing.assert_allclose(
+        a[list(ttruth.POS)].to_numpy() - truth.p_n[ti], a[list(taided.ERR_POS)], atol=1e-9
+    )
+    q = a[list(ttruth.QUAT)].to_numpy()
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-9)
+    ang = np.linalg.norm(A.attitude_error(q, truth.q_nb[ti]), axis=-1)
+    np.testing.assert_allclose(ang, a["err_att_rad"], atol=1e-12)
 
 
 def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
@@ -148,6 +171,15 @@ def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
     assert len(a) > 150
     assert np.abs(a[list(taided.ERR_POS)].to_numpy()).max() < 5e-3
     assert a["err_att_rad"].max() < 1e-3
+    truth = ttruth.read(scene / "truth.parquet")
+    k = np.searchsorted(truth.time_s, a["time_s"].to_numpy() - 1e-9)
+    np.testing.assert_allclose(a[list(ttruth.VEL)].to_numpy(), truth.v_n[k], atol=5e-3)
+    dq = np.abs(np.sum(a[list(ttruth.QUAT)].to_numpy() * truth.q_nb[k], axis=1))
+    assert np.all(dq > np.cos(5e-4))  # same rotation, scalar first (sign free)
+    # nothing to estimate: the biases stay inside their reported 3-sigma
+    b = a[[*taided.GYRO_BIAS, *taided.ACCEL_BIAS]].to_numpy()
+    sd = a[[*taided.SD_GYRO_BIAS, *taided.SD_ACCEL_BIAS]].to_numpy()
+    assert np.all(np.abs(b) < 3 * sd)
 
 
 def test_bad_inputs_are_one_line_errors(scene, tmp_path, cli):
@@ -174,7 +206,8 @@ def test_meaningless_free_inertial_flag():
 
 def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     """Dry runs (the subprocess keeps this worktree's PYTHONPATH): no aid job by default; one
-    per route, grade and shard with ``gnss.enabled``; a bad receiver refused by the schema."""
+    per route, grade and shard with ``gnss.enabled`` (and one outage figure per route); a bad
+    receiver refused by the schema."""
     import importlib.util
     from pathlib import Path
 
@@ -187,11 +220,13 @@ def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     cfg = {k: v for k, v in W.TINY.items() if k != "grades"}
     cfg["grades"] = {"consumer": {}, "tactical": {}}
     W.write_config(tmp_path, cfg)
-    assert "aid" not in W.planned_jobs(tmp_path)
+    jobs = W.planned_jobs(tmp_path)
+    assert "aid" not in jobs and "outage_figure" not in jobs
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "scenarios": {"outages_s": [60]}})
     jobs = W.planned_jobs(tmp_path)
     shards = cfg["simulate"]["sequences"] // cfg["simulate"]["sequences_per_shard"]
     assert jobs["aid"] == len(cfg["routes"]) * len(cfg["grades"]) * shards
+    assert jobs["outage_figure"] == len(cfg["routes"])  # the outage figure of each route
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True, "receiver": "galileo"}})
     proc = W.snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "galileo" in proc.stdout + proc.stderr

@@ -415,3 +415,135 @@ def test_without_statistics_and_missing_columns(tmp_path):
     )
     with pytest.raises(InputError, match="lacks the columns gyro_x_radps"):
         ds.WindowDataset(routes, window=10, inputs="rates")
+
+
+# --- optional epoch streams (GNSS, scenario labels, aided output) ------------------------------
+EVERY, OUTAGE = 10, (40, 60)  # an epoch every 10 rows from row 3; no fix on rows [40, 60)
+
+
+def make_epochs(tmp, routes=("alpha", "beta"), shards=(0, 1), grade="consumer", seed=1):
+    """GNSS and aided tables beside the shards of :func:`make_results` (their contracts'
+    writers), with an outage; returns ``{(route, sequence): (gnss rows, aided rows)}``."""
+    from imugen.tables import aided as taided
+    from imugen.tables import gnss as tgnss
+
+    rng = np.random.default_rng(seed)
+    out = {}
+    for r in routes:
+        for sh in shards:
+            g_parts, a_parts = [], []
+            for sid in sh * M + np.arange(M):
+                kg = np.arange(3, K, EVERY)
+                g = pd.DataFrame({c: rng.standard_normal(len(kg)) for c in tgnss.COLUMNS})
+                g["sequence"], g[col.TIME] = sid, kg * 0.01
+                lost = (kg >= OUTAGE[0]) & (kg < OUTAGE[1])
+                g["fix"] = np.where(lost, 0, 1).astype(np.int8)
+                g["state"] = np.where(lost, 1, 0).astype(np.int8)
+                for c in (*tgnss.P, *tgnss.V, *tgnss.OFFSET_P, *tgnss.OFFSET_V):
+                    g.loc[lost, c] = np.nan
+                ka = np.r_[np.arange(25, K, 20), 59]  # aligned at row 25; an outage end at 59
+                a = pd.DataFrame({c: rng.standard_normal(len(ka)) for c in taided.COLUMNS})
+                a["sequence"], a[col.TIME] = sid, ka * 0.01
+                a = a.sort_values(col.TIME)
+                g_parts.append(g)
+                a_parts.append(a)
+                out[(r, int(sid))] = (g.assign(k=kg), a.assign(k=np.sort(ka)))
+            name = f"shard-{sh:03d}.parquet"
+            tgnss.write(
+                pd.concat(g_parts), pd.DataFrame({"sequence": [0]}), pd.DataFrame({"kind": []}),
+                {}, tmp / r / "gnss" / grade / name,
+            )  # fmt: skip
+            taided.write(pd.concat(a_parts), {}, tmp / r / "aided" / grade / name)
+    return out
+
+
+def _held(ks, vals, k, event=False):
+    """Brute force: (values, valid, age_s) of a stream (epoch rows ``ks``, values ``vals``) at
+    IMU row ``k``."""
+    j = [n for n, ke in enumerate(ks) if ke <= k and (ke == k or not event)]
+    if not j:
+        return np.zeros(vals.shape[1]), 0.0, 0.0
+    v = vals[j[-1]]
+    ok = bool(np.isfinite(v).all())
+    return (v if ok else np.zeros(len(v))), float(ok), (k - ks[j[-1]]) * 0.01 if ok else 0.0
+
+
+@pytest.mark.parametrize("align", ["hold", "event"])
+def test_extras_equal_the_tables_at_their_epochs(tmp_path, align):
+    make_results(tmp_path)
+    tables = make_epochs(tmp_path)
+    routes = ds.find_routes(tmp_path, "consumer")
+    d = ds.WindowDataset(
+        routes, window=30, stride=23, extras=["gnss", "scenario", "aided"], extras_align=align,
+        dtype=np.float64,
+    )  # fmt: skip
+    x, y, ex = d.get_batch(np.arange(len(d)))
+    x2, y2 = ds.WindowDataset(routes, window=30, stride=23, dtype=np.float64).get_batch(
+        np.arange(len(d))
+    )
+    np.testing.assert_array_equal(x, x2)  # the IMU windows and targets do not change
+    np.testing.assert_array_equal(y, y2)
+    assert d.extra_columns["gnss"][-3:] == ["gnss_new", "gnss_valid", "gnss_age_s"]
+    saw_outage = False
+    for i in range(len(d)):
+        info = d.window_info(i)
+        g, a = tables[(info["route"], info["sequence"])]
+        streams = {
+            n: (t["k"].to_numpy(), t[list(ds.EXTRAS[n].columns)].to_numpy(float))
+            for n, t in (("gnss", g), ("scenario", g), ("aided", a))
+        }
+        for w, k in enumerate(range(info["start"], info["stop"])):
+            for name, (ks, vals) in streams.items():
+                v, valid, age = _held(ks, vals, k, event=align == "event")
+                got = ex[name][i, w]
+                np.testing.assert_allclose(got[: vals.shape[1]], v, atol=1e-12)
+                assert got[-3] == float(k in ks)
+                assert (got[-2], got[-1]) == pytest.approx((valid, age))
+            # across the outage: the held GNSS epoch has no fix -> masked; its state is labelled
+            kg = streams["gnss"][0]
+            lost = k >= kg[0] and OUTAGE[0] <= kg[kg <= k].max() < OUTAGE[1]
+            if lost and align == "hold":
+                saw_outage = True
+                assert ex["gnss"][i, w, -2] == 0 and not ex["gnss"][i, w, :-3].any()
+                assert ex["scenario"][i, w, 0] == 1 and ex["scenario"][i, w, -2] == 1
+    assert saw_outage or align == "event"
+    # in memory: the same arrays; one window: the same third item
+    m = ds.WindowDataset(
+        routes, window=30, stride=23, extras=["gnss", "scenario", "aided"], extras_align=align,
+        dtype=np.float64, in_memory=True,
+    )  # fmt: skip
+    _, _, exm = m.get_batch(np.arange(len(d)))
+    for n in ex:
+        np.testing.assert_array_equal(exm[n], ex[n])
+    x0, y0, e0 = d[5]
+    np.testing.assert_array_equal(x0, x[5])
+    np.testing.assert_array_equal(y0, y[5])
+    np.testing.assert_array_equal(e0["aided"], ex["aided"][5])
+
+
+def test_extras_absent_unless_asked_and_clear_errors(tmp_path):
+    make_results(tmp_path)
+    routes = ds.find_routes(tmp_path, "consumer")
+    d = ds.WindowDataset(routes, window=20)  # no GNSS or aided outputs exist: works as before
+    assert len(d.get_batch([0, 1])) == 2 and len(d[0]) == 2 and d.extra_columns == {}
+    with pytest.raises(InputError, match="no gnss table for this shard"):
+        ds.WindowDataset(routes, window=20, extras=["gnss"])
+    with pytest.raises(InputError, match="unknown stream"):
+        ds.WindowDataset(routes, window=20, extras=["odometer_typo"])
+    with pytest.raises(InputError, match="extras_align"):
+        ds.WindowDataset(routes, window=20, extras=["gnss"], extras_align="nearest")
+    make_epochs(tmp_path)
+    # keys select sequences: only their epochs are read
+    keys = [("alpha", 1)]
+    d = ds.WindowDataset(routes, window=20, keys=keys, extras="gnss_offset")
+    _, _, ex = d.get_batch(np.arange(len(d)))
+    assert set(ex) == {"gnss_offset"} and ex["gnss_offset"].shape == (len(d), 20, 9)
+    # an epoch off the IMU clock is refused
+    from imugen.tables import aided as taided
+
+    p = tmp_path / "alpha" / "aided" / "consumer" / "shard-000.parquet"
+    a = taided.read(p)
+    a.loc[0, col.TIME] += 0.004
+    taided.write(a, {}, p)
+    with pytest.raises(InputError, match="not an IMU sample time"):
+        ds.WindowDataset(routes, window=20, extras=["aided"])

@@ -136,6 +136,51 @@ def test_tum_navigation_matches_the_navigation_stage(route, exported):
         assert np.allclose(est.positions_xyz - tr.p_n[::every], err, atol=2e-5 + 1e-6 * np.abs(err))
 
 
+def test_tum_aided_read_by_evo_and_equal_to_the_aided_table(route, tmp_path, cli):
+    """``imugen export --aided``: truth, free-inertial AND aided TUM files; evo reads the aided
+    one back equal to the Parquet source, and evo's APE against truth.tum equals the table's
+    own error columns at the associated epochs."""
+    evo_fi = pytest.importorskip("evo.tools.file_interface")
+    from evo.core import metrics, sync
+
+    from imugen import aid
+    from imugen.tables import aided as taided
+    from imugen.tables import truth as ttruth
+
+    truth, shard, _ = route
+    g, a = tmp_path / "g.parquet", tmp_path / "a.parquet"
+    aid.run(truth, shard, g, a, aid.AidParams(eval_rate_hz=10.0))
+    r = cli("export", str(truth), str(shard), "-o", str(tmp_path / "x"), "--format", "tum",
+            "--aided", str(a))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    src = taided.read(a)
+    gt = evo_fi.read_tum_trajectory_file(str(tmp_path / "x" / "tum" / "truth.tum"))
+    _, seqs = _seqs(route)
+    for sid, _, _ in seqs:
+        stem = tmp_path / "x" / "tum" / f"drive_consumer_{sid:06d}"
+        assert stem.with_suffix(".tum").is_file()
+        est = evo_fi.read_tum_trajectory_file(str(stem.with_suffix(".aided.tum")))
+        ref = src[src["sequence"] == sid]
+        assert len(ref) > 100 and est.num_poses == len(ref)
+        np.testing.assert_allclose(est.timestamps, ref["time_s"], atol=1e-9)
+        np.testing.assert_allclose(est.positions_xyz, ref[list(ttruth.POS)], atol=1e-6)
+        np.testing.assert_allclose(est.orientations_quat_wxyz, ref[list(ttruth.QUAT)], atol=1e-9)
+        gt_s, est_s = sync.associate_trajectories(gt, est, max_diff=1e-4)
+        ape = metrics.APE(metrics.PoseRelation.translation_part)
+        ape.process_data((gt_s, est_s))
+        own = ref.set_index(np.round(ref["time_s"].to_numpy(), 6)).loc[
+            np.round(est_s.timestamps, 6), list(taided.ERR_POS)
+        ]
+        np.testing.assert_allclose(ape.error, np.linalg.norm(own, axis=1), atol=2e-5)
+    # without --aided: no aided files; an aided table of the old layout is refused in one line
+    export(["tum"], truth, [shard], tmp_path / "y", log=lambda m: None)
+    assert not list((tmp_path / "y" / "tum").glob("*.aided.tum"))
+    old = tmp_path / "old.parquet"
+    write_parquet(src[list(taided.ERRORS)], {}, old)
+    with pytest.raises(InputError, match="no navigation state"):
+        export(["tum"], truth, [shard], tmp_path / "z", aided_paths=[old], log=lambda m: None)
+
+
 def test_tlio_layout_and_rotation(route, exported):
     tr, seqs = _seqs(route)
     sid, data, _ = seqs[1]

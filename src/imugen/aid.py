@@ -11,9 +11,9 @@ For every sequence of the shard (streamed in batches, memory bounded as in
    navigation does) with its tuning from the grade's figures (``tuning_level``) and the
    receiver's nominal figures, aligned by :func:`imugen.aided.align` (moving starts at
    ``align_speed_mps``);
-3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels; streamed
-   one row group per batch) and the aided errors at the evaluation epochs
-   (:mod:`imugen.tables.aided`, small: kept until the end) are written;
+3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels) and the
+   aided errors and filter state at the evaluation epochs (:mod:`imugen.tables.aided`) are
+   written, each streamed one row group per batch;
 4. with an odometer and/or a barometer configured (``companions``), their epochs are drawn
    from the truth (:mod:`imugen.companions`), used by the filter (at the GNSS epochs that are
    also companion epochs) and written to the companion table (:mod:`imugen.tables.companions`).
@@ -307,7 +307,8 @@ def eval_mask(index, every: int, valid) -> np.ndarray:
 
 
 def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int):
-    """The aided error table's rows for a filter result of sequences ``ids``."""
+    """The aided table's rows (:data:`imugen.tables.aided.COLUMNS`) for a filter result of
+    sequences ``ids``: errors against the truth, scenario context and the filter's state."""
     idx = res.index
     t = res.time_s
     err = res.p_n - truth.p_n[idx][None]
@@ -318,29 +319,40 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int)
     keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err).all(-1)
     S, J = keep.shape
     since = _since_fix(t, valid)
-    sd = res.sd[..., A.I_P : A.I_P + 3]
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
-    for i, c in enumerate(ERR_POS):
-        rows[c] = err[..., i][keep]
     rows[ERR_ATT] = att[keep]
-    for i, c in enumerate(taided.SD_POS):
-        rows[c] = sd[..., i][keep]
     rows[taided.GNSS_USED] = ((res.flags & A.F_GNSS_P) != 0)[keep].astype(np.int8)
     rows[taided.STATE] = scen.state[keep].astype(np.int8)
     rows[taided.SINCE_FIX] = since[keep]
-    return pd.DataFrame(rows)
+    for cols, arr in (
+        (ERR_POS, err),
+        (taided.SD_POS, res.sd[..., A.I_P : A.I_P + 3]),
+        (ttruth.POS, res.p_n),
+        (ttruth.VEL, res.v_n),
+        (ttruth.QUAT, res.q_nb),
+        (taided.GYRO_BIAS, res.gyro_bias),
+        (taided.ACCEL_BIAS, res.accel_bias),
+        (taided.SD_VEL, res.sd[..., A.I_V : A.I_V + 3]),
+        (taided.SD_ATT, res.sd[..., A.I_PSI : A.I_PSI + 3]),
+        (taided.SD_GYRO_BIAS, res.sd[..., A.I_BG : A.I_BG + 3]),
+        (taided.SD_ACCEL_BIAS, res.sd[..., A.I_BA : A.I_BA + 3]),
+    ):
+        for i, c in enumerate(cols):
+            rows[c] = arr[..., i][keep]
+    return pd.DataFrame(rows)[list(taided.COLUMNS)]
 
 
 def aid(
     truth_path, shard_path, params: AidParams, *, batch: int | None = None, sink=None,
-    companion_sink=None,
+    aided_sink=None, companion_sink=None,
 ):  # fmt: skip
     """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
 
-    ``sink(meta, df)``, when given, receives the GNSS rows batch by batch (and ``gnss rows`` is
-    then None), so a shard's GNSS table never sits whole in memory. ``companion_sink(rows,
-    labels)`` receives the companion-table rows and labels of each batch.
+    ``sink(meta, df)`` and ``aided_sink(meta, df)``, when given, receive the GNSS rows and the
+    aided rows batch by batch (and ``gnss rows``, ``aided rows`` are then None), so neither
+    table of a shard sits whole in memory. ``companion_sink(rows, labels)`` receives the
+    companion-table rows and labels of each batch.
     """
     truth_path, shard_path = Path(truth_path), Path(shard_path)
     truth = ttruth.read(truth_path, columns=AID_TRUTH_COLUMNS)
@@ -389,7 +401,7 @@ def aid(
         "error": "filter minus truth, ENU of the route origin",
     }
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
-    never = 0
+    never = batches = 0
     for ids, a, c in tshard.iter_blocks(shard_path, columns, K, int(batch), 0):
         ids = ids.copy()
         dth, dvb = _increments(a, c, kind, raw, truth.dt)
@@ -420,8 +432,13 @@ def aid(
         lab[SEQUENCE] = ids  # global int64 ids (the receiver's labels count from ``first``)
         labels.append(lab)
         intervals.append(scen.intervals)
-        aided_rows.append(aided_errors(truth, ids, res, scen, every))
-    if not aided_rows:
+        rows = aided_errors(truth, ids, res, scen, every)
+        if aided_sink is None:
+            aided_rows.append(rows)
+        else:
+            aided_sink(meta, rows)
+        batches += 1
+    if not batches:
         raise InputError(shard_path, "holds no sequences")
     if never:
         warnings.warn(
@@ -430,12 +447,11 @@ def aid(
             "aided.align_speed_mps (--align-speed)",
             stacklevel=2,
         )
-    meta["never_aligned"] = never
     return (
         pd.concat(gnss_rows, ignore_index=True) if sink is None else None,
         pd.concat(labels, ignore_index=True),
         pd.concat(intervals, ignore_index=True),
-        pd.concat(aided_rows, ignore_index=True),
+        pd.concat(aided_rows, ignore_index=True) if aided_sink is None else None,
         meta,
     )
 
@@ -444,9 +460,10 @@ def run(
     truth, shard, out_gnss, out_nav, params: AidParams | None = None, *, batch=None,
     out_companions=None,
 ):  # fmt: skip
-    """Run the stage on one shard and write the GNSS table (with sidecars), the aided error
-    table and, when ``out_companions`` is given, the companion table (with its labels; no rows
-    when no companion is configured) atomically. Returns ``(out_gnss, out_nav)`` paths."""
+    """Run the stage on one shard and write the GNSS table (with sidecars), the aided table
+    (both streamed batch by batch) and, when ``out_companions`` is given, the companion table
+    (with its labels; no rows when no companion is configured) atomically. Returns
+    ``(out_gnss, out_nav)`` paths."""
     params = params or AidParams()
     if out_companions is None and (params.odometer or params.barometer):
         raise InputError("--companions-out", "needed with an odometer or a barometer")
@@ -456,15 +473,20 @@ def run(
         crow.append(rows)
         clab.append(labels)
 
-    with tgnss.writer(out_gnss) as w:
+    with tgnss.writer(out_gnss) as w, taided.writer(out_nav) as wa:
 
         def sink(meta, df):
             w.meta = {**meta, "stage": "aid-gnss"}
             w.put(df)
 
-        _, w.labels, w.intervals, nav, meta = aid(
-            truth, shard, params, batch=batch, sink=sink, companion_sink=csink
-        )
+        def aided_sink(meta, df):
+            wa.meta = {**meta, "stage": "aid", "gnss": Path(out_gnss).name}
+            wa.put(df)
+
+        _, w.labels, w.intervals, _, meta = aid(
+            truth, shard, params, batch=batch, sink=sink, aided_sink=aided_sink,
+            companion_sink=csink,
+        )  # fmt: skip
         if out_companions is not None:
             cmeta = {
                 k: meta[k] for k in ("imugen_version", "truth", "shard", "grade", "route", "seed")
@@ -478,7 +500,6 @@ def run(
                 pd.concat(crow, ignore_index=True), pd.concat(clab, ignore_index=True), cmeta,
                 out_companions,
             )  # fmt: skip
-        taided.write(nav, {**meta, "stage": "aid", "gnss": Path(out_gnss).name}, out_nav)
     return Path(out_gnss), Path(out_nav)
 
 

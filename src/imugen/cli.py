@@ -221,6 +221,19 @@ def _pairs(items, option):
     return out
 
 
+def _cmd_outage_figure(a) -> int:
+    from imugen.figures_outage import outage_growth
+
+    outage_growth(
+        _pairs(a.aided, "--aided"),
+        _pairs(a.nav, "--nav"),
+        a.output,
+        formats=tuple(a.formats),
+        dpi=a.dpi,
+    )
+    return 0
+
+
 def _cmd_figures(a) -> int:
     from pathlib import Path
 
@@ -288,6 +301,7 @@ def _cmd_export(a) -> int:
         storage=a.storage,
         overwrite=a.overwrite,
         gnss_paths=a.gnss,
+        aided_paths=a.aided,
     )
     return 0
 
@@ -598,6 +612,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_figures)
 
+    p = sub.add_parser(
+        "outage-figure",
+        help="aided error growth during GNSS outages per grade, free inertial beside",
+    )
+    p.add_argument("-o", "--output", required=True, help="figure path without extension")
+    p.add_argument(
+        "--aided", action="append", required=True, metavar="GRADE=PATH", help="aided tables"
+    )
+    p.add_argument("--nav", action="append", metavar="GRADE=PATH", help="navigation errors")
+    p.add_argument("--formats", nargs="+", default=["png", "svg"], help="figure formats")
+    p.add_argument("--dpi", type=int, default=150, help="raster resolution of PNG figures")
+    p.set_defaults(func=_cmd_outage_figure)
+
     p = sub.add_parser("export-mat", help="one grade's truth, IMU, labels, errors -> MATLAB .mat")
     p.add_argument("--truth", required=True, help="truth Parquet")
     p.add_argument("--shards", nargs="+", required=True, help="the grade's shard Parquet files")
@@ -654,6 +681,12 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="+",
         metavar="GNSS.parquet",
         help="GNSS epoch tables of `imugen aid` for these shards (KF-GINS gnss.pos, ROS /gnss/fix)",
+    )
+    p.add_argument(
+        "--aided",
+        nargs="+",
+        metavar="AIDED.parquet",
+        help="aided navigation tables of `imugen aid` for these shards (TUM <seq>.aided.tum)",
     )
     p.set_defaults(func=_cmd_export)
 

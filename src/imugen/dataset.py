@@ -38,6 +38,32 @@ Every sequence of a route has the truth's ``K`` samples. A window is ``window`` 
 Arrays are returned as ``float32`` (``dtype`` to change); differences are formed in float64
 before the cast.
 
+Optional streams (``extras``)
+-----------------------------
+Epoch data written beside the IMU shards (``results/<route>/<folder>/<grade>/<shard name>``)
+can ride along, aligned to the IMU clock (the truth's sample times: every epoch of these tables
+is an IMU sample time). ``extras=["gnss", "aided"]`` makes :meth:`WindowDataset.get_batch`
+return ``(x, y, extras)`` with ``extras[name]`` of shape ``(B, window, C + 3)``: the stream's
+columns (:data:`EXTRAS`), then ``<name>_new`` (1 at the row where an epoch arrived),
+``<name>_valid`` (1 where the values are usable) and ``<name>_age_s`` (time since that epoch);
+``WindowDataset.extra_columns[name]`` names them. Streams not asked for are never opened, so the
+loader works on results without GNSS or aided outputs.
+
+- ``"gnss"`` (:mod:`imugen.tables.gnss`): measured antenna position ``p_{e,n,u}_m``, velocity
+  ``v_{e,n,u}_mps``, the receiver's reported sigmas and ``fix`` (NMEA quality);
+- ``"scenario"``: the scenario ``state`` of the epoch (0 nominal, 1 outage, ...; a label);
+- ``"gnss_offset"``: the true total GNSS error ``offset_p_*_m``, ``offset_v_*_mps`` (a label:
+  measured minus true antenna; invalid where no fix was delivered);
+- ``"aided"`` (:mod:`imugen.tables.aided`): the filter's position, velocity and ``q_nb``
+  (scalar first) at its evaluation epochs (invalid before the filter's alignment).
+
+``extras_align="hold"`` (default) holds the latest epoch at or before each row
+(sample-and-hold); ``"event"`` gives the values only at the rows where an epoch arrived. In
+both, ``valid`` is 1 only where an epoch is held (``"event"``: arrived) and all its values are
+finite (a GNSS epoch without a fix, during an outage, is invalid); invalid rows hold zeros (age
+0), never NaN. Epochs are kept compact in memory (one row per epoch, for the selected
+sequences) and expanded per batch. A new stream is one line in :data:`EXTRAS`.
+
 Splits
 ------
 :func:`split` assigns each ``(route, sequence)`` key to a part by hashing its unit (the
@@ -80,7 +106,7 @@ import hashlib
 import os
 import tempfile
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,6 +114,8 @@ import numpy as np
 
 from imugen.errors import InputError
 from imugen.jit import njit
+from imugen.tables import aided as taided
+from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.shard import BIAS, EFFECTIVE_ERROR, SEQUENCE
@@ -97,6 +125,39 @@ TARGETS = ("increments", "effective_error", "bias", "delta_vel_pos")
 CACHE_DIR = ".imugen-cache"
 CACHE_FORMAT = 1  # bump when the cache layout changes
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
+
+
+@dataclass(frozen=True)
+class Extra:
+    """An optional epoch stream of the loader (module docstring, "Optional streams").
+
+    ``folder``: the table of IMU shard ``results/<route>/imu/<grade>/<name>`` is
+    ``results/<route>/<folder>/<grade>/<name>``; ``read(path, columns, filters)``: the table
+    module's reader (rows ``sequence``, ``time_s`` at IMU sample times); ``columns``: the
+    values given per row.
+    """
+
+    folder: str
+    read: Callable
+    columns: tuple[str, ...]
+
+
+EXTRAS: dict[str, Extra] = {
+    "gnss": Extra(
+        "gnss", tgnss.read, (*tgnss.P, *tgnss.V, *tgnss.SIGMA_P, *tgnss.SIGMA_V, tgnss.FIX)
+    ),
+    "scenario": Extra("gnss", tgnss.read, (tgnss.STATE,)),
+    "gnss_offset": Extra("gnss", tgnss.read, (*tgnss.OFFSET_P, *tgnss.OFFSET_V)),
+    "aided": Extra("aided", taided.read, (*ttruth.POS, *ttruth.VEL, *ttruth.QUAT)),
+}
+"""Streams ``extras`` may name. Companion sensors add one line each."""
+EXTRA_ALIGN = ("hold", "event")
+
+
+def extra_path(shard, folder: str) -> Path:
+    """The table of ``folder`` beside IMU shard ``<route>/imu/<grade>/<name>``."""
+    shard = Path(shard)
+    return shard.parents[2] / folder / shard.parent.name / shard.name
 
 
 @dataclass(frozen=True)
@@ -377,6 +438,11 @@ class WindowDataset:
         Where the shard caches go (default ``.imugen-cache/`` beside each shard).
     dtype : numpy dtype
         Of the returned arrays (float32).
+    extras : iterable of str, optional
+        Optional epoch streams (:data:`EXTRAS`) aligned to the IMU rows; :meth:`get_batch` then
+        returns a third item, ``{name: (B, window, C + 3)}`` (module docstring).
+    extras_align : {"hold", "event"}
+        Sample-and-hold, or values only at the rows where an epoch arrived.
     """
 
     def __init__(
@@ -391,6 +457,8 @@ class WindowDataset:
         in_memory: bool = False,
         cache_dir=None,
         dtype=np.float32,
+        extras=(),
+        extras_align: str = "hold",
     ):
         self.routes = list(routes)
         self.window = int(window)
@@ -419,6 +487,18 @@ class WindowDataset:
             "delta_vel_pos": [*ttruth.VEL, *ttruth.POS],
         }
         wanted = None if keys is None else {(str(r), int(s)) for r, s in keys}
+        self.extras = [extras] if isinstance(extras, str) else list(dict.fromkeys(extras or ()))
+        bad = [n for n in self.extras if n not in EXTRAS]
+        if bad:
+            raise InputError("extras", f"unknown stream(s) {bad}; one of {', '.join(EXTRAS)}")
+        if extras_align not in EXTRA_ALIGN:
+            raise InputError("extras_align", f"must be one of {', '.join(EXTRA_ALIGN)}")
+        self.extras_align = extras_align
+        self.extra_columns = {
+            n: [*EXTRAS[n].columns, f"{n}_new", f"{n}_valid", f"{n}_age_s"] for n in self.extras
+        }
+        epochs = {n: [] for n in self.extras}
+        clocks = []
 
         self.files: list[Path] = []
         truths, toff, lab, file_k = [], [0], [], []
@@ -429,6 +509,10 @@ class WindowDataset:
                 t = ttruth.read_arrow(r.truth, columns=truth_cols[self.target])
                 truths.append(np.column_stack([c.to_numpy() for c in t.columns]))
             toff.append(toff[-1] + K)
+            if self.extras:
+                clocks.append(
+                    ttruth.read_arrow(r.truth, columns=[ttruth.TIME]).column(0).to_numpy()
+                )
             nw = (K - 1 - self.window) // self.stride + 1 if K - 1 >= self.window else 0
             for p in map(Path, r.shards):
                 ids = _shard_sequence_ids(p, K)
@@ -442,6 +526,8 @@ class WindowDataset:
                 file_k.append(K)
                 if labels is not None:
                     lab.append(_label_rows(p, labels, ids[sel]))
+                for n in self.extras:
+                    epochs[n].append(_epoch_rows(p, EXTRAS[n], ids[sel], clocks[-1], len(ent_file)))
                 for j in sel:
                     ent_file.append(len(self.files) - 1)
                     ent_row.append(j * K)
@@ -460,6 +546,9 @@ class WindowDataset:
         else:
             self._truth = np.concatenate(truths) if truths else None
         self._labels = np.concatenate(lab).astype(self.dtype) if lab else None
+        dts = [float((c[-1] - c[0]) / (len(c) - 1)) if len(c) > 1 else 0.0 for c in clocks]
+        self._dt = np.array(dts, float)[self._route] if self.extras and len(self._route) else None
+        self._epochs = {n: _EpochIndex.concat(v, len(EXTRAS[n].columns)) for n, v in epochs.items()}
         self._cache_paths = [
             _cache_path(p, self.x_cols + self.y_cols, self.dtype, cache_dir) for p in self.files
         ]
@@ -527,8 +616,9 @@ class WindowDataset:
             "stop": k0 + self.window,
         }
 
-    def get_batch(self, indices) -> tuple[np.ndarray, np.ndarray]:
-        """Windows ``indices`` gathered at once: ``x (B, window, 6)``, ``y (B, ...)``.
+    def get_batch(self, indices) -> tuple:
+        """Windows ``indices`` gathered at once: ``x (B, window, 6)``, ``y (B, ...)`` and, with
+        ``extras``, ``{name: (B, window, C + 3)}``.
 
         A compiled loop copies each window as one block: in memory from one array, from the
         caches one call per shard the batch touches.
@@ -555,13 +645,22 @@ class WindowDataset:
             y = (self._truth[t0 + self.window] - self._truth[t0]).astype(self.dtype)
         elif self.target == "labels":
             y = self._labels[e]
+        if self.extras:
+            rows = k0[:, None] + np.arange(self.window)[None, :]
+            ex = {
+                n: self._epochs[n].gather(e, rows, self._dt[e], self.extras_align, self.dtype)
+                for n in self.extras
+            }
+            return x, y, ex
         return x, y
 
     def __getitem__(self, i):
         """Window ``i`` as ``(x, y)``; a list or array of indices gives a batch (:meth:`get_batch`)."""
         if np.ndim(i) == 0:
-            x, y = self.get_batch([int(i)])
-            return x[0], y[0]
+            out = self.get_batch([int(i)])
+            if len(out) == 3:
+                return out[0][0], out[1][0], {n: a[0] for n, a in out[2].items()}
+            return out[0][0], out[1][0]
         return self.get_batch(i)
 
     def batches(self, batch_size: int = 64, *, seed=0, drop_last: bool = False) -> list:
@@ -607,3 +706,75 @@ def _label_rows(shard: Path, names, ids) -> np.ndarray:
         raise InputError(path, f"has no labels for sequence(s) {absent[:5]}")
     rows = np.array([pos[int(s)] for s in ids], np.int64)
     return np.column_stack([t[c].to_numpy(dtype=float)[rows] for c in names])
+
+
+# --- optional epoch streams ------------------------------------------------------------------
+@dataclass
+class _EpochIndex:
+    """Epochs of one stream for every dataset entry, compact: sorted ``key = entry * KP + k``
+    (``k`` the IMU row of the epoch), the entry and row of each key and its values."""
+
+    key: np.ndarray
+    entry: np.ndarray
+    k: np.ndarray
+    values: np.ndarray
+    finite: np.ndarray
+
+    KP = np.int64(1) << 40  # rows per entry in the key: more than any sequence holds
+
+    @classmethod
+    def concat(cls, parts, ncols: int) -> _EpochIndex:
+        if not parts:
+            z = np.zeros(0, np.int64)
+            return cls(z, z, z, np.zeros((0, ncols)), np.zeros(0, bool))
+        entry = np.concatenate([p[0] for p in parts])
+        k = np.concatenate([p[1] for p in parts])
+        vals = np.concatenate([p[2] for p in parts])
+        key = entry * cls.KP + k
+        o = np.argsort(key, kind="stable")
+        finite = np.isfinite(vals[o]).all(axis=1)
+        return cls(key[o], entry[o], k[o], np.nan_to_num(vals[o]), finite)
+
+    def gather(self, e, rows, dt, align: str, dtype) -> np.ndarray:
+        """``(B, W, C + 3)``: values, new, valid, age for entries ``e`` (B,) at ``rows`` (B, W)."""
+        B, W = rows.shape
+        C = self.values.shape[1]
+        out = np.zeros((B, W, C + 3), dtype)
+        if not len(self.key):
+            return out
+        j = np.searchsorted(self.key, e[:, None] * self.KP + rows, "right") - 1
+        jc = np.maximum(j, 0)
+        own = (j >= 0) & (self.entry[jc] == e[:, None])
+        new = own & (self.k[jc] == rows)
+        held = new if align == "event" else own
+        valid = held & self.finite[jc]
+        out[..., :C] = np.where(valid[..., None], self.values[jc], 0.0)
+        out[..., C] = new
+        out[..., C + 1] = valid
+        out[..., C + 2] = np.where(valid, (rows - self.k[jc]) * dt[:, None], 0.0)
+        return out
+
+
+def _epoch_rows(shard: Path, extra: Extra, ids, clock: np.ndarray, first_entry: int):
+    """``(entry, IMU row, values)`` of the epochs of sequences ``ids`` (entries
+    ``first_entry, first_entry + 1, ...``) from the stream's table beside ``shard``."""
+    path = extra_path(shard, extra.folder)
+    if not path.is_file():
+        raise InputError(
+            path, f"no {extra.folder} table for this shard (run the aid stage: gnss.enabled)"
+        )
+    ids = np.asarray(ids, np.int64)
+    df = extra.read(
+        path, columns=[SEQUENCE, ttruth.TIME, *extra.columns],
+        filters=[(SEQUENCE, "in", [int(i) for i in ids])],
+    )  # fmt: skip
+    pos = {int(s): first_entry + n for n, s in enumerate(ids)}
+    entry = np.array([pos[int(s)] for s in df[SEQUENCE].to_numpy()], np.int64)
+    t = df[ttruth.TIME].to_numpy(float)
+    dt = (clock[-1] - clock[0]) / max(len(clock) - 1, 1)
+    k = np.clip(np.searchsorted(clock, t - 0.5 * dt), 0, len(clock) - 1)
+    off = np.abs(clock[k] - t) > 1e-6 * max(dt, 1e-12) + 1e-9
+    if off.any():
+        raise InputError(path, f"epoch at {t[off][0]!r} s is not an IMU sample time of the route")
+    vals = df[list(extra.columns)].to_numpy(float)
+    return entry, k.astype(np.int64), vals

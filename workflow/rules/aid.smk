@@ -1,6 +1,7 @@
 # GNSS-denied scenarios and the aided baseline: per route, grade and shard, GNSS fixes with the
 # configured scenarios, the companion sensors (config `companions`) and the loosely-coupled
-# filter on the shard's IMU (config `gnss.enabled`).
+# filter on the shard's IMU (config `gnss.enabled`); per route, the figure of error growth during
+# outages.
 
 
 rule aid:
@@ -26,3 +27,31 @@ rule aid:
         "imugen aid {input.truth:q} {input.shard:q} --gnss-out {output.gnss:q} -o {output.aided:q} "
         "--companions-out {output.companions:q} --grade {params.grade:q} "
         "--eval-rate-hz {params.eval_rate_hz} {params.opts} > {log:q} 2>&1"
+
+
+rule outage_figure:
+    input:
+        aided=lambda wc: [
+            f"results/{wc.route}/aided/{g}/shard-{s}.parquet" for g in GRADES for s in SHARDS
+        ],
+        nav=lambda wc: [
+            f"results/{wc.route}/nav/{g}/shard-{s}.parquet" for g in GRADES for s in SHARDS
+        ],
+        code=stage_code("figures_outage", "figures", "plotting"),
+    output:
+        report(
+            expand("results/{{route}}/figures/outage_growth.{ext}", ext=FIG["formats"]),
+            caption="../report/outage_growth.rst",
+            category="Figures",
+            labels={"route": "{route}", "figure": "error growth during GNSS outages"},
+        ),
+    params:
+        aided=grade_pairs("aided"),
+        nav=grade_pairs("nav"),
+        formats=" ".join(FIG["formats"]),
+        dpi=FIG["dpi"],
+    log:
+        "logs/{route}/outage_figure.log",
+    shell:
+        "imugen outage-figure -o results/{wildcards.route}/figures/outage_growth "
+        "{params.aided} {params.nav} --formats {params.formats} --dpi {params.dpi} > {log:q} 2>&1"

@@ -21,6 +21,7 @@ rule export_formats:
         truth="results/{route}/truth.parquet",
         shards=shard_paths("imu"),
         gnss=shard_paths("gnss") if AID_ON else [],
+        aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
         code=stage_code(
             "formats/__init__", "formats/source", "formats/common", "formats/convert",
             *(f"formats/{f}" for f in config["exports"]["formats"]),
@@ -31,9 +32,10 @@ rule export_formats:
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],
         gnss=lambda wc, input: ("--gnss " + " ".join(map(shlex.quote, input.gnss))) if input.gnss else "",
+        aided=lambda wc, input: ("--aided " + " ".join(map(shlex.quote, input.aided))) if input.aided else "",
     log:
         "logs/{route}/export_formats/{grade}.log",
     shell:
         "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
         "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
-        "--overwrite {params.gnss} > {log:q} 2>&1"
+        "--overwrite {params.gnss} {params.aided} > {log:q} 2>&1"

@@ -10,6 +10,7 @@ format    files                                       read by
 euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), OpenVINS,
           ``mav0/state_groundtruth_estimate0/...``    ORB-SLAM3, AirIMU
 tum       ``truth.tum``, ``<seq>.tum`` (free-inertial) evo (``evo_ape tum``), navlie
+          ``<seq>.aided.tum`` (with ``--aided``)
 tlio      ``<seq>/imu0_resampled.npy`` + description,  TLIO's ``SequencesDataset`` and forks
           ``train/val/test_list.txt``
 ronin     ``<seq>/data.hdf5`` + ``info.json``          RoNIN, RNIN, CTIN loaders (h5py)
@@ -117,12 +118,14 @@ def export(
     storage: str = "sqlite3",
     overwrite: bool = False,
     gnss_paths=None,
+    aided_paths=None,
     log=None,
 ) -> dict:
     """Write the sequences of ``shard_paths`` in each of ``formats`` under ``out_dir``.
 
     ``gnss_paths``: the GNSS epoch tables of ``imugen aid`` for these shards (optional): KF-GINS
-    then gets ``gnss.pos`` and ROS 2 bags a ``/gnss/fix`` topic. Returns ``{format: number of
+    then gets ``gnss.pos`` and ROS 2 bags a ``/gnss/fix`` topic. ``aided_paths``: the aided
+    navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``. Returns ``{format: number of
     files written}`` and prints one line per format to ``log``.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
@@ -149,7 +152,8 @@ def export(
             (tmp / "tum").mkdir()
             tum.write_truth(truth, tmp / "tum" / "truth.tum", every)
             counts["tum"] += 1
-        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths):
+        aided = aided_paths if "tum" in formats else None
+        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths, aided):
             name = f"{route}_{grade}_{seq.id:06d}"
             keys.append((route, seq.id, name))
             for fmt in formats:

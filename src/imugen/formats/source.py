@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imugen.errors import InputError
 from imugen.tables import SEQUENCE
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
@@ -63,6 +64,7 @@ class Sequence:
     labels: dict
     meta: dict = field(repr=False)
     gnss: object = None  # the sequence's GNSS epochs (DataFrame, imugen.tables.gnss), if given
+    aided: object = None  # its aided navigation (DataFrame, imugen.tables.aided), if given
 
     def has(self, names) -> bool:
         return all(n in self.data for n in names)
@@ -86,11 +88,33 @@ def gnss_of(gnss_paths, sid: int):
     return None
 
 
-def iter_sequences(shard_paths, K: int, only=None, gnss_paths=None) -> Iterator[Sequence]:
+def aided_of(aided_paths, sid: int):
+    """The aided navigation of sequence ``sid`` (DataFrame: ``time_s``, position, velocity,
+    ``q_nb`` of :mod:`imugen.tables.aided`, time-sorted) from whichever table holds it, or
+    None; reads only that sequence's rows. InputError for a table without the state columns
+    (written by an older ``imugen aid``)."""
+    from imugen.tables import aided as taided
+
+    cols = [ttruth.TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT]
+    for a in aided_paths or ():
+        if not taided.has_state(a):
+            raise InputError(
+                a, "holds no navigation state (written by an older imugen aid): rerun it"
+            )
+        df = taided.read(a, columns=cols, filters=[(SEQUENCE, "==", int(sid))])
+        if len(df):
+            return df.sort_values(ttruth.TIME, kind="stable").reset_index(drop=True)
+    return None
+
+
+def iter_sequences(
+    shard_paths, K: int, only=None, gnss_paths=None, aided_paths=None
+) -> Iterator[Sequence]:
     """Yield every sequence of the shards (file order), one at a time.
 
     ``only``: optional set of sequence ids to keep; ``gnss_paths``: GNSS epoch tables
-    (``imugen aid``) whose epochs of each sequence ride along as ``Sequence.gnss``.
+    (``imugen aid``) whose epochs of each sequence ride along as ``Sequence.gnss``;
+    ``aided_paths``: aided navigation tables (``imugen aid``), as ``Sequence.aided``.
     """
     for p in map(Path, shard_paths):
         meta = tshard.read_meta(p)
@@ -102,5 +126,10 @@ def iter_sequences(shard_paths, K: int, only=None, gnss_paths=None) -> Iterator[
                 continue
             row = labels.loc[sid].to_dict() if sid in labels.index else {}
             yield Sequence(
-                sid, dict(zip(names, block, strict=True)), row, meta, gnss_of(gnss_paths, sid)
+                sid,
+                dict(zip(names, block, strict=True)),
+                row,
+                meta,
+                gnss_of(gnss_paths, sid),
+                aided_of(aided_paths, sid),
             )

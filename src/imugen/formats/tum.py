@@ -1,9 +1,13 @@
 """TUM trajectories (``timestamp tx ty tz qx qy qz qw``) for evo's APE/RPE.
 
-``truth.tum`` (the route's truth at the navigation rate) and one file per sequence with its
-free-inertial navigation (strapdown from the true initial state, in the truth's Earth model),
-positions in the route's ENU frame, attitude ``q_nb`` scalar last, time in seconds.
-``evo_ape tum truth.tum SEQ.tum`` compares them.
+``truth.tum`` (the route's truth at the navigation rate), one file per sequence with its
+free-inertial navigation (``SEQ.tum``: strapdown from the true initial state, in the truth's
+Earth model) and, when the aided tables are given, one with its aided navigation
+(``SEQ.aided.tum``: the filter's output at the aided table's epochs, after alignment).
+Positions of the IMU in the route's ENU frame, attitude ``q_nb`` (body FLU to ENU) scalar
+last, time in seconds from the route's first sample. ``evo_ape tum truth.tum SEQ.tum`` and
+``evo_ape tum truth.tum SEQ.aided.tum`` compare them (evo associates by timestamp: the aided
+epochs that fall on the truth's navigation-rate grid are compared).
 """
 
 from __future__ import annotations
@@ -32,9 +36,22 @@ def write_truth(truth: TruthArrays, path: Path, every: int) -> Path:
 
 
 def write(seq: Sequence, truth: TruthArrays, folder: Path, nav=None, **_) -> list[Path]:
-    """Write the free-inertial trajectory of one sequence as ``folder.tum``."""
+    """Write the free-inertial trajectory of one sequence as ``folder.tum`` and, when the
+    sequence carries its aided navigation, that as ``folder.aided.tum``."""
+    from imugen.tables import truth as ttruth
+
     idx, p, q = nav(seq)
     path = folder.with_suffix(".tum")
     with open(path, "w") as fh:
         write_rows(fh, tum_rows(truth.time_s[idx], p, q), FMT)
-    return [path]
+    out = [path]
+    if seq.aided is not None:
+        a = seq.aided
+        out.append(folder.with_suffix(".aided.tum"))
+        with open(out[-1], "w") as fh:
+            rows = tum_rows(
+                a[ttruth.TIME].to_numpy(), a[list(ttruth.POS)].to_numpy(),
+                a[list(ttruth.QUAT)].to_numpy(),
+            )  # fmt: skip
+            write_rows(fh, rows, FMT)
+    return out

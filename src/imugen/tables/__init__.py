@@ -9,7 +9,7 @@ on the atomic writes of :mod:`imugen.io`); no stage parses another's file by han
 - :mod:`~imugen.tables.nav`: navigation errors per sequence and epoch;
 - :mod:`~imugen.tables.metrics`: per-sequence RMSE and final errors;
 - :mod:`~imugen.tables.gnss`: GNSS epochs of ``imugen aid`` with receiver and scenario labels;
-- :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors;
+- :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors and state;
 - :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels.
 
 ``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them.

@@ -1,9 +1,11 @@
-"""Aided navigation error table: the second output of ``imugen aid``.
+"""Aided navigation table: the second output of ``imugen aid`` (errors and full filter state).
 
 One row per sequence and evaluation epoch of the aided filter (GNSS epochs on the evaluation
 grid of ``navigate``, plus the last epoch of every run without a fix, so the error at the end
 of each outage is exact), sorted by ``sequence`` then time; epochs before the filter's
-alignment are omitted:
+alignment are omitted. Every value is the filter's output after the epoch's updates.
+
+Errors and scenario context:
 
 - ``sequence`` int64, ``time_s`` (s);
 - ``err_e_m``, ``err_n_m``, ``err_u_m``: filter position minus truth (m, ENU of the origin),
@@ -15,27 +17,61 @@ alignment are omitted:
 - ``state`` int8: scenario state of the epoch (:mod:`imugen.tables.gnss`);
 - ``since_fix_s``: time since the last epoch with a fix (0 with a fix; NaN before the first).
 
+Navigation state (the filter's estimate; names as :mod:`imugen.tables.truth` where the truth
+has the quantity; conventions of :mod:`imugen`: ENU navigation frame, FLU body frame):
+
+- ``p_e_m``, ``p_n_m``, ``p_u_m``: IMU position (m, ENU of the route origin);
+- ``v_e_mps``, ``v_n_mps``, ``v_u_mps``: IMU velocity in n (m/s);
+- ``q_w``, ``q_x``, ``q_y``, ``q_z``: attitude ``q_nb`` (body to navigation), scalar first;
+- ``gyro_bias_{x,y,z}_radps``, ``accel_bias_{x,y,z}_mps2``: estimated sensor biases (body
+  axes; measured = true + bias, as the shards' bias series);
+- ``sd_v_{e,n,u}_mps``, ``sd_att_{e,n,u}_rad`` (attitude error ``psi`` resolved in n),
+  ``sd_gyro_bias_{x,y,z}_radps``, ``sd_accel_bias_{x,y,z}_mps2``: their 1-sigma.
+
+Tables written before the state columns existed hold the first group only; :func:`read` with
+``columns=None`` returns whatever the file holds.
+
 Metadata (JSON under ``b"imugen"``): ``stage``, ``truth``, ``shard``, ``gnss``, ``grade``,
 ``route``, ``receiver``, ``options``, ``tuning_level``, ``eval_rate_hz``, ``units``.
 """
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from types import SimpleNamespace
 
-import pandas as pd
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
+from imugen.io import METADATA_KEY, atomic_output
 from imugen.io import read_meta as read_meta
-from imugen.io import write_parquet
-from imugen.tables._parquet import SEQUENCE, TIME, read_table
+from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
 from imugen.tables.nav import ERR_ATT, ERR_POS
+from imugen.tables.truth import POS, QUAT, VEL
 
 SD_POS = ("sd_e_m", "sd_n_m", "sd_u_m")
 """Reported position 1-sigma columns, metres, ENU."""
 GNSS_USED = "gnss_used"
 STATE = "state"
 SINCE_FIX = "since_fix_s"
-COLUMNS = (SEQUENCE, TIME, *ERR_POS, ERR_ATT, *SD_POS, GNSS_USED, STATE, SINCE_FIX)
+ERRORS = (SEQUENCE, TIME, *ERR_POS, ERR_ATT, *SD_POS, GNSS_USED, STATE, SINCE_FIX)
+"""The error and context columns (every aided table holds them)."""
+GYRO_BIAS = tuple(f"gyro_bias_{a}_radps" for a in "xyz")
+ACCEL_BIAS = tuple(f"accel_bias_{a}_mps2" for a in "xyz")
+SD_VEL = tuple(f"sd_v_{a}_mps" for a in "enu")
+SD_ATT = tuple(f"sd_att_{a}_rad" for a in "enu")
+SD_GYRO_BIAS = tuple(f"sd_{c}" for c in GYRO_BIAS)
+SD_ACCEL_BIAS = tuple(f"sd_{c}" for c in ACCEL_BIAS)
+STATE_COLUMNS = (
+    *POS, *VEL, *QUAT, *GYRO_BIAS, *ACCEL_BIAS, *SD_VEL, *SD_ATT, *SD_GYRO_BIAS, *SD_ACCEL_BIAS,
+)  # fmt: skip
+"""The filter's navigation state and sigmas."""
+COLUMNS = (*ERRORS, *STATE_COLUMNS)
+INT8 = (GNSS_USED, STATE)
 UNITS = {
     SEQUENCE: "1",
     TIME: "s",
@@ -45,15 +81,70 @@ UNITS = {
     GNSS_USED: "1",
     STATE: "imugen.scenarios.KINDS code",
     SINCE_FIX: "s",
+    **dict.fromkeys(POS, "m"),
+    **dict.fromkeys((*VEL, *SD_VEL), "m/s"),
+    **dict.fromkeys(QUAT, "1"),
+    **dict.fromkeys((*GYRO_BIAS, *SD_GYRO_BIAS), "rad/s"),
+    **dict.fromkeys((*ACCEL_BIAS, *SD_ACCEL_BIAS), "m/s^2"),
+    **dict.fromkeys(SD_ATT, "rad"),
 }
-WHAT = "aided navigation error table"
+WHAT = "aided navigation table"
 
 
-def write(df: pd.DataFrame, meta: dict, out) -> Path:
-    """Write the aided error table with its metadata (``units`` added) atomically."""
-    return write_parquet(df[list(COLUMNS)], {**meta, "units": UNITS}, out)
+def _type(c: str) -> pa.DataType:
+    return pa.int64() if c == SEQUENCE else pa.int8() if c in INT8 else pa.float64()
 
 
-def read(path, columns=None, filters=None) -> pd.DataFrame:
-    """Columns (default all) of an aided navigation error table, rows kept by ``filters``."""
+def _schema(meta: dict) -> pa.Schema:
+    md = {METADATA_KEY: json.dumps({**meta, "units": UNITS}).encode()}
+    return pa.schema([pa.field(c, _type(c)) for c in COLUMNS], metadata=md)
+
+
+@contextmanager
+def writer(out, meta: dict | None = None) -> Iterator[SimpleNamespace]:
+    """Stream the table to ``out`` atomically: yields ``w`` with ``w.put(cols)``.
+
+    ``cols`` maps every column of :data:`COLUMNS` to a 1-D array (a DataFrame works); each
+    block becomes one row group, so a job holds one block, never the whole table. ``w.meta``
+    is settable until the first ``put``. A table with no block put is written empty.
+    """
+    w = SimpleNamespace(meta=dict(meta or {}), rows=0)
+    with atomic_output(out) as tmp:
+        pw = schema = None
+
+        def put(cols) -> None:
+            nonlocal pw, schema
+            if pw is None:
+                schema = _schema(w.meta)
+                pw = pq.ParquetWriter(tmp, schema)
+            arrays = [from_numpy(np.asarray(cols[f.name]), f.type) for f in schema]
+            pw.write_table(pa.Table.from_arrays(arrays, schema=schema))
+            w.rows += len(arrays[0])
+
+        w.put = put
+        try:
+            yield w
+            if pw is None:
+                pq.write_table(_schema(w.meta).empty_table(), tmp)
+        finally:
+            if pw is not None:
+                pw.close()
+
+
+def write(df, meta: dict, out) -> Path:
+    """Write the aided table held in a DataFrame (or a dict of columns) atomically."""
+    with writer(out, meta) as w:
+        w.put(df)
+    return Path(out)
+
+
+def read(path, columns=None, filters=None):
+    """Columns (default all the file holds) of an aided navigation table, rows kept by
+    ``filters``."""
     return read_table(path, columns, filters, WHAT).to_pandas()
+
+
+def has_state(path) -> bool:
+    """Whether the table holds the navigation state columns (tables of this version do)."""
+    have = set(names(path, WHAT))
+    return all(c in have for c in STATE_COLUMNS)
