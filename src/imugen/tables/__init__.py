@@ -11,10 +11,20 @@ on the atomic writes of :mod:`imugen.io`); no stage parses another's file by han
 - :mod:`~imugen.tables.gnss`: GNSS epochs of ``imugen aid`` with receiver and scenario labels;
 - :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors.
 
-``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them.
+``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them. The
+submodules load on first use (``imugen.tables.gnss`` and ``aided`` import pandas, which a
+simulate or navigate job does not need: 0.4 CPU-s of its start-up).
 """
 
-from imugen.tables import aided, enu, gnss, metrics, nav, shard, truth
+import importlib
+
 from imugen.tables._parquet import SEQUENCE, TIME
 
-__all__ = ["SEQUENCE", "TIME", "aided", "enu", "gnss", "metrics", "nav", "shard", "truth"]
+_SUBMODULES = ("aided", "enu", "gnss", "metrics", "nav", "shard", "truth")
+__all__ = ["SEQUENCE", "TIME", *_SUBMODULES]
+
+
+def __getattr__(name):
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
