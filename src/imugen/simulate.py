@@ -104,6 +104,12 @@ class Truth(ABC):
     def chunk(self, k0: int, L: int):
         """``(time_s (L,), omega_ib_b (L,3), f_b (L,3), dtheta (L,3), dv (L,3))``, float64."""
 
+    def times(self) -> np.ndarray:
+        """``time_s`` of every sample (K,), float64: the chunks' times, joined."""
+        return np.concatenate(
+            [self.chunk(k, min(CHUNK, self.K - k))[0] for k in range(0, self.K, CHUNK)]
+        )
+
     @abstractmethod
     def raw_chunk(self, k0: int, L: int):
         """Raw increments ``(int omega_ib_b dt (L,3), int f_b dt (L,3))`` of the intervals
@@ -145,6 +151,9 @@ class ArrayTruth(Truth):
     def chunk(self, k0, L):
         s = slice(k0, k0 + L)
         return self.time[s], self.w[s], self.f[s], self.dth[s], self.dv[s]
+
+    def times(self):
+        return self.time
 
     def raw_chunk(self, k0, L):
         """4-point quadrature of the rate samples (:func:`imugen.mechanize.interval_integrals`:
@@ -891,7 +900,7 @@ def simulate(
     tr = plan.truth
     sink = _MemorySink(plan.M, tr.K, plan.names)
     _loop(plan, sink)
-    time_s = np.concatenate([tr.chunk(k, min(CHUNK, tr.K - k))[0] for k in range(0, tr.K, CHUNK)])
+    time_s = tr.times()
     meta = {**plan.meta, "units": tshard.units(plan.names)}
     gpar, apar = SensorParams.stack(plan.gp), SensorParams.stack(plan.ap)
     return Shard(time_s, sink.data, plan.labels(), gpar, apar, meta)
@@ -914,6 +923,7 @@ def run(
     series=False,
     dtype="float32",
     compression="none",
+    explicit_time=False,
     grades_file=None,
     static_earth="flat",
     static_origin=DEFAULT_STATIC_ORIGIN,
@@ -931,7 +941,9 @@ def run(
     :func:`~imugen.tables.shard.labels_path`), ``dtype`` of the measurement columns
     (``"float32"`` or ``"float64"``) and the Parquet ``compression`` (``"none"`` default:
     noise-like floats do not compress, see benchmarks/README.md). ``rate_hz`` and ``static_*``
-    only apply to ``static_s`` (a truth table has its own rate).
+    only apply to ``static_s`` (a truth table has its own rate). The truth's uniform clock is
+    stored once in the shard metadata (``clock``), not in every row, unless ``explicit_time``
+    (:func:`imugen.tables.shard.writer`).
 
     ``navigate`` (a path) also writes the navigation error table of the shard
     (:mod:`imugen.tables.nav`), computed from the sequences as they are generated -- the
@@ -968,7 +980,16 @@ def run(
         sink = w = None
         if out is not None:
             w = stack.enter_context(
-                tshard.writer(out, plan.meta, plan.names, dtype, compression=compression)
+                tshard.writer(
+                    out,
+                    plan.meta,
+                    plan.names,
+                    dtype,
+                    compression=compression,
+                    time_s=plan.truth.times(),
+                    dt=_nominal_dt(plan.truth),
+                    explicit_time=explicit_time,
+                )
             )
             sink = _WriterSink(w, plan.ids)
         if navigate is not None:
@@ -979,6 +1000,12 @@ def run(
         if w is not None:
             w.labels = plan.label_columns()
     return tshard.read_meta(out) if out is not None else plan.meta
+
+
+def _nominal_dt(truth: Truth) -> float | None:
+    """``1 / rate_hz`` of the truth's metadata (the step its time grid was built with)."""
+    rate = truth.meta.get("rate_hz")
+    return 1.0 / float(rate) if isinstance(rate, int | float) and rate > 0 else None
 
 
 def _nav_sink(stack, inner, plan, truth, out, nav_out, eval_rate_hz, dtype) -> _NavSink:
