@@ -362,9 +362,9 @@ def _kernel(
     out_err_inc,
 ):
     """Errors of one triad over samples ``k0 .. k0+L-1`` of ``S`` sequences (see
-    :meth:`SensorModel.step`). Two passes per sequence: the slow bias of every sample, axis
-    by axis with each process state in a register (``slow``: an ``(L, 3)`` float64 scratch),
-    then the measurements sample by sample with the sequence's error matrix in locals; the
+    :meth:`SensorModel.step`). Two passes per sequence: the slow bias of every sample, the
+    three axes' recursions side by side with their states in registers (``slow``: an
+    ``(L, 3)`` float64 scratch), then the measurements sample by sample with the sequence's error matrix in locals; the
     outputs are written once, in their storage dtype."""
     S = b_on.shape[0]
     L = u.shape[0]
@@ -380,37 +380,52 @@ def _kernel(
     fs_i = full_scale * dt
     for s in range(S):
         # pass 1: slow bias = turn-on + Gauss-Markov components + rate random walk + temperature
-        for i in range(3):
-            b = b_on[s, i]
+        # (the three axes side by side: three independent recursions in flight per sample)
+        b0, b1, b2 = b_on[s, 0], b_on[s, 1], b_on[s, 2]
+        for j in range(L):
+            slow[j, 0] = b0
+            slow[j, 1] = b1
+            slow[j, 2] = b2
+        if use_b:
+            for c in range(C):
+                phi = bi_phi[s, c]
+                d0, d1, d2 = bi_drv[s, 0, c], bi_drv[s, 1, c], bi_drv[s, 2, c]
+                x0, x1, x2 = x[s, 0, c], x[s, 1, c], x[s, 2, c]
+                j0 = 0
+                if k0 == 0 and L > 0:  # the process starts from its stationary law
+                    x0 = bi_sig[s, 0, c] * zb[s, 0, c]
+                    x1 = bi_sig[s, 1, c] * zb[s, 0, C + c]
+                    x2 = bi_sig[s, 2, c] * zb[s, 0, 2 * C + c]
+                    slow[0, 0] += x0
+                    slow[0, 1] += x1
+                    slow[0, 2] += x2
+                    j0 = 1
+                for j in range(j0, L):
+                    x0 = phi * x0 + d0 * zb[s, j, c]
+                    x1 = phi * x1 + d1 * zb[s, j, C + c]
+                    x2 = phi * x2 + d2 * zb[s, j, 2 * C + c]
+                    slow[j, 0] += x0
+                    slow[j, 1] += x1
+                    slow[j, 2] += x2
+                x[s, 0, c], x[s, 1, c], x[s, 2, c] = x0, x1, x2
+        if use_r:
+            r0, r1, r2 = r[s, 0], r[s, 1], r[s, 2]
+            k0r, k1r, k2r = rrw[s, 0] * sqdt, rrw[s, 1] * sqdt, rrw[s, 2] * sqdt
             for j in range(L):
-                slow[j, i] = b
-            if use_b:
-                for c in range(C):
-                    phi = bi_phi[s, c]
-                    drv = bi_drv[s, i, c]
-                    col = i * C + c
-                    xv = x[s, i, c]
-                    j0 = 0
-                    if k0 == 0 and L > 0:  # the process starts from its stationary law
-                        xv = bi_sig[s, i, c] * zb[s, 0, col]
-                        slow[0, i] += xv
-                        j0 = 1
-                    for j in range(j0, L):
-                        xv = phi * xv + drv * zb[s, j, col]
-                        slow[j, i] += xv
-                    x[s, i, c] = xv
-            if use_r:
-                rv = r[s, i]
-                kr = rrw[s, i] * sqdt
-                for j in range(L):
-                    if k0 + j > 0:
-                        rv += kr * zr[s, j, i]
-                    slow[j, i] += rv
-                r[s, i] = rv
-            if use_t:
-                tbi = tb[s, i]
-                for j in range(L):
-                    slow[j, i] += tbi * dT[j + 1]
+                if k0 + j > 0:
+                    r0 += k0r * zr[s, j, 0]
+                    r1 += k1r * zr[s, j, 1]
+                    r2 += k2r * zr[s, j, 2]
+                slow[j, 0] += r0
+                slow[j, 1] += r1
+                slow[j, 2] += r2
+            r[s, 0], r[s, 1], r[s, 2] = r0, r1, r2
+        if use_t:
+            t0, t1, t2 = tb[s, 0], tb[s, 1], tb[s, 2]
+            for j in range(L):
+                slow[j, 0] += t0 * dT[j + 1]
+                slow[j, 1] += t1 * dT[j + 1]
+                slow[j, 2] += t2 * dT[j + 1]
         # pass 2: measurements. Error matrix E = diag(sf) + cross-coupling, g-sensitivity G
         sf0, sf1, sf2 = sf[s, 0], sf[s, 1], sf[s, 2]
         ts0, ts1, ts2 = ts[s, 0], ts[s, 1], ts[s, 2]

@@ -224,50 +224,88 @@ ROW_GROUP = 1 << 20
 
 
 class Writer:
-    """Fills fixed-size column buffers and writes a row group whenever they are full."""
+    """Column buffers of one row group (plus one chunk of slack), written as they fill.
+
+    Producers either hand rows over (:meth:`put`, a copy) or write them in place: :meth:`reserve`
+    gives ``(L, 3)`` views of each group's three column buffers at the next free rows, and
+    :meth:`commit` appends them under a sequence id. Each group is one ``(3, capacity)``
+    array, so a column is a contiguous row of it and goes to Parquet without a copy; when
+    ``rows`` rows are filled they are written as one row group and the slack (fewer than one
+    chunk of rows) moves to the front.
+    """
 
     def __init__(self, pw: pq.ParquetWriter, schema_: pa.Schema, group_names, dtype, rows):
         self.w = pw
         self.schema = schema_
         self.groups = {g: GROUPS[g][0] for g in group_names}
         self.rows = rows
+        self.cap = rows
         self.n = 0
         self.labels: pd.DataFrame | dict | None = None
         self.time = TIME in schema_.names  # False: implicit clock, ``t`` is not stored
-        self.buf = {SEQUENCE: np.empty(rows, np.int64)}
+        self.dtype = np.dtype(dtype)
+        self._alloc(rows)
+
+    def _alloc(self, cap: int) -> None:
+        old = getattr(self, "gbuf", None)
+        gbuf = {g: np.empty((3, cap), self.dtype) for g in self.groups}
+        seq = np.empty(cap, np.int64)
+        tim = np.empty(cap) if self.time else None
+        if old is not None:
+            for g in self.groups:
+                gbuf[g][:, : self.n] = old[g][:, : self.n]
+            seq[: self.n] = self.seq[: self.n]
+            if self.time:
+                tim[: self.n] = self.tim[: self.n]
+        self.gbuf, self.seq, self.tim, self.cap = gbuf, seq, tim, cap
+
+    def reserve(self, L: int) -> dict:
+        """``{group: (L, 3) view}`` of the next ``L`` free rows (valid until :meth:`commit`)."""
+        if self.n + L > self.cap:
+            self._alloc(self.n + max(L, self.rows // 8))
+        a, b = self.n, self.n + L
+        return {g: buf[:, a:b].T for g, buf in self.gbuf.items()}
+
+    def commit(self, seq_id: int, t: np.ndarray) -> None:
+        """Append the ``len(t)`` reserved rows (filled) as samples of sequence ``seq_id``."""
+        L = len(t)
+        a, b = self.n, self.n + L
+        self.seq[a:b] = seq_id
         if self.time:
-            self.buf[TIME] = np.empty(rows)
-        for cols in self.groups.values():
-            for c in cols:
-                self.buf[c] = np.empty(rows, dtype)
+            self.tim[a:b] = t
+        self.n = b
+        while self.n >= self.rows:
+            self._write(self.rows)
 
     def put(self, seq_id: int, t: np.ndarray, outs: dict) -> None:
         """Append ``len(t)`` rows of sequence ``seq_id``; ``outs``: group -> (L, 3)."""
-        L = len(t)
-        done = 0
-        while done < L:
-            m = min(L - done, self.rows - self.n)
-            a, b = self.n, self.n + m
-            self.buf[SEQUENCE][a:b] = seq_id
+        views = self.reserve(len(t))
+        for g, v in views.items():
+            v[...] = outs[g]
+        self.commit(seq_id, t)
+
+    def _write(self, m: int) -> None:
+        """Write the first ``m`` buffered rows as a row group; move the rest to the front."""
+        cols = {SEQUENCE: self.seq[:m]}
+        if self.time:
+            cols[TIME] = self.tim[:m]
+        for g, names_ in self.groups.items():
+            for i, c in enumerate(names_):
+                cols[c] = self.gbuf[g][i, :m]
+        arrays = [from_numpy(cols[f.name]) for f in self.schema]
+        self.w.write_table(pa.Table.from_arrays(arrays, schema=self.schema), row_group_size=m)
+        rest = self.n - m
+        if rest:
+            for buf in self.gbuf.values():
+                buf[:, :rest] = buf[:, m : self.n]
+            self.seq[:rest] = self.seq[m : self.n]
             if self.time:
-                self.buf[TIME][a:b] = t[done : done + m]
-            for g, cols in self.groups.items():
-                src = outs[g]
-                for i, c in enumerate(cols):
-                    self.buf[c][a:b] = src[done : done + m, i]
-            self.n = b
-            done += m
-            if self.n == self.rows:
-                self.flush()
+                self.tim[:rest] = self.tim[m : self.n]
+        self.n = rest
 
     def flush(self) -> None:
-        if self.n == 0:
-            return
-        arrays = [from_numpy(self.buf[f.name][: self.n]) for f in self.schema]
-        self.w.write_table(
-            pa.Table.from_arrays(arrays, schema=self.schema), row_group_size=self.rows
-        )
-        self.n = 0
+        if self.n:
+            self._write(self.n)
 
 
 @contextmanager
