@@ -10,9 +10,10 @@ Measures (results in ``benchmarks/results/cost.{json,md}``, chart ``docs/figures
   injection (PCG64 ``standard_normal``, float64) drawing the same number of variates (sequences
   x samples x the grade's normals per sample) into one preallocated ``(CHUNK, 3)`` buffer, best
   of 3 -- and the mechanization kernel (``imugen.mechanize.mechanize`` on in-memory increments);
-* injection: the generation loop of a shard (plan made beforehand) into a null sink, best of 3,
-  and its ratio to the normal-variate floor (floor CPU / injection CPU, same variates); the same
-  through the shard writer (Parquet file, float32, implicit clock);
+* injection: the generation loop of a shard (plan made beforehand) into a null sink and its
+  ratio to the normal-variate floor (floor CPU / injection CPU, same variates; the two
+  interleaved, best of 3 each); the same through the shard writer (Parquet file, float32,
+  implicit clock);
 * start-up: ``imugen simulate --help`` and a 1-sequence job, fused (``imugen simulate TRUTH -o
   SHARD --navigate NAV``) and the former two jobs (``imugen simulate`` then ``imugen navigate``);
 * growth: fused jobs of ``--growth`` sequences on the paper scene at 100 Hz (CPU, wall, peak
@@ -91,10 +92,10 @@ def prepare_truth(scratch: Path) -> Path:
 
 
 # --- floors (in-process CPU time) -----------------------------------------------------------
-def normals_rate(n_variates: int, repeats: int = 3) -> float:
-    """The normal-variate floor: PCG64 ``standard_normal`` (float64, the injection's generator)
-    drawing ``n_variates`` (the injection's own count) into one preallocated ``(CHUNK, 3)``
-    buffer; variates per CPU second, best of ``repeats``."""
+def normals_cpu(n_variates: int) -> float:
+    """The normal-variate floor: CPU seconds of PCG64 ``standard_normal`` (float64, the
+    injection's generator) drawing ``n_variates`` (the injection's own count) into one
+    preallocated ``(CHUNK, 3)`` buffer."""
     from imugen.simulate import CHUNK
 
     rng = np.random.Generator(np.random.PCG64(0))
@@ -102,14 +103,11 @@ def normals_rate(n_variates: int, repeats: int = 3) -> float:
     calls, rest = divmod(int(n_variates), buf.size)
     tail = buf.reshape(-1)[:rest]
     rng.standard_normal(out=buf)
-    best_ = np.inf
-    for _ in range(repeats):
-        t0 = time.process_time()
-        for _ in range(calls):
-            rng.standard_normal(out=buf)
-        rng.standard_normal(out=tail)
-        best_ = min(best_, time.process_time() - t0)
-    return n_variates / best_
+    t0 = time.process_time()
+    for _ in range(calls):
+        rng.standard_normal(out=buf)
+    rng.standard_normal(out=tail)
+    return time.process_time() - t0
 
 
 def mech_rate(truth_path: Path, batch: int = 16) -> float:
@@ -157,16 +155,17 @@ def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
             S._loop(plan, S._WriterSink(w, plan.ids))
             w.labels = plan.label_columns()
 
-    def best_of(f):
-        r = []
-        for _ in range(repeats):
+    nps = null()
+    n_var = nps * M * plan.truth.K
+    floor = lambda: normals_cpu(n_var)  # noqa: E731
+    # interleaved, best of each: the floor and the injection see the same machine load
+    runs = {"floor": [], "null": [], "write": []}
+    for _ in range(repeats):
+        for key, f in (("floor", floor), ("null", null), ("write", write)):
             t0 = time.process_time()
             f()
-            r.append(time.process_time() - t0)
-        return min(r)
-
-    nps = null()
-    t_null, t_write = best_of(null), best_of(write)
+            runs[key].append(time.process_time() - t0)
+    t_floor, t_null, t_write = (min(runs[k]) for k in ("floor", "null", "write"))
     out.unlink()
     tshard.labels_path(out).unlink()
     work = M * plan.truth.K
@@ -174,6 +173,8 @@ def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
         "sequences": M,
         "samples": plan.truth.K,
         "normals_per_sample": nps,
+        "floor_cpu_s": t_floor,
+        "normals_per_cpu_s": n_var / t_floor,
         "null_cpu_s": t_null,
         "write_cpu_s": t_write,
         "null_samples_per_cpu_s": work / t_null,
@@ -291,11 +292,11 @@ def main() -> int:
     log("injection")
     inj = injection(truth, a.grade, a.injection_sequences)
     log("floors")
-    nr = normals_rate(inj["normals_per_sample"] * inj["sequences"] * inj["samples"])
+    nr = inj["normals_per_cpu_s"]
     mr = mech_rate(truth)
     bound = nr / inj["normals_per_sample"]
-    inj["ratio_null"] = inj["null_samples_per_cpu_s"] / bound
-    inj["ratio_write"] = inj["write_samples_per_cpu_s"] / bound
+    inj["ratio_null"] = inj["floor_cpu_s"] / inj["null_cpu_s"]
+    inj["ratio_write"] = inj["floor_cpu_s"] / inj["write_cpu_s"]
     per_work = inj["normals_per_sample"] / nr + 1.0 / mr
     res["floors"] = {"normals_per_cpu_s": nr, "mech_per_cpu_s": mr, "normal_bound": bound,
                      "per_work_s": per_work}  # fmt: skip
