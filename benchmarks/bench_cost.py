@@ -6,12 +6,14 @@ compare between runs. Every figure is recorded with the load average at the time
 
 Measures (results in ``benchmarks/results/cost.{json,md}``, chart ``docs/figures/cost_vs_work``):
 
-* floors, in CPU seconds on one core: NumPy's normal variates (PCG64 ``standard_normal`` into a
-  reused ``(CHUNK, 3)`` buffer; the grade's normals per sample from its sensor models) and the
-  mechanization kernel (``imugen.mechanize.mechanize`` on in-memory increments);
-* injection: the generation loop of a shard into a null sink (in-process, CPU time) and its rate
-  against the normal-variate bound ``normals/s / normals per sample``; the same through the
-  Parquet writer;
+* floors, in CPU seconds on one core: the normal-variate floor -- the same generator as the
+  injection (PCG64 ``standard_normal``, float64) drawing the same number of variates (sequences
+  x samples x the grade's normals per sample) into one preallocated ``(CHUNK, 3)`` buffer, best
+  of 3 -- and the mechanization kernel (``imugen.mechanize.mechanize`` on in-memory increments);
+* injection: the generation loop of a shard (plan made beforehand) into a null sink and its
+  ratio to the normal-variate floor (floor CPU / injection CPU, same variates; the two
+  interleaved, best of 3 each); the same through the shard writer (Parquet file, float32,
+  implicit clock);
 * start-up: ``imugen simulate --help`` and a 1-sequence job, fused (``imugen simulate TRUTH -o
   SHARD --navigate NAV``) and the former two jobs (``imugen simulate`` then ``imugen navigate``);
 * growth: fused jobs of ``--growth`` sequences on the paper scene at 100 Hz (CPU, wall, peak
@@ -22,8 +24,8 @@ Measures (results in ``benchmarks/results/cost.{json,md}``, chart ``docs/figures
 
 Usage::
 
-    python benchmarks/bench_cost.py [--grade industrial] [--growth 1 10 50 250] [--per-shard 250]
-        [--scratch /tmp/imugen-cost] [--full]
+    python benchmarks/bench_cost.py [--grade industrial] [--growth 1 10 50 250 1000]
+        [--per-shard 250 1000] [--scratch /tmp/imugen-cost] [--full]
 """
 
 from __future__ import annotations
@@ -90,18 +92,22 @@ def prepare_truth(scratch: Path) -> Path:
 
 
 # --- floors (in-process CPU time) -----------------------------------------------------------
-def normals_rate(seconds: float = 2.0) -> float:
-    """Normal variates per CPU second (PCG64, float64, into the injection's chunk buffer)."""
+def normals_cpu(n_variates: int) -> float:
+    """The normal-variate floor: CPU seconds of PCG64 ``standard_normal`` (float64, the
+    injection's generator) drawing ``n_variates`` (the injection's own count) into one
+    preallocated ``(CHUNK, 3)`` buffer."""
     from imugen.simulate import CHUNK
 
-    rng = np.random.default_rng(0)
+    rng = np.random.Generator(np.random.PCG64(0))
     buf = np.empty((CHUNK, 3))
+    calls, rest = divmod(int(n_variates), buf.size)
+    tail = buf.reshape(-1)[:rest]
     rng.standard_normal(out=buf)
-    n, t0 = 0, time.process_time()
-    while time.process_time() - t0 < seconds:
+    t0 = time.process_time()
+    for _ in range(calls):
         rng.standard_normal(out=buf)
-        n += buf.size
-    return n / (time.process_time() - t0)
+    rng.standard_normal(out=tail)
+    return time.process_time() - t0
 
 
 def mech_rate(truth_path: Path, batch: int = 16) -> float:
@@ -128,29 +134,51 @@ class _Null:
         pass
 
 
-def injection(truth_path: Path, grade: str, M: int) -> dict:
-    """Generation loop of an M-sequence shard: into a null sink, and through the writer."""
+def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
+    """Generation loop of an M-sequence shard (the plan -- truth read, draws -- made before the
+    clock starts): into a null sink, and through the shard writer (Parquet, float32, implicit
+    clock) to a file; CPU seconds, best of ``repeats``."""
     from imugen import simulate as S
+    from imugen.tables import shard as tshard
 
     S._loop(S._plan(str(truth_path), grade, 1, 1, 0), _Null())  # kernels loaded
     plan = S._plan(str(truth_path), grade, M, 1, 0)
-    t0 = time.process_time()
-    nps = S._loop(plan, _Null())
-    null = time.process_time() - t0
-    t0 = time.process_time()
-    S.run(str(truth_path), str(truth_path.parent / "inj.parquet"), grade, M, 1, 0)
-    written = time.process_time() - t0
-    (truth_path.parent / "inj.parquet").unlink()
-    (truth_path.parent / "inj.labels.parquet").unlink()
+    out = truth_path.parent / "inj.parquet"
+
+    def null():
+        return S._loop(plan, _Null())
+
+    def write():
+        times = plan.truth.times()
+        dt = S._nominal_dt(plan.truth)
+        with tshard.writer(out, plan.meta, plan.names, "float32", time_s=times, dt=dt) as w:
+            S._loop(plan, S._WriterSink(w, plan.ids))
+            w.labels = plan.label_columns()
+
+    nps = null()
+    n_var = nps * M * plan.truth.K
+    floor = lambda: normals_cpu(n_var)  # noqa: E731
+    # interleaved, best of each: the floor and the injection see the same machine load
+    runs = {"floor": [], "null": [], "write": []}
+    for _ in range(repeats):
+        for key, f in (("floor", floor), ("null", null), ("write", write)):
+            t0 = time.process_time()
+            f()
+            runs[key].append(time.process_time() - t0)
+    t_floor, t_null, t_write = (min(runs[k]) for k in ("floor", "null", "write"))
+    out.unlink()
+    tshard.labels_path(out).unlink()
     work = M * plan.truth.K
     return {
         "sequences": M,
         "samples": plan.truth.K,
         "normals_per_sample": nps,
-        "null_cpu_s": null,
-        "write_cpu_s": written,
-        "null_samples_per_cpu_s": work / null,
-        "write_samples_per_cpu_s": work / written,
+        "floor_cpu_s": t_floor,
+        "normals_per_cpu_s": n_var / t_floor,
+        "null_cpu_s": t_null,
+        "write_cpu_s": t_write,
+        "null_samples_per_cpu_s": work / t_null,
+        "write_samples_per_cpu_s": work / t_write,
     }
 
 
@@ -194,6 +222,8 @@ def markdown(res: dict) -> str:
         "",
         "| quantity | CPU s | wall s | note |",
         "|---|--:|--:|---|",
+        f"| `python -c 'import numpy, numba, pyarrow.parquet'` | {st['imports']['cpu_s']:.2f} | "
+        f"{st['imports']['wall_s']:.2f} | the imports no job avoids |",
         f"| `imugen simulate --help` | {st['help']['cpu_s']:.2f} | {st['help']['wall_s']:.2f} | "
         "parser only |",
         f"| 1-sequence fused job (`simulate --navigate`) | {st['fused_1']['cpu_s']:.2f} | "
@@ -222,24 +252,32 @@ def markdown(res: dict) -> str:
         )
     a, b = res["fit"]
     p = res["projection"]
-    L += [
-        "",
-        f"Fit: CPU = {a:.2f} s per job + {b * 1e9:.0f} s per 1e9 sample-sequences.",
-        "",
-        f"{'Measured' if p['measured'] else 'Projected from the fit (not run)'}: "
-        f"{p['sequences']} sequences x {p['samples']} samples in {p['shards']} shards of "
-        f"{p['per_shard']}: **{p['cpu_s']:.0f} CPU-s** against a floor of {p['floor_s']:.0f} "
-        f"CPU-s (normals + mechanization): **{p['ratio']:.2f}x** (target 1.5x). Snakemake's own "
-        "CPU and the truth and gather jobs are not included.",
-    ]
+    L += ["", f"Fit: CPU = {a:.2f} s per job + {b * 1e9:.0f} s per 1e9 sample-sequences.", ""]
+    for q in res["projections"]:
+        L.append(
+            f"Projected from the fit (not run): {q['sequences']} sequences x {q['samples']} "
+            f"samples in {q['shards']} shards of {q['per_shard']}: **{q['cpu_s']:.0f} CPU-s** "
+            f"against a floor of {q['floor_s']:.0f} CPU-s (normals + mechanization): "
+            f"**{q['ratio']:.2f}x** (target 1.5x)."
+        )
+    if p["measured"]:
+        L.append(
+            f"Measured (`--full`): {p['shards']} shards of {p['per_shard']}: "
+            f"**{p['cpu_s']:.0f} CPU-s**, {p['ratio']:.2f}x the floor."
+        )
+    L.append(
+        "Snakemake's own CPU and the per-route jobs (ingest, truth, evaluate, figures) are not "
+        "included."
+    )
     return "\n".join(L) + "\n"
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--grade", default="industrial")
-    ap.add_argument("--growth", type=int, nargs="+", default=[1, 10, 50, 250])
-    ap.add_argument("--per-shard", type=int, default=250)
+    ap.add_argument("--growth", type=int, nargs="+", default=[1, 10, 50, 250, 1000])
+    ap.add_argument("--per-shard", type=int, nargs="+", default=[250, 1000],
+                    help="shard sizes of the projected run (the first is --full's)")  # fmt: skip
     ap.add_argument("--sequences", type=int, default=10_000, help="size of the projected run")
     ap.add_argument("--injection-sequences", type=int, default=50)
     ap.add_argument("--scratch", default="/tmp/imugen-cost")
@@ -251,13 +289,14 @@ def main() -> int:
     res = {"grade": a.grade, "load_start": load()}
     res["machine"] = {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()}
     truth = prepare_truth(scratch)
-    log("floors")
-    nr, mr = normals_rate(), mech_rate(truth)
     log("injection")
     inj = injection(truth, a.grade, a.injection_sequences)
+    log("floors")
+    nr = inj["normals_per_cpu_s"]
+    mr = mech_rate(truth)
     bound = nr / inj["normals_per_sample"]
-    inj["ratio_null"] = inj["null_samples_per_cpu_s"] / bound
-    inj["ratio_write"] = inj["write_samples_per_cpu_s"] / bound
+    inj["ratio_null"] = inj["floor_cpu_s"] / inj["null_cpu_s"]
+    inj["ratio_write"] = inj["floor_cpu_s"] / inj["write_cpu_s"]
     per_work = inj["normals_per_sample"] / nr + 1.0 / mr
     res["floors"] = {"normals_per_cpu_s": nr, "mech_per_cpu_s": mr, "normal_bound": bound,
                      "per_work_s": per_work}  # fmt: skip
@@ -268,6 +307,7 @@ def main() -> int:
     d.mkdir()
     common = ["--grade", a.grade, "--seed", "1", "--shard", "0"]
     res["startup"] = {
+        "imports": best([sys.executable, "-c", "import numpy, numba, pyarrow.parquet"], 5),
         "help": best([*IMUGEN, "simulate", "--help"]),
         "fused_1": best(
             [
@@ -281,7 +321,8 @@ def main() -> int:
                 "--sequences",
                 "1",
                 *common,
-            ]
+            ],
+            5,
         ),
     }
     two = []
@@ -300,7 +341,16 @@ def main() -> int:
     res["growth"] = growth
     fit = fit_line([g["work"] for g in growth], [g["cpu_s"] for g in growth])
     res["fit"] = fit
-    N, M, K = a.sequences, a.per_shard, inj["samples"]
+    N, K = a.sequences, inj["samples"]
+    floor = per_work * N * K
+    res["projections"] = []
+    for M in a.per_shard:
+        shards = -(-N // M)
+        cpu = shards * fit[0] + fit[1] * N * K
+        res["projections"].append({"sequences": N, "per_shard": M, "shards": shards,
+                                   "samples": K, "cpu_s": cpu, "floor_s": floor,
+                                   "ratio": cpu / floor, "measured": False})  # fmt: skip
+    M = a.per_shard[0]
     shards = -(-N // M)
     if a.full:
         cpu = 0.0
@@ -311,7 +361,6 @@ def main() -> int:
                           "--grade", a.grade, "--seed", "1", "--shard", str(k)])["cpu_s"]  # fmt: skip
     else:
         cpu = shards * fit[0] + fit[1] * N * K
-    floor = per_work * N * K
     res["projection"] = {"sequences": N, "per_shard": M, "shards": shards, "samples": K,
                          "cpu_s": cpu, "floor_s": floor, "ratio": cpu / floor,
                          "measured": a.full}  # fmt: skip

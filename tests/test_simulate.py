@@ -83,7 +83,8 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     tbl = pf.read()
     sch = tbl.schema
     assert str(sch.field(S.SEQUENCE).type) == "int64"
-    assert str(sch.field(col.TIME).type) == "double"
+    assert col.TIME not in sch.names  # the uniform clock is in the metadata (test_shard_clock)
+    assert str(tshard.read(out, [col.TIME]).schema.field(col.TIME).type) == "double"
     for c in (
         *col.DTHETA,
         *col.DV,
@@ -95,7 +96,7 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
         *tshard.EFFECTIVE_ERROR["rates"],
     ):
         assert str(sch.field(c).type) == "float"
-    df = tbl.to_pandas()
+    df = tshard.read(out).to_pandas()
     # sorted by sequence then time; global ids route_id << 31 | (shard * M + j); the route of
     # a static IMU is "static"
     rid = tshard.route_id("static")

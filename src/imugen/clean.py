@@ -42,11 +42,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from imugen.errors import InputError
-from imugen.frames import LocalFrame, Origin
+
+if TYPE_CHECKING:
+    from imugen.frames import LocalFrame
 
 
 @dataclass(frozen=True)
@@ -235,6 +238,8 @@ def fill(x: np.ndarray, values: np.ndarray, missing: np.ndarray) -> np.ndarray:
 def _metric(cols: dict, enu_frame: LocalFrame | None) -> np.ndarray:
     if enu_frame is not None:
         return np.array(cols["pos"], dtype=float)
+    from imugen.frames import LocalFrame, Origin  # pyproj: only when a file is geographic
+
     o = Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0]))
     return LocalFrame(o).to_enu(cols["lat"], cols["lon"], cols["alt"])
 

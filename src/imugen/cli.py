@@ -111,6 +111,7 @@ def _cmd_simulate(a) -> int:
         temperature=temperature,
         series=a.series,
         dtype=a.dtype,
+        explicit_time=a.time_column,
         grades_file=a.grades_file,
         static_earth=a.earth,
         shard_size=a.shard_size,
@@ -488,6 +489,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["float32", "float64"],
         default="float32",
         help="storage type of the measurement columns",
+    )
+    p.add_argument(
+        "--time-column",
+        action="store_true",
+        help="write time_s in every row (default: the truth's uniform clock is stored once, in "
+        "the shard metadata, and readers of imugen.tables.shard rebuild the column)",
     )
     p.add_argument("--grades-file", help="YAML file with custom grades")
     p.add_argument(

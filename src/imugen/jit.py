@@ -8,6 +8,12 @@ package and, when the hash differs from the one stamped in the package's ``__pyc
 deletes the package's numba cache files there. Kernels then recompile once (a few
 seconds) and are cached across processes again.
 
+Start-up: numba's array-math registry (loaded with the typing context on a kernel's first call,
+even from the cache) probes for BLAS at import by importing ``scipy.linalg`` (0.2-0.3 CPU-s per
+process). scipy is a dependency of imugen, so the probe's answer is known; this module imports
+that registry once with the probe answered, and scipy loads only where a stage uses it (or
+where a kernel using BLAS compiles: numba's linear algebra calls the real probe then).
+
 The cache is an optimisation, never a requirement: a kernel whose cache file cannot be written
 (read-only install, full disk, quota or ``RLIMIT_FSIZE``: ``OSError``) runs from memory and the
 stage goes on; numba itself lets such errors fail the call that compiled the kernel.
@@ -17,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -56,6 +63,23 @@ def _refresh_cache() -> None:
 
 
 _refresh_cache()
+
+
+def _import_arraymath_without_scipy() -> None:
+    """Import ``numba.np.arraymath`` with its BLAS probe answered (see the module docstring)."""
+    if "numba.np.arraymath" in sys.modules:
+        return
+    import numba.np.linalg as nplinalg
+
+    probe = nplinalg.ensure_blas
+    nplinalg.ensure_blas = lambda: None  # scipy (hence its BLAS) is an imugen dependency
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        nplinalg.ensure_blas = probe
+
+
+_import_arraymath_without_scipy()
 
 
 class _TolerantCache(FunctionCache):

@@ -353,6 +353,7 @@ def _kernel(
     s_prev,
     q_rate,
     q_inc,
+    slow,
     out_rate,
     out_inc,
     out_bias,
@@ -360,6 +361,11 @@ def _kernel(
     out_err_rate,
     out_err_inc,
 ):
+    """Errors of one triad over samples ``k0 .. k0+L-1`` of ``S`` sequences (see
+    :meth:`SensorModel.step`). Two passes per sequence: the slow bias of every sample, the
+    three axes' recursions side by side with their states in registers (``slow``: an
+    ``(L, 3)`` float64 scratch), then the measurements sample by sample with the sequence's error matrix in locals; the
+    outputs are written once, in their storage dtype."""
     S = b_on.shape[0]
     L = u.shape[0]
     C = bi_sig.shape[2]
@@ -372,93 +378,140 @@ def _kernel(
     do_ei = out_err_inc.shape[0] > 0
     lsb_i = lsb * dt
     fs_i = full_scale * dt
-    slow = np.empty(3)
-    e = np.empty(3)
     for s in range(S):
+        # pass 1: slow bias = turn-on + Gauss-Markov components + rate random walk + temperature
+        # (the three axes side by side: three independent recursions in flight per sample)
+        b0, b1, b2 = b_on[s, 0], b_on[s, 1], b_on[s, 2]
         for j in range(L):
-            g = k0 + j
+            slow[j, 0] = b0
+            slow[j, 1] = b1
+            slow[j, 2] = b2
+        if use_b:
+            for c in range(C):
+                phi = bi_phi[s, c]
+                d0, d1, d2 = bi_drv[s, 0, c], bi_drv[s, 1, c], bi_drv[s, 2, c]
+                x0, x1, x2 = x[s, 0, c], x[s, 1, c], x[s, 2, c]
+                j0 = 0
+                if k0 == 0 and L > 0:  # the process starts from its stationary law
+                    x0 = bi_sig[s, 0, c] * zb[s, 0, c]
+                    x1 = bi_sig[s, 1, c] * zb[s, 0, C + c]
+                    x2 = bi_sig[s, 2, c] * zb[s, 0, 2 * C + c]
+                    slow[0, 0] += x0
+                    slow[0, 1] += x1
+                    slow[0, 2] += x2
+                    j0 = 1
+                for j in range(j0, L):
+                    x0 = phi * x0 + d0 * zb[s, j, c]
+                    x1 = phi * x1 + d1 * zb[s, j, C + c]
+                    x2 = phi * x2 + d2 * zb[s, j, 2 * C + c]
+                    slow[j, 0] += x0
+                    slow[j, 1] += x1
+                    slow[j, 2] += x2
+                x[s, 0, c], x[s, 1, c], x[s, 2, c] = x0, x1, x2
+        if use_r:
+            r0, r1, r2 = r[s, 0], r[s, 1], r[s, 2]
+            k0r, k1r, k2r = rrw[s, 0] * sqdt, rrw[s, 1] * sqdt, rrw[s, 2] * sqdt
+            for j in range(L):
+                if k0 + j > 0:
+                    r0 += k0r * zr[s, j, 0]
+                    r1 += k1r * zr[s, j, 1]
+                    r2 += k2r * zr[s, j, 2]
+                slow[j, 0] += r0
+                slow[j, 1] += r1
+                slow[j, 2] += r2
+            r[s, 0], r[s, 1], r[s, 2] = r0, r1, r2
+        if use_t:
+            t0, t1, t2 = tb[s, 0], tb[s, 1], tb[s, 2]
+            for j in range(L):
+                slow[j, 0] += t0 * dT[j + 1]
+                slow[j, 1] += t1 * dT[j + 1]
+                slow[j, 2] += t2 * dT[j + 1]
+        # pass 2: measurements. Error matrix E = diag(sf) + cross-coupling, g-sensitivity G
+        sf0, sf1, sf2 = sf[s, 0], sf[s, 1], sf[s, 2]
+        ts0, ts1, ts2 = ts[s, 0], ts[s, 1], ts[s, 2]
+        c01, c02, c10 = cc[s, 0, 1], cc[s, 0, 2], cc[s, 1, 0]
+        c12, c20, c21 = cc[s, 1, 2], cc[s, 2, 0], cc[s, 2, 1]
+        g00, g01, g02 = gs[s, 0, 0], gs[s, 0, 1], gs[s, 0, 2]
+        g10, g11, g12 = gs[s, 1, 0], gs[s, 1, 1], gs[s, 1, 2]
+        g20, g21, g22 = gs[s, 2, 0], gs[s, 2, 1], gs[s, 2, 2]
+        wr0, wr1, wr2 = white[s, 0] / sqdt, white[s, 1] / sqdt, white[s, 2] / sqdt
+        wi0, wi1, wi2 = white[s, 0] * sqdt, white[s, 1] * sqdt, white[s, 2] * sqdt
+        p0, p1, p2 = s_prev[s, 0], s_prev[s, 1], s_prev[s, 2]
+        for j in range(L):
             Tn = dT[j + 1] if use_t else 0.0
-            Tm = 0.5 * (dT[j] + dT[j + 1]) if use_t else 0.0
-            for i in range(3):
-                acc = b_on[s, i]
-                if use_b:
-                    for c in range(C):
-                        if g == 0:
-                            xv = bi_sig[s, i, c] * zb[s, j, i * C + c]
-                        else:
-                            xv = bi_phi[s, c] * x[s, i, c] + bi_drv[s, i, c] * zb[s, j, i * C + c]
-                        x[s, i, c] = xv
-                        acc += xv
-                if use_r:
-                    if g > 0:
-                        r[s, i] += rrw[s, i] * sqdt * zr[s, j, i]
-                    acc += r[s, i]
-                if use_t:
-                    acc += tb[s, i] * Tn
-                slow[i] = acc
-                if do_bias:
-                    out_bias[s, j, i] = acc
-                if do_sf:
-                    out_sf[s, j, i] = sf[s, i] + ts[s, i] * Tn
+            sl0, sl1, sl2 = slow[j, 0], slow[j, 1], slow[j, 2]
+            if do_bias:
+                out_bias[s, j, 0] = sl0
+                out_bias[s, j, 1] = sl1
+                out_bias[s, j, 2] = sl2
+            if do_sf:
+                out_sf[s, j, 0] = sf0 + ts0 * Tn
+                out_sf[s, j, 1] = sf1 + ts1 * Tn
+                out_sf[s, j, 2] = sf2 + ts2 * Tn
             if do_rate:
-                for i in range(3):
-                    e[i] = (sf[s, i] + ts[s, i] * Tn) * u[j, i]
-                    for k in range(3):
-                        if k != i:
-                            e[i] += cc[s, i, k] * u[j, k]
-                    if use_g:
-                        for k in range(3):
-                            e[i] += gs[s, i, k] * a[j, k]
-                for i in range(3):
-                    y = u[j, i] + e[i] + slow[i]
-                    if use_w:
-                        y += white[s, i] / sqdt * zw[s, j, i]
-                    y0 = y
-                    if y > full_scale:
-                        y = full_scale
-                    elif y < -full_scale:
-                        y = -full_scale
+                u0, u1, u2 = u[j, 0], u[j, 1], u[j, 2]
+                e0 = (sf0 + ts0 * Tn) * u0 + c01 * u1 + c02 * u2
+                e1 = (sf1 + ts1 * Tn) * u1 + c10 * u0 + c12 * u2
+                e2 = (sf2 + ts2 * Tn) * u2 + c20 * u0 + c21 * u1
+                if use_g:
+                    a0, a1, a2 = a[j, 0], a[j, 1], a[j, 2]
+                    e0 = e0 + g00 * a0 + g01 * a1 + g02 * a2
+                    e1 = e1 + g10 * a0 + g11 * a1 + g12 * a2
+                    e2 = e2 + g20 * a0 + g21 * a1 + g22 * a2
+                y0 = u0 + e0 + sl0
+                y1 = u1 + e1 + sl1
+                y2 = u2 + e2 + sl2
+                if use_w:
+                    y0 += wr0 * zw[s, j, 0]
+                    y1 += wr1 * zw[s, j, 1]
+                    y2 += wr2 * zw[s, j, 2]
+                for i, y, ei in ((0, y0, e0 + sl0), (1, y1, e1 + sl1), (2, y2, e2 + sl2)):
+                    yc = min(max(y, -full_scale), full_scale)
                     if do_er:
-                        out_err_rate[s, j, i] = e[i] + slow[i] + (y - y0)
+                        out_err_rate[s, j, i] = ei + (yc - y)
                     if lsb > 0.0:
-                        q_rate[s, i] += y
-                        y = lsb * math.floor(q_rate[s, i] / lsb + 0.5)
-                        q_rate[s, i] -= y
-                    out_rate[s, j, i] = y
+                        q_rate[s, i] += yc
+                        yc = lsb * math.floor(q_rate[s, i] / lsb + 0.5)
+                        q_rate[s, i] -= yc
+                    out_rate[s, j, i] = yc
             if do_inc:
-                if g == 0:
+                if k0 + j == 0:
                     for i in range(3):
                         out_inc[s, j, i] = 0.0
                         if do_ei:
                             out_err_inc[s, j, i] = 0.0
                 else:
-                    for i in range(3):
-                        e[i] = (sf[s, i] + ts[s, i] * Tm) * du[j, i]
-                        for k in range(3):
-                            if k != i:
-                                e[i] += cc[s, i, k] * du[j, k]
-                        if use_g:
-                            for k in range(3):
-                                e[i] += gs[s, i, k] * da[j, k]
-                    for i in range(3):
-                        eb = e[i] + 0.5 * (s_prev[s, i] + slow[i]) * dt
-                        y = du[j, i] + eb
-                        if use_w:
-                            y += white[s, i] * sqdt * zw[s, j, i]
-                        y0 = y
-                        if y > fs_i:
-                            y = fs_i
-                        elif y < -fs_i:
-                            y = -fs_i
+                    Tm = 0.5 * (dT[j] + dT[j + 1]) if use_t else 0.0
+                    v0, v1, v2 = du[j, 0], du[j, 1], du[j, 2]
+                    e0 = (sf0 + ts0 * Tm) * v0 + c01 * v1 + c02 * v2
+                    e1 = (sf1 + ts1 * Tm) * v1 + c10 * v0 + c12 * v2
+                    e2 = (sf2 + ts2 * Tm) * v2 + c20 * v0 + c21 * v1
+                    if use_g:
+                        a0, a1, a2 = da[j, 0], da[j, 1], da[j, 2]
+                        e0 = e0 + g00 * a0 + g01 * a1 + g02 * a2
+                        e1 = e1 + g10 * a0 + g11 * a1 + g12 * a2
+                        e2 = e2 + g20 * a0 + g21 * a1 + g22 * a2
+                    e0 = e0 + 0.5 * (p0 + sl0) * dt
+                    e1 = e1 + 0.5 * (p1 + sl1) * dt
+                    e2 = e2 + 0.5 * (p2 + sl2) * dt
+                    y0 = v0 + e0
+                    y1 = v1 + e1
+                    y2 = v2 + e2
+                    if use_w:
+                        y0 += wi0 * zw[s, j, 0]
+                        y1 += wi1 * zw[s, j, 1]
+                        y2 += wi2 * zw[s, j, 2]
+                    for i, y, ei in ((0, y0, e0), (1, y1, e1), (2, y2, e2)):
+                        yc = min(max(y, -fs_i), fs_i)
                         if do_ei:
-                            out_err_inc[s, j, i] = eb + (y - y0)
+                            out_err_inc[s, j, i] = ei + (yc - y)
                         if lsb_i > 0.0:
-                            q_inc[s, i] += y
-                            y = lsb_i * math.floor(q_inc[s, i] / lsb_i + 0.5)
-                            q_inc[s, i] -= y
-                        out_inc[s, j, i] = y
-            for i in range(3):
-                s_prev[s, i] = slow[i]
+                            q_inc[s, i] += yc
+                            yc = lsb_i * math.floor(q_inc[s, i] / lsb_i + 0.5)
+                            q_inc[s, i] -= yc
+                        out_inc[s, j, i] = yc
+            p0, p1, p2 = sl0, sl1, sl2
+        s_prev[s, 0], s_prev[s, 1], s_prev[s, 2] = p0, p1, p2
 
 
 _EMPTY3 = np.zeros((0, 0, 3))
@@ -489,6 +542,7 @@ class SensorModel:
         self.use_g = bool(np.any(params.gs != 0))
         self.use_t = bool(np.any(params.tb != 0) or np.any(params.ts != 0))
         self.state = SensorState(len(params.b_on), params.components)
+        self._slow = np.empty((0, 3))  # scratch of the kernel's slow-bias pass, reused
 
     @property
     def normals_per_sample(self) -> int:
@@ -539,6 +593,8 @@ class SensorModel:
         """
         p = self.p
         st = self.state
+        if len(self._slow) < len(u):
+            self._slow = np.empty((len(u), 3))
         use_g = self.use_g and a is not None and da is not None
         use_t = self.use_t and dT is not None
         _kernel(
@@ -575,6 +631,7 @@ class SensorModel:
             st.s_prev,
             st.q_rate,
             st.q_inc,
+            self._slow,
             _EMPTY3 if out_rate is None else out_rate,
             _EMPTY3 if out_inc is None else out_inc,
             _EMPTY3 if out_bias is None else out_bias,

@@ -12,21 +12,20 @@ on the atomic writes of :mod:`imugen.io`); no stage parses another's file by han
 - :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors and state;
 - :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels.
 
-``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them.
+``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them. The
+submodules load on first use (``imugen.tables.gnss`` and ``aided`` import pandas, which a
+simulate or navigate job does not need: 0.4 CPU-s of its start-up).
 """
 
-from imugen.tables import aided, companions, enu, gnss, metrics, nav, shard, truth
+import importlib
+
 from imugen.tables._parquet import SEQUENCE, TIME
 
-__all__ = [
-    "SEQUENCE",
-    "TIME",
-    "aided",
-    "companions",
-    "enu",
-    "gnss",
-    "metrics",
-    "nav",
-    "shard",
-    "truth",
-]
+_SUBMODULES = ("aided", "companions", "enu", "gnss", "metrics", "nav", "shard", "truth")
+__all__ = ["SEQUENCE", "TIME", *_SUBMODULES]
+
+
+def __getattr__(name):
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
