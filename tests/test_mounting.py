@@ -1,0 +1,284 @@
+"""IMU mounting (misalignment + lever arm): oracles.
+
+* the mounted increments equal the exact increments of the IMU point's own motion
+  (:func:`imugen.mechanize.exact_increments` on ``p + C l``, ``C C_vb``), flat and wgs84,
+  compensated and raw; the rates equal ``C_bv (f + alpha x l + omega x (omega x l))`` re-derived
+  from the IMU point's acceleration;
+* zero-error closure: a perfect IMU mounted with a drawn misalignment and lever arm navigates
+  onto the IMU's truth as closely as an unmounted one onto the vehicle's;
+* draws: per sequence, labelled, reproducible, the sigmas of the configuration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from imugen import mounting as MT
+from imugen import simulate as SIM
+from imugen.earth import OriginFrame, earth_rate_n, gravity_n
+from imugen.errors import InputError
+from imugen.mechanize import exact_increments
+from imugen.navigate import navigate_arrays
+from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+
+ORIGIN = (45.0, 7.0, 300.0)
+ANGLES = np.array([0.02, -0.015, 0.035])  # roll, pitch, yaw [rad]
+LEVER = np.array([1.2, -0.4, 0.7])  # m
+
+
+# --- an analytic vehicle motion -------------------------------------------------------------------
+def pos(t):
+    t = np.asarray(t, float)
+    return np.column_stack(
+        [12 * t + 8 * np.sin(0.3 * t), 40 * np.cos(0.2 * t), 0.5 * np.sin(0.5 * t)]
+    )
+
+
+def vel(t):
+    t = np.asarray(t, float)
+    return np.column_stack(
+        [12 + 2.4 * np.cos(0.3 * t), -8 * np.sin(0.2 * t), 0.25 * np.cos(0.5 * t)]
+    )
+
+
+def acc(t):
+    t = np.asarray(t, float)
+    return np.column_stack(
+        [-0.72 * np.sin(0.3 * t), -1.6 * np.cos(0.2 * t), -0.125 * np.sin(0.5 * t)]
+    )
+
+
+def euler(t):
+    t = np.asarray(t, float)
+    return 0.05 * np.sin(1.1 * t), 0.03 * np.sin(0.7 * t), 0.6 * t + 0.3 * np.sin(0.9 * t)
+
+
+def C_nv(t):
+    return euler_to_dcm(*euler(t))
+
+
+def att(t):
+    return dcm_to_quat(C_nv(t))
+
+
+def d(fun, t, h=1e-3):
+    """4th-order central difference of ``fun`` at ``t``."""
+    return (fun(t - 2 * h) - 8 * fun(t - h) + 8 * fun(t + h) - fun(t + 2 * h)) / (12 * h)
+
+
+def omega_nv_v(t):
+    C = C_nv(t)
+    W = np.einsum("kji,kjl->kil", C, d(C_nv, t))  # C^T dC/dt = [omega x]
+    return np.column_stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]])
+
+
+def imu_pos(t):
+    return pos(t) + C_nv(t) @ LEVER
+
+
+def imu_vel(t):
+    return vel(t) + d(lambda x: C_nv(x) @ LEVER, t)
+
+
+def imu_att(t):
+    return dcm_to_quat(C_nv(t) @ euler_to_dcm(*ANGLES))
+
+
+def rates(t, frame, p, v, a, C):
+    """Ideal specific force in body axes at ``t`` of a motion (p, v, a callables, C attitude)."""
+    Om = earth_rate_n(frame)
+    f_n = a(t) + 2 * np.cross(Om, v(t)) - gravity_n(p(t), frame)
+    return np.einsum("kji,kj->ki", C(t), f_n)
+
+
+def vehicle_truth(frame, rate=100.0, T=30.0):
+    t = np.arange(0.0, T + 0.5 / rate, 1.0 / rate)
+    dth, dv = exact_increments(t, pos, vel, att, frame)
+    Om = earth_rate_n(frame)
+    C = C_nv(t)
+    w = omega_nv_v(t) + np.einsum("kji,j->ki", C, Om)
+    f = rates(t, frame, pos, vel, acc, C_nv)
+    z = np.zeros((1, 3))
+    return t, w, f, np.vstack([z, dth]), np.vstack([z, dv])
+
+
+def mounting_for(truth, frame, t):
+    if frame.model == "flat":
+        return MT.Mounting(truth)
+    step = 100
+    grid = MT._grid(len(t), step)
+    return MT.Mounting(truth, att(t), MT.gravitation_gradient(pos(t[grid]), frame), step)
+
+
+def apply_chunks(m, angles, lever, dth, dv, raw, chunk):
+    out = [np.empty((m.truth.K, 3)) for _ in range(4)]
+    for k0 in range(0, m.truth.K, chunk):
+        L = min(chunk, m.truth.K - k0)
+        sh = m.shared(k0, L, raw)
+        res = m.apply(k0, sh, angles, lever, dth[k0 : k0 + L], dv[k0 : k0 + L], raw)
+        for o, r in zip(out, res, strict=True):
+            o[k0 : k0 + L] = r
+    return out
+
+
+@pytest.mark.parametrize("earth", ["flat", "wgs84"])
+def test_compensated_increments_are_those_of_the_imu_point(earth):
+    frame = OriginFrame.from_deg(*ORIGIN, model=earth)
+    t, w, f, dth, dv = vehicle_truth(frame)
+    tr = SIM.ArrayTruth(t, w, f, dth, dv)
+    m = mounting_for(tr, frame, t)
+    ref_dth, ref_dv = exact_increments(t, imu_pos, imu_vel, imu_att, frame)
+    for chunk in (len(t), 777):  # chunking cannot change the numbers
+        _, _, odth, odv = apply_chunks(m, ANGLES, LEVER, dth, dv, False, chunk)
+        assert np.all(odth[0] == 0) and np.all(odv[0] == 0)
+        assert np.max(np.abs(odth[1:] - ref_dth)) < 1e-12
+        # the lever-arm term alone is up to 1 m/s^2 (x 0.01 s); flat: exact to rounding;
+        # wgs84: the gravitation gradient interpolated at 1 s spacing
+        err = np.max(np.abs(odv[1:] - ref_dv))
+        assert err < 2e-11, err
+    # and the lever arm matters: without it the increments differ by far more
+    _, _, _, odv0 = apply_chunks(m, ANGLES, 0 * LEVER, dth, dv, False, len(t))
+    assert np.max(np.abs(odv0[1:] - ref_dv)) > 1e-3
+
+
+def test_raw_increments_are_plain_integrals_of_the_imu_specific_force():
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    t, w, f, dth, dv = vehicle_truth(frame)
+    tr = SIM.ArrayTruth(t, w, f, dth, dv)
+    rdth, rdv = tr.raw_chunk(0, tr.K)
+    m = MT.Mounting(tr)
+    Cbv = euler_to_dcm(*ANGLES).T
+    # reference: Gauss-Legendre (8 nodes) of the IMU's specific force over every interval
+    xg, wg = np.polynomial.legendre.leggauss(8)
+    dt = t[1] - t[0]
+    ref = np.zeros((len(t), 3))
+    for x, wq in zip(xg, wg, strict=True):
+        tau = t[:-1] + 0.5 * dt * (x + 1)
+        f_imu = rates(tau, frame, imu_pos, imu_vel, lambda s: d(imu_vel, s), C_nv)
+        ref[1:] += 0.5 * dt * wq * f_imu
+    ref = ref @ Cbv.T
+    for chunk in (len(t), 500):
+        _, _, odth, odv = apply_chunks(m, ANGLES, LEVER, rdth, rdv, True, chunk)
+        np.testing.assert_allclose(odth, rdth @ Cbv.T, rtol=0, atol=1e-15)
+        # the vehicle's raw dv has the 4-point rule's error (dt^5); the lever-arm term too
+        err = np.max(np.abs(odv - ref))
+        assert err < 1e-9, err
+
+
+def test_rates_are_the_imu_point_specific_force_and_rotated_rate():
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    t, w, f, dth, dv = vehicle_truth(frame)
+    tr = SIM.ArrayTruth(t, w, f, dth, dv)
+    m = MT.Mounting(tr)
+    ow, of, _, _ = apply_chunks(m, ANGLES, LEVER, dth, dv, False, 1000)
+    Cbv = euler_to_dcm(*ANGLES).T
+    np.testing.assert_allclose(ow, w @ Cbv.T, rtol=0, atol=1e-15)
+    f_imu = rates(t, frame, imu_pos, imu_vel, lambda s: d(imu_vel, s), C_nv) @ Cbv.T
+    # alpha by 4th-order differences of 100 Hz samples (2nd order at the two ends)
+    err = np.abs(of - f_imu)
+    assert np.max(err[2:-2]) < 2e-7, np.max(err[2:-2])
+    assert np.max(err) < 1e-4
+    assert np.max(np.abs(f @ Cbv.T - f_imu)) > 0.1  # the lever-arm term is there
+
+
+def test_imu_states_are_the_imu_point_truth():
+    frame = OriginFrame.from_deg(*ORIGIN, model="wgs84")
+    t = np.linspace(0, 20, 201)
+    C = C_nv(t)
+    w = omega_nv_v(t) + np.einsum("kji,j->ki", C, earth_rate_n(frame))
+    p, v, q = MT.imu_states(
+        pos(t), vel(t), att(t), w, earth_rate_n(frame), ANGLES[None], LEVER[None]
+    )
+    np.testing.assert_allclose(p[0], imu_pos(t), atol=1e-12)
+    np.testing.assert_allclose(v[0], imu_vel(t), atol=1e-8)
+    np.testing.assert_allclose(quat_to_dcm(q[0]), quat_to_dcm(imu_att(t)), atol=1e-14)
+
+
+# --- through the simulator and navigation ---------------------------------------------------------
+def truth_frame(frame, T=120.0):
+    t, w, f, dth, dv = vehicle_truth(frame, T=T)
+    cols = {ttruth.TIME: t}
+    for names, a in (
+        (ttruth.POS, pos(t)),
+        (ttruth.VEL, vel(t)),
+        (ttruth.QUAT, att(t)),
+        (ttruth.GYRO, w),
+        (ttruth.ACCEL, f),
+        (ttruth.DTHETA, dth),
+        (ttruth.DV, dv),
+    ):
+        cols.update({c: a[:, i] for i, c in enumerate(names)})
+    meta = {
+        "origin": dict(zip(("lat_deg", "lon_deg", "alt_m"), ORIGIN, strict=True)),
+        "earth": frame.model,
+        "rate_hz": 100.0,
+    }
+    return pd.DataFrame(cols), meta
+
+
+MOUNT = {"misalignment_sd_deg": [1.0, 1.0, 2.0], "lever_arm_m": [0.5, 0.0, 0.3]}
+
+
+@pytest.mark.parametrize("increments", ["compensated", "raw"])
+def test_zero_error_closure_with_mounting(increments):
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    df, meta = truth_frame(frame)
+    truth = ttruth.Truth(df, meta)
+    kw = dict(sequences=3, seed=4, terms=[], increments=increments)
+    res = {}
+    for mount in (None, MOUNT):
+        sh = SIM.simulate(df, "consumer", mounting=mount, **kw)
+        nav = navigate_arrays(truth, sh)
+        e = nav.groupby("sequence").last()
+        res[mount is None] = (np.linalg.norm(e[["err_e_m", "err_n_m", "err_u_m"]], axis=1), e)
+    plain, mounted = res[True][0], res[False][0]
+    # the same closure as without mounting (compensated: 1e-6 m; raw: the two-sample
+    # correction's own error, the same with and without the lever arm)
+    assert np.all(mounted <= max(1e-6, 2 * plain.max())), (mounted, plain)
+    assert res[False][1]["err_att_rad"].max() < 1e-8
+    sh = SIM.simulate(df, "consumer", mounting=MOUNT, **kw)
+    # navigating the mounted IMU against the vehicle's truth would be wrong by the lever arm
+    wrong = navigate_arrays(truth, sh.data | {}, semantics=increments)
+    assert wrong.groupby("sequence")["err_att_rad"].last().min() > 1e-3
+
+
+def test_draws_labels_and_reproducibility():
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    df, _ = truth_frame(frame, T=2.0)
+    spec = {"misalignment_sd_deg": [1.0, 2.0, 3.0], "lever_arm_m": [1, 2, 3], "lever_arm_sd_m": 0.5}
+    sh = SIM.simulate(df, "consumer", sequences=400, seed=1, mounting=spec, terms=[])
+    ang, lev = tshard.mounting(sh.labels)
+    np.testing.assert_allclose(ang.std(axis=0), np.radians([1, 2, 3]), rtol=0.15)
+    np.testing.assert_allclose(lev.mean(axis=0), [1, 2, 3], atol=0.1)
+    np.testing.assert_allclose(lev.std(axis=0), 0.5, rtol=0.15)
+    assert sh.meta["mounting"]["lever_arm_sd_m"] == [0.5] * 3
+    # sequence j's draw does not depend on the shard's size; the labels follow ids
+    sh2 = SIM.simulate(df, "consumer", sequences=3, seed=1, mounting=spec, terms=[], shard_size=400)
+    a2, l2 = tshard.mounting(sh2.labels)
+    np.testing.assert_array_equal(a2, ang[:3])
+    np.testing.assert_array_equal(l2, lev[:3])
+    ids = sh.labels[tshard.SEQUENCE].to_numpy()[[5, 2]]
+    np.testing.assert_array_equal(tshard.mounting(sh.labels, ids)[1], lev[[5, 2]])
+    # off: no mounting columns
+    sh3 = SIM.simulate(df, "consumer", sequences=2, seed=1, terms=[])
+    assert tshard.mounting(sh3.labels) is None and sh3.meta["mounting"] is None
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"misalignment_sd_deg": [1, 2]}, {"lever_arm_sd_m": -1}, {"lever": 1}, "yes"],
+)
+def test_bad_mounting_options_are_refused(bad):
+    with pytest.raises(InputError):
+        MT.MountingSpec.from_option(bad)
+
+
+def test_off_forms():
+    for off in (None, False, "off", {"enabled": False}):
+        assert MT.MountingSpec.from_option(off) is None
+    s = MT.MountingSpec.from_option({})
+    assert np.allclose(np.degrees(s.misalignment_sd_rad), MT.DEFAULT_MISALIGNMENT_SD_DEG)
