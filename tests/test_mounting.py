@@ -282,3 +282,33 @@ def test_off_forms():
         assert MT.MountingSpec.from_option(off) is None
     s = MT.MountingSpec.from_option({})
     assert np.allclose(np.degrees(s.misalignment_sd_rad), MT.DEFAULT_MISALIGNMENT_SD_DEG)
+
+
+def test_wgs84_shard_file_closes_on_the_imu_truth(tmp_path):
+    """Files end to end (wgs84: the gravitation-gradient term from the truth file): the shard
+    navigated in the simulating pass and by ``navigate.run`` on the written shard close on the
+    IMU's truth as an unmounted IMU closes on the vehicle's."""
+    from imugen import navigate as NV
+    from imugen.evaluate import segment_drift
+    from imugen.tables import nav as tnav
+
+    frame = OriginFrame.from_deg(*ORIGIN, model="wgs84")
+    df, meta = truth_frame(frame, T=120.0)
+    tpath = tmp_path / "truth.parquet"
+    ttruth.write(df, meta, tpath)
+    final = {}
+    for mount in (None, MOUNT):
+        name = "m" if mount else "p"
+        out, nav = tmp_path / f"{name}.parquet", tmp_path / f"{name}-nav.parquet"
+        SIM.run(tpath, out, "consumer", sequences=2, seed=3, terms=[], dtype="float64",
+                mounting=mount, navigate=nav)  # fmt: skip
+        e = tnav.read(nav)
+        again = NV.navigate(tpath, out)
+        np.testing.assert_array_equal(again["err_e_m"].to_numpy(), e["err_e_m"].to_numpy())
+        last = e.groupby("sequence").last()
+        final[name] = np.linalg.norm(last[["err_e_m", "err_n_m", "err_u_m"]], axis=1)
+        assert last["err_att_rad"].max() < 1e-9
+        # relative drift restarts from the IMU's truth too
+        drift = segment_drift(tpath, out, [30.0, 60.0])
+        assert drift.to_numpy().max() < 1e-6, drift
+    assert final["m"].max() < max(1e-6, 3 * final["p"].max()), final
