@@ -99,14 +99,25 @@ class AidParams:
         if self.eval_rate_hz <= 0:
             raise InputError("--eval-rate-hz", "must be > 0")
 
-    def options(self, vehicle: str | None) -> A.Options:
+    def options(self, vehicle: str | None, mounting: dict | None = None) -> A.Options:
+        """Filter options; ``mounting`` (the shard metadata's, :mod:`imugen.mounting`) gives
+        NHC its nominal lever arm and the misalignment sigmas its noise must cover."""
         nhc = (vehicle == "car") if self.nhc is None else bool(self.nhc)
+        mount = {}
+        if mounting:
+            sd = np.radians(mounting["misalignment_sd_deg"])
+            mount = {
+                "nhc_lever_arm_m": tuple(mounting["lever_arm_m"]),
+                "nhc_misalignment_sd_rad": (float(sd[1]), float(sd[2])),
+                "nhc_lever_arm_sd_m": tuple(mounting["lever_arm_sd_m"]),
+            }
         return A.Options(
             scale_factors=self.scale_factors,
             gnss_bias=self.gnss_bias_states,
             nhc=nhc,
             zupt=self.zupt,
             gate_sigma=self.gate_sigma,
+            **mount,
         )
 
 
@@ -185,17 +196,23 @@ def _stack(parts: list[SC.ScenarioResult]) -> SC.ScenarioResult:
     )
 
 
-def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int) -> SC.ScenarioResult:
-    """GNSS fixes after the scenarios of the sequences ``ids`` (global ids) of a truth."""
+def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None):
+    """GNSS fixes after the scenarios of the sequences ``ids`` (global ids) of a truth (a
+    :class:`imugen.scenarios.ScenarioResult`). ``mount``: the sequences' ``(angles, lever)``
+    (:func:`imugen.tables.shard.mounting`) when the IMU is mounted: the antenna lever arm is
+    then from the IMU, in its axes, on the IMU's truth."""
     t = truth.time_s
     frame = truth.origin_frame()
     rec = G.get_receiver(params.receiver)
     duration = float(t[-1] - t[0])
     parts = []
-    for sid in np.asarray(ids, np.int64):
+    states = (truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b)
+    for i, sid in enumerate(np.asarray(ids, np.int64)):
         ent = sequence_entropy(seed, int(sid))
+        if mount is not None:
+            states = _imu_truth(truth, frame, mount[0][i], mount[1][i])
         g = G.simulate_gnss(
-            t, truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b, rec, 1, ent, 0,
+            t, *states, rec, 1, ent, 0,
             rate_hz=params.rate_hz, draw=params.draw, lever_arm_b_m=params.lever_arm_b_m,
             lever_sd_m=params.lever_arm_sd_m, omega_ie_n=earth_rate_n(frame), first=int(sid),
         )  # fmt: skip
@@ -207,6 +224,15 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int) -> SC.Scena
             )[0]  # fmt: skip
         parts.append(SC.apply(g, [ivs], ent, 0, first=int(sid)))
     return _stack(parts)
+
+
+def _imu_truth(truth, frame, angles, lever):
+    """``(p_n, v_n, q_nb, omega_ib_b)`` (K, 3|4) of one mounted IMU (:mod:`imugen.mounting`)."""
+    from imugen.mounting import C_vb, imu_states
+
+    w = truth.omega_ib_b
+    p, v, q = imu_states(truth.p_n, truth.v_n, truth.q_nb, w, earth_rate_n(frame), angles, lever)
+    return p[0], v[0], q[0], w @ C_vb(angles)
 
 
 def _increments(a, c, kind, raw, dt):
@@ -237,13 +263,20 @@ def eval_mask(index, every: int, valid) -> np.ndarray:
     return grid | (nofix & nxt)
 
 
-def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int):
-    """The aided error table's rows for a filter result of sequences ``ids``."""
+def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int, mount=None):
+    """The aided error table's rows for a filter result of sequences ``ids`` (``mount``: as
+    :func:`gnss_for`; errors of a mounted IMU are against its own truth)."""
     idx = res.index
     t = res.time_s
-    err = res.p_n - truth.p_n[idx][None]
+    p_true, q_true = truth.p_n[idx][None], truth.q_nb[idx][None]
+    if mount is not None:
+        from imugen.mounting import imu_states
+
+        Om = earth_rate_n(truth.origin_frame())
+        p_true, _, q_true = imu_states(p_true[0], None, q_true[0], None, Om, *mount)
+    err = res.p_n - p_true
     q = np.where(np.isnan(res.q_nb), [1.0, 0.0, 0.0, 0.0], res.q_nb)
-    att = np.linalg.norm(A.attitude_error(q, truth.q_nb[idx][None]), axis=-1)
+    att = np.linalg.norm(A.attitude_error(q, q_true), axis=-1)
     valid = scen.gnss.valid
     aligned = (res.flags & A.F_ALIGNED) != 0
     keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err).all(-1)
@@ -288,7 +321,8 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
     if not grade:
         raise InputError(shard_path, "records no grade: pass --grade")
     tun = A.Tuning.from_grade(grade, params.tuning_level)
-    opts = params.options(truth.meta.get("vehicle"))
+    opts = params.options(truth.meta.get("vehicle"), smeta.get("mounting"))
+    mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
     frame = truth.origin_frame()
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
@@ -318,7 +352,8 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
     for ids, a, c in tshard.iter_blocks(shard_path, columns, K, int(batch), 0):
         ids = ids.copy()
         dth, dvb = _increments(a, c, kind, raw, truth.dt)
-        scen = gnss_for(truth, ids, params, seed)
+        mount = tshard.mounting(mlabels, ids)
+        scen = gnss_for(truth, ids, params, seed, mount)
         T = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver)
         init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
                        speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
@@ -332,7 +367,7 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
         lab[SEQUENCE] = ids  # global int64 ids (the receiver's labels count from ``first``)
         labels.append(lab)
         intervals.append(scen.intervals)
-        aided_rows.append(aided_errors(truth, ids, res, scen, every))
+        aided_rows.append(aided_errors(truth, ids, res, scen, every, mount))
     if not aided_rows:
         raise InputError(shard_path, "holds no sequences")
     if never:

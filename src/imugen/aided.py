@@ -26,7 +26,20 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       acceleration of the last IMU interval, ``L`` the latency). With GNSS bias states, the reported sigma is split between the
       white part (``R``) and the modelled bias in the tuning's proportions; without them ``R``
       is the reported variance.
-    * NHC (cars): body-frame lateral and vertical velocity zero, sigma ``nhc_sd_mps``.
+    * NHC (cars): lateral and vertical velocity of the vehicle reference point zero in the
+      vehicle frame ``v``, at the NOMINAL lever arm ``l`` (the filter does not know the drawn
+      one, :mod:`imugen.mounting`): ``(R (C^T v - omega x l))_{y,z} = 0``, variance ``nhc_sd_mps^2``
+      plus ``(omega x sd_l)^2`` per component for the lever arm's 1-sigma about the nominal
+      ``nhc_lever_arm_sd_m`` (white: it only acts in turns) (``omega`` the corrected rate; the
+      Earth rate's part, ``7e-5 |l|`` m/s, is left out).
+      ``R`` is the nominal mounting (identity), or, with ``nhc_misalignment_sd_rad`` set,
+      ``Rz(yaw) Ry(-pitch)`` of two more error states, the IMU's pitch and yaw from the vehicle
+      (random constants with that prior sigma): a misaligned IMU driving straight at ``u`` sees
+      ``v_b = u (1, -yaw, -pitch)``, a bias no white NHC noise can cover (measured: NEES 200
+      against a bound of 11 on the test scene with the noise inflated by ``u sd``). NHC observes
+      the direction of the vehicle's forward axis in IMU axes only, so the two states converge
+      to its angles (:func:`imugen.mounting.forward_axis_angles`), not to the roll-dependent
+      Euler pitch and yaw of the labels (they differ by ``roll x yaw``).
     * ZUPT: velocity zero when the interval was still (every sample's corrected rate below
       ``zupt_gyro_radps``, specific-force magnitude within ``zupt_accel_mps2`` of gravity) and
       the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
@@ -54,8 +67,8 @@ from imugen.jit import njit
 from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
 
 # --- nominal state layout (one row per sequence) ------------------------------------------------
-X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB = 0, 3, 6, 10, 13, 16, 19, 22
-NX = 25
+X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_MT = 0, 3, 6, 10, 13, 16, 19, 22, 25
+NX = 27
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
@@ -65,7 +78,8 @@ N_TUNE = 20
 # --- options vector (shared) --------------------------------------------------------------------
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
-N_OPT = 12
+O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 12, 15, 16  # lever and its sigma: 3 slots each
+N_OPT = 19
 # --- flags per epoch ----------------------------------------------------------------------------
 F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED = 1, 2, 4, 8, 16, 32
 LEVEL_SD_RAD = math.radians(1.0)
@@ -74,12 +88,12 @@ HEADING_SD_RAD = math.radians(0.5)
 """Heading-along-velocity 1-sigma margin of a moving-start alignment."""
 
 
-def n_states(scale_factors: bool, gnss_bias: bool) -> int:
+def n_states(scale_factors: bool, gnss_bias: bool, mounting: bool = False) -> int:
     """Size of the error state."""
-    return N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors)
+    return N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + 2 * bool(mounting)
 
 
-def state_names(scale_factors: bool, gnss_bias: bool) -> list[str]:
+def state_names(scale_factors: bool, gnss_bias: bool, mounting: bool = False) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
     names[9:15] = [f"{g}_{a}" for g in ("dbg", "dba") for a in "xyz"]
@@ -87,6 +101,8 @@ def state_names(scale_factors: bool, gnss_bias: bool) -> list[str]:
         names += [f"dgnss_bias_{a}" for a in "enu"]
     if scale_factors:
         names += [f"dsg_{a}" for a in "xyz"] + [f"dsa_{a}" for a in "xyz"]
+    if mounting:
+        names += ["dmount_pitch", "dmount_yaw"]
     return names
 
 
@@ -166,6 +182,11 @@ class Options:
     ``gnss_white_m`` per axis); ``nhc``: non-holonomic constraint (cars); ``zupt``: zero-velocity
     updates at detected stops; ``use_velocity``: GNSS velocity updates; ``latency``:
     compensate the GNSS latency to first order; ``gate_sigma``: innovation gate (0: off).
+    ``nhc_lever_arm_m``: nominal IMU position from the vehicle reference point (vehicle
+    axes, m) where NHC applies; ``nhc_misalignment_sd_rad``: (pitch, yaw) 1-sigma of the
+    unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
+    random constants with that prior (:attr:`mounting`; see the module docstring);
+    ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m].
     """
 
     scale_factors: bool = False
@@ -180,6 +201,14 @@ class Options:
     gate_sigma: float = 0.0
     use_velocity: bool = True
     latency: bool = True
+    nhc_lever_arm_m: tuple = (0.0, 0.0, 0.0)
+    nhc_misalignment_sd_rad: tuple = (0.0, 0.0)
+    nhc_lever_arm_sd_m: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def mounting(self) -> bool:
+        """Whether the IMU's pitch and yaw misalignment from the vehicle are states."""
+        return bool(self.nhc) and any(x > 0 for x in self.nhc_misalignment_sd_rad)
 
     def vector(self) -> np.ndarray:
         o = np.zeros(N_OPT)
@@ -195,6 +224,9 @@ class Options:
         o[O_GATE] = self.gate_sigma
         o[O_USE_VEL] = self.use_velocity
         o[O_LATENCY] = self.latency
+        o[O_NHC_LEVER : O_NHC_LEVER + 3] = self.nhc_lever_arm_m
+        o[O_MT] = self.mounting
+        o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
         return o
 
 
@@ -373,6 +405,8 @@ def _kernel(
     i_gb = N_BASE
     i_sg = N_BASE + (3 if gb_on else 0)
     i_sa = i_sg + 3
+    mt_on = opt[O_MT] != 0.0
+    i_mt = i_sg + (6 if sf_on else 0)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
     nzc = np.zeros((n, n), np.int64)
@@ -417,6 +451,7 @@ def _kernel(
     C = np.zeros((3, 3))
     Cf = np.zeros((3, 3))
     Cw = np.zeros((3, 3))
+    Cv = np.zeros((3, 3))
     Cint = np.zeros((3, 3))
     dvn = np.zeros(3)
     x = np.zeros(NX)
@@ -752,22 +787,59 @@ def _kernel(
                         _scalar_update(P, dx, h, hz, 1, vcur[a], opt[O_ZUPT_SD] ** 2, 0.0, PHt)
                     flag |= F_ZUPT
             if opt[O_NHC] != 0.0:
-                # v_b = C^T v; rows y, z: dv_b = C^T dv + C^T [v x] psi
+                # v_b = C^T v - w x l; rows y, z: dv_b = C^T dv + C^T [v x] psi
                 _skew(vx, vy, vz, Xm)
+                nlx, nly, nlz = opt[O_NHC_LEVER], opt[O_NHC_LEVER + 1], opt[O_NHC_LEVER + 2]
+                ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                vby = C[0, 1] * vx + C[1, 1] * vy + C[2, 1] * vz - (wbz * nlx - wbx * nlz)
+                vbz = C[0, 2] * vx + C[1, 2] * vy + C[2, 2] * vz - (wbx * nly - wby * nlx)
+                for a in range(3):
+                    for b in range(3):
+                        Cv[a, b] = C[a, b]
+                if mt_on:
+                    # vehicle axes v = R b, R = Rz(yaw) Ry(-pitch) (estimated angles; roll is
+                    # not observable by NHC): d(v_v,y)/d yaw = d(v_v,z)/d pitch = u to first
+                    # order; the velocity and attitude rows use C R^T
+                    mcp, msp = math.cos(x[X_MT]), math.sin(x[X_MT])
+                    mcy, msy = math.cos(x[X_MT + 1]), math.sin(x[X_MT + 1])
+                    ax = mcp * ub - msp * vbz
+                    vbz = msp * ub + mcp * vbz
+                    vby_ = msy * ax + mcy * vby
+                    ub = mcy * ax - msy * vby
+                    vby = vby_
+                    for a in range(3):
+                        c0, c1, c2 = C[a, 0], C[a, 1], C[a, 2]
+                        Cv[a, 1] = msy * (mcp * c0 - msp * c2) + mcy * c1
+                        Cv[a, 2] = msp * c0 + mcp * c2
                 for row in (1, 2):
                     for i in range(n):
                         h[i] = 0.0
-                    vb = C[0, row] * vx + C[1, row] * vy + C[2, row] * vz
+                    # the unknown part of the lever arm, (omega x dl)_row, as white noise
+                    lsx = opt[O_NHC_LEVER_SD]
+                    lsy = opt[O_NHC_LEVER_SD + 1]
+                    lsz = opt[O_NHC_LEVER_SD + 2]
+                    if row == 1:
+                        vb = vby
+                        var = (wbz * lsx) ** 2 + (wbx * lsz) ** 2
+                    else:
+                        vb = vbz
+                        var = (wbx * lsy) ** 2 + (wby * lsx) ** 2
+                    var += opt[O_NHC_SD] ** 2
                     for a in range(3):
-                        h[3 + a] = C[a, row]
+                        h[3 + a] = Cv[a, row]
                         hz[a] = 3 + a
-                    # (C^T [v x])[row, b]
+                    # (Cv^T [v x])[row, b]
                     for b in range(3):
                         h[6 + b] = (
-                            C[0, row] * Xm[0, b] + C[1, row] * Xm[1, b] + C[2, row] * Xm[2, b]
+                            Cv[0, row] * Xm[0, b] + Cv[1, row] * Xm[1, b] + Cv[2, row] * Xm[2, b]
                         )
                         hz[3 + b] = 6 + b
-                    _scalar_update(P, dx, h, hz, 6, vb, opt[O_NHC_SD] ** 2, 0.0, PHt)
+                    m = 6
+                    if mt_on:
+                        h[i_mt + (1 if row == 1 else 0)] = ub
+                        hz[6] = i_mt + (1 if row == 1 else 0)
+                        m = 7
+                    _scalar_update(P, dx, h, hz, m, vb, var, 0.0, PHt)
                 flag |= F_NHC
             # --- feedback ------------------------------------------------------------------------
             px -= dx[0]
@@ -791,6 +863,9 @@ def _kernel(
                 if sf_on:
                     x[X_SG + a] -= dx[i_sg + a]
                     x[X_SA + a] -= dx[i_sa + a]
+            if mt_on:
+                x[X_MT] -= dx[i_mt]
+                x[X_MT + 1] -= dx[i_mt + 1]
             x[0], x[1], x[2] = px, py, pz
             x[3], x[4], x[5] = vx, vy, vz
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
@@ -843,6 +918,8 @@ class AidedResult:
     P : (S, J, n, n) or None    full covariance (``store_P``)
     flags : (S, J) int8         bits F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED
     names : list of str         error-state names
+    mount_angles : (S, J, 2)    estimated IMU pitch and yaw from the vehicle [rad] (zeros when
+                                not estimated, :attr:`Options.mounting`)
     """
 
     time_s: np.ndarray
@@ -859,6 +936,7 @@ class AidedResult:
     P: np.ndarray | None
     flags: np.ndarray
     names: list
+    mount_angles: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -890,7 +968,7 @@ def initial_covariance(
     """
     sd_p, sd_v, sd_att = (np.atleast_2d(np.asarray(a, float)) for a in (sd_p, sd_v, sd_att))
     S = max(len(sd_p), len(sd_v), len(sd_att))
-    n = n_states(opts.scale_factors, opts.gnss_bias)
+    n = n_states(opts.scale_factors, opts.gnss_bias, opts.mounting)
     P = np.zeros((S, n, n))
     ix = np.arange(3)
     P[:, ix, ix] = np.broadcast_to(sd_p, (S, 3)) ** 2
@@ -910,6 +988,9 @@ def initial_covariance(
     if opts.scale_factors:
         P[:, i + ix, i + ix] = tun.gyro_sf_sd**2
         P[:, i + 3 + ix, i + 3 + ix] = tun.accel_sf_sd**2
+        i += 6
+    if opts.mounting:
+        P[:, i, i], P[:, i + 1, i + 1] = np.square(opts.nhc_misalignment_sd_rad)
     return P
 
 
@@ -1074,7 +1155,7 @@ def run(
         tuning_T = tuning_matrix(tun, S, gnss_receiver=gnss.receiver)
     if init is None:
         init = align(dth, dvb, dt, gnss, tun, opts, frame, tuning_T=tuning_T)
-    n = n_states(opts.scale_factors, opts.gnss_bias)
+    n = n_states(opts.scale_factors, opts.gnss_bias, opts.mounting)
     if init.P0.shape[1:] != (n, n):
         raise InputError("aided", f"P0 must be ({n}, {n}) for these options")
     idx = np.ascontiguousarray(gnss.index, np.int64)
@@ -1128,7 +1209,8 @@ def run(
         sd=out_sd,
         P=out_P if store_P else None,
         flags=flags,
-        names=state_names(opts.scale_factors, opts.gnss_bias),
+        names=state_names(opts.scale_factors, opts.gnss_bias, opts.mounting),
+        mount_angles=out_x[..., X_MT : X_MT + 2],
     )
 
 

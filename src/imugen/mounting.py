@@ -50,8 +50,8 @@ from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_mul, quat_to_dcm
 
 DEFAULT_MISALIGNMENT_SD_DEG = (1.0, 1.0, 2.0)
 """Roll, pitch, yaw 1-sigma of an IMU bolted to a car without a calibrated mount (deg)."""
-DEFAULT_LEVER_ARM_SD_M = (0.3, 0.2, 0.1)
-"""Lever-arm 1-sigma around the nominal, vehicle x, y, z (m)."""
+DEFAULT_LEVER_ARM_SD_M = (0.05, 0.05, 0.05)
+"""Lever-arm 1-sigma around the nominal, vehicle x, y, z (m): a lever arm measured with a tape."""
 KEYS = ("enabled", "misalignment_sd_deg", "lever_arm_m", "lever_arm_sd_m")
 
 
@@ -377,6 +377,16 @@ def setup(truth, spec: MountingSpec | None, source=None) -> Mounting | None:
     step = max(1, round(1.0 / truth.dt))
     grad = gravitation_gradient(tr.p_n[_grid(tr.K, step)], tr.origin_frame())
     return Mounting(truth, tr.q_nb, grad, step)
+
+
+def forward_axis_angles(angles) -> np.ndarray:
+    """What a non-holonomic constraint can observe of a mounting: the direction of the
+    vehicle's forward axis in IMU axes, ``e = C_bv (1, 0, 0)``, as the pitch and yaw
+    ``(atan2(-e_z, e_x), asin(-e_y))`` that map it back to x through ``Rz(yaw) Ry(-pitch)``
+    (rad; (..., 3) roll/pitch/yaw -> (..., 2)). Equal to the Euler pitch and yaw when the roll
+    is zero; otherwise they differ by about ``roll x yaw``."""
+    e = C_vb(angles)[..., 0, :]
+    return np.stack([np.arctan2(-e[..., 2], e[..., 0]), np.arcsin(-e[..., 1])], axis=-1)
 
 
 # --- the IMU's truth --------------------------------------------------------------------------------
