@@ -456,6 +456,10 @@ def test_filter_estimates_the_mounting_and_stays_consistent(car):
             assert np.all(res.sd[:, -1, i : i + 2] < 0.2 * np.array(sd))
     lo, hi = chi2.ppf([0.005, 0.995], 9 * M) / M
     states = out["states"]
+    print(
+        f"NEES mean {states.mean():.2f} (bounds {lo:.2f}-{hi:.2f}); nominal NHC median "
+        f"{np.median(out['nominal']):.0f}"
+    )
     assert np.sum((states < lo) | (states > hi)) <= 2, (states.round(1), lo, hi)
     assert lo < states.mean() < hi
     assert np.median(out["nominal"]) > 10 * hi, out["nominal"].round(0)

@@ -9,6 +9,10 @@ force) first get the two-sample coning/sculling correction
 (:func:`imugen.mechanize.compensate_raw`). Sequences are streamed from the shard in batches,
 so memory is bounded by the batch size.
 
+The truth is that of the IMU: a shard simulated with a mounting (metadata ``mounting``,
+:mod:`imugen.mounting`) starts from, and is compared with, the IMU's point and axes
+(``p + C_nv l``, ``C_nv C_vb``, from the drawn values in its labels); otherwise the vehicle's.
+
 Output: the navigation error table of :mod:`imugen.tables.nav` (``sequence``, ``time_s``,
 ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``), one row per sequence and evaluation
 epoch (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
