@@ -463,3 +463,30 @@ def test_filter_estimates_the_mounting_and_stays_consistent(car):
     assert np.sum((states < lo) | (states > hi)) <= 2, (states.round(1), lo, hi)
     assert lo < states.mean() < hi
     assert np.median(out["nominal"]) > 10 * hi, out["nominal"].round(0)
+
+
+def test_workflow_passes_the_config_mounting(tmp_path):
+    """``mounting.enabled`` reaches every simulate job as ``--mounting JSON`` (dry run); the
+    schema refuses a malformed section."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "wf", Path(__file__).with_name("test_workflow.py")
+    )
+    wf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(wf)
+    TINY, snakemake, write_config = wf.TINY, wf.snakemake, wf.write_config
+
+    cfg = {**TINY, "mounting": {"enabled": True, "lever_arm_m": [0.5, 0.0, 0.3]}}
+    write_config(tmp_path, cfg)
+    proc = snakemake(tmp_path, "-n", "-p", "-j1")
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-2000:]
+    sim = [ln for ln in out.splitlines() if "imugen simulate" in ln and "--navigate" in ln]
+    assert sim and all("--mounting" in ln and '"lever_arm_sd_m": [0.05' in ln for ln in sim)
+    write_config(tmp_path, TINY)
+    out = snakemake(tmp_path, "-n", "-p", "-j1").stdout
+    assert "imugen simulate" in out and "--mounting" not in out
+    write_config(tmp_path, {**TINY, "mounting": {"enabled": True, "lever_arm_m": [1, 2]}})
+    assert snakemake(tmp_path, "-n", "-j1").returncode != 0
