@@ -490,3 +490,33 @@ def test_workflow_passes_the_config_mounting(tmp_path):
     assert "imugen simulate" in out and "--mounting" not in out
     write_config(tmp_path, {**TINY, "mounting": {"enabled": True, "lever_arm_m": [1, 2]}})
     assert snakemake(tmp_path, "-n", "-j1").returncode != 0
+
+
+def test_exports_carry_the_imu_truth(tmp_path):
+    """EuRoC ground truth of a mounted sequence is the IMU's point and axes; the TUM export's
+    free-inertial trajectory of a perfect mounted IMU lies on it."""
+    from imugen.formats import export
+
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    df, meta = truth_frame(frame, T=20.0)
+    tpath = tmp_path / "drive" / "truth.parquet"
+    ttruth.write(df, meta, tpath)
+    shard = tmp_path / "drive" / "imu" / "consumer" / "shard-000.parquet"
+    SIM.run(tpath, shard, "consumer", sequences=2, seed=2, terms=[], dtype="float64",
+            outputs="both", mounting=MOUNT)  # fmt: skip
+    out = tmp_path / "export"
+    export(["euroc", "tum"], tpath, [shard], out, log=lambda m: None, nav_rate_hz=10.0)
+    labels = tshard.read_labels(shard)
+    truth = ttruth.Truth(df, meta)
+    p_imu, _, q_imu = MT.imu_states(
+        truth.p_n, None, truth.q_nb, None, np.zeros(3), *tshard.mounting(labels)
+    )
+    for j, sid in enumerate(labels[tshard.SEQUENCE]):
+        folder = out / "euroc" / f"drive_consumer_{sid:06d}" / "mav0"
+        gt = np.loadtxt(folder / "state_groundtruth_estimate0" / "data.csv", delimiter=",")
+        np.testing.assert_allclose(gt[:, 1:4], p_imu[j], atol=1e-6)
+        q = gt[:, 4:8] * np.sign(gt[:, 4:5] * q_imu[j][:, :1])
+        np.testing.assert_allclose(q, q_imu[j], atol=1e-8)
+        assert np.abs(gt[:, 1:4] - truth.p_n).max() > 0.1  # not the vehicle's
+        est = np.loadtxt(out / "tum" / f"drive_consumer_{sid:06d}.tum")
+        np.testing.assert_allclose(est[:, 1:4], p_imu[j][::10], atol=1e-6)

@@ -234,6 +234,9 @@ def _alpha_fast(w, dt, lo_pad, hi_pad):
     """Vectorized :func:`_alpha` (interior rows at once; the edge rows by :func:`_alpha`)."""
     n = len(w)
     out = np.empty((n, 3))
+    if n < 3:  # two samples: one difference
+        out[:] = (w[-1] - w[0]) / ((n - 1) * dt)
+        return out[lo_pad : n - hi_pad]
     if n >= 5:
         out[2 : n - 2] = (w[:-4] - 8.0 * w[1:-3] + 8.0 * w[3:-1] - w[4:]) / (12.0 * dt)
         edges = [0, 1, n - 2, n - 1]
