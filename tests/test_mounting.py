@@ -544,3 +544,23 @@ def test_aid_stage_on_a_mounted_shard(car, tmp_path):
     err = np.linalg.norm(late[["err_e_m", "err_n_m", "err_u_m"]].to_numpy(), axis=1)
     print(f"aided 95 % error {np.percentile(err, 95):.3f} m")
     assert len(late) and np.percentile(err, 95) < 0.1, np.percentile(err, 95)
+
+
+def test_loader_increments_target_is_the_mounted_imus(tmp_path):
+    """A perfect mounted IMU's measured increments equal the loader's ``increments`` target
+    (float32), which differs from the vehicle's by far more."""
+    from imugen.dataset import RouteFiles, WindowDataset
+
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    df, meta = truth_frame(frame, T=10.0)
+    tpath = tmp_path / "drive" / "truth.parquet"
+    ttruth.write(df, meta, tpath)
+    shard = tmp_path / "drive" / "imu" / "consumer" / "shard-000.parquet"
+    SIM.run(tpath, shard, "consumer", sequences=3, seed=2, terms=[], mounting=MOUNT)
+    ds = WindowDataset([RouteFiles("drive", tpath, (shard,), "consumer")], window=50, stride=25)
+    x, y = ds.get_batch(np.arange(len(ds)))
+    scale = np.abs(y).max(axis=(0, 1))
+    assert np.max(np.abs(x - y) / scale) < 1e-5
+    plain = WindowDataset([RouteFiles("drive", tpath, (shard,), "consumer")], window=50, stride=25)
+    plain._mount = None  # the vehicle's increments
+    assert np.max(np.abs(x - plain.get_batch(np.arange(len(ds)))[1]) / scale) > 1e-3
