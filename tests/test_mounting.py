@@ -242,7 +242,7 @@ def test_zero_error_closure_with_mounting(increments):
     assert res[False][1]["err_att_rad"].max() < 1e-8
     sh = SIM.simulate(df, "consumer", mounting=MOUNT, **kw)
     # navigating the mounted IMU against the vehicle's truth would be wrong by the lever arm
-    wrong = navigate_arrays(truth, sh.data | {}, semantics=increments)
+    wrong = navigate_arrays(truth, dict(sh.data), semantics=increments)  # no labels
     assert wrong.groupby("sequence")["err_att_rad"].last().min() > 1e-3
 
 

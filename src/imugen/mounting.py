@@ -34,7 +34,9 @@ The gravitation gradient is the one at the route origin (finite differences of
 truth given as arrays: left out). The vehicle's truth therefore becomes, for the IMU:
 ``p_imu = p + C_nv l``, ``v_imu = v + C_nv ((omega - C_vn Omega_n) x l)``, ``C_nb = C_nv
 C_vb`` (:func:`imu_states`): what free-inertial navigation of the shard starts from and is
-compared with.
+compared with. In :mod:`imugen.simulate` the transform runs on the truth's chunks before the
+case vibration (:mod:`imugen.vibration`, which shakes the IMU about its mount) and the sensor
+errors.
 """
 
 from __future__ import annotations

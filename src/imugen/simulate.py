@@ -25,6 +25,9 @@ Per-sequence parameters (see :func:`imugen.sensors.draw_sensor`)
 Levels log-uniform in the grade's ranges (``draw="ranges"``, default) or nominal
 (``draw="nominal"``); turn-on biases, scale factors, cross-couplings, g-sensitivities,
 temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationary law.
+With ``mounting``, the IMU's misalignment and lever arm (stream ``mounting``,
+:mod:`imugen.mounting`) turn the truth's ideal signals into the mounted IMU's before the case
+vibration and the sensor errors are applied.
 
 Output (one shard = one Parquet file + a labels sidecar)
 --------------------------------------------------------
