@@ -7,6 +7,9 @@ Frames
            topocentric frame at the route origin (a WGS-84 geodetic point).
     ``b``  body frame: x forward, y left, z up (FLU). A level, still IMU reads
            specific force ``f_b = (0, 0, +g)``.
+    ``v``  vehicle frame, FLU at the vehicle reference point: the truth's body frame. The IMU's
+           ``b`` is ``v`` unless a mounting is simulated (:mod:`imugen.mounting`: ``C_vb`` and
+           the lever arm ``l_v``; the truth of such an IMU is then the vehicle's moved there).
     ``e``  Earth-centred Earth-fixed (ECEF, WGS-84).
     ``C_nb`` rotates a vector from ``b`` to ``n`` (``v_n = C_nb @ v_b``).
     Quaternions are scalar first ``(w, x, y, z)``.

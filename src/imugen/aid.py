@@ -122,8 +122,18 @@ class AidParams:
         if self.companion_draw not in ("ranges", "nominal"):
             raise InputError("--companion-draw", "must be ranges or nominal")
 
-    def options(self, vehicle: str | None) -> A.Options:
+    def options(self, vehicle: str | None, mounting: dict | None = None) -> A.Options:
+        """Filter options; ``mounting`` (the shard metadata's, :mod:`imugen.mounting`) gives
+        NHC its nominal lever arm and the misalignment sigmas its noise must cover."""
         nhc = (vehicle == "car") if self.nhc is None else bool(self.nhc)
+        mount = {}
+        if mounting:
+            sd = np.radians(mounting["misalignment_sd_deg"])
+            mount = {
+                "nhc_lever_arm_m": tuple(mounting["lever_arm_m"]),
+                "nhc_misalignment_sd_rad": (float(sd[1]), float(sd[2])),
+                "nhc_lever_arm_sd_m": tuple(mounting["lever_arm_sd_m"]),
+            }
         return A.Options(
             scale_factors=self.scale_factors,
             gnss_bias=self.gnss_bias_states,
@@ -133,6 +143,7 @@ class AidParams:
             odometer=self.odometer is not None,
             odo_scale_state=self.odometer_scale_state,
             baro=self.barometer is not None,
+            **mount,
         )
 
 
@@ -211,17 +222,23 @@ def _stack(parts: list[SC.ScenarioResult]) -> SC.ScenarioResult:
     )
 
 
-def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int) -> SC.ScenarioResult:
-    """GNSS fixes after the scenarios of the sequences ``ids`` (global ids) of a truth."""
+def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None):
+    """GNSS fixes after the scenarios of the sequences ``ids`` (global ids) of a truth (a
+    :class:`imugen.scenarios.ScenarioResult`). ``mount``: the sequences' ``(angles, lever)``
+    (:func:`imugen.tables.shard.mounting`) when the IMU is mounted: the antenna lever arm is
+    then from the IMU, in its axes, on the IMU's truth."""
     t = truth.time_s
     frame = truth.origin_frame()
     rec = G.get_receiver(params.receiver)
     duration = float(t[-1] - t[0])
     parts = []
-    for sid in np.asarray(ids, np.int64):
+    states = (truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b)
+    for i, sid in enumerate(np.asarray(ids, np.int64)):
         ent = sequence_entropy(seed, int(sid))
+        if mount is not None:
+            states = _imu_truth(truth, frame, mount[0][i], mount[1][i])
         g = G.simulate_gnss(
-            t, truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b, rec, 1, ent, 0,
+            t, *states, rec, 1, ent, 0,
             rate_hz=params.rate_hz, draw=params.draw, lever_arm_b_m=params.lever_arm_b_m,
             lever_sd_m=params.lever_arm_sd_m, omega_ie_n=earth_rate_n(frame), first=int(sid),
         )  # fmt: skip
@@ -278,6 +295,15 @@ def companions_for(truth: ttruth.Truth, ids, params: AidParams, seed: int):
     return tuple(out)
 
 
+def _imu_truth(truth, frame, angles, lever):
+    """``(p_n, v_n, q_nb, omega_ib_b)`` (K, 3|4) of one mounted IMU (:mod:`imugen.mounting`)."""
+    from imugen.mounting import C_vb, imu_states
+
+    w = truth.omega_ib_b
+    p, v, q = imu_states(truth.p_n, truth.v_n, truth.q_nb, w, earth_rate_n(frame), angles, lever)
+    return p[0], v[0], q[0], w @ C_vb(angles)
+
+
 def _increments(a, c, kind, raw, dt):
     """(b, K, 3) angle and velocity increments, row 0 unused, from a shard block (skip 0)."""
     if kind == "increments":
@@ -306,14 +332,21 @@ def eval_mask(index, every: int, valid) -> np.ndarray:
     return grid | (nofix & nxt)
 
 
-def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int):
+def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int, mount=None):
     """The aided table's rows (:data:`imugen.tables.aided.COLUMNS`) for a filter result of
-    sequences ``ids``: errors against the truth, scenario context and the filter's state."""
+    sequences ``ids``: errors against the truth, scenario context and the filter's state
+    (``mount``: as :func:`gnss_for`; errors of a mounted IMU are against its own truth)."""
     idx = res.index
     t = res.time_s
-    err = res.p_n - truth.p_n[idx][None]
+    p_true, q_true = truth.p_n[idx][None], truth.q_nb[idx][None]
+    if mount is not None:
+        from imugen.mounting import imu_states
+
+        Om = earth_rate_n(truth.origin_frame())
+        p_true, _, q_true = imu_states(p_true[0], None, q_true[0], None, Om, *mount)
+    err = res.p_n - p_true
     q = np.where(np.isnan(res.q_nb), [1.0, 0.0, 0.0, 0.0], res.q_nb)
-    att = np.linalg.norm(A.attitude_error(q, truth.q_nb[idx][None]), axis=-1)
+    att = np.linalg.norm(A.attitude_error(q, q_true), axis=-1)
     valid = scen.gnss.valid
     aligned = (res.flags & A.F_ALIGNED) != 0
     keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err).all(-1)
@@ -373,7 +406,8 @@ def aid(
     if not grade:
         raise InputError(shard_path, "records no grade: pass --grade")
     tun = A.Tuning.from_grade(grade, params.tuning_level)
-    opts = params.options(truth.meta.get("vehicle"))
+    opts = params.options(truth.meta.get("vehicle"), smeta.get("mounting"))
+    mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
     frame = truth.origin_frame()
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
@@ -405,7 +439,8 @@ def aid(
     for ids, a, c in tshard.iter_blocks(shard_path, columns, K, int(batch), 0):
         ids = ids.copy()
         dth, dvb = _increments(a, c, kind, raw, truth.dt)
-        scen = gnss_for(truth, ids, params, seed)
+        mount = tshard.mounting(mlabels, ids)
+        scen = gnss_for(truth, ids, params, seed, mount)
         odo, baro = companions_for(truth, ids, params, seed)
         ce = CP.filter_input(
             scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,
@@ -432,7 +467,7 @@ def aid(
         lab[SEQUENCE] = ids  # global int64 ids (the receiver's labels count from ``first``)
         labels.append(lab)
         intervals.append(scen.intervals)
-        rows = aided_errors(truth, ids, res, scen, every)
+        rows = aided_errors(truth, ids, res, scen, every, mount)
         if aided_sink is None:
             aided_rows.append(rows)
         else:

@@ -8,10 +8,11 @@ kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g d
 trapezoid for position. Increments are corrected with the estimated biases and scale factors,
 ``dtheta_hat = (dtheta - b_g dt) / (1 + s_g)`` (likewise ``dv``).
 
-Error state (estimate minus truth), ``n = 15 (+3) (+6)``
+Error state (estimate minus truth), ``n = 15 (+3) (+6) (+2)``
     ``dp, dv`` [m, m/s] in n; ``psi`` [rad] with ``C_hat = Exp(psi) C``; gyro and accelerometer
     bias errors; optionally the GNSS receiver's Gauss-Markov position bias (E, N, U), then
-    gyro and accelerometer scale-factor errors. Continuous model
+    gyro and accelerometer scale-factor errors, then the IMU's pitch and yaw misalignment from
+    the vehicle (constants, NHC only). Continuous model
     ``dp' = dv``; ``dv' = -[f_n x] psi - C (db_a + diag(f) ds_a) - 2 Omega x dv + Gamma dp``;
     ``psi' = -Omega x psi - C (db_g + diag(omega) ds_g)``; biases random walks; GNSS bias
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
@@ -26,7 +27,20 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       acceleration of the last IMU interval, ``L`` the latency). With GNSS bias states, the reported sigma is split between the
       white part (``R``) and the modelled bias in the tuning's proportions; without them ``R``
       is the reported variance.
-    * NHC (cars): body-frame lateral and vertical velocity zero, sigma ``nhc_sd_mps``.
+    * NHC (cars): lateral and vertical velocity of the vehicle reference point zero in the
+      vehicle frame ``v``, at the NOMINAL lever arm ``l`` (the filter does not know the drawn
+      one, :mod:`imugen.mounting`): ``(R (C^T v - omega x l))_{y,z} = 0``, variance ``nhc_sd_mps^2``
+      plus ``(omega x sd_l)^2`` per component for the lever arm's 1-sigma about the nominal
+      ``nhc_lever_arm_sd_m`` (white: it only acts in turns) (``omega`` the corrected rate; the
+      Earth rate's part, ``7e-5 |l|`` m/s, is left out).
+      ``R`` is the nominal mounting (identity), or, with ``nhc_misalignment_sd_rad`` set,
+      ``Rz(yaw) Ry(-pitch)`` of two more error states, the IMU's pitch and yaw from the vehicle
+      (random constants with that prior sigma): a misaligned IMU driving straight at ``u`` sees
+      ``v_b = u (1, -yaw, -pitch)``, a bias no white NHC noise can cover (measured: NEES 80-280
+      against a bound of 11 on a car scene with the noise inflated by ``u sd``). NHC observes
+      the direction of the vehicle's forward axis in IMU axes only, so the two states converge
+      to its angles (:func:`imugen.mounting.forward_axis_angles`), not to the roll-dependent
+      Euler pitch and yaw of the labels (they differ by ``roll x yaw``).
     * ZUPT: velocity zero when the interval was still (every sample's corrected rate below
       ``zupt_gyro_radps``, specific-force magnitude within ``zupt_accel_mps2`` of gravity) and
       the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
@@ -54,8 +68,20 @@ from imugen.jit import njit
 from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
 
 # --- nominal state layout (one row per sequence) ------------------------------------------------
-X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB = 0, 3, 6, 10, 13, 16, 19, 22, 25, 26
-NX = 27
+X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB, X_MT = (
+    0,
+    3,
+    6,
+    10,
+    13,
+    16,
+    19,
+    22,
+    25,
+    26,
+    27,
+)
+NX = 29
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
@@ -67,7 +93,8 @@ N_TUNE = 23
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
 O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
-N_OPT = 15
+O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
+N_OPT = 22
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
 C_ODO, C_ODO_VAR, C_BARO, C_BARO_VAR = 0, 1, 2, 3
 # --- flags per epoch ----------------------------------------------------------------------------
@@ -78,13 +105,25 @@ HEADING_SD_RAD = math.radians(0.5)
 """Heading-along-velocity 1-sigma margin of a moving-start alignment."""
 
 
-def n_states(scale_factors: bool, gnss_bias: bool, odo_sf: bool = False, baro: bool = False) -> int:
-    """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift)."""
-    return N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
+def n_states(
+    scale_factors: bool,
+    gnss_bias: bool,
+    odo_sf: bool = False,
+    baro: bool = False,
+    mounting: bool = False,
+) -> int:
+    """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
+    ``mounting``: the IMU's pitch and yaw from the vehicle)."""
+    n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
+    return n + 2 * bool(mounting)
 
 
 def state_names(
-    scale_factors: bool, gnss_bias: bool, odo_sf: bool = False, baro: bool = False
+    scale_factors: bool,
+    gnss_bias: bool,
+    odo_sf: bool = False,
+    baro: bool = False,
+    mounting: bool = False,
 ) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
@@ -97,6 +136,8 @@ def state_names(
         names.append("dodo_sf")
     if baro:
         names.append("dbaro_bias")
+    if mounting:
+        names += ["dmount_pitch", "dmount_yaw"]
     return names
 
 
@@ -179,6 +220,11 @@ class Options:
     ``odometer``: odometer distance updates (needs :class:`CompanionEpochs`), with an
     odometer scale-factor state if ``odo_scale_state`` (else the noise is inflated by the
     scale factor's prior); ``baro``: barometric height updates with a drift state.
+    ``nhc_lever_arm_m``: nominal IMU position from the vehicle reference point (vehicle
+    axes, m) where NHC applies; ``nhc_misalignment_sd_rad``: (pitch, yaw) 1-sigma of the
+    unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
+    random constants with that prior (:attr:`mounting`; see the module docstring);
+    ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m].
     """
 
     scale_factors: bool = False
@@ -196,20 +242,30 @@ class Options:
     odometer: bool = False
     odo_scale_state: bool = True
     baro: bool = False
+    nhc_lever_arm_m: tuple = (0.0, 0.0, 0.0)
+    nhc_misalignment_sd_rad: tuple = (0.0, 0.0)
+    nhc_lever_arm_sd_m: tuple = (0.0, 0.0, 0.0)
 
     @property
     def n(self) -> int:
         """Size of the error state."""
-        return n_states(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro)
+        return n_states(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting)
 
     @property
     def odo_sf(self) -> bool:
         """The odometer scale factor is a state."""
         return self.odometer and self.odo_scale_state
 
+    @property
+    def mounting(self) -> bool:
+        """Whether the IMU's pitch and yaw misalignment from the vehicle are states."""
+        return bool(self.nhc) and any(x > 0 for x in self.nhc_misalignment_sd_rad)
+
     def names(self) -> list[str]:
         """Names of the error-state components."""
-        return state_names(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro)
+        return state_names(
+            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting
+        )
 
     def vector(self) -> np.ndarray:
         o = np.zeros(N_OPT)
@@ -228,6 +284,9 @@ class Options:
         o[O_ODO] = self.odometer
         o[O_ODO_SF] = self.odo_sf
         o[O_BARO] = self.baro
+        o[O_NHC_LEVER : O_NHC_LEVER + 3] = self.nhc_lever_arm_m
+        o[O_MT] = self.mounting
+        o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
         return o
 
 
@@ -491,6 +550,8 @@ def _kernel(
     i_bb = i_od + (1 if osf_on else 0)
     hv = np.zeros(3)
     hpsi = np.zeros(3)
+    mt_on = opt[O_MT] != 0.0
+    i_mt = i_bb + (1 if baro_on else 0)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
     nzc = np.zeros((n, n), np.int64)
@@ -535,6 +596,7 @@ def _kernel(
     C = np.zeros((3, 3))
     Cf = np.zeros((3, 3))
     Cw = np.zeros((3, 3))
+    Cv = np.zeros((3, 3))
     Cint = np.zeros((3, 3))
     dvn = np.zeros(3)
     x = np.zeros(NX)
@@ -901,22 +963,59 @@ def _kernel(
                         _scalar_update(P, dx, h, hz, 1, vcur[a], opt[O_ZUPT_SD] ** 2, 0.0, PHt)
                     flag |= F_ZUPT
             if opt[O_NHC] != 0.0:
-                # v_b = C^T v; rows y, z: dv_b = C^T dv + C^T [v x] psi
+                # v_b = C^T v - w x l; rows y, z: dv_b = C^T dv + C^T [v x] psi
                 _skew(vx, vy, vz, Xm)
+                nlx, nly, nlz = opt[O_NHC_LEVER], opt[O_NHC_LEVER + 1], opt[O_NHC_LEVER + 2]
+                ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                vby = C[0, 1] * vx + C[1, 1] * vy + C[2, 1] * vz - (wbz * nlx - wbx * nlz)
+                vbz = C[0, 2] * vx + C[1, 2] * vy + C[2, 2] * vz - (wbx * nly - wby * nlx)
+                for a in range(3):
+                    for b in range(3):
+                        Cv[a, b] = C[a, b]
+                if mt_on:
+                    # vehicle axes v = R b, R = Rz(yaw) Ry(-pitch) (estimated angles; roll is
+                    # not observable by NHC): d(v_v,y)/d yaw = d(v_v,z)/d pitch = u to first
+                    # order; the velocity and attitude rows use C R^T
+                    mcp, msp = math.cos(x[X_MT]), math.sin(x[X_MT])
+                    mcy, msy = math.cos(x[X_MT + 1]), math.sin(x[X_MT + 1])
+                    ax = mcp * ub - msp * vbz
+                    vbz = msp * ub + mcp * vbz
+                    vby_ = msy * ax + mcy * vby
+                    ub = mcy * ax - msy * vby
+                    vby = vby_
+                    for a in range(3):
+                        c0, c1, c2 = C[a, 0], C[a, 1], C[a, 2]
+                        Cv[a, 1] = msy * (mcp * c0 - msp * c2) + mcy * c1
+                        Cv[a, 2] = msp * c0 + mcp * c2
                 for row in (1, 2):
                     for i in range(n):
                         h[i] = 0.0
-                    vb = C[0, row] * vx + C[1, row] * vy + C[2, row] * vz
+                    # the unknown part of the lever arm, (omega x dl)_row, as white noise
+                    lsx = opt[O_NHC_LEVER_SD]
+                    lsy = opt[O_NHC_LEVER_SD + 1]
+                    lsz = opt[O_NHC_LEVER_SD + 2]
+                    if row == 1:
+                        vb = vby
+                        var = (wbz * lsx) ** 2 + (wbx * lsz) ** 2
+                    else:
+                        vb = vbz
+                        var = (wbx * lsy) ** 2 + (wby * lsx) ** 2
+                    var += opt[O_NHC_SD] ** 2
                     for a in range(3):
-                        h[3 + a] = C[a, row]
+                        h[3 + a] = Cv[a, row]
                         hz[a] = 3 + a
-                    # (C^T [v x])[row, b]
+                    # (Cv^T [v x])[row, b]
                     for b in range(3):
                         h[6 + b] = (
-                            C[0, row] * Xm[0, b] + C[1, row] * Xm[1, b] + C[2, row] * Xm[2, b]
+                            Cv[0, row] * Xm[0, b] + Cv[1, row] * Xm[1, b] + Cv[2, row] * Xm[2, b]
                         )
                         hz[3 + b] = 6 + b
-                    _scalar_update(P, dx, h, hz, 6, vb, opt[O_NHC_SD] ** 2, 0.0, PHt)
+                    m = 6
+                    if mt_on:
+                        h[i_mt + (1 if row == 1 else 0)] = ub
+                        hz[6] = i_mt + (1 if row == 1 else 0)
+                        m = 7
+                    _scalar_update(P, dx, h, hz, m, vb, var, 0.0, PHt)
                 flag |= F_NHC
             # --- companions: odometer distance over the window, barometric height -------------
             if odo_on and cmark[jj] != 0:
@@ -973,6 +1072,9 @@ def _kernel(
             if odo_on and armed:  # a window spans this epoch: correct its distance so far
                 for a in range(3):
                     dist -= hv[a] * dx[3 + a] + hpsi[a] * dx[6 + a]
+            if mt_on:
+                x[X_MT] -= dx[i_mt]
+                x[X_MT + 1] -= dx[i_mt + 1]
             x[0], x[1], x[2] = px, py, pz
             x[3], x[4], x[5] = vx, vy, vz
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
@@ -1030,6 +1132,8 @@ class AidedResult:
     flags : (S, J) int16        bits F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED,
                                 F_ODO, F_BARO
     names : list of str         error-state names
+    mount_angles : (S, J, 2)    estimated IMU pitch and yaw from the vehicle [rad] (zeros when
+                                not estimated, :attr:`Options.mounting`)
     """
 
     time_s: np.ndarray
@@ -1048,6 +1152,7 @@ class AidedResult:
     names: list
     odo_sf: np.ndarray | None = None
     baro_bias: np.ndarray | None = None
+    mount_angles: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -1106,6 +1211,9 @@ def initial_covariance(
         i += 1
     if opts.baro:
         P[:, i, i] = np.broadcast_to(np.asarray(baro_sd_m, float), (S,)) ** 2
+        i += 1
+    if opts.mounting:
+        P[:, i, i], P[:, i + 1, i + 1] = np.square(opts.nhc_misalignment_sd_rad)
     return P
 
 
@@ -1350,6 +1458,7 @@ def run(
         names=opts.names(),
         odo_sf=out_x[..., X_OSF],
         baro_bias=out_x[..., X_BB],
+        mount_angles=out_x[..., X_MT : X_MT + 2],
     )
 
 

@@ -96,6 +96,12 @@ def _cmd_simulate(a) -> int:
             temperature = json.loads(a.temperature)
         except json.JSONDecodeError as exc:
             raise InputError("--temperature", f"is not JSON ({exc.msg})") from None
+    mounting = None
+    if a.mounting is not None:
+        try:
+            mounting = json.loads(a.mounting)
+        except json.JSONDecodeError as exc:
+            raise InputError("--mounting", f"is not JSON ({exc.msg})") from None
     meta = run(
         truth=a.truth,
         out=a.output,
@@ -118,6 +124,7 @@ def _cmd_simulate(a) -> int:
         route=a.route,
         increments=a.increments,
         vibration=a.vibration,
+        mounting=mounting,
         navigate=a.navigate,
         eval_rate_hz=a.eval_rate_hz,
     )
@@ -472,6 +479,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="vibration of the IMU case (vehicle: the truth's vehicle class; default off)",
     )
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
+    p.add_argument(
+        "--mounting",
+        metavar="JSON",
+        help='IMU misalignment and lever arm drawn per sequence, e.g. \'{"misalignment_sd_deg": '
+        '[1, 1, 2], "lever_arm_m": [0.5, 0, 0.3], "lever_arm_sd_m": [0.05, 0.05, 0.05]}\' '
+        "(without it the IMU is the vehicle frame at the vehicle reference point)",
+    )
     p.add_argument(
         "--series",
         action="store_true",

@@ -23,7 +23,7 @@ Every sequence of a route has the truth's ``K`` samples. A window is ``window`` 
 ``target``:
 
 - ``"increments"``: ``(window, 6)`` true ``dtheta, dv`` of the same rows (whatever the
-  ``inputs``);
+  ``inputs``), those of the IMU for a shard simulated with a mounting (:mod:`imugen.mounting`);
 - ``"effective_error"``: ``(window, 6)`` everything the sensor adds except white noise and
   quantization, in the units of the input (``err_dtheta_*_rad``, ``err_dv_*_mps`` or
   ``err_gyro_*_radps``, ``err_accel_*_mps2``; shards simulated with ``series=True``): what
@@ -483,7 +483,8 @@ class WindowDataset:
             self.target, []
         )
         truth_cols = {
-            "increments": [*ttruth.DTHETA, *ttruth.DV],
+            # the rates turn the vehicle's increments into a mounted IMU's (_mounted_increments)
+            "increments": [*ttruth.DTHETA, *ttruth.DV, *ttruth.GYRO],
             "delta_vel_pos": [*ttruth.VEL, *ttruth.POS],
         }
         wanted = None if keys is None else {(str(r), int(s)) for r, s in keys}
@@ -503,6 +504,7 @@ class WindowDataset:
         self.files: list[Path] = []
         truths, toff, lab, file_k = [], [0], [], []
         ent_file, ent_row, ent_seq, ent_route, ent_k, nwin = [], [], [], [], [], []
+        ent_mount, mounted = [], False
         for ri, r in enumerate(self.routes):
             K = ttruth.samples(r.truth)
             if self.target in truth_cols:
@@ -528,6 +530,12 @@ class WindowDataset:
                     lab.append(_label_rows(p, labels, ids[sel]))
                 for n in self.extras:
                     epochs[n].append(_epoch_rows(p, EXTRAS[n], ids[sel], clocks[-1], len(ent_file)))
+                if self.target == "increments":
+                    m = None
+                    if tshard.read_meta(p).get("mounting"):
+                        m = tshard.mounting(tshard.read_labels(p), ids[sel])
+                    mounted |= m is not None
+                    ent_mount.append(np.zeros((len(sel), 6)) if m is None else np.hstack(m))
                 for j in sel:
                     ent_file.append(len(self.files) - 1)
                     ent_row.append(j * K)
@@ -549,6 +557,8 @@ class WindowDataset:
         dts = [float((c[-1] - c[0]) / (len(c) - 1)) if len(c) > 1 else 0.0 for c in clocks]
         self._dt = np.array(dts, float)[self._route] if self.extras and len(self._route) else None
         self._epochs = {n: _EpochIndex.concat(v, len(EXTRAS[n].columns)) for n, v in epochs.items()}
+        # per window entry (angles, lever arm) of a mounted IMU (imugen.mounting), else None
+        self._mount = np.concatenate(ent_mount) if mounted else None
         self._cache_paths = [
             _cache_path(p, self.x_cols + self.y_cols, self.dtype, cache_dir) for p in self.files
         ]
@@ -638,8 +648,13 @@ class WindowDataset:
             for sel in np.split(order, bounds) if len(order) else []:
                 _gather(maps[files[sel[0]]], rows, sel, x, y)
         if self.target == "increments":
-            y = np.empty((len(e), W, self._truth.shape[1]), self.dtype)
-            _gather(self._truth, self._truth_row[e] + k0, np.arange(len(e)), y, y)
+            t = np.empty((len(e), W, self._truth.shape[1]), self.dtype)
+            _gather(self._truth, self._truth_row[e] + k0, np.arange(len(e)), t, t)
+            if self._mount is None:
+                y = np.ascontiguousarray(t[..., :6])
+            else:
+                w0 = self._truth[self._truth_row[e] + k0 - 1, 6:9]
+                y = _mounted_increments(t, w0, self._mount[e]).astype(self.dtype)
         elif self.target == "delta_vel_pos":
             t0 = self._truth_row[e] + k0 - 1
             y = (self._truth[t0 + self.window] - self._truth[t0]).astype(self.dtype)
@@ -673,6 +688,29 @@ class WindowDataset:
         order = np.random.default_rng(seed).permutation(len(self))
         n = len(order) // batch_size * batch_size if drop_last else len(order)
         return [order[b : b + batch_size] for b in range(0, n, batch_size)]
+
+
+def _mounted_increments(t, w0, mount):
+    """True increments of mounted IMUs (:mod:`imugen.mounting`, compensated; the gravitation
+    gradient term, below ``3e-6 |l|`` m/s^2, left out) from the vehicle's.
+
+    ``t`` (B, W, 9): the vehicle's ``dtheta, dv, omega_ib`` rows; ``w0`` (B, 3): ``omega_ib``
+    of the sample before each window; ``mount`` (B, 6): angles [rad] then lever arm [m].
+    Returns (B, W, 6) float64."""
+    from imugen.mounting import C_vb
+    from imugen.rotations import exp_dcm
+
+    t = t.astype(np.float64)
+    dth, dv, w = t[..., :3], t[..., 3:6], t[..., 6:9]
+    lever = mount[:, None, 3:]
+    w_prev = np.concatenate([w0[:, None].astype(np.float64), w[:, :-1]], axis=1)
+    u = np.cross(w, lever)
+    dv_v = dv + np.einsum("bwij,bwj->bwi", exp_dcm(dth), u) - np.cross(w_prev, lever)
+    C_bv = np.swapaxes(C_vb(mount[:, :3]), -1, -2)[:, None]
+    out = np.empty((*t.shape[:2], 6))
+    out[..., :3] = np.einsum("bwij,bwj->bwi", C_bv, dth)
+    out[..., 3:] = np.einsum("bwij,bwj->bwi", C_bv, dv_v)
+    return out
 
 
 @njit(cache=True, nogil=True)

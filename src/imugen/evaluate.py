@@ -190,17 +190,24 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     DataFrame
         Index ``sequence``; one column ``drift_<T>s_m`` (metres) per ``T``.
     """
+    from imugen.earth import earth_rate_n
     from imugen.mechanize import compensate_raw, increments_from_rates, mechanize
+    from imugen.mounting import imu_states
     from imugen.navigate import batch_size
     from imugen.tables import shard as tshard
 
-    truth = ttruth.read(truth_path, columns=[ttruth.TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT])
+    cols = [ttruth.TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
+    truth = ttruth.read(truth_path, columns=cols)
     K, dt, rate = truth.K, truth.dt, truth.rate_hz
     frame = truth.origin_frame()
     p, v, q = truth.p_n, truth.v_n, truth.q_nb
     columns, kind = tshard.measurement(imu_path)
     rates = kind == "rates"
-    raw = not rates and tshard.increment_kind(tshard.read_meta(imu_path)) == "raw"
+    smeta = tshard.read_meta(imu_path)
+    raw = not rates and tshard.increment_kind(smeta) == "raw"
+    # a mounted IMU starts from, and is compared with, its own truth (imugen.mounting)
+    labels = tshard.read_labels(imu_path, smeta) if smeta.get("mounting") else None
+    Om = earth_rate_n(frame)
     ids_all, out = [], {drift_column(T): [] for T in segments_s}
     ns = {T: round(T * rate) for T in segments_s}
     fit = sorted({n for n in ns.values() if 1 <= n <= K - 1})
@@ -220,13 +227,17 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
         else:  # raw increments get navigation's coning/sculling correction first
             dth, dvb = compensate_raw(a, c) if raw else (a, c)
         rows = starts[:, None] + np.arange(n_max)
+        mount = tshard.mounting(labels, ids)
+        if mount is None:
+            x0 = [np.tile(x[starts], (len(ids), 1)) for x in (p, v, q)]
+        else:
+            x0 = imu_states(p[starts], v[starts], q[starts], truth.omega_ib_b[starts], Om, *mount)
+            x0 = [x.reshape(len(ids) * S, -1) for x in x0]
         nav = mechanize(
             dth[:, rows].reshape(-1, n_max, 3),
             dvb[:, rows].reshape(-1, n_max, 3),
             dt,
-            np.tile(p[starts], (len(ids), 1)),
-            np.tile(v[starts], (len(ids), 1)),
-            np.tile(q[starts], (len(ids), 1)),
+            *x0,
             frame,
             every=every,
             outputs=("p",),
@@ -236,7 +247,12 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
             if n not in fit:
                 out[drift_column(T)].append(np.full(len(ids), np.nan))
                 continue
-            err = pos[:, :, n // every] - p[starts + n][None]
+            k = starts + n
+            if mount is None:
+                ref = p[k][None]
+            else:
+                ref = imu_states(p[k], None, q[k], None, Om, *mount)[0]
+            err = pos[:, :, n // every] - ref
             out[drift_column(T)].append(np.linalg.norm(err, axis=-1).mean(axis=1))
     index = pd.Index(np.concatenate(ids_all) if ids_all else [], name="sequence")
     return pd.DataFrame({k: np.concatenate(v) if v else [] for k, v in out.items()}, index=index)

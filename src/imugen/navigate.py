@@ -9,6 +9,10 @@ force) first get the two-sample coning/sculling correction
 (:func:`imugen.mechanize.compensate_raw`). Sequences are streamed from the shard in batches,
 so memory is bounded by the batch size.
 
+The truth is that of the IMU: a shard simulated with a mounting (metadata ``mounting``,
+:mod:`imugen.mounting`) starts from, and is compared with, the IMU's point and axes
+(``p + C_nv l``, ``C_nv C_vb``, from the drawn values in its labels); otherwise the vehicle's.
+
 Output: the navigation error table of :mod:`imugen.tables.nav` (``sequence``, ``time_s``,
 ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``), one row per sequence and evaluation
 epoch (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
@@ -36,7 +40,7 @@ BATCH_BYTES = 64 << 20
 """Budget of the float64 increment buffers of one batch (both sensors): with the reused
 buffers it bounds a navigate job's memory whatever the shard's size and the IMU rate."""
 
-NAV_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT]
+NAV_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
 
 
 def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
@@ -52,7 +56,8 @@ class Navigator:
     Parameters
     ----------
     truth : imugen.tables.truth.Truth
-        Needs ``time_s``, ``p_n``, ``v_n``, ``q_nb`` and the metadata's origin and Earth model.
+        Needs ``time_s``, ``p_n``, ``v_n``, ``q_nb``, ``omega_ib_b`` (for a mounted IMU) and the
+        metadata's origin and Earth model.
     eval_rate_hz : float
         Error epochs per second.
     """
@@ -66,22 +71,50 @@ class Navigator:
         self.p_true = truth.p_n
         self.q_true = truth.q_nb
         self.x0 = (self.p_true[0], truth.v_n[0], self.q_true[0])
+        self._truth = truth
 
-    def errors(self, seq_ids, dth, dvb):
+    def imu_truth(self, mount, idx):
+        """The mounted IMU's truth (:func:`imugen.mounting.imu_states`): initial state ``(p0,
+        v0, q0)`` (S, 3|4) and ``(p, q)`` (S, len(idx), 3|4) at samples ``idx``.
+
+        ``mount``: ``(angles, lever)`` (S, 3) from the shard's labels
+        (:func:`imugen.tables.shard.mounting`)."""
+        from imugen.earth import earth_rate_n
+        from imugen.mounting import imu_states
+
+        angles, lever = mount
+        Om = earth_rate_n(self.frame)
+        w0 = self._truth.omega_ib_b[:1]
+        p0, v0, q0 = imu_states(
+            self.p_true[:1], self.x0[1][None], self.q_true[:1], w0, Om, angles, lever
+        )
+        p, _, q = imu_states(self.p_true[idx], None, self.q_true[idx], None, Om, angles, lever)
+        return (p0[:, 0], v0[:, 0], q0[:, 0]), p, q
+
+    def errors(self, seq_ids, dth, dvb, mount=None):
         """:meth:`columns` as a DataFrame."""
         import pandas as pd
 
-        return pd.DataFrame(self.columns(seq_ids, dth, dvb))
+        return pd.DataFrame(self.columns(seq_ids, dth, dvb, mount))
 
-    def columns(self, seq_ids, dth, dvb) -> dict:
+    def columns(self, seq_ids, dth, dvb, mount=None) -> dict:
         """Error-table columns (:data:`imugen.tables.nav.COLUMNS` -> 1-D arrays) of increments
-        ``dth``, ``dvb`` (b, K-1, 3) float64 (compensated, row 0 dropped)."""
-        p0, v0, q0 = self.x0
+        ``dth``, ``dvb`` (b, K-1, 3) float64 (compensated, row 0 dropped).
+
+        ``mount``: the sequences' ``(angles, lever)`` (b, 3) when the IMU was mounted with a
+        misalignment and lever arm: navigation starts from, and is compared with, the IMU's
+        truth (its point and axes, :meth:`imu_truth`); None: the vehicle's."""
+        idx = np.arange(0, dth.shape[1] + 1, self.every)
+        if mount is None:
+            p0, v0, q0 = self.x0
+            p_true, q_true = self.p_true[idx][None], self.q_true[idx][None]
+        else:
+            (p0, v0, q0), p_true, q_true = self.imu_truth(mount, idx)
         nav = mechanize(dth, dvb, self.dt, p0, v0, q0, self.frame, every=self.every,
                         outputs=("p", "q"))  # fmt: skip
         idx = nav.index
-        err = nav.p_n - self.p_true[idx][None]
-        dq = quat_mul(quat_conj(self.q_true[idx])[None], nav.q_nb)
+        err = nav.p_n - p_true
+        dq = quat_mul(quat_conj(q_true), nav.q_nb)
         att = np.linalg.norm(log_quat(dq), axis=-1)
         n_seq, n_ep = err.shape[:2]
         return {
@@ -132,18 +165,22 @@ def _iter_errors(truth_path, shard_path, eval_rate_hz, batch):
     if batch is None:
         batch = batch_size(K)
     skip = 1 if kind == "increments" else 0
+    labels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
     for seq_ids, a, b in tshard.iter_blocks(shard_path, columns, K, int(batch), skip):
-        yield nav.columns(seq_ids, *nav.measured(kind, raw, a, b))
+        mount = tshard.mounting(labels, seq_ids)
+        yield nav.columns(seq_ids, *nav.measured(kind, raw, a, b), mount)
 
 
 def _as_increments(increments, K: int):
     """``(dtheta, dv, ids, semantics or None)`` float64 (S, K-1, 3) from the accepted forms."""
     semantics = None
     ids = None
+    mount = None
     meta = getattr(increments, "meta", None)
     if meta is not None and hasattr(increments, "data"):  # imugen.simulate.Shard
         semantics = tshard.increment_kind(meta)
         ids = increments.labels[SEQUENCE].to_numpy()
+        mount = tshard.mounting(increments.labels)
         increments = increments.data
     if isinstance(increments, dict):
         if "dtheta" not in increments or "dv" not in increments:
@@ -172,7 +209,7 @@ def _as_increments(increments, K: int):
         out.append(np.array(x, dtype=np.float64, order="C"))  # a copy: never alter the caller's
     if out[0].shape != out[1].shape:
         raise InputError("increments", f"dtheta {out[0].shape} and dv {out[1].shape} differ")
-    return out[0], out[1], ids, semantics
+    return out[0], out[1], ids, semantics, mount
 
 
 def navigate_arrays(
@@ -193,7 +230,9 @@ def navigate_arrays(
         Angle [rad] and velocity [m/s] increments, each ``(S, K, 3)`` with rows aligned with
         the truth (row 0, the empty interval, is ignored) or ``(S, K-1, 3)``; ``(K, 3)`` for one
         sequence. A dict with ``"dtheta"``, ``"dv"`` (``Shard.data``), an ``(S, K, 6)`` array
-        (dtheta then dv), or an in-memory shard from :func:`imugen.simulate.simulate`.
+        (dtheta then dv), or an in-memory shard from :func:`imugen.simulate.simulate` (whose
+        mounting, when it has one, is taken into account: errors against the IMU's point and
+        axes, :meth:`Navigator.imu_truth`).
     semantics : {"compensated", "raw"}, optional
         Increment semantics; raw increments get the two-sample coning/sculling correction.
         Default: the shard's, else compensated.
@@ -211,7 +250,7 @@ def navigate_arrays(
     if not isinstance(truth, ttruth.Truth):
         truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS, arrow=True)
     nav = Navigator(truth, eval_rate_hz)
-    dth, dv, ids, kind = _as_increments(increments, nav.K)
+    dth, dv, ids, kind, mount = _as_increments(increments, nav.K)
     kind = semantics or kind or "compensated"
     if kind not in tshard.INCREMENT_KINDS:
         raise InputError("semantics", f"must be compensated or raw, got {kind!r}")
@@ -223,7 +262,7 @@ def navigate_arrays(
         raise InputError("sequence_ids", f"{len(ids)} ids for {len(dth)} sequences")
     if kind == "raw":
         compensate_raw(dth, dv)  # in place, on the copies
-    return nav.errors(ids, dth, dv)
+    return nav.errors(ids, dth, dv, mount)
 
 
 def table_meta(truth_name, truth_sha256, shard_name, smeta: dict, eval_rate_hz) -> dict:

@@ -25,6 +25,9 @@ Per-sequence parameters (see :func:`imugen.sensors.draw_sensor`)
 Levels log-uniform in the grade's ranges (``draw="ranges"``, default) or nominal
 (``draw="nominal"``); turn-on biases, scale factors, cross-couplings, g-sensitivities,
 temperature coefficients ``N(0, level^2)``; the GM bias starts from its stationary law.
+With ``mounting``, the IMU's misalignment and lever arm (stream ``mounting``,
+:mod:`imugen.mounting`) turn the truth's ideal signals into the mounted IMU's before the case
+vibration and the sensor errors are applied.
 
 Output (one shard = one Parquet file + a labels sidecar)
 --------------------------------------------------------
@@ -55,6 +58,8 @@ import numpy as np
 from imugen import __version__
 from imugen.errors import InputError
 from imugen.grades import TERMS, Grade, get_grade, preset_text
+from imugen.mounting import MountingSpec
+from imugen.mounting import setup as setup_mounting
 from imugen.sensors import SensorModel, SensorParams, draw_sensor
 from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
@@ -74,6 +79,7 @@ STREAMS = {
     "gyro_bi": 5,
     "accel_bi": 6,
     "vibration": 7,
+    "mounting": 8,
 }
 """Per-sequence random streams: last element of the spawn key."""
 OUTPUTS = tshard.OUTPUTS
@@ -425,6 +431,7 @@ class _NavSink:
         self.K = plan.truth.K
         self.dtype = np.dtype(dtype)
         self.ids = plan.ids
+        self.mount = plan.mount
         self.w = nav_writer
         self.batch = int(batch)
         width = self.K - self.skip
@@ -455,7 +462,11 @@ class _NavSink:
         if self.n:
             a, b = (buf[: self.n] for buf in self.bufs)
             ids = self.ids[self.first : self.first + self.n]
-            self.w.put(self.nav.columns(ids, *self.nav.measured(self.kind, self.raw, a, b)))
+            mount = None
+            if self.mount is not None:
+                sel = self.mount[self.first : self.first + self.n]
+                mount = tuple(np.array(x) for x in zip(*sel, strict=True))
+            self.w.put(self.nav.columns(ids, *self.nav.measured(self.kind, self.raw, a, b), mount))
             self.first += self.n
             self.n = 0
 
@@ -577,6 +588,8 @@ class _Plan:
     names: list
     meta: dict
     vib: list | None = None  # one imugen.vibration.SequenceVibration per sequence
+    mounting: object = None  # imugen.mounting.Mounting (None: the IMU is the vehicle)
+    mount: list | None = None  # per sequence (angles (3,) rad, lever arm (3,) m)
 
     def labels(self):
         """One row per sequence: ids, provenance and every drawn parameter (a DataFrame)."""
@@ -597,6 +610,8 @@ class _Plan:
         }
         d.update(SensorParams.stack(self.gp).labels("gyro", "radps"))
         d.update(SensorParams.stack(self.ap).labels("accel", "mps2"))
+        if self.mount is not None:
+            d.update(tshard.mounting_labels(*(np.array(x) for x in zip(*self.mount, strict=True))))
         if self.vib is not None:
             for name in self.vib[0].labels():
                 d[name] = np.array([v.labels()[name] for v in self.vib])
@@ -645,6 +660,9 @@ def _loop(plan: _Plan, sink, progress=None):
             t, w_b, f_b, dth, dv = truth.chunk(k0, L)
             if raw:
                 dth, dv = truth.raw_chunk(k0, L)
+            if plan.mounting is not None:
+                sh = plan.mounting.shared(k0, L, raw)
+                w_b, f_b, dth, dv = plan.mounting.apply(k0, sh, *plan.mount[j], dth, dv, raw)
             if plan.vib is not None:
                 w_b, f_b, dth, dv = plan.vib[j].apply(k0, w_b, f_b, dth, dv, raw=raw)
             dT = None
@@ -712,6 +730,7 @@ def _plan(
     increments="compensated",
     dtype="float32",
     vibration=None,
+    mounting=None,
 ) -> _Plan:
     tr = _resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
     route = route_name(truth, tr, route)
@@ -787,9 +806,15 @@ def _plan(
     }
     names = tshard.groups(outputs, series)
     vib, meta["vibration"] = _vibrations(tr, vibration, seed, rid, grade, shard, M)
+    spec = MountingSpec.from_option(mounting, "--mounting")
+    meta["mounting"] = None if spec is None else spec.as_dict()
+    mount = None
+    if spec is not None:
+        mount = [spec.draw(_rng(seed, rid, grade.id, shard, j, "mounting")) for j in range(M)]
+    source = truth if isinstance(truth, str | Path) else None
     return _Plan(
         tr, grade, M, seed, shard, rid, ids, enabled, temp, gp, ap, outputs, bool(series),
-        increments == "raw", names, meta, vib,
+        increments == "raw", names, meta, vib, setup_mounting(tr, spec, source), mount,
     )  # fmt: skip
 
 
@@ -824,6 +849,7 @@ def simulate(
     route=None,
     increments="compensated",
     vibration=None,
+    mounting=None,
 ) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
@@ -859,13 +885,17 @@ def simulate(
         or plain integrals of rate and specific force (``Truth.raw_chunk``).
     vibration : {"off", "car", "aircraft", "vehicle"}, optional
         Vibration of the IMU case (:mod:`imugen.vibration`; ``vehicle``: the truth's class).
+    mounting : dict, optional
+        IMU misalignment and lever arm drawn per sequence (:mod:`imugen.mounting`; keys of
+        :meth:`~imugen.mounting.MountingSpec.from_option`); None: the IMU is the vehicle frame
+        at its reference point.
     """
     plan = _plan(
         truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
         temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
         static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
         shard_size=shard_size, route=route, increments=increments, dtype=np.float64,
-        vibration=vibration,
+        vibration=vibration, mounting=mounting,
     )  # fmt: skip
     tr = plan.truth
     sink = _MemorySink(plan.M, tr.K, plan.names)
@@ -901,6 +931,7 @@ def run(
     route=None,
     increments="compensated",
     vibration=None,
+    mounting=None,
     navigate=None,
     eval_rate_hz=1.0,
 ) -> dict:
@@ -940,7 +971,7 @@ def run(
         temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
         static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
         shard_size=shard_size, route=route, increments=increments, dtype=dtype,
-        vibration=vibration,
+        vibration=vibration, mounting=mounting,
     )  # fmt: skip
     from imugen.progress import Progress
 

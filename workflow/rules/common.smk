@@ -34,6 +34,11 @@ PER_SHARD = SIM["sequences_per_shard"]
 # zeros, so adding shards never renames existing ones
 SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
 WRITE_IMU = SIM["write_imu"]
+MOUNTING = config.get("mounting", {})
+MOUNTING_ARG = (
+    f"--mounting {shlex.quote(json.dumps(MOUNTING))}" if MOUNTING.get("enabled") else ""
+)
+"""`imugen simulate --mounting JSON` when the config's mounting is enabled (else nothing)."""
 # the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
 # read shards (export_mat, the figures' IMU panels) are not scheduled
 IMU_OUTPUTS = (

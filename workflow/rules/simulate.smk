@@ -19,8 +19,8 @@ rule simulate:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
         code=stage_code(
-            "simulate", "sensors", "grades", "units", "vibration", "navigate", "mechanize",
-            "earth", "rotations",
+            "simulate", "sensors", "grades", "units", "vibration", "mounting", "navigate",
+            "mechanize", "earth", "rotations",
         ),
         presets=PRESETS,
     output:
@@ -38,6 +38,7 @@ rule simulate:
         series="--series" if SIM["series"] else "",
         increments=SIM["increments"],
         vibration=SIM["vibration"] or "off",
+        mounting=MOUNTING_ARG,
         shard=lambda wc: int(wc.shard),
         imu=lambda wc, output: f"-o {shlex.quote(output.imu[0])}" if WRITE_IMU else "",
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
@@ -49,7 +50,7 @@ rule simulate:
         "--eval-rate-hz {params.eval_rate_hz} --route {wildcards.route:q} --grade {params.grade:q} "
         "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
         "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
-        "--vibration {params.vibration} "
+        "--vibration {params.vibration} {params.mounting} "
         "3>&2 > {log:q} 2>&1"
 
 

@@ -39,7 +39,9 @@ from imugen.formats.source import (
     INCREMENT_COLUMNS,
     RATE_COLUMNS,
     Sequence,
+    imu_truth,
     iter_sequences,
+    mounting_of,
     read_truth,
 )
 from imugen.tables import shard as tshard
@@ -74,9 +76,12 @@ def parse_formats(text) -> list[str]:
 
 def _navigator(truth, nav_rate_hz: float):
     """A function ``seq -> (index (M,), p_n (M, 3), q_nb (M, 4))``: free-inertial navigation."""
+    from imugen.earth import earth_rate_n
     from imugen.mechanize import increments_from_rates, mechanize
+    from imugen.mounting import imu_states
 
     frame = ttruth.origin_frame(truth.meta)
+    Om = earth_rate_n(frame)
     every = max(1, round(1.0 / (truth.dt * nav_rate_hz)))
 
     def nav(seq: Sequence):
@@ -88,13 +93,17 @@ def _navigator(truth, nav_rate_hz: float):
             dth, dv = increments_from_rates(r[:, :3], r[:, 3:], truth.dt)
         else:
             raise InputError(f"sequence {seq.id}", "holds no IMU columns")
+        x0 = truth.p_n[0], truth.v_n[0], truth.q_nb[0]
+        mount = mounting_of(seq.labels)
+        if mount is not None:  # a mounted IMU starts from its own truth
+            w0 = truth.gyro[:1]
+            p, v, q = imu_states(truth.p_n[:1], truth.v_n[:1], truth.q_nb[:1], w0, Om, *mount)
+            x0 = p[0, 0], v[0, 0], q[0, 0]
         n = mechanize(
             dth,
             dv,
             truth.dt,
-            truth.p_n[0],
-            truth.v_n[0],
-            truth.q_nb[0],
+            *x0,
             frame,
             every=every,
             outputs=("p", "q"),
@@ -156,10 +165,11 @@ def export(
         for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths, aided):
             name = f"{route}_{grade}_{seq.id:06d}"
             keys.append((route, seq.id, name))
+            seq_truth = imu_truth(truth, seq.labels)  # the IMU's, for a mounted sequence
             for fmt in formats:
                 files = WRITERS[fmt](
                     seq,
-                    truth,
+                    seq_truth,
                     tmp / fmt / name,
                     nav=nav,
                     start_ns=start_ns,

@@ -55,6 +55,35 @@ def read_truth(path) -> TruthArrays:
     return TruthArrays(t.time_s, t.p_n, t.v_n, t.q_nb, t.omega_ib_b, t.f_b, t.dtheta, t.dv, t.meta)
 
 
+def mounting_of(labels: dict):
+    """``(angles (3,) rad, lever (3,) m)`` of a sequence's labels row, or None (no mounting)."""
+    if any(c not in labels for c in tshard.MOUNTING):
+        return None
+    angles = np.array([labels[c] for c in tshard.MOUNT_ANGLES], dtype=float)
+    return angles, np.array([labels[c] for c in tshard.LEVER_ARM], dtype=float)
+
+
+def imu_truth(truth: TruthArrays, labels: dict) -> TruthArrays:
+    """The truth of a sequence's IMU: ``truth`` itself, or, for a sequence simulated with a
+    mounting (labels :data:`imugen.tables.shard.MOUNTING`), the IMU's point, axes and ideal
+    (compensated) signals (:mod:`imugen.mounting`; the gravitation-gradient term, below
+    ``3e-6 |l|`` m/s^2, is left out)."""
+    mount = mounting_of(labels)
+    if mount is None:
+        return truth
+    from imugen.earth import earth_rate_n
+    from imugen.mounting import Mounting, imu_states
+    from imugen.simulate import ArrayTruth
+
+    angles, lever = mount
+    Om = earth_rate_n(ttruth.origin_frame(truth.meta))
+    p, v, q = imu_states(truth.p_n, truth.v_n, truth.q_nb, truth.gyro, Om, angles, lever)
+    tr = ArrayTruth(truth.time_s, truth.gyro, truth.accel, truth.dtheta, truth.dv)
+    m = Mounting(tr)
+    w, f, dth, dv = m.apply(0, m.shared(0, tr.K, False), angles, lever, truth.dtheta, truth.dv)
+    return TruthArrays(truth.time_s, p[0], v[0], q[0], w, f, dth, dv, truth.meta)
+
+
 @dataclass
 class Sequence:
     """One measured sequence: ``id``, columns by name (K,) float64, labels, shard metadata."""

@@ -33,7 +33,13 @@ navigation applies the two-sample coning/sculling correction). A file without th
 compensated.
 
 The labels sidecar holds one row per sequence: ``sequence``, ``route_id``, ``shard``,
-``index``, ``seed``, ``grade_id`` and every drawn parameter (SI unit in each name). Both
+``index``, ``seed``, ``grade_id`` and every drawn parameter (SI unit in each name), among them,
+when the shard was simulated with a mounting (metadata ``mounting``, :mod:`imugen.mounting`),
+the IMU's misalignment from the vehicle ``mount_roll_rad``, ``mount_pitch_rad``,
+``mount_yaw_rad`` (``C_vb = Rz(yaw) Ry(-pitch) Rx(roll)``, IMU axes ``b`` from vehicle axes
+``v``) and its lever arm from the vehicle reference point ``lever_arm_{x,y,z}_m`` (vehicle
+axes): the IMU measures at that point in those axes, and its truth is the vehicle's moved there
+(:func:`imugen.mounting.imu_states`; :func:`mounting` reads them back). Both
 files carry the shard metadata (JSON under ``b"imugen"``; :data:`FORMAT`); a shard written
 from corrected data by :func:`imugen.write_shard` has ``derived`` set.
 """
@@ -109,6 +115,11 @@ GROUPS = {
     "err_accel": (ERR_ACCEL, "m/s^2"),
 }
 """Column groups of three (x, y, z): name -> (columns, unit)."""
+
+MOUNT_ANGLES = ("mount_roll_rad", "mount_pitch_rad", "mount_yaw_rad")
+LEVER_ARM = ("lever_arm_x_m", "lever_arm_y_m", "lever_arm_z_m")
+MOUNTING = (*MOUNT_ANGLES, *LEVER_ARM)
+"""Label columns of the IMU mounting (absent: the IMU is the vehicle frame at its point)."""
 
 OUTPUTS = ("increments", "rates", "both")
 INCREMENT_KINDS = ("compensated", "raw")
@@ -489,6 +500,29 @@ def read_labels(path, meta: dict | None = None) -> pd.DataFrame:
     if not lp.exists():
         raise InputError(lp, "labels sidecar missing (incomplete shard?)")
     return read_table(lp, what="shard labels table").to_pandas()
+
+
+def mounting_labels(angles, lever) -> dict:
+    """Label columns :data:`MOUNTING` of ``angles``, ``lever`` (S, 3) [rad, m]."""
+    a, lv = np.asarray(angles, float), np.asarray(lever, float)
+    out = {c: a[:, i] for i, c in enumerate(MOUNT_ANGLES)}
+    out.update({c: lv[:, i] for i, c in enumerate(LEVER_ARM)})
+    return out
+
+
+def mounting(labels, ids=None):
+    """``(angles (S, 3) rad, lever (S, 3) m)`` of the sequences ``ids`` (default all, in the
+    labels' order) from a labels table (DataFrame or dict of columns); None without mounting."""
+    if labels is None or any(c not in labels for c in MOUNTING):
+        return None
+    col = {c: np.asarray(labels[c], dtype=np.float64) for c in MOUNTING}
+    if ids is not None:
+        seq = np.asarray(labels[SEQUENCE], dtype=np.int64)
+        order = np.argsort(seq)
+        pos = order[np.searchsorted(seq, np.asarray(ids, np.int64), sorter=order)]
+        col = {c: v[pos] for c, v in col.items()}
+    angles = np.column_stack([col[c] for c in MOUNT_ANGLES])
+    return angles, np.column_stack([col[c] for c in LEVER_ARM])
 
 
 def increment_kind(meta: dict) -> str:
