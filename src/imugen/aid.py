@@ -35,6 +35,7 @@ import pandas as pd
 from imugen import __version__
 from imugen import aided as A
 from imugen import gnss as G
+from imugen import local_errors as lerr
 from imugen import scenarios as SC
 from imugen.earth import earth_rate_n
 from imugen.errors import InputError
@@ -45,7 +46,7 @@ from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables._parquet import SEQUENCE, TIME
-from imugen.tables.nav import ERR_ATT, ERR_POS
+from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 
 AID_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
 
@@ -241,18 +242,20 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int)
     """The aided error table's rows for a filter result of sequences ``ids``."""
     idx = res.index
     t = res.time_s
-    err = res.p_n - truth.p_n[idx][None]
+    C = lerr.rotation_ln(truth.origin_frame(), truth.p_n[idx])
+    track = lerr.track_direction(np.einsum("jik,jk->ji", C, truth.v_n[idx]))
+    err = lerr.apply(C, track, res.p_n - truth.p_n[idx][None])
     q = np.where(np.isnan(res.q_nb), [1.0, 0.0, 0.0, 0.0], res.q_nb)
     att = np.linalg.norm(A.attitude_error(q, truth.q_nb[idx][None]), axis=-1)
     valid = scen.gnss.valid
     aligned = (res.flags & A.F_ALIGNED) != 0
-    keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err).all(-1)
+    keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err[..., :3]).all(-1)
     S, J = keep.shape
     since = _since_fix(t, valid)
-    sd = res.sd[..., A.I_P : A.I_P + 3]
+    sd = lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
-    for i, c in enumerate(ERR_POS):
+    for i, c in enumerate((*ERR_POS, *ERR_TRACK)):
         rows[c] = err[..., i][keep]
     rows[ERR_ATT] = att[keep]
     for i, c in enumerate(taided.SD_POS):
@@ -311,7 +314,7 @@ def aid(truth_path, shard_path, params: AidParams, *, batch: int | None = None, 
         "tuning_level": params.tuning_level,
         "align_speed_mps": params.align_speed_mps,
         "eval_rate_hz": params.eval_rate_hz,
-        "error": "filter minus truth, ENU of the route origin",
+        "error": "filter minus truth, ENU at the true position; along/cross the true track",
     }
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
     never = 0

@@ -6,11 +6,14 @@ of each outage is exact), sorted by ``sequence`` then time; epochs before the fi
 alignment are omitted:
 
 - ``sequence`` int64, ``time_s`` (s);
-- ``err_e_m``, ``err_n_m``, ``err_u_m``: filter position minus truth (m, ENU of the origin),
-  ``err_att_rad``: angle of the rotation from the true to the estimated attitude (as
+- ``err_e_m``, ``err_n_m``, ``err_u_m``: filter position minus truth (m, East/North/Up at the
+  true position), ``err_along_m``, ``err_cross_m`` (along and across the true track, positive
+  left, m), ``err_att_rad``: angle of the rotation from the true to the estimated attitude (as
   :mod:`imugen.tables.nav`);
-- ``sd_e_m``, ``sd_n_m``, ``sd_u_m``: the filter's reported position 1-sigma (m), so that
-  consistency can be checked downstream (``err / sd`` should be standard normal);
+- ``sd_e_m``, ``sd_n_m``, ``sd_u_m``: the filter's reported position 1-sigma (m), rotated to
+  the same local level as the errors (correlations ignored:
+  :func:`imugen.local_errors.local_sd`), so that consistency can be checked downstream
+  (``err / sd`` should be standard normal);
 - ``gnss_used`` int8: 1 when a GNSS position update was applied at the epoch;
 - ``state`` int8: scenario state of the epoch (:mod:`imugen.tables.gnss`);
 - ``since_fix_s``: time since the last epoch with a fix (0 with a fix; NaN before the first).
@@ -28,18 +31,19 @@ import pandas as pd
 from imugen.io import read_meta as read_meta
 from imugen.io import write_parquet
 from imugen.tables._parquet import SEQUENCE, TIME, read_table
-from imugen.tables.nav import ERR_ATT, ERR_POS
+from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 
 SD_POS = ("sd_e_m", "sd_n_m", "sd_u_m")
 """Reported position 1-sigma columns, metres, ENU."""
 GNSS_USED = "gnss_used"
 STATE = "state"
 SINCE_FIX = "since_fix_s"
-COLUMNS = (SEQUENCE, TIME, *ERR_POS, ERR_ATT, *SD_POS, GNSS_USED, STATE, SINCE_FIX)
+COLUMNS = (SEQUENCE, TIME, *ERR_POS, *ERR_TRACK, ERR_ATT, *SD_POS, GNSS_USED, STATE, SINCE_FIX)
 UNITS = {
     SEQUENCE: "1",
     TIME: "s",
     **dict.fromkeys(ERR_POS, "m"),
+    **dict.fromkeys(ERR_TRACK, "m"),
     ERR_ATT: "rad",
     **dict.fromkeys(SD_POS, "m"),
     GNSS_USED: "1",
