@@ -10,7 +10,10 @@ Matplotlib's default style (a user's matplotlibrc does not leak in), SVG ids are
 fixed string, glyphs are embedded as paths and the date stamps are left out.
 
 A navigated position is the truth position at the evaluation epoch plus the navigation error
-stored by ``imugen navigate`` (ENU of the route origin, metres).
+stored by ``imugen navigate`` (East/North/Up at the true position, metres, turned back into the
+navigation frame). Routes longer than :data:`imugen.mapview.LONG_ROUTE_M` (100 km) are drawn on
+a map projection with a scale bar in km (:mod:`imugen.mapview`); shorter ones on the tangent
+plane of their origin, East/North in metres.
 
 Allan deviation per grade against its specification is drawn by
 :func:`imugen.allan.plot_allan`; it is not duplicated here.
@@ -26,6 +29,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from imugen import mapview
+from imugen.earth import OriginFrame
 from imugen.errors import InputError
 from imugen.plotting import figure as _figure
 from imugen.plotting import format_length
@@ -363,7 +368,9 @@ def _truth_track(path, queries: Mapping[str, np.ndarray], max_points: int = MAX_
 
 
 def _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, how):
-    """Truth track and, per grade, the representative navigated track."""
+    """Truth track ``(t, x, y, z)`` in map coordinates (:class:`imugen.mapview.RouteMap`), per
+    grade the representative navigated track (``t``, ``e``, ``n``, ``u`` in the same
+    coordinates, ``h_err`` the horizontal error in the local level), and the map."""
     reps = {}
     for g, paths in nav_paths_by_grade.items():
         if g not in metrics_by_grade:
@@ -376,12 +383,22 @@ def _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, how):
     track, at = _truth_track(
         truth_path, {g: r["nav"][col.TIME].to_numpy() for g, r in reps.items()}
     )
+    p_track = np.column_stack(track[1:])
+    meta = col.read_meta(truth_path)
+    if "origin" in meta and "earth" in meta:
+        rmap = mapview.RouteMap.for_route(col.origin_frame(meta), p_track)
+    else:  # a bare table without its origin: the tangent plane it is written in
+        rmap = mapview.RouteMap(OriginFrame(0.0, 0.0, 0.0, "flat"))
+    xyz = rmap.xyz(p_track)
+    track = (track[0], xyz[:, 0], xyz[:, 1], xyz[:, 2])
     for g, r in reps.items():
         err = r.pop("nav")
-        pos = at[g] + err[list(ERR)].to_numpy(dtype=np.float64)
+        d = err[list(ERR)].to_numpy(dtype=np.float64)
+        pos = rmap.xyz(rmap.navigated_n(at[g], d))
         r["t"] = err[col.TIME].to_numpy(dtype=np.float64)
         r["e"], r["n"], r["u"] = pos[:, 0], pos[:, 1], pos[:, 2]
-    return track, reps
+        r["h_err"] = np.hypot(d[:, 0], d[:, 1])
+    return track, reps, rmap
 
 
 def _rep_label(g, r, how):
@@ -404,7 +421,9 @@ def figure8_figure(
     clip_factor: float | None = 3.0,
 ):
     """The Matplotlib figure of :func:`figure8` (for saving, or for inspecting its artists)."""
-    track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
+    track, reps, rmap = _representatives(
+        truth_path, nav_paths_by_grade, metrics_by_grade, representative
+    )
     t, e, n, _ = track
     window = zoom_window(t[0], t[-1], zoom_fraction)
     styles = grade_styles(reps)
@@ -457,13 +476,10 @@ def figure8_figure(
             ax.set_xlim(box_a[0], box_a[1])
             ax.set_ylim(box_a[2], box_a[3])
         ax.set_aspect("equal", adjustable="box")
-        ax.set_xlabel("East [m]")
-        ax.set_ylabel("North [m]")
-        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+        _map_axes(ax, rmap)
     # error growth of the same sequences: what the zoom shows, on a scale that fits any grade
     for g, r in reps.items():
-        h = np.interp(r["t"], t, e), np.interp(r["t"], t, n)
-        err = np.hypot(r["e"] - h[0], r["n"] - h[1])
+        err = r["h_err"]
         ax_c.plot(r["t"], np.where(err > 0, err, np.nan), lw=1.2, **styles[g])
     ax_c.axvspan(*window, color="0.9", zorder=0, label="zoom window")
     ax_c.set_yscale("log")
@@ -474,6 +490,19 @@ def figure8_figure(
     ax_c.set_title("(c) horizontal error of the same sequences", loc="left")
     fig.legend(*ax_a.get_legend_handles_labels(), loc="outside lower center", ncols=2)
     return fig
+
+
+def _map_axes(ax, rmap: mapview.RouteMap) -> None:
+    """Axis labels of a map panel; a long route's also get km ticks and a scale bar (call
+    after the limits are set; ``adjustable="box"`` keeps them)."""
+    xl, yl, _ = rmap.labels()
+    ax.set_xlabel(xl)
+    ax.set_ylabel(yl)
+    if rmap.projected:
+        mapview.km_ticks(ax)
+        mapview.add_scale_bar(ax, rmap)
+    else:
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
 
 
 def figure8(
@@ -543,7 +572,9 @@ def trajectories_3d(
     -------
     list of Path
     """
-    track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
+    track, reps, rmap = _representatives(
+        truth_path, nav_paths_by_grade, metrics_by_grade, representative
+    )
     _, e, n, u = track
     styles = grade_styles(reps)
     xyz = {g: np.column_stack([r["e"], r["n"], r["u"]]) for g, r in reps.items()}
@@ -569,9 +600,12 @@ def trajectories_3d(
         ax.set_box_aspect((rng[0], rng[1], rz))
         ax.view_init(elev=25, azim=-60)
         ax.locator_params(nbins=5)
-        ax.set_xlabel("East [m]")
-        ax.set_ylabel("North [m]")
-        ax.set_zlabel("Up [m]")
+        for setter, label in zip(
+            (ax.set_xlabel, ax.set_ylabel, ax.set_zlabel), rmap.labels(), strict=True
+        ):
+            setter(label)
+        if rmap.projected:
+            mapview.km_ticks(ax)
         ax.set_title("Reference and one sequence per grade (3-D)")
         fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=2)
         return _save(fig, out_stem, formats, dpi)
