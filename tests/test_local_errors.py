@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from pyproj import Geod
 
 from imugen import earth as E
 from imugen import evaluate as EV
@@ -267,3 +268,43 @@ def test_distance_and_extent_same_in_wgs84_and_geodetic(tmp_path):
     # an independent figure: chords between successive ECEF points, heights removed
     chord = np.linalg.norm(np.diff(E.ecef_from_geodetic(lat, lon, 0 * h), axis=0), axis=1).sum()
     assert got["geodetic"][0] == pytest.approx(chord, rel=1e-3)
+
+
+def test_meaningless_covers_overflow_and_breakdown():
+    assert EV.meaningless(np.inf, None) and EV.meaningless(np.nan, 1e6)
+    assert EV.meaningless(1.5 * EV.EARTH_RADIUS_M, 7.6e6)  # beyond the radius, any extent
+
+
+def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
+    """A 6 h flight in ECEF coordinates, navigation errors of 3 Earth radii at the end: the
+    metrics stay finite, evaluate and tables warn, rmse.csv carries the flag."""
+    n = 361
+    lat = np.radians(np.linspace(40.0, 48.0, n))
+    lon = np.radians(np.linspace(175.0, 195.0, n))  # across the antimeridian
+    r = E.ecef_from_geodetic(lat, lon, np.full(n, 10_000.0))
+    t = np.linspace(0.0, 6 * 3600.0, n)
+    df = pd.DataFrame({ttruth.TIME: t, **{c: r[:, i] for i, c in enumerate(ttruth.POS)}})
+    meta = {"origin": {"lat_deg": 40.0, "lon_deg": 175.0, "alt_m": 0.0}, "earth": "geodetic"}
+    ttruth.write(df, meta, tmp_path / "truth.parquet")
+    g = 3 * EV.EARTH_RADIUS_M * (t / t[-1]) ** 2
+    nav = pd.DataFrame({"sequence": np.int64(0), "time_s": t, "err_e_m": 0.6 * g,
+                        "err_n_m": 0.8 * g, "err_u_m": 0.0, "err_along_m": g,
+                        "err_cross_m": 0.0, "err_att_rad": 0.0})  # fmt: skip
+    tnav.write(nav, {"stage": "navigate"}, tmp_path / "nav.parquet")
+    with pytest.warns(UserWarning, match="too long for unaided inertial navigation"):
+        EV.run(tmp_path / "truth.parquet", [tmp_path / "nav.parquet"], tmp_path / "m.parquet",
+               grade="consumer")  # fmt: skip
+    from imugen.tables import metrics as tmetrics
+
+    m = tmetrics.read(tmp_path / "m.parquet")
+    assert np.isfinite(m.drop(columns="sequence").to_numpy(float)).all()
+    assert m.final_along_m.item() == pytest.approx(3 * EV.EARTH_RADIUS_M)
+    dist = tmetrics.read_meta(tmp_path / "m.parquet")["distance_horizontal_m"]
+    _, _, steps = Geod(ellps="WGS84").inv(np.degrees(lon[:-1]), np.degrees(lat[:-1]),
+                                          np.degrees(lon[1:]), np.degrees(lat[1:]))  # fmt: skip
+    assert dist == pytest.approx(steps.sum() * (E.A_WGS84 + 1e4) / E.A_WGS84, rel=2e-3)
+    with pytest.warns(UserWarning, match="consumer"):
+        EV.run_tables([tmp_path / "m.parquet"], tmp_path / "rmse.csv")
+    csv = pd.read_csv(tmp_path / "rmse.csv")
+    assert bool(csv.free_inertial_meaningless.item())
+    assert {"along_m", "cross_m", "final_along_m", "final_cross_m"} <= set(csv.columns)

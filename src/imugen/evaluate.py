@@ -546,8 +546,10 @@ def warn_meaningless(grade: str, final_3d_m: float, extent: float | None, aided:
 
 
 def meaningless(final_3d_m: float, extent: float | None) -> bool:
-    """True when a free-inertial error has left the planet or the scene (module docstring)."""
+    """True when a free-inertial error has left the planet or the scene (module docstring), or
+    is not a finite number."""
     lim = MEANINGLESS_EARTH_FRACTION * EARTH_RADIUS_M
     if extent is not None and extent > 0:
         lim = min(lim, MEANINGLESS_EXTENT_FACTOR * float(extent))
-    return bool(np.isfinite(final_3d_m) and final_3d_m > lim)
+    # a solution that overflowed (inf) or broke down (NaN) is as meaningless as a far one
+    return bool(not np.isfinite(final_3d_m) or final_3d_m > lim)
