@@ -7,7 +7,9 @@ rule aid:
         truth="results/{route}/truth.parquet",
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
         grade=grade_files,
-        code=stage_code("aid", "aided", "gnss", "scenarios", "mechanize", "earth"),
+        code=stage_code(
+            "aid", "aided", "gnss", "scenarios", "mechanize", "earth", "local_errors"
+        ),
     output:
         gnss="results/{route}/gnss/{grade}/shard-{shard}.parquet",
         labels="results/{route}/gnss/{grade}/shard-{shard}.labels.parquet",
