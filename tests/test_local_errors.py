@@ -332,3 +332,33 @@ def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
     csv = pd.read_csv(tmp_path / "rmse.csv")
     assert bool(csv.free_inertial_meaningless.item())
     assert {"along_m", "cross_m", "final_along_m", "final_cross_m"} <= set(csv.columns)
+
+
+def test_error_vs_time_track_panels(tmp_path):
+    """With the track columns: four panels; the along panel's line is the median over
+    sequences of |along| at each epoch; without them: the two panels of before."""
+    from imugen import figures as fg
+    from imugen.io import write_parquet
+    from imugen.plotting import style
+
+    t = np.arange(1.0, 11.0)
+    parts = []
+    for s in range(5):
+        k = 1.0 + s
+        parts.append(pd.DataFrame({"sequence": s, "time_s": t, "err_e_m": k * t, "err_n_m": 0.0,
+                                   "err_u_m": 1.0, "err_along_m": -2.0 * k * t,
+                                   "err_cross_m": 0.5 * k, "err_att_rad": 0.0}))  # fmt: skip
+    nav = pd.concat(parts, ignore_index=True)
+    p = write_parquet(nav, {}, tmp_path / "nav.parquet")
+    with style():
+        fig = fg.error_vs_time_figure({"tactical": [p]})
+    ax = {a.get_title(): a for a in fig.axes}
+    assert set(ax) == {"Horizontal position error", "Vertical position error",
+                       "Along-track error", "Cross-track error"}  # fmt: skip
+    along = ax["Along-track error"].lines[0]
+    np.testing.assert_allclose(along.get_ydata(), 2.0 * 3.0 * t)  # median k = 3
+    np.testing.assert_allclose(ax["Cross-track error"].lines[0].get_ydata(), 1.5)
+    old = write_parquet(nav.drop(columns=list(tnav.ERR_TRACK)), {}, tmp_path / "old.parquet")
+    with style():
+        fig = fg.error_vs_time_figure({"tactical": [old]})
+    assert len(fig.axes) == 2

@@ -48,6 +48,7 @@ __all__ = [
     "epoch_matrix",
     "error_bands",
     "error_vs_time",
+    "error_vs_time_figure",
     "figure8",
     "figure8_figure",
     "format_length",
@@ -62,6 +63,7 @@ __all__ = [
 ]
 
 ERR = tnav.ERR_POS
+TRACK = tnav.ERR_TRACK
 RMSE_TOTAL = tmetrics.RMSE_TOTAL
 #: accepted values of the ``representative`` option
 REPRESENTATIVE = ("median", "best", "worst")
@@ -279,15 +281,17 @@ def epoch_matrix(nav: pd.DataFrame, source="nav") -> tuple[np.ndarray, np.ndarra
     Parameters
     ----------
     nav : DataFrame
-        Long table: ``sequence``, ``time_s``, ``err_e_m``, ``err_n_m``, ``err_u_m``, every
-        sequence evaluated at the same epochs (any row order).
+        Long table: ``sequence``, ``time_s``, ``err_e_m``, ``err_n_m``, ``err_u_m`` (and
+        optionally ``err_along_m``, ``err_cross_m``), every sequence evaluated at the same
+        epochs (any row order).
 
     Returns
     -------
     seq : ndarray (S,) of int
     time_s : ndarray (T,)
     err : dict of ndarray (S, T)
-        ``"horizontal"`` = hypot(east, north) and ``"up"`` = |up|, metres.
+        ``"horizontal"`` = hypot(east, north) and ``"up"`` = |up|, metres; with the track
+        columns also ``"along"`` = |along| and ``"cross"`` = |cross|.
     """
     s = nav[SEQUENCE].to_numpy()
     t = nav[col.TIME].to_numpy(dtype=np.float64)
@@ -303,7 +307,11 @@ def epoch_matrix(nav: pd.DataFrame, source="nav") -> tuple[np.ndarray, np.ndarra
     if not np.allclose(tt, tt[:1], rtol=0.0, atol=1e-6):
         raise InputError(source, "sequences are not evaluated at the same epochs")
     e, n, u = (nav[c].to_numpy(dtype=np.float64)[order].reshape(ids.size, T) for c in ERR)
-    return ids, tt[0].copy(), {"horizontal": np.hypot(e, n), "up": np.abs(u)}
+    err = {"horizontal": np.hypot(e, n), "up": np.abs(u)}
+    if set(TRACK) <= set(nav.columns):
+        for key, c in zip(("along", "cross"), TRACK, strict=True):
+            err[key] = np.abs(nav[c].to_numpy(dtype=np.float64)[order].reshape(ids.size, T))
+    return ids, tt[0].copy(), err
 
 
 # ----------------------------------------------------------------------------------------
@@ -612,12 +620,15 @@ def trajectories_3d(
 
 
 def _grade_errors(paths: Sequence, grade: str):
-    """(time (T,), {"horizontal", "up": (S, T)}) over all navigation files of a grade."""
+    """(time (T,), {"horizontal", "up"[, "along", "cross"]: (S, T)}) over all navigation files
+    of a grade (the track errors when every file has them)."""
     time = None
-    parts: dict[str, list[np.ndarray]] = {"horizontal": [], "up": []}
+    track = all(tnav.has_track(p) for p in paths)
+    keys = ("horizontal", "up", "along", "cross") if track else ("horizontal", "up")
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     seen: set[int] = set()
     for p in paths:
-        nav = tnav.read(p, [SEQUENCE, col.TIME, *ERR])
+        nav = tnav.read(p, [SEQUENCE, col.TIME, *ERR, *(TRACK if track else ())])
         if nav.empty:
             continue
         ids, t, err = epoch_matrix(nav, source=p)
@@ -637,6 +648,40 @@ def _grade_errors(paths: Sequence, grade: str):
     return time, {k: np.vstack(v) for k, v in parts.items()}
 
 
+_ERROR_PANELS = (
+    ("horizontal", "horizontal error [m]", "Horizontal position error"),
+    ("up", "|up error| [m]", "Vertical position error"),
+    ("along", "|along-track error| [m]", "Along-track error"),
+    ("cross", "|cross-track error| [m]", "Cross-track error"),
+)
+
+
+def error_vs_time_figure(nav_paths_by_grade: Mapping[str, Sequence]):
+    """The Matplotlib figure of :func:`error_vs_time` (for saving or inspecting its artists)."""
+    styles = grade_styles(nav_paths_by_grade)
+    stats = {}
+    for g, paths in nav_paths_by_grade.items():
+        time, err = _grade_errors(list(paths), g)
+        stats[g] = (time, err["horizontal"].shape[0], {k: error_bands(v) for k, v in err.items()})
+        del err
+    panels = [p for p in _ERROR_PANELS if all(p[0] in b for _, _, b in stats.values())]
+    fig = _figure(figsize=(9 if len(panels) == 2 else 13, 6.5), layout="constrained")
+    axes = fig.subplots(2, len(panels) // 2, sharex=True, squeeze=False).T.ravel()
+    for ax, (key, ylabel, title) in zip(axes, panels, strict=True):
+        for g, (time, S, bands) in stats.items():
+            p05, p50, p95 = (np.where(b > 0, b, np.nan) for b in bands[key])
+            ax.fill_between(time, p05, p95, color=styles[g]["color"], alpha=0.2, lw=0)
+            ax.plot(time, p50, lw=1.2, label=f"{g} (median, 5-95 %, {S} seq.)", **styles[g])
+        ax.set_yscale("log")
+        ax.set_ylabel(ylabel)
+        ax.set_title(title)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[1::2]:
+        ax.set_xlabel("time [s]")
+    axes[0].legend(loc="lower right")
+    return fig
+
+
 def error_vs_time(
     nav_paths_by_grade: Mapping[str, Sequence],
     out_stem,
@@ -646,38 +691,18 @@ def error_vs_time(
 ) -> list[Path]:
     """Position error against time per grade: median and 5-95 % band over sequences.
 
-    Two panels with a log scale: horizontal error hypot(east, north) and |up| error, metres.
-    Navigation files are read one at a time, only the error columns; per grade only the
-    (sequences, epochs) matrices of the two errors are kept.
+    Panels with a log scale: horizontal error hypot(east, north) and |up| error, metres (East,
+    North, Up at the true position); with navigation tables holding the track columns also
+    |along-track| and |cross-track| (a 2 x 2 figure). Navigation files are read one at a
+    time, only the error columns; per grade only the (sequences, epochs) matrices of the errors
+    are kept.
 
     Returns
     -------
     list of Path
     """
-    styles = grade_styles(nav_paths_by_grade)
-    stats = {}
-    for g, paths in nav_paths_by_grade.items():
-        time, err = _grade_errors(list(paths), g)
-        stats[g] = (time, err["horizontal"].shape[0], {k: error_bands(v) for k, v in err.items()})
-        del err
     with _style():
-        fig = _figure(figsize=(9, 6.5), layout="constrained")
-        axes = fig.subplots(2, 1, sharex=True)
-        for ax, key, ylabel, title in (
-            (axes[0], "horizontal", "horizontal error [m]", "Horizontal position error"),
-            (axes[1], "up", "|up error| [m]", "Vertical position error"),
-        ):
-            for g, (time, S, bands) in stats.items():
-                p05, p50, p95 = (np.where(b > 0, b, np.nan) for b in bands[key])
-                ax.fill_between(time, p05, p95, color=styles[g]["color"], alpha=0.2, lw=0)
-                ax.plot(time, p50, lw=1.2, label=f"{g} (median, 5-95 %, {S} seq.)", **styles[g])
-            ax.set_yscale("log")
-            ax.set_ylabel(ylabel)
-            ax.set_title(title)
-            ax.grid(True, which="both", alpha=0.3)
-        axes[1].set_xlabel("time [s]")
-        axes[0].legend(loc="lower right")
-        return _save(fig, out_stem, formats, dpi)
+        return _save(error_vs_time_figure(nav_paths_by_grade), out_stem, formats, dpi)
 
 
 def interval_rates(time_s: np.ndarray, increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
