@@ -270,7 +270,7 @@ def test_meaningless_flag_and_finite_tables(tmp_path):
     assert "meaningless" in (tmp_path / "rmse.md").read_text()
 
 
-def test_distance_and_extent_same_in_wgs84_and_geodetic(tmp_path):
+def test_distance_and_extent_same_in_wgs84_and_geodetic(tmp_path, monkeypatch):
     """The horizontal distance and extent of a truth do not depend on its coordinates."""
     rng = np.random.default_rng(2)
     lat = np.radians(40.0) + np.cumsum(rng.normal(0, 1e-4, 200))
@@ -288,6 +288,11 @@ def test_distance_and_extent_same_in_wgs84_and_geodetic(tmp_path):
         got[model] = (EV.horizontal_distance_m(tmp_path / f"{model}.parquet"),
                       EV.extent_m(tmp_path / f"{model}.parquet"))  # fmt: skip
     assert got["geodetic"][0] == pytest.approx(got["wgs84"][0], rel=1e-9)
+    # streamed in blocks: the same figures whatever the block size
+    monkeypatch.setattr(EV, "POSITION_BATCH", 7)
+    small = (EV.horizontal_distance_m(tmp_path / "geodetic.parquet"),
+             EV.extent_m(tmp_path / "geodetic.parquet"))  # fmt: skip
+    np.testing.assert_allclose(small, got["geodetic"], rtol=1e-12)
     assert got["geodetic"][1] == pytest.approx(got["wgs84"][1], rel=1e-9)
     # an independent figure: chords between successive ECEF points, heights removed
     chord = np.linalg.norm(np.diff(E.ecef_from_geodetic(lat, lon, 0 * h), axis=0), axis=1).sum()

@@ -78,6 +78,8 @@ MEANINGLESS_EARTH_FRACTION = 0.1
 """Flag when the median final free-inertial error exceeds this fraction of the Earth radius."""
 MEANINGLESS_EXTENT_FACTOR = 100.0
 """... or this multiple of the scene's extent (diagonal of the ENU bounding box of the truth)."""
+POSITION_BATCH = 1 << 18
+"""Truth rows per block when streaming positions (distance, extent)."""
 TIME_TO_M = 10.0
 """Horizontal error threshold of ``time_to_10m_s`` (m)."""
 
@@ -410,10 +412,11 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
     return paths
 
 
-def _truth_positions(truth_path):
-    """``(p_n (K, 3), frame)`` of a truth file."""
-    tr = ttruth.read(truth_path, columns=list(ttruth.POS), arrow=True)
-    return tr.p_n, tr.origin_frame()
+def _position_batches(truth_path):
+    """``(frame, iterator of p_n blocks (n, 3))`` of a truth file, streamed (bounded memory
+    whatever the route's length)."""
+    frame = ttruth.origin_frame(ttruth.read_meta(truth_path))
+    return frame, ttruth.iter_batches(truth_path, list(ttruth.POS), POSITION_BATCH)
 
 
 def _up_n(frame, p_n: np.ndarray) -> np.ndarray:
@@ -428,22 +431,31 @@ def _up_n(frame, p_n: np.ndarray) -> np.ndarray:
 def horizontal_distance_m(truth_path) -> float:
     """Horizontal distance travelled by the truth, metres: the sum of its steps projected on
     the local level at each step's start (East-North steps in ``flat``)."""
-    p, frame = _truth_positions(truth_path)
-    if len(p) < 2:
-        return 0.0
-    d = np.diff(p, axis=0)
-    up = _up_n(frame, p[:-1])
-    vert = np.einsum("ij,ij->i", d, up)
-    return float(np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - vert**2, 0.0)).sum())
+    frame, blocks = _position_batches(truth_path)
+    total, prev = 0.0, None
+    for p in blocks:
+        if prev is not None:
+            p = np.vstack([prev, p])
+        prev = p[-1:]
+        if len(p) < 2:
+            continue
+        d = np.diff(p, axis=0)
+        vert = np.einsum("ij,ij->i", d, _up_n(frame, p[:-1]))
+        total += float(np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - vert**2, 0.0)).sum())
+    return total
 
 
 def extent_m(truth_path) -> float:
     """Diagonal of the truth's bounding box in the ENU of its origin, metres (the scene's
     extent; a chord-based size for routes beyond the tangent plane)."""
-    p, frame = _truth_positions(truth_path)
-    if frame.model == "geodetic":
-        p = frame.with_model("wgs84").n_from_ecef(p)
-    return float(np.sqrt(np.sum(np.square(np.ptp(p, axis=0))))) if len(p) else 0.0
+    frame, blocks = _position_batches(truth_path)
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for p in blocks:
+        if frame.model == "geodetic":
+            p = frame.with_model("wgs84").n_from_ecef(p)
+        if len(p):
+            lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    return float(np.sqrt(np.sum((hi - lo) ** 2))) if np.isfinite(lo).all() else 0.0
 
 
 def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided_paths=()) -> Path:
