@@ -105,7 +105,7 @@ def apply(C_ln: np.ndarray, track: np.ndarray, err_n: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (..., J, 5)
     """
-    d = np.einsum("jik,...jk->...ji", C_ln, np.asarray(err_n, dtype=float))
+    d = np.einsum("jik,...jk->...ji", C_ln, np.asarray(err_n, dtype=float), optimize=True)
     out = np.empty((*d.shape[:-1], 5))
     out[..., :3] = d
     out[..., 3] = d[..., 0] * track[:, 0] + d[..., 1] * track[:, 1]
