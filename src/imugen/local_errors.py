@@ -105,12 +105,18 @@ def apply(C_ln: np.ndarray, track: np.ndarray, err_n: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (..., J, 5)
     """
-    d = np.einsum("jik,...jk->...ji", C_ln, np.asarray(err_n, dtype=float), optimize=True)
-    out = np.empty((*d.shape[:-1], 5))
-    out[..., :3] = d
-    out[..., 3] = d[..., 0] * track[:, 0] + d[..., 1] * track[:, 1]
-    out[..., 4] = track[:, 0] * d[..., 1] - track[:, 1] * d[..., 0]
-    return out
+    # one (J, 5, 3) operator: the three rows of C_ln, then along = t . C_ln d and
+    # cross = (u x t) . C_ln d (left of the track), so the sequences are swept once
+    te, tn = track[:, 0, None], track[:, 1, None]
+    M = np.concatenate(
+        [
+            C_ln,
+            (te * C_ln[:, 0] + tn * C_ln[:, 1])[:, None],
+            (te * C_ln[:, 1] - tn * C_ln[:, 0])[:, None],
+        ],
+        axis=1,
+    )
+    return np.einsum("jik,...jk->...ji", M, np.asarray(err_n, dtype=float), optimize=True)
 
 
 def rotation_ln(frame: OriginFrame, p_true_n: np.ndarray) -> np.ndarray:
