@@ -367,3 +367,17 @@ def test_error_vs_time_track_panels(tmp_path):
     with style():
         fig = fg.error_vs_time_figure({"tactical": [old]})
     assert len(fig.axes) == 2
+
+
+def test_apply_bits_independent_of_the_batch():
+    """Each sequence's errors carry the same bits alone or among others (batch-independent
+    navigation tables)."""
+    rng = np.random.default_rng(5)
+    f = E.OriginFrame(LAT, LON, H, "geodetic")
+    r = E.ecef_from_geodetic(LAT + rng.normal(0, 0.01, 40), LON + rng.normal(0, 0.01, 40), 0.0)
+    C = L.rotation_ln(f, r)
+    t = L.track_direction(np.einsum("jik,jk->ji", C, rng.normal(0, 9, (40, 3))))
+    err = rng.normal(0, 1e3, (7, 40, 3))
+    whole = L.apply(C, t, err)
+    assert all(np.array_equal(L.apply(C, t, err[s : s + 1])[0], whole[s]) for s in range(7))
+    assert np.array_equal(L.apply(C, t, err[3]), whole[3])

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from imugen.earth import OriginFrame
+from imugen.jit import njit
 
 MIN_SPEED_MPS = 0.1
 """Below this true horizontal speed the track direction is taken from the nearest moving epoch."""
@@ -116,7 +117,28 @@ def apply(C_ln: np.ndarray, track: np.ndarray, err_n: np.ndarray) -> np.ndarray:
         ],
         axis=1,
     )
-    return np.einsum("jik,...jk->...ji", M, np.asarray(err_n, dtype=float), optimize=True)
+    return _rows(M, err_n)
+
+
+def _rows(M: np.ndarray, x) -> np.ndarray:
+    """``out[..., j, i] = sum_k M[j, i, k] x[..., j, k]``, (..., J, R), element by element (the
+    same float operations whatever the number of sequences: batch-independent bits, which a
+    BLAS-backed product does not give)."""
+    x = np.asarray(x, dtype=float)
+    J = M.shape[0]
+    xs = np.ascontiguousarray(x.reshape(-1, J, 3))
+    out = np.empty((xs.shape[0], J, M.shape[1]))
+    _rows_nb(np.ascontiguousarray(M, dtype=float), xs, out)
+    return out.reshape((*x.shape[:-1], M.shape[1]))
+
+
+@njit(cache=True)
+def _rows_nb(M, x, out):
+    for s in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            x0, x1, x2 = x[s, j, 0], x[s, j, 1], x[s, j, 2]
+            for i in range(M.shape[1]):
+                out[s, j, i] = M[j, i, 0] * x0 + M[j, i, 1] * x1 + M[j, i, 2] * x2
 
 
 def rotation_ln(frame: OriginFrame, p_true_n: np.ndarray) -> np.ndarray:
@@ -138,4 +160,4 @@ def local_sd(C_ln: np.ndarray, sd_n: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (..., J, 3)
     """
-    return np.sqrt(np.einsum("jik,...jk->...ji", C_ln**2, np.asarray(sd_n, dtype=float) ** 2))
+    return np.sqrt(_rows(np.asarray(C_ln, dtype=float) ** 2, np.asarray(sd_n, dtype=float) ** 2))
