@@ -40,6 +40,7 @@ from imugen import __version__
 from imugen import aided as A
 from imugen import companions as CP
 from imugen import gnss as G
+from imugen import local_errors as lerr
 from imugen import scenarios as SC
 from imugen.earth import earth_rate_n
 from imugen.errors import InputError
@@ -52,7 +53,7 @@ from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables._parquet import SEQUENCE, TIME
-from imugen.tables.nav import ERR_ATT, ERR_POS
+from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 
 AID_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
 
@@ -344,14 +345,17 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
 
         Om = earth_rate_n(truth.origin_frame())
         p_true, _, q_true = imu_states(p_true[0], None, q_true[0], None, Om, *mount)
-    err = res.p_n - p_true
+    C = lerr.rotation_ln(truth.origin_frame(), truth.p_n[idx])
+    track = lerr.track_direction(np.einsum("jik,jk->ji", C, truth.v_n[idx]))
+    err = lerr.apply(C, track, res.p_n - p_true)
     q = np.where(np.isnan(res.q_nb), [1.0, 0.0, 0.0, 0.0], res.q_nb)
     att = np.linalg.norm(A.attitude_error(q, q_true), axis=-1)
     valid = scen.gnss.valid
     aligned = (res.flags & A.F_ALIGNED) != 0
-    keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err).all(-1)
+    keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err[..., :3]).all(-1)
     S, J = keep.shape
     since = _since_fix(t, valid)
+    sd = lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
     rows[ERR_ATT] = att[keep]
@@ -359,8 +363,8 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
     rows[taided.STATE] = scen.state[keep].astype(np.int8)
     rows[taided.SINCE_FIX] = since[keep]
     for cols, arr in (
-        (ERR_POS, err),
-        (taided.SD_POS, res.sd[..., A.I_P : A.I_P + 3]),
+        ((*ERR_POS, *ERR_TRACK), err),
+        (taided.SD_POS, sd),
         (ttruth.POS, res.p_n),
         (ttruth.VEL, res.v_n),
         (ttruth.QUAT, res.q_nb),
@@ -432,7 +436,7 @@ def aid(
         "eval_rate_hz": params.eval_rate_hz,
         "odometer": params.odometer,
         "barometer": params.barometer,
-        "error": "filter minus truth, ENU of the route origin",
+        "error": "filter minus truth, ENU at the true position; along/cross the true track",
     }
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
     never = batches = 0

@@ -7,7 +7,15 @@ first one included, as the paper does):
   along each ENU axis;
 - ``rmse_total_m = sqrt(E^2 + N^2 + U^2)`` of those three (the paper's "Total");
 - ``final_east_m`` ... ``final_3d_m``: error at the last epoch; ``final_pct_distance``: final
-  horizontal error as a percentage of the horizontal distance travelled.
+  horizontal error as a percentage of the horizontal distance travelled;
+- ``rmse_along_m``, ``rmse_cross_m``: RMSE of the along-track and cross-track errors (over the
+  epochs where they are defined), ``final_along_m``, ``final_cross_m``: their signed values at
+  the last epoch (cross positive to the left of the track). Absent for navigation tables
+  written before the track columns existed.
+
+East/North/Up are those of the navigation table: the local level at the TRUE position
+(:mod:`imugen.local_errors`), whatever the Earth model (``flat``: the ENU of the origin,
+unchanged; ``geodetic``, whose navigation coordinates are ECEF: still East/North/Up).
 
 Relative drift (``segments``, seconds ``T``): how far the navigation drifts in ``T`` seconds
 from a correct start, the figure drift-correction papers report. For each start ``t_s`` the
@@ -25,6 +33,7 @@ per sequence:
 
 - ``aided_total_m``: RMSE (sqrt(E^2 + N^2 + U^2) of the per-axis RMSE) over the epochs where the
   filter used a GNSS fix and no scenario was active: the figure "with GNSS";
+- ``aided_along_m``, ``aided_cross_m``: the same RMSE of the along- and cross-track errors;
 - ``aided_nees_pos``: mean over those epochs of ``sum_i (err_i / sd_i)^2 / 3`` with the filter's
   reported sigmas (about 1 for a consistent filter; per-axis, correlations ignored);
 - ``outage_<D>s_end_m``: horizontal error at the last epoch of an outage of ``D`` s (the last
@@ -36,9 +45,12 @@ per sequence:
 
 Meaningless free-inertial figures: a grade whose median final 3-D free-inertial error exceeds
 :data:`MEANINGLESS_EARTH_FRACTION` of the Earth radius, or :data:`MEANINGLESS_EXTENT_FACTOR`
-times the scene's extent (diagonal of the truth's ENU bounding box), is flagged
-(``free_inertial_meaningless`` in rmse.csv, and a warning recommending the aided figures):
-the error then describes a solution that left the planet or the map, not the IMU.
+times the scene's extent (diagonal of the bounding box of the truth in the ENU of its origin),
+is flagged (``free_inertial_meaningless`` in rmse.csv, the human tables' grade label, and a
+warning recommending the aided figures, logged by ``evaluate`` for the grade and again by
+``tables``): the error then describes a solution that left the planet or the map, not the IMU
+(a consumer IMU free-running for hours reaches thousands of Earth radii). The local-level
+errors stay finite then: only the true position sets their axes.
 
 Per grade: the median over sequences of each value (``east_m``, ``north_m``, ``up_m``,
 ``total_m``, ``drift_<T>s_m``, ...) with its 5th and 95th percentiles (``*_p05_m``,
@@ -59,12 +71,15 @@ from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
 
 ERR = tnav.ERR_POS
+TRACK = tnav.ERR_TRACK
 AXES = tmetrics.AXES
 EARTH_RADIUS_M = 6_371_000.0
 MEANINGLESS_EARTH_FRACTION = 0.1
 """Flag when the median final free-inertial error exceeds this fraction of the Earth radius."""
 MEANINGLESS_EXTENT_FACTOR = 100.0
 """... or this multiple of the scene's extent (diagonal of the ENU bounding box of the truth)."""
+POSITION_BATCH = 1 << 18
+"""Truth rows per block when streaming positions (distance, extent)."""
 TIME_TO_M = 10.0
 """Horizontal error threshold of ``time_to_10m_s`` (m)."""
 
@@ -84,6 +99,10 @@ def aided_metrics(aided: pd.DataFrame) -> pd.DataFrame:
     on = a[(a[taided.GNSS_USED] == 1) & (a[taided.STATE] == 0)]
     ms = on[list(ERR)].pow(2).groupby(on["sequence"]).mean()
     out["aided_total_m"] = np.sqrt(ms.sum(axis=1)).reindex(seqs)
+    if set(TRACK) <= set(a.columns):
+        mt = on[list(TRACK)].pow(2).groupby(on["sequence"]).mean().reindex(seqs)
+        out["aided_along_m"] = np.sqrt(mt[TRACK[0]].to_numpy())
+        out["aided_cross_m"] = np.sqrt(mt[TRACK[1]].to_numpy())
     z2 = (on[list(ERR)].to_numpy() / on[list(taided.SD_POS)].to_numpy()) ** 2
     out["aided_nees_pos"] = (
         pd.Series(z2.sum(axis=1) / 3.0, index=on.index).groupby(on["sequence"]).mean()
@@ -120,7 +139,7 @@ def sequence_metrics(nav: pd.DataFrame, distance_m: float) -> pd.DataFrame:
     ----------
     nav : DataFrame
         Columns ``sequence``, ``time_s`` and ``err_e_m``, ``err_n_m``, ``err_u_m`` (metres),
-        one row per sequence and evaluation epoch.
+        optionally ``err_along_m``, ``err_cross_m``, one row per sequence and evaluation epoch.
     distance_m : float
         Horizontal distance travelled by the truth over the evaluated span (m).
 
@@ -146,6 +165,13 @@ def sequence_metrics(nav: pd.DataFrame, distance_m: float) -> pd.DataFrame:
     out["final_pct_distance"] = (
         100.0 * out["final_horizontal_m"] / distance_m if distance_m > 0 else np.nan
     )
+    if set(TRACK) <= set(nav.columns):
+        tr = nav[list(TRACK)].pow(2)
+        tr["sequence"] = nav["sequence"].to_numpy()
+        mt = tr.groupby("sequence", sort=True).mean()  # NaN (no track direction) skipped
+        for name, c in zip(("along", "cross"), TRACK, strict=True):
+            out[f"rmse_{name}_m"] = np.sqrt(mt[c].to_numpy())
+            out[f"final_{name}_m"] = last[c]
     out["epochs"] = g.size()
     return out
 
@@ -157,6 +183,12 @@ _STATS = {
     "total_m": "rmse_total_m",
     "final_3d_m": "final_3d_m",
     "final_pct_distance": "final_pct_distance",
+}
+_TRACK_STATS = {
+    "along_m": "rmse_along_m",
+    "cross_m": "rmse_cross_m",
+    "final_along_m": "final_along_m",
+    "final_cross_m": "final_cross_m",
 }
 
 
@@ -265,6 +297,7 @@ def grade_row(grade: str, metrics: pd.DataFrame) -> dict:
     """Median and 5-95 % of each per-sequence value, for one grade."""
     row: dict = {"grade": grade, "sequences": len(metrics)}
     stats = dict(_STATS)
+    stats.update({k: c for k, c in _TRACK_STATS.items() if c in metrics.columns})
     stats.update({c: c for c in metrics.columns if c.startswith(_OPTIONAL)})
     for name, col in stats.items():
         v = metrics[col].to_numpy(dtype=float)
@@ -273,7 +306,8 @@ def grade_row(grade: str, metrics: pd.DataFrame) -> dict:
             q = np.percentile(v, [5, 50, 95], method="inverted_cdf") if len(v) else [np.nan] * 3
             p05, p50, p95 = q
         else:
-            v = v[np.isfinite(v)] if col.startswith(_OPTIONAL) else v
+            optional = col.startswith(_OPTIONAL) or col in _TRACK_STATS.values()
+            v = v[np.isfinite(v)] if optional else v
             p05, p50, p95 = np.percentile(v, [5, 50, 95]) if len(v) else (np.nan,) * 3
         unit = next((u for u in ("_m", "_s") if name.endswith(u)), "")
         stem = name[: len(name) - len(unit)]
@@ -308,8 +342,12 @@ def display_table(table: pd.DataFrame) -> pd.DataFrame:
             ("North", "north"),
             ("Up", "up"),
             ("Total", "total"),
+            ("Along", "along"),
+            ("Cross", "cross"),
             ("Final 3-D", "final_3d"),
         ):
+            if stem + "_m" not in table.columns:
+                continue
             row[f"{label} (m)"] = (
                 f"{_fmt(r[stem + '_m'])} [{_fmt(r[stem + '_p05_m'])}-{_fmt(r[stem + '_p95_m'])}]"
             )
@@ -356,6 +394,7 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
     human = display_table(table)
     caption = (
         "RMSE of position per grade: median over sequences [5th-95th percentile], metres; "
+        "East/North/Up at the true position, Along/Cross the true track; "
         "Total = sqrt(E^2 + N^2 + U^2); Drift T s = mean 3-D error T s after true starts "
         "every T_max/2 s."
     )
@@ -389,18 +428,50 @@ def write_tables(table: pd.DataFrame, out_csv: str | Path) -> dict[str, Path]:
     return paths
 
 
+def _position_batches(truth_path):
+    """``(frame, iterator of p_n blocks (n, 3))`` of a truth file, streamed (bounded memory
+    whatever the route's length)."""
+    frame = ttruth.origin_frame(ttruth.read_meta(truth_path))
+    return frame, ttruth.iter_batches(truth_path, list(ttruth.POS), POSITION_BATCH)
+
+
+def _up_n(frame, p_n: np.ndarray) -> np.ndarray:
+    """Unit ellipsoidal normal (local Up) at positions ``p_n`` (K, 3), resolved in n."""
+    if frame.model == "flat":
+        return np.broadcast_to([0.0, 0.0, 1.0], p_n.shape)
+    lat, lon, _ = frame.geodetic_from_n(p_n)
+    up_e = np.column_stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+    return up_e @ frame.C_en.T
+
+
 def horizontal_distance_m(truth_path) -> float:
-    """Horizontal distance travelled by the truth (sum of its E-N steps), metres."""
-    en = ttruth.read_arrow(truth_path, columns=list(ttruth.POS[:2]))
-    e, n = (en.column(c).to_numpy() for c in ttruth.POS[:2])
-    return float(np.hypot(np.diff(e), np.diff(n)).sum())
+    """Horizontal distance travelled by the truth, metres: the sum of its steps projected on
+    the local level at each step's start (East-North steps in ``flat``)."""
+    frame, blocks = _position_batches(truth_path)
+    total, prev = 0.0, None
+    for p in blocks:
+        if prev is not None:
+            p = np.vstack([prev, p])
+        prev = p[-1:]
+        if len(p) < 2:
+            continue
+        d = np.diff(p, axis=0)
+        vert = np.einsum("ij,ij->i", d, _up_n(frame, p[:-1]))
+        total += float(np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - vert**2, 0.0)).sum())
+    return total
 
 
 def extent_m(truth_path) -> float:
-    """Diagonal of the truth's ENU bounding box, metres (the scene's extent)."""
-    pos = ttruth.read_arrow(truth_path, columns=list(ttruth.POS))
-    span = [float(np.ptp(pos.column(c).to_numpy())) for c in ttruth.POS]
-    return float(np.sqrt(np.sum(np.square(span))))
+    """Diagonal of the truth's bounding box in the ENU of its origin, metres (the scene's
+    extent; a chord-based size for routes beyond the tangent plane)."""
+    frame, blocks = _position_batches(truth_path)
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for p in blocks:
+        if frame.model == "geodetic":
+            p = frame.with_model("wgs84").n_from_ecef(p)
+        if len(p):
+            lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    return float(np.sqrt(np.sum((hi - lo) ** 2))) if np.isfinite(lo).all() else 0.0
 
 
 def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided_paths=()) -> Path:
@@ -416,7 +487,12 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided
     # one navigation file at a time (a sequence lives in one shard): memory stays at one
     # file plus one metrics row per sequence, whatever the number of shards
     parts = [
-        sequence_metrics(tnav.read(p, columns=["sequence", "time_s", *ERR]), distance)
+        sequence_metrics(
+            tnav.read(
+                p, columns=["sequence", "time_s", *ERR, *(TRACK if tnav.has_track(p) else ())]
+            ),
+            distance,
+        )
         for p in nav_paths
     ]
     metrics = pd.concat(parts).sort_index(kind="stable")
@@ -445,10 +521,12 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided
         if not aid.index.is_unique or not set(aid.index) <= set(metrics.index):
             raise InputError(grade, "the aided tables do not hold the sequences of the navigation")
         metrics = metrics.join(aid)
+    extent = extent_m(truth)
+    warn_meaningless(grade, float(metrics[tmetrics.FINAL_3D].median()), extent, bool(aided_paths))
     meta = {
         "stage": "evaluate",
         "grade": grade,
-        "extent_m": extent_m(truth),
+        "extent_m": extent,
         "aided": [str(p) for p in aided_paths],
         "truth": str(truth),
         "nav": [str(p) for p in nav_paths],
@@ -456,6 +534,8 @@ def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided
         "segments_s": segments_s,
         "segment_step": "T_max/2",
         "units": "metres; final_pct_distance in % of the horizontal distance travelled",
+        "error_frame": "East/North/Up at the true position; along/cross the true track, "
+        "cross positive left",
     }
     return tmetrics.write(metrics, meta, out)
 
@@ -466,28 +546,38 @@ def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
     for p in metrics_paths:
         meta = tmetrics.read_meta(p)
         row = grade_row(meta["grade"], tmetrics.read(p).set_index("sequence"))
-        row["free_inertial_meaningless"] = meaningless(row["final_3d_m"], meta.get("extent_m"))
-        if row["free_inertial_meaningless"]:
-            has_aided = "aided_total_m" in row
-            warnings.warn(
-                f"{meta['grade']}: median final free-inertial error {row['final_3d_m']:.3g} m "
-                f"exceeds {MEANINGLESS_EARTH_FRACTION:.0%} of the Earth radius or "
-                f"{MEANINGLESS_EXTENT_FACTOR:g} x the scene's extent: its free-inertial figures "
-                "say nothing about the IMU; "
-                + (
-                    "use the aided figures (aided_total_m, outage_*_end_m)"
-                    if has_aided
-                    else "turn on gnss.enabled and use the aided figures"
-                ),
-                stacklevel=2,
-            )
+        row["free_inertial_meaningless"] = warn_meaningless(
+            meta["grade"], row["final_3d_m"], meta.get("extent_m"), "aided_total_m" in row
+        )
         rows.append(row)
     return write_tables(grade_table(rows), out_csv)
 
 
+def warn_meaningless(grade: str, final_3d_m: float, extent: float | None, aided: bool) -> bool:
+    """:func:`meaningless`, with a warning naming the grade when True."""
+    if not meaningless(final_3d_m, extent):
+        return False
+    warnings.warn(
+        f"{grade}: median final free-inertial error {final_3d_m:.3g} m "
+        f"({final_3d_m / EARTH_RADIUS_M:.3g} Earth radii) exceeds "
+        f"{MEANINGLESS_EARTH_FRACTION:.0%} of the Earth radius or "
+        f"{MEANINGLESS_EXTENT_FACTOR:g} x the scene's extent: the scene is too long for unaided "
+        "inertial navigation and its free-inertial figures say nothing about the IMU; "
+        + (
+            "use the aided figures (aided_total_m, outage_*_end_m)"
+            if aided
+            else "turn on gnss.enabled and use the aided figures"
+        ),
+        stacklevel=3,
+    )
+    return True
+
+
 def meaningless(final_3d_m: float, extent: float | None) -> bool:
-    """True when a free-inertial error has left the planet or the scene (module docstring)."""
+    """True when a free-inertial error has left the planet or the scene (module docstring), or
+    is not a finite number."""
     lim = MEANINGLESS_EARTH_FRACTION * EARTH_RADIUS_M
     if extent is not None and extent > 0:
         lim = min(lim, MEANINGLESS_EXTENT_FACTOR * float(extent))
-    return bool(np.isfinite(final_3d_m) and final_3d_m > lim)
+    # a solution that overflowed (inf) or broke down (NaN) is as meaningless as a far one
+    return bool(not np.isfinite(final_3d_m) or final_3d_m > lim)

@@ -49,7 +49,8 @@ sequence_id            S x 1      int64    1       global sequence id (``route_i
 labels                 struct              SI      one S x 1 field per labels column (drawn
                                                    parameters; the unit is in the field name)
 nav_time_s             E x 1      double   s       navigation evaluation epochs (with ``nav``)
-nav_err_enu_m          E x 3 x S  double   m       navigated minus true position, ENU
+nav_err_enu_m          E x 3 x S  double   m       navigated minus true position, ENU at the
+                                                   true position (imugen.tables.nav)
 nav_err_att_rad        E x S      double   rad     attitude error angle
 info                   struct                      metadata, below
 ====================== =========  =======  ======  ===============================================

@@ -10,7 +10,10 @@ Matplotlib's default style (a user's matplotlibrc does not leak in), SVG ids are
 fixed string, glyphs are embedded as paths and the date stamps are left out.
 
 A navigated position is the truth position at the evaluation epoch plus the navigation error
-stored by ``imugen navigate`` (ENU of the route origin, metres).
+stored by ``imugen navigate`` (East/North/Up at the true position, metres, turned back into the
+navigation frame). Routes longer than :data:`imugen.mapview.LONG_ROUTE_M` (100 km) are drawn on
+a map projection with a scale bar in km (:mod:`imugen.mapview`); shorter ones on the tangent
+plane of their origin, East/North in metres.
 
 Allan deviation per grade against its specification is drawn by
 :func:`imugen.allan.plot_allan`; it is not duplicated here.
@@ -26,6 +29,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from imugen import mapview
+from imugen.earth import OriginFrame
 from imugen.errors import InputError
 from imugen.plotting import figure as _figure
 from imugen.plotting import format_length
@@ -43,6 +48,7 @@ __all__ = [
     "epoch_matrix",
     "error_bands",
     "error_vs_time",
+    "error_vs_time_figure",
     "figure8",
     "figure8_figure",
     "format_length",
@@ -57,6 +63,7 @@ __all__ = [
 ]
 
 ERR = tnav.ERR_POS
+TRACK = tnav.ERR_TRACK
 RMSE_TOTAL = tmetrics.RMSE_TOTAL
 #: accepted values of the ``representative`` option
 REPRESENTATIVE = ("median", "best", "worst")
@@ -274,15 +281,17 @@ def epoch_matrix(nav: pd.DataFrame, source="nav") -> tuple[np.ndarray, np.ndarra
     Parameters
     ----------
     nav : DataFrame
-        Long table: ``sequence``, ``time_s``, ``err_e_m``, ``err_n_m``, ``err_u_m``, every
-        sequence evaluated at the same epochs (any row order).
+        Long table: ``sequence``, ``time_s``, ``err_e_m``, ``err_n_m``, ``err_u_m`` (and
+        optionally ``err_along_m``, ``err_cross_m``), every sequence evaluated at the same
+        epochs (any row order).
 
     Returns
     -------
     seq : ndarray (S,) of int
     time_s : ndarray (T,)
     err : dict of ndarray (S, T)
-        ``"horizontal"`` = hypot(east, north) and ``"up"`` = |up|, metres.
+        ``"horizontal"`` = hypot(east, north) and ``"up"`` = |up|, metres; with the track
+        columns also ``"along"`` = |along| and ``"cross"`` = |cross|.
     """
     s = nav[SEQUENCE].to_numpy()
     t = nav[col.TIME].to_numpy(dtype=np.float64)
@@ -298,7 +307,11 @@ def epoch_matrix(nav: pd.DataFrame, source="nav") -> tuple[np.ndarray, np.ndarra
     if not np.allclose(tt, tt[:1], rtol=0.0, atol=1e-6):
         raise InputError(source, "sequences are not evaluated at the same epochs")
     e, n, u = (nav[c].to_numpy(dtype=np.float64)[order].reshape(ids.size, T) for c in ERR)
-    return ids, tt[0].copy(), {"horizontal": np.hypot(e, n), "up": np.abs(u)}
+    err = {"horizontal": np.hypot(e, n), "up": np.abs(u)}
+    if set(TRACK) <= set(nav.columns):
+        for key, c in zip(("along", "cross"), TRACK, strict=True):
+            err[key] = np.abs(nav[c].to_numpy(dtype=np.float64)[order].reshape(ids.size, T))
+    return ids, tt[0].copy(), err
 
 
 # ----------------------------------------------------------------------------------------
@@ -363,7 +376,9 @@ def _truth_track(path, queries: Mapping[str, np.ndarray], max_points: int = MAX_
 
 
 def _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, how):
-    """Truth track and, per grade, the representative navigated track."""
+    """Truth track ``(t, x, y, z)`` in map coordinates (:class:`imugen.mapview.RouteMap`), per
+    grade the representative navigated track (``t``, ``e``, ``n``, ``u`` in the same
+    coordinates, ``h_err`` the horizontal error in the local level), and the map."""
     reps = {}
     for g, paths in nav_paths_by_grade.items():
         if g not in metrics_by_grade:
@@ -376,12 +391,22 @@ def _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, how):
     track, at = _truth_track(
         truth_path, {g: r["nav"][col.TIME].to_numpy() for g, r in reps.items()}
     )
+    p_track = np.column_stack(track[1:])
+    meta = col.read_meta(truth_path)
+    if "origin" in meta and "earth" in meta:
+        rmap = mapview.RouteMap.for_route(col.origin_frame(meta), p_track)
+    else:  # a bare table without its origin: the tangent plane it is written in
+        rmap = mapview.RouteMap(OriginFrame(0.0, 0.0, 0.0, "flat"))
+    xyz = rmap.xyz(p_track)
+    track = (track[0], xyz[:, 0], xyz[:, 1], xyz[:, 2])
     for g, r in reps.items():
         err = r.pop("nav")
-        pos = at[g] + err[list(ERR)].to_numpy(dtype=np.float64)
+        d = err[list(ERR)].to_numpy(dtype=np.float64)
+        pos = rmap.xyz(rmap.navigated_n(at[g], d))
         r["t"] = err[col.TIME].to_numpy(dtype=np.float64)
         r["e"], r["n"], r["u"] = pos[:, 0], pos[:, 1], pos[:, 2]
-    return track, reps
+        r["h_err"] = np.hypot(d[:, 0], d[:, 1])
+    return track, reps, rmap
 
 
 def _rep_label(g, r, how):
@@ -404,7 +429,9 @@ def figure8_figure(
     clip_factor: float | None = 3.0,
 ):
     """The Matplotlib figure of :func:`figure8` (for saving, or for inspecting its artists)."""
-    track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
+    track, reps, rmap = _representatives(
+        truth_path, nav_paths_by_grade, metrics_by_grade, representative
+    )
     t, e, n, _ = track
     window = zoom_window(t[0], t[-1], zoom_fraction)
     styles = grade_styles(reps)
@@ -457,13 +484,10 @@ def figure8_figure(
             ax.set_xlim(box_a[0], box_a[1])
             ax.set_ylim(box_a[2], box_a[3])
         ax.set_aspect("equal", adjustable="box")
-        ax.set_xlabel("East [m]")
-        ax.set_ylabel("North [m]")
-        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+        _map_axes(ax, rmap)
     # error growth of the same sequences: what the zoom shows, on a scale that fits any grade
     for g, r in reps.items():
-        h = np.interp(r["t"], t, e), np.interp(r["t"], t, n)
-        err = np.hypot(r["e"] - h[0], r["n"] - h[1])
+        err = r["h_err"]
         ax_c.plot(r["t"], np.where(err > 0, err, np.nan), lw=1.2, **styles[g])
     ax_c.axvspan(*window, color="0.9", zorder=0, label="zoom window")
     ax_c.set_yscale("log")
@@ -474,6 +498,19 @@ def figure8_figure(
     ax_c.set_title("(c) horizontal error of the same sequences", loc="left")
     fig.legend(*ax_a.get_legend_handles_labels(), loc="outside lower center", ncols=2)
     return fig
+
+
+def _map_axes(ax, rmap: mapview.RouteMap) -> None:
+    """Axis labels of a map panel; a long route's also get km ticks and a scale bar (call
+    after the limits are set; ``adjustable="box"`` keeps them)."""
+    xl, yl, _ = rmap.labels()
+    ax.set_xlabel(xl)
+    ax.set_ylabel(yl)
+    if rmap.projected:
+        mapview.km_ticks(ax)
+        mapview.add_scale_bar(ax, rmap)
+    else:
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
 
 
 def figure8(
@@ -543,7 +580,9 @@ def trajectories_3d(
     -------
     list of Path
     """
-    track, reps = _representatives(truth_path, nav_paths_by_grade, metrics_by_grade, representative)
+    track, reps, rmap = _representatives(
+        truth_path, nav_paths_by_grade, metrics_by_grade, representative
+    )
     _, e, n, u = track
     styles = grade_styles(reps)
     xyz = {g: np.column_stack([r["e"], r["n"], r["u"]]) for g, r in reps.items()}
@@ -569,21 +608,27 @@ def trajectories_3d(
         ax.set_box_aspect((rng[0], rng[1], rz))
         ax.view_init(elev=25, azim=-60)
         ax.locator_params(nbins=5)
-        ax.set_xlabel("East [m]")
-        ax.set_ylabel("North [m]")
-        ax.set_zlabel("Up [m]")
+        for setter, label in zip(
+            (ax.set_xlabel, ax.set_ylabel, ax.set_zlabel), rmap.labels(), strict=True
+        ):
+            setter(label)
+        if rmap.projected:
+            mapview.km_ticks(ax)
         ax.set_title("Reference and one sequence per grade (3-D)")
         fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=2)
         return _save(fig, out_stem, formats, dpi)
 
 
 def _grade_errors(paths: Sequence, grade: str):
-    """(time (T,), {"horizontal", "up": (S, T)}) over all navigation files of a grade."""
+    """(time (T,), {"horizontal", "up"[, "along", "cross"]: (S, T)}) over all navigation files
+    of a grade (the track errors when every file has them)."""
     time = None
-    parts: dict[str, list[np.ndarray]] = {"horizontal": [], "up": []}
+    track = all(tnav.has_track(p) for p in paths)
+    keys = ("horizontal", "up", "along", "cross") if track else ("horizontal", "up")
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     seen: set[int] = set()
     for p in paths:
-        nav = tnav.read(p, [SEQUENCE, col.TIME, *ERR])
+        nav = tnav.read(p, [SEQUENCE, col.TIME, *ERR, *(TRACK if track else ())])
         if nav.empty:
             continue
         ids, t, err = epoch_matrix(nav, source=p)
@@ -603,6 +648,40 @@ def _grade_errors(paths: Sequence, grade: str):
     return time, {k: np.vstack(v) for k, v in parts.items()}
 
 
+_ERROR_PANELS = (
+    ("horizontal", "horizontal error [m]", "Horizontal position error"),
+    ("up", "|up error| [m]", "Vertical position error"),
+    ("along", "|along-track error| [m]", "Along-track error"),
+    ("cross", "|cross-track error| [m]", "Cross-track error"),
+)
+
+
+def error_vs_time_figure(nav_paths_by_grade: Mapping[str, Sequence]):
+    """The Matplotlib figure of :func:`error_vs_time` (for saving or inspecting its artists)."""
+    styles = grade_styles(nav_paths_by_grade)
+    stats = {}
+    for g, paths in nav_paths_by_grade.items():
+        time, err = _grade_errors(list(paths), g)
+        stats[g] = (time, err["horizontal"].shape[0], {k: error_bands(v) for k, v in err.items()})
+        del err
+    panels = [p for p in _ERROR_PANELS if all(p[0] in b for _, _, b in stats.values())]
+    fig = _figure(figsize=(9 if len(panels) == 2 else 13, 6.5), layout="constrained")
+    axes = fig.subplots(2, len(panels) // 2, sharex=True, squeeze=False).T.ravel()
+    for ax, (key, ylabel, title) in zip(axes, panels, strict=True):
+        for g, (time, S, bands) in stats.items():
+            p05, p50, p95 = (np.where(b > 0, b, np.nan) for b in bands[key])
+            ax.fill_between(time, p05, p95, color=styles[g]["color"], alpha=0.2, lw=0)
+            ax.plot(time, p50, lw=1.2, label=f"{g} (median, 5-95 %, {S} seq.)", **styles[g])
+        ax.set_yscale("log")
+        ax.set_ylabel(ylabel)
+        ax.set_title(title)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[1::2]:
+        ax.set_xlabel("time [s]")
+    axes[0].legend(loc="lower right")
+    return fig
+
+
 def error_vs_time(
     nav_paths_by_grade: Mapping[str, Sequence],
     out_stem,
@@ -612,38 +691,18 @@ def error_vs_time(
 ) -> list[Path]:
     """Position error against time per grade: median and 5-95 % band over sequences.
 
-    Two panels with a log scale: horizontal error hypot(east, north) and |up| error, metres.
-    Navigation files are read one at a time, only the error columns; per grade only the
-    (sequences, epochs) matrices of the two errors are kept.
+    Panels with a log scale: horizontal error hypot(east, north) and |up| error, metres (East,
+    North, Up at the true position); with navigation tables holding the track columns also
+    |along-track| and |cross-track| (a 2 x 2 figure). Navigation files are read one at a
+    time, only the error columns; per grade only the (sequences, epochs) matrices of the errors
+    are kept.
 
     Returns
     -------
     list of Path
     """
-    styles = grade_styles(nav_paths_by_grade)
-    stats = {}
-    for g, paths in nav_paths_by_grade.items():
-        time, err = _grade_errors(list(paths), g)
-        stats[g] = (time, err["horizontal"].shape[0], {k: error_bands(v) for k, v in err.items()})
-        del err
     with _style():
-        fig = _figure(figsize=(9, 6.5), layout="constrained")
-        axes = fig.subplots(2, 1, sharex=True)
-        for ax, key, ylabel, title in (
-            (axes[0], "horizontal", "horizontal error [m]", "Horizontal position error"),
-            (axes[1], "up", "|up error| [m]", "Vertical position error"),
-        ):
-            for g, (time, S, bands) in stats.items():
-                p05, p50, p95 = (np.where(b > 0, b, np.nan) for b in bands[key])
-                ax.fill_between(time, p05, p95, color=styles[g]["color"], alpha=0.2, lw=0)
-                ax.plot(time, p50, lw=1.2, label=f"{g} (median, 5-95 %, {S} seq.)", **styles[g])
-            ax.set_yscale("log")
-            ax.set_ylabel(ylabel)
-            ax.set_title(title)
-            ax.grid(True, which="both", alpha=0.3)
-        axes[1].set_xlabel("time [s]")
-        axes[0].legend(loc="lower right")
-        return _save(fig, out_stem, formats, dpi)
+        return _save(error_vs_time_figure(nav_paths_by_grade), out_stem, formats, dpi)
 
 
 def interval_rates(time_s: np.ndarray, increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

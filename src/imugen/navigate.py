@@ -14,8 +14,10 @@ The truth is that of the IMU: a shard simulated with a mounting (metadata ``moun
 (``p + C_nv l``, ``C_nv C_vb``, from the drawn values in its labels); otherwise the vehicle's.
 
 Output: the navigation error table of :mod:`imugen.tables.nav` (``sequence``, ``time_s``,
-``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``), one row per sequence and evaluation
-epoch (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
+``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_along_m``, ``err_cross_m``, ``err_att_rad``), one
+row per sequence and evaluation epoch (every ``round(rate / eval_rate_hz)`` samples from
+``t_0``); position errors in the local level at the true position
+(:mod:`imugen.local_errors`), whatever the Earth model.
 
 :func:`navigate_arrays` does the same for increments held in memory (no files): the loop of
 a user who corrects increments and wants to see the navigation errors.
@@ -28,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from imugen import __version__
+from imugen import local_errors as lerr
 from imugen.errors import InputError
 from imugen.mechanize import compensate_raw, increments_from_rates, mechanize
 from imugen.rotations import log_quat, quat_conj, quat_mul
@@ -69,9 +72,19 @@ class Navigator:
         self.every = max(1, round(truth.rate_hz / eval_rate_hz))
         self.frame = truth.origin_frame()
         self.p_true = truth.p_n
+        self.v_true = truth.v_n
         self.q_true = truth.q_nb
-        self.x0 = (self.p_true[0], truth.v_n[0], self.q_true[0])
+        self.x0 = (self.p_true[0], self.v_true[0], self.q_true[0])
         self._truth = truth
+        self._local = None  # (epoch indices, C_ln, track) of the last batch
+
+    def local(self, idx):
+        """``(C_ln, track)`` at the epochs ``idx`` (:mod:`imugen.local_errors`), cached."""
+        if self._local is None or not np.array_equal(self._local[0], idx):
+            C = lerr.rotation_ln(self.frame, self.p_true[idx])
+            v_l = np.einsum("jik,jk->ji", C, self.v_true[idx])
+            self._local = (np.array(idx), C, lerr.track_direction(v_l))
+        return self._local[1:]
 
     def imu_truth(self, mount, idx):
         """The mounted IMU's truth (:func:`imugen.mounting.imu_states`): initial state ``(p0,
@@ -113,7 +126,7 @@ class Navigator:
         nav = mechanize(dth, dvb, self.dt, p0, v0, q0, self.frame, every=self.every,
                         outputs=("p", "q"))  # fmt: skip
         idx = nav.index
-        err = nav.p_n - p_true
+        err = lerr.apply(*self.local(idx), nav.p_n - p_true)
         dq = quat_mul(quat_conj(q_true), nav.q_nb)
         att = np.linalg.norm(log_quat(dq), axis=-1)
         n_seq, n_ep = err.shape[:2]
@@ -123,6 +136,8 @@ class Navigator:
             tnav.ERR_POS[0]: err[..., 0].ravel(),
             tnav.ERR_POS[1]: err[..., 1].ravel(),
             tnav.ERR_POS[2]: err[..., 2].ravel(),
+            tnav.ERR_TRACK[0]: err[..., 3].ravel(),
+            tnav.ERR_TRACK[1]: err[..., 4].ravel(),
             tnav.ERR_ATT: att.ravel(),
         }
 
@@ -245,7 +260,8 @@ def navigate_arrays(
     -------
     pandas.DataFrame
         The navigation error table (:mod:`imugen.tables.nav`): ``sequence``, ``time_s``,
-        ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_att_rad``.
+        ``err_e_m``, ``err_n_m``, ``err_u_m``, ``err_along_m``, ``err_cross_m``,
+        ``err_att_rad``.
     """
     if not isinstance(truth, ttruth.Truth):
         truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS, arrow=True)
@@ -279,7 +295,7 @@ def table_meta(truth_name, truth_sha256, shard_name, smeta: dict, eval_rate_hz) 
         "eval_rate_hz": eval_rate_hz,
         "increments": smeta.get("increments", "compensated"),
         "derived": smeta.get("derived"),
-        "error": "navigation minus truth, ENU of the route origin",
+        "error": "navigation minus truth, ENU at the true position; along/cross the true track",
     }
 
 

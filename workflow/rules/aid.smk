@@ -10,7 +10,8 @@ rule aid:
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
         grade=grade_files,
         code=stage_code(
-            "aid", "aided", "gnss", "scenarios", "companions", "mechanize", "earth", "mounting"
+            "aid", "aided", "gnss", "scenarios", "companions", "mechanize", "earth", "mounting",
+            "local_errors",
         ),
     output:
         gnss="results/{route}/gnss/{grade}/shard-{shard}.parquet",

@@ -20,7 +20,7 @@ rule simulate:
         grade=grade_files,
         code=stage_code(
             "simulate", "sensors", "grades", "units", "vibration", "mounting", "navigate",
-            "mechanize", "earth", "rotations",
+            "mechanize", "earth", "rotations", "local_errors",
         ),
         presets=PRESETS,
     output:

@@ -171,7 +171,9 @@ def read_gnss_csv(path: str | Path, data: bytes | None = None) -> list[RoutePath
             lon.append(parse_degrees(cells[ilon]))
             a = cells[ialt] if ialt is not None else ""
             # ROS writes an unknown altitude as NaN: a missing height, not a bad number
-            alt.append(parse_number(a) if a and a.strip().lower() not in ("nan", "-nan") else np.nan)
+            alt.append(
+                parse_number(a) if a and a.strip().lower() not in ("nan", "-nan") else np.nan
+            )
             if its_ns is not None:
                 t.append(parse_number(cells[its_ns]) * 1e-9)
             elif its is not None:

@@ -8,11 +8,14 @@ alignment are omitted. Every value is the filter's output after the epoch's upda
 Errors and scenario context:
 
 - ``sequence`` int64, ``time_s`` (s);
-- ``err_e_m``, ``err_n_m``, ``err_u_m``: filter position minus truth (m, ENU of the origin),
-  ``err_att_rad``: angle of the rotation from the true to the estimated attitude (as
+- ``err_e_m``, ``err_n_m``, ``err_u_m``: filter position minus truth (m, East/North/Up at the
+  true position), ``err_along_m``, ``err_cross_m`` (along and across the true track, positive
+  left, m), ``err_att_rad``: angle of the rotation from the true to the estimated attitude (as
   :mod:`imugen.tables.nav`);
-- ``sd_e_m``, ``sd_n_m``, ``sd_u_m``: the filter's reported position 1-sigma (m), so that
-  consistency can be checked downstream (``err / sd`` should be standard normal);
+- ``sd_e_m``, ``sd_n_m``, ``sd_u_m``: the filter's reported position 1-sigma (m), rotated to
+  the same local level as the errors (correlations ignored:
+  :func:`imugen.local_errors.local_sd`), so that consistency can be checked downstream
+  (``err / sd`` should be standard normal);
 - ``gnss_used`` int8: 1 when a GNSS position update was applied at the epoch;
 - ``state`` int8: scenario state of the epoch (:mod:`imugen.tables.gnss`);
 - ``since_fix_s``: time since the last epoch with a fix (0 with a fix; NaN before the first).
@@ -50,7 +53,7 @@ import pyarrow.parquet as pq
 from imugen.io import METADATA_KEY, atomic_output
 from imugen.io import read_meta as read_meta
 from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
-from imugen.tables.nav import ERR_ATT, ERR_POS
+from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 from imugen.tables.truth import POS, QUAT, VEL
 
 SD_POS = ("sd_e_m", "sd_n_m", "sd_u_m")
@@ -58,7 +61,7 @@ SD_POS = ("sd_e_m", "sd_n_m", "sd_u_m")
 GNSS_USED = "gnss_used"
 STATE = "state"
 SINCE_FIX = "since_fix_s"
-ERRORS = (SEQUENCE, TIME, *ERR_POS, ERR_ATT, *SD_POS, GNSS_USED, STATE, SINCE_FIX)
+ERRORS = (SEQUENCE, TIME, *ERR_POS, *ERR_TRACK, ERR_ATT, *SD_POS, GNSS_USED, STATE, SINCE_FIX)
 """The error and context columns (every aided table holds them)."""
 GYRO_BIAS = tuple(f"gyro_bias_{a}_radps" for a in "xyz")
 ACCEL_BIAS = tuple(f"accel_bias_{a}_mps2" for a in "xyz")
@@ -76,6 +79,7 @@ UNITS = {
     SEQUENCE: "1",
     TIME: "s",
     **dict.fromkeys(ERR_POS, "m"),
+    **dict.fromkeys(ERR_TRACK, "m"),
     ERR_ATT: "rad",
     **dict.fromkeys(SD_POS, "m"),
     GNSS_USED: "1",

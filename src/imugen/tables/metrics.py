@@ -1,10 +1,15 @@
 """Per-sequence metrics table: the output of ``imugen evaluate`` (one file per grade).
 
 One row per sequence: ``sequence``; ``rmse_{east,north,up}_m`` and ``rmse_total_m`` (RMSE of
-the position error over the evaluation epochs, m); ``final_{east,north,up,horizontal,3d}_m``
-(error at the last epoch, m); ``final_pct_distance`` (final horizontal error, % of the
-horizontal distance travelled); ``epochs``. Metadata (JSON under ``b"imugen"``): ``stage``,
-``grade``, ``distance_horizontal_m``, ``units``.
+the position error over the evaluation epochs, m; East/North/Up at the true position);
+``final_{east,north,up,horizontal,3d}_m`` (error at the last epoch, m); ``final_pct_distance``
+(final horizontal error, % of the horizontal distance travelled); ``rmse_along_m``,
+``rmse_cross_m`` (RMSE of the along- and cross-track errors, m) and ``final_along_m``,
+``final_cross_m`` (their signed values at the last epoch, cross positive to the left, m), absent
+when the navigation tables had no track columns; ``epochs``; optional columns of
+:mod:`imugen.evaluate` (``drift_*``, ``aided_*``, ``outage_*``, ``time_to_10m_s``).
+Metadata (JSON under ``b"imugen"``): ``stage``, ``grade``, ``distance_horizontal_m``,
+``extent_m``, ``units``.
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ FINAL = tuple(f"final_{a}_m" for a in AXES)
 FINAL_HORIZONTAL = "final_horizontal_m"
 FINAL_3D = "final_3d_m"
 FINAL_PCT = "final_pct_distance"
+RMSE_TRACK = ("rmse_along_m", "rmse_cross_m")
+FINAL_TRACK = ("final_along_m", "final_cross_m")
 EPOCHS = "epochs"
 WHAT = "metrics table"
 

@@ -2,8 +2,12 @@
 
 One row per sequence and evaluation epoch (every ``round(rate / eval_rate_hz)`` samples from
 ``t_0``): ``sequence`` (int64, the shard's id), ``time_s`` (s), position error
-``err_e_m``, ``err_n_m``, ``err_u_m`` (navigation minus truth, m, ENU of the route origin) and
-attitude error ``err_att_rad`` (angle of the rotation from the true to the computed attitude).
+``err_e_m``, ``err_n_m``, ``err_u_m`` (navigation minus truth, m, East/North/Up at the TRUE
+position: :mod:`imugen.local_errors`; in the ``flat`` model the ENU of the route origin),
+``err_along_m``, ``err_cross_m`` (horizontal error along the true track and across it, positive
+to the left, m) and attitude error ``err_att_rad`` (angle of the rotation from the true to the
+computed attitude). Tables written before the track columns existed lack them; readers
+asking for :data:`ERR_TRACK` should check :func:`has_track` first.
 Metadata (JSON under ``b"imugen"``): ``stage``, ``truth`` and ``shard`` (file names),
 ``truth_sha256``, ``grade``, ``eval_rate_hz``, ``increments``, ``units``.
 """
@@ -21,19 +25,27 @@ import pyarrow.parquet as pq
 
 from imugen.io import METADATA_KEY, atomic_output
 from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, read_table
+from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
 
 ERR_POS = ("err_e_m", "err_n_m", "err_u_m")
-"""Position error columns, metres, ENU."""
+"""Position error columns, metres, ENU at the true position."""
+ERR_TRACK = ("err_along_m", "err_cross_m")
+"""Along-track and cross-track (positive left) horizontal error columns, metres."""
 ERR_ATT = "err_att_rad"
-COLUMNS = (SEQUENCE, TIME, *ERR_POS, ERR_ATT)
-UNITS = {SEQUENCE: "1", TIME: "s", **dict.fromkeys(ERR_POS, "m"), ERR_ATT: "rad"}
+COLUMNS = (SEQUENCE, TIME, *ERR_POS, *ERR_TRACK, ERR_ATT)
+UNITS = {
+    SEQUENCE: "1",
+    TIME: "s",
+    **dict.fromkeys(ERR_POS, "m"),
+    **dict.fromkeys(ERR_TRACK, "m"),
+    ERR_ATT: "rad",
+}
 WHAT = "navigation error table"
 
 
 def _schema(meta: dict) -> pa.Schema:
     fields = [pa.field(SEQUENCE, pa.int64()), pa.field(TIME, pa.float64())]
-    fields += [pa.field(c, pa.float64()) for c in (*ERR_POS, ERR_ATT)]
+    fields += [pa.field(c, pa.float64()) for c in (*ERR_POS, *ERR_TRACK, ERR_ATT)]
     md = {METADATA_KEY: json.dumps({**meta, "units": UNITS}).encode()}
     return pa.schema(fields, metadata=md)
 
@@ -76,3 +88,8 @@ def write(df, meta: dict, out) -> Path:
 def read(path, columns=None, filters=None):
     """Columns (default all) of a navigation error table, rows kept by ``filters``."""
     return read_table(path, columns, filters, WHAT).to_pandas()
+
+
+def has_track(path) -> bool:
+    """True when the table holds the along/cross-track columns (footer only)."""
+    return set(ERR_TRACK) <= set(names(path, WHAT))
