@@ -312,6 +312,9 @@ _GL = np.polynomial.legendre.leggauss(4)
 SLIP_CURVATURE_MARGIN = 1.0  # the attitude follows paths up to this fraction of max curvature
 SLIP_GAP_RAD = math.radians(10.0)  # ... and velocity directions this close to the heading
 SLIP_MARGIN_M = 2.0  # distance over which it leaves / rejoins the velocity direction [m]
+# ... and pitch follows paths whose vertical curvature is within this x max_pitch / grade_smooth_m
+# (car: 0.021 rad/m; the height wiggles of a noisy fit beyond are left to the grade model)
+SLIP_PITCH_FACTOR = 3.0
 
 
 @njit(cache=True)
@@ -375,6 +378,16 @@ class GroundAttitude:
       turns through a U of radius ``1 / max_curvature``, never by a branch flip);
     * pitch ``Theta(s) = bound(atan(H'(s)), max_pitch)``: the grade of the height profile
       :func:`imugen.truth.fit.fit_height_profile`, smoothed at the height noise;
+    * where the path is plausible, heading and pitch are those of the velocity in the local
+      level at the vehicle (``atan2(v_N, v_E)``, ``atan(v_U / v_h)``) with their exact rates, so
+      the body velocity has no y and no z component (the non-holonomic constraint). The blend
+      ``x = x_s + W(s) (x_v - x_s)`` with node-spline weights of distance is exactly 1 there and
+      exactly 0 within ``SLIP_MARGIN_M`` of a node the vehicle crosses below twice
+      ``stop_speed_mps`` (the direction is undefined at a stop), of a turn tighter than
+      ``max_curvature`` or of a velocity more than ``SLIP_GAP_RAD`` off the heading above
+      (a reversal); for the pitch, of a vertical curvature beyond ``SLIP_PITCH_FACTOR x
+      max_pitch / grade_smooth_m`` (height wiggles of a noisy fit). The plausibility report
+      gives the resulting slip;
     * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
       ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
       :func:`soft_bound`.
@@ -420,7 +433,8 @@ class GroundAttitude:
         # direction of the horizontal velocity at the mid-nodes (the vehicle moves there)
         up = np.r_[True, np.diff(sg) > 0]
         tn = np.interp(sn[:-1] + 0.5 * ds, sg[up], tg[up])
-        _, v_l, _ = E.local(motion.position(tn), motion.velocity(tn))
+        p_n, v_n, a_n, _ = motion.eval(tn)
+        C_ln, v_l, w_nl = E.local(p_n, v_n)
         ok = np.hypot(v_l[:, 0], v_l[:, 1]) > 1e-6
         if not ok.any():
             ok[:] = True
@@ -437,29 +451,26 @@ class GroundAttitude:
         # where the path is plausible, the attitude follows the velocity (W = 1): not near stops
         # (direction undefined), not where the path turns tighter than the vehicle can or the
         # velocity leaves the vehicle heading (a reversal)
-        _, v_n, a_n, _ = motion.eval(tn)
-        C_ln, v_l, w_nl = E.local(motion.position(tn), v_n)
         a_l = np.einsum("mij,mj->mi", C_ln, a_n) - np.cross(w_nl, v_l)
         vh2 = np.maximum(v_l[:, 0] ** 2 + v_l[:, 1] ** 2, 1e-18)
         kappa = np.abs(v_l[:, 0] * a_l[:, 1] - v_l[:, 1] * a_l[:, 0]) / vh2**1.5
-        gap = np.abs(np.angle(np.exp(1j * (np.interp(np.arange(ns), np.flatnonzero(ok), d) - psi))))
+        gap = np.abs(np.angle(np.exp(1j * (d - psi))))
         bad = (kappa > SLIP_CURVATURE_MARGIN * k) | (gap > SLIP_GAP_RAD)
         slow = np.zeros(ns, bool)  # nodes the vehicle crosses slowly (0.1 s grid)
-        vgh = self.E.horizontal_speed(motion.position(tg) if E.ecef else None, motion.velocity(tg))[
-            0
-        ]
+        p_g = motion.position(tg) if E.ecef else None
+        vgh = self.E.horizontal_speed(p_g, motion.velocity(tg))[0]
         slow[np.clip((sg[vgh < 2.0 * vp.stop_speed_mps] / ds).astype(np.int64), 0, ns - 1)] = True
         # pitch: not where the path's vertical curvature exceeds max pitch / grade smoothing
         # length (a height wiggle of the fit, not a road's vertical curve)
         vu = v_l[:, 2]
         hl_d = (v_l[:, 0] * a_l[:, 0] + v_l[:, 1] * a_l[:, 1]) / np.sqrt(vh2)
         kv = np.abs(np.sqrt(vh2) * a_l[:, 2] - vu * hl_d) / ((vh2 + vu * vu) * np.sqrt(vh2))
-        steep = kv > vp.max_pitch_rad / vp.grade_smooth_m
+        steep = kv > SLIP_PITCH_FACTOR * vp.max_pitch_rad / vp.grade_smooth_m
         self.W = self._weight(bad | slow, ds)
         self.Wp = self._weight(steep | slow, ds)
         self.report["follows_velocity_fraction"] = {
-            "heading": float(np.mean(self.W(sn[:-1] + 0.5 * ds) == 1.0)),
-            "pitch": float(np.mean(self.Wp(sn[:-1] + 0.5 * ds) == 1.0)),
+            "heading": float(np.mean(self.W(sn[:-1] + 0.5 * ds) > 1.0 - 1e-9)),
+            "pitch": float(np.mean(self.Wp(sn[:-1] + 0.5 * ds) > 1.0 - 1e-9)),
         }
         # grade: heights against distance, from the input points when there are some
         if heights is not None:
