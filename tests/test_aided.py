@@ -139,11 +139,9 @@ def test_ideal_inputs_stay_on_truth(flat_car):
         Om = earth_rate_n(frame)
         gn = G.simulate_gnss(t, p, v, q, w, quiet_receiver(), lever_arm_b_m=LEVER, omega_ie_n=Om)
         tun = A.Tuning.from_grade("industrial")
-        # NHC in flat: the truth's car moves along body x (lateral and vertical body velocity
-        # < 6e-8 m/s). Not in wgs84: where it starts and stops (below 0.4 m/s) the car takes the
-        # grade model's pitch, 1 deg off at the end of this level rectangle (body vertical
-        # velocity up to 0.04 m/s: the height profile fit's end, see README "Truth")
-        opts = A.Options(gnss_bias=False, nhc=earth == "flat")
+        # NHC: the truth's car moves along body x (body lateral velocity < 6e-8 m/s, vertical
+        # 0 in flat, < 4e-5 m/s in wgs84 where it starts and stops on the grade's pitch)
+        opts = A.Options(gnss_bias=False, nhc=True)
         P0 = A.initial_covariance(tun, opts, 1e-3, 1e-3, 1e-5)
         init = A.initial_state(0, p[0], v[0], q[0], P0)
         # free inertial (every fix dropped) and aided (noiseless fixes, sigma 1 cm)
