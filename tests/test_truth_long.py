@@ -240,7 +240,11 @@ def test_level_car_is_level_in_the_local_level_all_along():
     _, _, h, v_l, _ = E.local_level(r, v)
     assert np.ptp(h) < 0.05  # the truth stays on the level road (within the fit floor)
     assert np.max(np.abs(df["roll_rad"])) < 1e-12
-    assert np.max(np.abs(df["pitch_rad"])) < 1e-5
+    # pitch: that of the velocity in the local level (a car moves along body x); the fit's
+    # height wiggle between fixes (< 5 cm, above) is all there is of it
+    pitch_v = np.arctan2(v_l[:, 2], np.hypot(v_l[:, 0], v_l[:, 1]))
+    np.testing.assert_allclose(df["pitch_rad"], pitch_v, rtol=0, atol=1e-9)
+    assert np.max(np.abs(df["pitch_rad"])) < 1e-3
     heading = np.arctan2(v_l[:, 1], v_l[:, 0])
     dyaw = np.angle(np.exp(1j * (df["yaw_rad"].to_numpy() - heading)))
     assert np.max(np.abs(dyaw[20:-20])) < 1e-4

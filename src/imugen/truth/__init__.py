@@ -36,9 +36,12 @@ position, velocity and quaternion are then ECEF, with ``lat_deg, lon_deg, alt_m`
 
 Attitude (per vehicle class, :mod:`imugen.truth.vehicles`)
 ----------------------------------------------------------
-*Ground vehicles* (car, bicycle, pedestrian; an aircraft below its take-off speed): the
-attitude is a function of the horizontal distance travelled ``s``
-(:class:`imugen.truth.attitude.GroundAttitude`): heading ``Psi(s)`` along the horizontal
+*Ground vehicles* (car, bicycle, pedestrian; an aircraft below its take-off speed): where
+the path is plausible for the vehicle, heading and pitch are those of the velocity in the
+local level at the vehicle, so the body velocity is along x (the non-holonomic constraint);
+near stops, turns tighter than ``max_curvature_1pm`` and height wiggles of the fit, the
+attitude is a function of the horizontal distance travelled ``s``, blended in by weights of
+``s`` (:class:`imugen.truth.attitude.GroundAttitude`): heading ``Psi(s)`` along the horizontal
 velocity, its slope bounded by ``max_curvature_1pm`` (the yaw rate ``Psi'(s) v_h`` never
 exceeds speed x max curvature: no turning on the spot; a reversal through a stop is a U-turn
 on the vehicle's radius, never a branch flip); pitch from the grade of the height profile

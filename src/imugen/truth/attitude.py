@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 from scipy.interpolate import BSpline
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from imugen import earth as ea
 from imugen import rotations as rot
@@ -309,6 +309,12 @@ def _blend_holds(out, ci, sigma, sigma_d, E, vp):
 G_LEAN = 9.80665  # gravity of the lean of a coordinated turn [m/s^2]
 _PAD = 6  # coefficients added at each end of the node splines
 _GL = np.polynomial.legendre.leggauss(4)
+SLIP_CURVATURE_MARGIN = 1.0  # the attitude follows paths up to this fraction of max curvature
+SLIP_GAP_RAD = math.radians(10.0)  # ... and velocity directions this close to the heading
+SLIP_MARGIN_M = 2.0  # distance over which it leaves / rejoins the velocity direction [m]
+# ... and pitch follows paths whose vertical curvature is within this x max_pitch / grade_smooth_m
+# (car: 0.021 rad/m; the height wiggles of a noisy fit beyond are left to the grade model)
+SLIP_PITCH_FACTOR = 3.0
 
 
 @njit(cache=True)
@@ -372,6 +378,16 @@ class GroundAttitude:
       turns through a U of radius ``1 / max_curvature``, never by a branch flip);
     * pitch ``Theta(s) = bound(atan(H'(s)), max_pitch)``: the grade of the height profile
       :func:`imugen.truth.fit.fit_height_profile`, smoothed at the height noise;
+    * where the path is plausible, heading and pitch are those of the velocity in the local
+      level at the vehicle (``atan2(v_N, v_E)``, ``atan(v_U / v_h)``) with their exact rates, so
+      the body velocity has no y and no z component (the non-holonomic constraint). The blend
+      ``x = x_s + W(s) (x_v - x_s)`` with node-spline weights of distance is exactly 1 there and
+      exactly 0 within ``SLIP_MARGIN_M`` of a node the vehicle crosses below twice
+      ``stop_speed_mps`` (the direction is undefined at a stop), of a turn tighter than
+      ``max_curvature`` or of a velocity more than ``SLIP_GAP_RAD`` off the heading above
+      (a reversal); for the pitch, of a vertical curvature beyond ``SLIP_PITCH_FACTOR x
+      max_pitch / grade_smooth_m`` (height wiggles of a noisy fit). The plausibility report
+      gives the resulting slip;
     * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
       ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
       :func:`soft_bound`.
@@ -408,6 +424,7 @@ class GroundAttitude:
             self.ds = max(L, 1.0)
             self.Psi = _node_spline(np.zeros(2), self.ds)
             self.Theta = _node_spline(np.zeros(2), self.ds)
+            self.W = self.Wp = _node_spline(np.zeros(2), self.ds)
             self.report["grade"] = {"method": "level (does not move)"}
             return
         ds = L / ns
@@ -416,7 +433,8 @@ class GroundAttitude:
         # direction of the horizontal velocity at the mid-nodes (the vehicle moves there)
         up = np.r_[True, np.diff(sg) > 0]
         tn = np.interp(sn[:-1] + 0.5 * ds, sg[up], tg[up])
-        _, v_l, _ = E.local(motion.position(tn), motion.velocity(tn))
+        p_n, v_n, a_n, _ = motion.eval(tn)
+        C_ln, v_l, w_nl = E.local(p_n, v_n)
         ok = np.hypot(v_l[:, 0], v_l[:, 1]) > 1e-6
         if not ok.any():
             ok[:] = True
@@ -430,6 +448,30 @@ class GroundAttitude:
         self.report["heading_smooth_m"] = smooth_m
         psi = _smooth(_rate_limit(d, k * ds), max(1.0, smooth_m / ds))
         self.Psi = _node_spline(psi, ds, 0.5 * ds)
+        # where the path is plausible, the attitude follows the velocity (W = 1): not near stops
+        # (direction undefined), not where the path turns tighter than the vehicle can or the
+        # velocity leaves the vehicle heading (a reversal)
+        a_l = np.einsum("mij,mj->mi", C_ln, a_n) - np.cross(w_nl, v_l)
+        vh2 = np.maximum(v_l[:, 0] ** 2 + v_l[:, 1] ** 2, 1e-18)
+        kappa = np.abs(v_l[:, 0] * a_l[:, 1] - v_l[:, 1] * a_l[:, 0]) / vh2**1.5
+        gap = np.abs(np.angle(np.exp(1j * (d - psi))))
+        bad = (kappa > SLIP_CURVATURE_MARGIN * k) | (gap > SLIP_GAP_RAD)
+        slow = np.zeros(ns, bool)  # nodes the vehicle crosses slowly (0.1 s grid)
+        p_g = motion.position(tg) if E.ecef else None
+        vgh = self.E.horizontal_speed(p_g, motion.velocity(tg))[0]
+        slow[np.clip((sg[vgh < 2.0 * vp.stop_speed_mps] / ds).astype(np.int64), 0, ns - 1)] = True
+        # pitch: not where the path's vertical curvature exceeds max pitch / grade smoothing
+        # length (a height wiggle of the fit, not a road's vertical curve)
+        vu = v_l[:, 2]
+        hl_d = (v_l[:, 0] * a_l[:, 0] + v_l[:, 1] * a_l[:, 1]) / np.sqrt(vh2)
+        kv = np.abs(np.sqrt(vh2) * a_l[:, 2] - vu * hl_d) / ((vh2 + vu * vu) * np.sqrt(vh2))
+        steep = kv > SLIP_PITCH_FACTOR * vp.max_pitch_rad / vp.grade_smooth_m
+        self.W = self._weight(bad | slow, ds)
+        self.Wp = self._weight(steep | slow, ds)
+        self.report["follows_velocity_fraction"] = {
+            "heading": float(np.mean(self.W(sn[:-1] + 0.5 * ds) > 1.0 - 1e-9)),
+            "pitch": float(np.mean(self.Wp(sn[:-1] + 0.5 * ds) > 1.0 - 1e-9)),
+        }
         # grade: heights against distance, from the input points when there are some
         if heights is not None:
             t_in, h_in = heights
@@ -446,6 +488,17 @@ class GroundAttitude:
         self.Theta = _node_spline(theta, ds)
         self.report["grade"] = grep
 
+    def _weight(self, bad, ds):
+        """Node spline of the weight of the velocity direction: exactly 0 within ``m`` nodes
+        (``SLIP_MARGIN_M``, at least 3: the spline's support) of a ``bad`` node, rising over
+        the next ``2 m`` (Gaussian of sigma ``m / 2`` truncated at ``m``), exactly 1 beyond."""
+        m = max(3, math.ceil(SLIP_MARGIN_M / ds))
+        b = maximum_filter1d(bad.astype(float), 4 * m + 1, mode="nearest")
+        w = 1.0 - gaussian_filter1d(b, 0.5 * m, mode="nearest", truncate=2.0)
+        w[w > 1.0 - 1e-12] = 1.0
+        w[w < 1e-12] = 0.0
+        return _node_spline(np.clip(w, 0.0, 1.0), ds, 0.5 * ds)
+
     def distance_steps(self, motion, t):
         """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre
         quadrature of the horizontal speed, :meth:`EarthField.horizontal_speed`), shape
@@ -461,15 +514,35 @@ class GroundAttitude:
         """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,
         velocity and acceleration in n (m,3)."""
         vp = self.vp
-        C_ln, _, w_nl = self.E.local(p, v)
+        C_ln, v_l, w_nl = self.E.local(p, v)
         # ds/dt: the horizontal speed whose integral is the distance s
         vh, vh_d = self.E.horizontal_speed(p, v, a)
         s = np.clip(s, 0.0, self.length_m)
-        psi = self.Psi(s)
         k1 = self.Psi(s, 1)
-        theta = self.Theta(s)
-        psi_d = k1 * vh
-        theta_d = self.Theta(s, 1) * vh
+        # spline attitude blended with the velocity direction by W(s), Wp(s):
+        # x = x_s + W (x_v - x_s), dx/dt = x_s' v_h + W' v_h (x_v - x_s) + W (dx_v/dt - x_s' v_h)
+        psi, psi_d = self.Psi(s), k1 * vh
+        theta, theta_d = self.Theta(s), self.Theta(s, 1) * vh
+        on = (self.W(s) > 0.0) | (self.Wp(s) > 0.0)
+        if on.any():
+            vl, vhs = v_l[on], vh[on]
+            al = np.einsum("mij,mj->mi", C_ln[on], a[on]) - np.cross(w_nl[on], vl)
+            hl = np.maximum(np.hypot(vl[:, 0], vl[:, 1]), 1e-9)  # level speed at the vehicle
+            hl_d = (vl[:, 0] * al[:, 0] + vl[:, 1] * al[:, 1]) / hl
+            psi_s = psi[on]
+            psi_v = psi_s + np.angle(np.exp(1j * (np.arctan2(vl[:, 1], vl[:, 0]) - psi_s)))
+            psi_vd = (vl[:, 0] * al[:, 1] - vl[:, 1] * al[:, 0]) / (hl * hl)
+            tv = np.arctan2(vl[:, 2], hl)
+            tvd = (hl * al[:, 2] - vl[:, 2] * hl_d) / (hl * hl + vl[:, 2] ** 2)
+            theta_v, dtb = soft_bound(tv, vp.max_pitch_rad)
+            for x, xd, X, W, xv, xvd in (
+                (psi, psi_d, self.Psi, self.W, psi_v, psi_vd),
+                (theta, theta_d, self.Theta, self.Wp, theta_v, dtb * tvd),
+            ):
+                so = s[on]
+                xs, w0, w1 = X(so), W(so), W(so, 1)
+                x[on] = xs + w0 * (xv - xs)
+                xd[on] = X(so, 1) * vhs * (1.0 - w0) + w1 * vhs * (xv - xs) + w0 * xvd
         if vp.lean:
             # lean into the turn: a left turn (Psi' > 0) lowers the left side (roll < 0)
             X = -vh * vh * k1 / G_LEAN

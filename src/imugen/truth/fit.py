@@ -448,8 +448,10 @@ def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
         return None, {"bins": len(sm), "method": "level (too short)"}
     ps = _PenalizedSpline(sm, weights=cnt)
     target = max(float(noise_m), floor_m)
-    lam = max(10.0 ** ps.lam_for_rms(hm, target), (smooth_m / ps.scale) ** 6)
-    H = ps.bspline(ps.solve(lam, hm))
+    h0 = float(np.average(hm, weights=cnt))  # fitted about the mean: no offset to round off
+    lam = max(10.0 ** ps.lam_for_rms(hm - h0, target), (smooth_m / ps.scale) ** 6)
+    H = ps.bspline(ps.solve(lam, hm - h0))
+    H = BSpline(H.t, H.c + h0, H.k, extrapolate=True)  # the B-splines sum to 1
     res = H(sm) - hm
     report = {
         "method": "quintic penalized smoothing spline of binned height against distance",

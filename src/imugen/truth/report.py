@@ -6,8 +6,10 @@ points: largest |pitch|, |roll| (relative to the local level), yaw rate, |accele
 (turning on the spot), rate-versus-increment consistency (``dtheta_k`` against a
 4th-order integral of the gyro columns, beyond that rule's own error estimate), attitude
 steps beyond what the rates allow (``(max |w| + |dw|) dt`` per interval), truth
-length against the input path length, fit residuals, and the time stopped, moving and
-airborne. A warning names every vehicle limit exceeded.
+length against the input path length, fit residuals, the time stopped, moving and
+airborne, and the body-frame velocity on the ground (sideslip and vertical slip angles while
+moving, largest and RMS lateral and vertical body speeds, the fraction of the moving time slipping
+beyond 0.1 deg). A warning names every vehicle limit exceeded.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import math
 
 import numpy as np
 
+from imugen import rotations as rot
 from imugen.tables import truth as col
 
 # tolerances of the consistency checks (numerical, not vehicle limits)
@@ -24,6 +27,7 @@ STEP_TOL_RAD = 1e-3
 YAW_EXCESS_TOL_RADPS = 1e-3
 ROLL_ZERO_TOL_RAD = 1e-6
 INVENTED_TOL = 0.01
+SLIP_TOL_RAD = math.radians(0.1)  # slip counted in ``slip_fraction`` beyond this angle
 
 
 def _integral(w, dt):
@@ -64,6 +68,11 @@ def _invented(t, p, v, t_in):
 def local_velocity(p_n, v_n, frame):
     """Velocity in the local level at the vehicle (ENU there), (K, 3) [m/s]."""
     return np.einsum("kij,kj->ki", frame.C_ln(p_n), v_n)
+
+
+def _rms(x, dts, mask):
+    w = dts * mask
+    return float(np.sqrt(np.sum(w * x * x) / np.sum(w))) if np.sum(w) > 0 else 0.0
 
 
 def _path_length(p):
@@ -131,6 +140,11 @@ def plausibility(
 
     stopped = speed < vp.stop_speed_mps
     dts = np.r_[dt, 0.0] if K > 1 else np.zeros(1)
+    # body-frame velocity on the ground: a car's (non-holonomic) has no y and z components
+    v_b = np.einsum("kji,kj->ki", rot.quat_to_dcm(df[list(col.QUAT)].to_numpy()), v)
+    mov = ~stopped & gnd
+    slip = np.arctan2(np.abs(v_b[:, 1:]), np.maximum(np.abs(v_b[:, :1]), 1e-12))  # (K, 2)
+    t_mov = float(np.sum(dts[mov]))
     L_truth = _path_length(p)
     L_in = None if input_enu is None else _path_length(np.asarray(input_enu, float))
     rep = {
@@ -155,6 +169,15 @@ def plausibility(
         "time_stopped_s": float(np.sum(dts[stopped & gnd])),
         "time_moving_s": float(np.sum(dts[~stopped & gnd])),
         "time_airborne_s": float(np.sum(dts[air])),
+        "max_sideslip_deg": math.degrees(mx(slip[:, 0], mov)),
+        "max_vertical_slip_deg": math.degrees(mx(slip[:, 1], mov)),
+        "max_body_lateral_speed_mps": mx(v_b[:, 1], gnd),
+        "max_body_vertical_speed_mps": mx(v_b[:, 2], gnd),
+        "rms_body_lateral_speed_mps": _rms(v_b[:, 1], dts, gnd),
+        "rms_body_vertical_speed_mps": _rms(v_b[:, 2], dts, gnd),
+        "slip_fraction": (
+            float(np.sum(dts[mov & (slip.max(axis=1) > SLIP_TOL_RAD)])) / t_mov if t_mov else 0.0
+        ),
     }
     rep["invented_fraction"] = (
         None if rep["invented_m"] is None or not L_in else rep["invented_m"] / L_in
@@ -229,7 +252,10 @@ def report_lines(rep: dict) -> list[str]:
         + ("" if rep["length_input_m"] is None else f" vs input path {rep['length_input_m']:.0f} m")
         + ("" if inv is None else f", invented {rep['invented_m']:.0f} m ({100 * inv:.2f} %)"),
         f"  stopped {rep['time_stopped_s']:.0f} s, moving {rep['time_moving_s']:.0f} s, "
-        f"airborne {rep['time_airborne_s']:.0f} s"
+        f"airborne {rep['time_airborne_s']:.0f} s; body lateral / vertical speed RMS "
+        f"{rep['rms_body_lateral_speed_mps']:.2g} / {rep['rms_body_vertical_speed_mps']:.2g} "
+        f"m/s, slip <= {rep['max_sideslip_deg']:.2g} / {rep['max_vertical_slip_deg']:.2g} deg "
+        f"(beyond 0.1 deg {100 * rep['slip_fraction']:.1f} % of the moving time)"
         + (
             ""
             if rep["fit_rms_m"] is None

@@ -3,20 +3,21 @@
 Every field can be overridden per truth (``build_truth(..., vehicle_params={...})``, CLI
 ``imugen truth --vehicle-param NAME=VALUE``). Roles:
 
-* ``attitude``: ``"ground"`` (heading from the horizontal velocity, pitch from the road grade,
-  roll zero or the lean of a coordinated turn) or ``"coordinated"`` (aircraft: ground model
+* ``attitude``: ``"ground"`` (heading and pitch of the velocity where the path is plausible,
+  else heading from the horizontal velocity bounded by the curvature limit and pitch from the
+  road grade; roll zero or the lean of a coordinated turn) or ``"coordinated"`` (aircraft: ground model
   when slow and low, coordinated flight when fast or high).
 * speed profile of untimed paths: ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``,
   ``jerk_mps3``, ``corner_m`` (corner-rounding length of the polyline).
 * ground attitude: ``max_curvature_1pm`` (the heading turns at most ``speed x
   max_curvature``: no turning on the spot), ``heading_smooth_m``, ``heading_smooth_s``
-  (Gaussian smoothing of the heading along the distance: at least this length, and this time
-  at the route's median moving speed, default 0: the heading then stays within about 1 deg of
-  the velocity direction on a car's rounded corners; 1 s gives ~11 deg of sideslip there), ``max_pitch_rad`` (bound of the pitch taken from
-  the grade), ``lean`` (bicycle: roll = ``atan(v^2 kappa / g)``), ``max_roll_rad`` (bound of
+  (Gaussian smoothing of the distance-based heading, used where the attitude does not follow
+  the velocity: at least this length, and this time at the route's median moving speed,
+  default 0), ``max_pitch_rad`` (bound of the pitch), ``lean`` (bicycle: roll = ``atan(v^2 kappa / g)``), ``max_roll_rad`` (bound of
   that lean), ``grade_bin_m`` (bin of the height-against-distance fit),
   ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
-  vertical curves, not at a GNSS height step).
+  vertical curves, not at a GNSS height step; the pitch follows the velocity where the path's
+  vertical curvature is within 3 x ``max_pitch_rad / grade_smooth_m``).
 * coordinated flight: ``hold_speed_mps``, ``hold_perp`` (attitude held below these speed and
   perpendicular-force thresholds), ``airborne_speed_mps``, ``airborne_height_m`` (blend from
   ground to flight between 0.8x and 1x this speed, or 0.5x and 1x this height above the
