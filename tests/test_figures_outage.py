@@ -97,7 +97,9 @@ def test_figure_curves_and_legends(tmp_path):
         taided.write(df, {"eval_rate_hz": 1.0}, p)
         n = pd.DataFrame({"sequence": np.repeat(np.arange(6), len(t)), "time_s": np.tile(t, 6)})
         n["err_e_m"], n["err_n_m"], n["err_u_m"] = c * n["time_s"] ** 3, 0.0, 0.0
-        n["err_att_rad"] = 0.0
+        for col in tnav.COLUMNS:
+            if col not in n:
+                n[col] = 0.0
         q = tmp_path / g / "nav.parquet"
         tnav.write(n, {}, q)
         aided[g], nav[g] = [p], [q]

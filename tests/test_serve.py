@@ -60,6 +60,15 @@ def test_form_offers_every_schema_key(client):
     assert 'name="grades" value="tactical"' in html
 
 
+def test_a_null_choice_is_offered_as_none_and_submits_as_no_value(client):
+    """An enum with null (``companions.odometer``) shows "none" with an empty value, so the
+    form's default submits as no key, never as the string 'None'."""
+    c, _ = client
+    html = c.get("/").get_data(as_text=True)
+    assert 'value="None"' not in html
+    assert '<option value="" selected>none</option>' in html
+
+
 def test_valid_upload_makes_an_isolated_run_with_a_schema_valid_config(client):
     c, tmp = client
     r = _post(c, TINY, name="../../evil name.kml")
