@@ -242,6 +242,7 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None)
             t, *states, rec, 1, ent, 0,
             rate_hz=params.rate_hz, draw=params.draw, lever_arm_b_m=params.lever_arm_b_m,
             lever_sd_m=params.lever_arm_sd_m, omega_ie_n=earth_rate_n(frame), first=int(sid),
+            frame=frame,
         )  # fmt: skip
         ivs = list(params.intervals_parsed)
         if params.draw_kinds:
@@ -249,7 +250,7 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None)
                 params.draw_kinds, duration, ent, 0, 1, settle_s=params.settle_s,
                 durations_s=params.outage_durations_s,
             )[0]  # fmt: skip
-        parts.append(SC.apply(g, [ivs], ent, 0, first=int(sid)))
+        parts.append(SC.apply(g, [ivs], ent, 0, first=int(sid), frame=frame))
     return _stack(parts)
 
 

@@ -362,7 +362,8 @@ A_A = A_DT + 1  # A(dt) = Exp(W dt), 9 row-major
 A_D = A_A + 9  # D = A(dt)^T - I, 9 (computed without cancellation)
 A_MT = A_D + 9  # (I + dt/2 W)^{-1}, 9
 A_QW = A_MT + 9  # quaternion of Exp(-Omega dt) minus (1, 0, 0, 0), 4
-N_STEP_PARAMS = A_QW + 4
+A_H0 = A_QW + 4  # origin's ellipsoidal height [m] (the barometer's reference)
+N_STEP_PARAMS = A_H0 + 1
 
 
 def step_params(frame, dt: float) -> np.ndarray:
@@ -388,7 +389,57 @@ def step_params(frame, dt: float) -> np.ndarray:
     prm[A_D : A_D + 9] = D.ravel()
     prm[A_MT : A_MT + 9] = MT.ravel()
     prm[A_QW : A_QW + 4] = qw
+    prm[A_H0] = frame.h0_m
     return prm
+
+
+@njit(cache=True, inline="always")
+def _level_nb(x, y, z):
+    """ECEF -> ``(sin lat, cos lat, cos lon, sin lon, h)``: the numba twin of
+    :func:`imugen.earth._geodetic_parts` (same operations, same order)."""
+    p = math.sqrt(x * x + y * y)
+    su = z * earth.A_WGS84
+    cu = p * earth.B_WGS84
+    ir = 1.0 / math.sqrt(su * su + cu * cu)
+    su = su * ir
+    cu = cu * ir
+    num = z + earth.EP2_WGS84 * earth.B_WGS84 * su * su * su
+    den = p - earth.E2_WGS84 * earth.A_WGS84 * cu * cu * cu
+    ir = 1.0 / math.sqrt(num * num + den * den)
+    sl = num * ir
+    cl = den * ir
+    h = p * cl + z * sl - earth.A_WGS84 * math.sqrt(1.0 - earth.E2_WGS84 * sl * sl)
+    if p > 0.0:
+        return sl, cl, x / p, y / p, h
+    return sl, cl, 1.0, 0.0, h
+
+
+@njit(cache=True)
+def _local_level_nb(x, y, z, L):
+    """``L = C_le`` (ECEF -> East, North, Up at the ECEF point ``(x, y, z)``); returns ``h``."""
+    sl, cl, co, so, hgt = _level_nb(x, y, z)
+    L[0, 0] = -so
+    L[0, 1] = co
+    L[0, 2] = 0.0
+    L[1, 0] = -sl * co
+    L[1, 1] = -sl * so
+    L[1, 2] = cl
+    L[2, 0] = cl * co
+    L[2, 1] = cl * so
+    L[2, 2] = sl
+    return hgt
+
+
+@njit(cache=True)
+def _local_sd(P, L, i0, out, o0):
+    """``out[o0 + a] = sqrt(L_a P_blk L_a^T)``: 1-sigma along the rows of ``L`` of the 3x3
+    block of ``P`` starting at ``i0``."""
+    for a in range(3):
+        acc = 0.0
+        for b in range(3):
+            for c in range(3):
+                acc += L[a, b] * P[i0 + b, i0 + c] * L[a, c]
+        out[o0 + a] = math.sqrt(max(acc, 0.0))
 
 
 @njit(cache=True, inline="always")
@@ -516,6 +567,105 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
 
 
 @njit(cache=True)
+def _gnss_update_geo(
+    P, dx, h, hz, PHt, Lm, Xc, C, x, zp, zv, sp, sv, pred, predv, clv, cwv, lever, Lat, gb_on,
+    i_gb, tun, use_vel, gate,
+):  # fmt: skip
+    """GNSS position (and velocity) updates in ``geodetic`` (n = ECEF), one scalar update per
+    local-level axis: rows ``Lm = C_le`` (at the predicted antenna) applied to the n-frame
+    residual and sensitivities. The receiver's errors are independent per local axis, so this
+    equals one update with the full ECEF covariance ``C_el diag(s^2) C_le``; the GNSS bias
+    states are along the local axes. Returns the flag bits."""
+    n = P.shape[0]
+    flag = 0
+    _skew(clv[0], clv[1], clv[2], Xc)
+    for a in range(3):
+        for i in range(n):
+            h[i] = 0.0
+        r = 0.0
+        for c in range(3):
+            h[c] = Lm[a, c]
+            hz[c] = c
+            r += Lm[a, c] * (pred[c] - zp[c])
+            # dp - [(C l) x] psi - Lat dv
+            acc = 0.0
+            for e in range(3):
+                acc -= Lm[a, e] * Xc[e, c]
+            h[6 + c] = acc
+            hz[3 + c] = 6 + c
+        m = 6
+        if Lat > 0.0:
+            for c in range(3):
+                h[3 + c] = -Lat * Lm[a, c]
+                hz[m] = 3 + c
+                m += 1
+        var = sp[a] ** 2
+        if gb_on:
+            h[i_gb + a] = 1.0
+            hz[m] = i_gb + a
+            m += 1
+            r += x[X_GB + a]
+            wsd = tun[T_GW + a]
+            tot = wsd * wsd + tun[T_GB_SD + a] ** 2
+            var = var * (wsd * wsd / tot) if tot > 0.0 else var
+        var = max(var, 1e-12)
+        if _scalar_update(P, dx, h, hz, m, r, var, gate, PHt):
+            flag |= F_GNSS_P
+        else:
+            flag |= F_REJECT
+    if not use_vel:
+        return flag
+    _skew(cwv[0], cwv[1], cwv[2], Xc)
+    lx, ly, lz = lever[0], lever[1], lever[2]
+    for a in range(3):
+        for i in range(n):
+            h[i] = 0.0
+        r = 0.0
+        for c in range(3):
+            h[3 + c] = Lm[a, c]
+            hz[c] = 3 + c
+            r += Lm[a, c] * (predv[c] - zv[c])
+            acc = 0.0
+            for e in range(3):
+                acc -= Lm[a, e] * Xc[e, c]
+            h[6 + c] = acc
+            hz[3 + c] = 6 + c
+            # d(C (w x l))/d dbg = C [l x] (w_hat = w - dbg)
+            eb0 = 1.0 if c == 0 else 0.0
+            eb1 = 1.0 if c == 1 else 0.0
+            eb2 = 1.0 if c == 2 else 0.0
+            lxe0 = ly * eb2 - lz * eb1
+            lxe1 = lz * eb0 - lx * eb2
+            lxe2 = lx * eb1 - ly * eb0
+            acc = 0.0
+            for e in range(3):
+                acc += Lm[a, e] * (C[e, 0] * lxe0 + C[e, 1] * lxe1 + C[e, 2] * lxe2)
+            h[9 + c] = acc
+            hz[6 + c] = 9 + c
+        var = max(sv[a] ** 2, 1e-12)
+        if _scalar_update(P, dx, h, hz, 9, r, var, gate, PHt):
+            flag |= F_GNSS_V
+        else:
+            flag |= F_REJECT
+    return flag
+
+
+@njit(cache=True)
+def _baro_update_geo(P, dx, h, hz, PHt, z, var, Lm, px, py, pz, h0, b_hat, i_bb, gate):
+    """Barometric height in ``geodetic``: ``z_pred = h(p) - h0 + b`` with ``h`` the ellipsoidal
+    height of the ECEF position, ``dh = u^T dp`` (``u`` the local Up, row 2 of ``Lm``)."""
+    for i in range(P.shape[0]):
+        h[i] = 0.0
+    hgt = _local_level_nb(px, py, pz, Lm)
+    for c in range(3):
+        h[c] = Lm[2, c]
+        hz[c] = c
+    h[i_bb] = 1.0
+    hz[3] = i_bb
+    return _scalar_update(P, dx, h, hz, 4, hgt - h0 + b_hat - z, var, gate, PHt)
+
+
+@njit(cache=True)
 def _kernel(
     dth, dvb, k0, ep_idx, zp, zv, sp, sv, ok, lever, lat, x0, P0, prm, tun, opt,
     out_x, out_sd, out_P, out_flag, cz, cmark, clever,
@@ -533,6 +683,7 @@ def _kernel(
     J = ep_idx.shape[0]
     n = P0.shape[1]
     wgs = prm[earth.P_MODEL] != 0.0
+    geo = prm[earth.P_MODEL] == 2.0
     dt = prm[A_DT]
     g0 = prm[earth.P_G0]
     w0 = prm[earth.P_OMEGA]
@@ -604,6 +755,8 @@ def _kernel(
     R_gamma = g0 / earth.R_MEAN
     Xm = np.zeros((3, 3))
     Wm = np.zeros((3, 3))
+    Lm = np.zeros((3, 3))
+    Xc = np.zeros((3, 3))
     _skew(w0, w1, w2, Wm)
     for s in range(S):
         for i in range(NX):
@@ -792,10 +945,17 @@ def _kernel(
                         for b in range(3):
                             Phi[3 + a, 3 + b] -= 2.0 * Wm[a, b] * Tint
                             Phi[6 + a, 6 + b] -= Wm[a, b] * Tint
-                    # gravity gradient at the origin, local ENU: g/R diag(-1, -1, 2)
-                    Phi[3, 0] = -R_gamma * Tint
-                    Phi[4, 1] = -R_gamma * Tint
-                    Phi[5, 2] = 2.0 * R_gamma * Tint
+                    if geo:  # gravity gradient g/R (3 u u^T - I), u = r / |r| in ECEF
+                        ir = 1.0 / math.sqrt(px * px + py * py + pz * pz)
+                        ur = (px * ir, py * ir, pz * ir)
+                        for a in range(3):
+                            for b in range(3):
+                                d = 3.0 * ur[a] * ur[b] - (1.0 if a == b else 0.0)
+                                Phi[3 + a, b] = R_gamma * Tint * d
+                    else:  # gravity gradient at the origin, local ENU: g/R diag(-1, -1, 2)
+                        Phi[3, 0] = -R_gamma * Tint
+                        Phi[4, 1] = -R_gamma * Tint
+                        Phi[5, 2] = 2.0 * R_gamma * Tint
                 for a in range(3):
                     qa = tun[s, T_NA + a] ** 2
                     qdiag[3 + a] = qa * Tint
@@ -871,7 +1031,22 @@ def _kernel(
             cw1 = C[1, 0] * cwx + C[1, 1] * cwy + C[1, 2] * cwz - (w2 * cl0 - w0 * cl2)
             cw2 = C[2, 0] * cwx + C[2, 1] * cwy + C[2, 2] * cwz - (w0 * cl1 - w1 * cl0)
             gnss_ok = ok[s, jj]
-            if gnss_ok:
+            if gnss_ok and geo:
+                L = lat[s] if opt[O_LATENCY] != 0.0 else 0.0
+                hL = 0.5 * L * L
+                pred = (
+                    px + cl0 - L * (vx + cw0) + hL * acx,
+                    py + cl1 - L * (vy + cw1) + hL * acy,
+                    pz + cl2 - L * (vz + cw2) + hL * acz,
+                )
+                predv = (vx + cw0 - L * acx, vy + cw1 - L * acy, vz + cw2 - L * acz)
+                _local_level_nb(pred[0], pred[1], pred[2], Lm)
+                flag |= _gnss_update_geo(
+                    P, dx, h, hz, PHt, Lm, Xc, C, x, zp[s, jj], zv[s, jj], sp[s, jj], sv[s, jj],
+                    pred, predv, (cl0, cl1, cl2), (cw0, cw1, cw2), lever[s], L, gb_on, i_gb,
+                    tun[s], opt[O_USE_VEL] != 0.0, gate,
+                )  # fmt: skip
+            elif gnss_ok:
                 L = lat[s] if opt[O_LATENCY] != 0.0 else 0.0
                 va0 = vx + cw0
                 va1 = vy + cw1
@@ -1035,7 +1210,15 @@ def _kernel(
                 for a in range(3):
                     hv[a] = 0.0
                     hpsi[a] = 0.0
-            if baro_on and math.isfinite(cz[s, jj, C_BARO]):
+            if baro_on and geo and math.isfinite(cz[s, jj, C_BARO]):
+                if _baro_update_geo(
+                    P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], Lm, px, py, pz,
+                    prm[A_H0], x[X_BB], i_bb, gate,
+                ):  # fmt: skip
+                    flag |= F_BARO
+                else:
+                    flag |= F_REJECT
+            elif baro_on and math.isfinite(cz[s, jj, C_BARO]):
                 if _baro_update(
                     P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], px, py, pz,
                     x[X_BB], i_bb, wgs, gate,
@@ -1089,6 +1272,10 @@ def _kernel(
                 out_x[s, jj, i] = x[i]
             for i in range(n):
                 out_sd[s, jj, i] = math.sqrt(max(P[i, i], 0.0))
+            if geo:  # position, velocity and attitude sigmas along the local E, N, U
+                _local_level_nb(px, py, pz, Lm)
+                for i0 in (I_P, I_V, I_PSI):
+                    _local_sd(P, Lm, i0, out_sd[s, jj], i0)
             if store_P:
                 for i in range(n):
                     for j in range(n):
@@ -1235,7 +1422,7 @@ def align(
     """Initial alignment of every sequence from its first seconds.
 
     * Static start (every sample of the first ``static_s`` seconds still by the ZUPT
-      thresholds) in ``wgs84`` with gyros good enough to gyrocompass (heading sigma
+      thresholds) in ``wgs84`` or ``geodetic`` with gyros good enough to gyrocompass (heading sigma
       ``sqrt(sigma_bg^2 + N_g^2 / T) / (Omega cos lat) < 5 deg`` over the window ``T``): coarse
       alignment -- roll and pitch from the mean specific force (sigma ``sqrt(sigma_ba^2 +
       N_a^2 / T) / g``), yaw from the levelled mean angular rate -- at the end of the window.
@@ -1243,6 +1430,8 @@ def align(
       horizontal speed reaches ``speed_mps``: yaw along the GNSS velocity, pitch its climb
       angle, roll 0 (a land vehicle), sigmas ``level_sd_rad`` and ``hypot(sigma_v / speed,
       heading_sd_rad)``.
+    Angles are relative to the local level at the fix (in ``geodetic``, ``C_nb = C_ln^T C_lb``
+    and the initial covariance of position, velocity and attitude is rotated likewise).
     Position and velocity come from the fix at that epoch (lever arm removed, position carried
     forward over the latency).
 
@@ -1254,7 +1443,11 @@ def align(
     g0 = frame.g0
     idx = np.asarray(gnss.index)
     valid = np.asarray(gnss.valid)
-    vh = np.hypot(gnss.v_n[..., 0], gnss.v_n[..., 1])
+    v_l = np.asarray(gnss.v_n, float)
+    if frame.model == "geodetic":  # horizontal speed in the local level at each fix
+        p_ok = np.where(valid[..., None], gnss.p_n, [earth.A_WGS84, 0.0, 0.0])
+        v_l = np.einsum("sjik,sjk->sji", frame.C_ln(p_ok), v_l)
+    vh = np.hypot(v_l[..., 0], v_l[..., 1])
     moving = valid & (np.nan_to_num(vh) >= speed_mps)
     k0 = np.full(S, K, np.int64)
     rpy = np.zeros((S, 3))
@@ -1271,9 +1464,15 @@ def align(
         float(np.max(tun.gyro_bias_sd)) ** 2 + float(np.max(tun.gyro_white)) ** 2 / Tw
     )
     acc_sd = np.sqrt(tun.accel_bias_sd**2 + tun.accel_white**2 / Tw)
-    can_compass = frame.model == "wgs84" and gyro_sd < math.radians(5.0) * Om
+    can_compass = frame.model != "flat" and gyro_sd < math.radians(5.0) * Om
+    geo = frame.model == "geodetic"
+    C_ln = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()  # n -> local level at the start fix
     for s in range(S):
         done = False
+        if geo:
+            jv = np.flatnonzero(valid[s])
+            if len(jv):
+                C_ln[s] = frame.C_ln(gnss.p_n[s, jv[0]])
         if can_compass and 1 <= ns < K:
             w = dth[s, 1 : ns + 1] / dt
             f = dvb[s, 1 : ns + 1] / dt
@@ -1281,6 +1480,8 @@ def align(
                 np.abs(np.linalg.norm(f, axis=1) - g0) < opts.zupt_accel_mps2
             )
             je = np.searchsorted(idx, ns)
+            if geo and je < len(idx) and valid[s, je]:
+                C_ln[s] = frame.C_ln(gnss.p_n[s, je])
             if still and je < len(idx) and valid[s, je]:
                 fm, wm = f.mean(0), w.mean(0)
                 roll = math.atan2(fm[1], fm[2])
@@ -1298,7 +1499,9 @@ def align(
             if len(js) == 0:
                 continue
             j0 = js[0]
-            v = gnss.v_n[s, j0]
+            if geo:
+                C_ln[s] = frame.C_ln(gnss.p_n[s, j0])
+            v = C_ln[s] @ gnss.v_n[s, j0]  # heading from the velocity in the local level
             sp = math.hypot(v[0], v[1])
             rpy[s] = 0.0, math.atan2(v[2], sp), math.atan2(v[1], v[0])
             svh = float(gnss.sigma_v_n[s, j0, 0])
@@ -1308,7 +1511,7 @@ def align(
                 math.hypot(svh / sp, heading_sd_rad),
             )
             k0[s] = idx[j0]
-        C = euler_to_dcm(*rpy[s])
+        C = C_ln[s].T @ euler_to_dcm(*rpy[s])
         lb = gnss.params.lever_arm_b_m[s]
         v0[s] = gnss.v_n[s, j0]
         # the fix is late by the latency: carry it forward to the epoch
@@ -1318,13 +1521,19 @@ def align(
             v0[s] = 0.0
         sd_p[s] = gnss.sigma_p_n[s, j0]
         sd_v[s] = gnss.sigma_v_n[s, j0]
-    q0 = dcm_to_quat(euler_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]))
+    C0 = euler_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2])
+    q0 = dcm_to_quat(np.swapaxes(C_ln, 1, 2) @ C0 if geo else C0)
     gb = None
     if opts.gnss_bias and tuning_T is not None:
         gb = tuning_T[:, T_GB_SD : T_GB_SD + 3]
         sd_p = np.sqrt(gb**2 + tuning_T[:, T_GW : T_GW + 3] ** 2)
     osd, bsd = (0.0, 0.0) if tuning_T is None else (tuning_T[:, T_OSF_SD], tuning_T[:, T_BB_SD])
     P0 = initial_covariance(tun, opts, sd_p, sd_v, sd_att, gb, osd, bsd)
+    if geo:  # the sigmas are along the local axes: P_n = T P_l T^T, T = C_nl on p, v, psi
+        Tr = np.broadcast_to(np.eye(opts.n), (S, opts.n, opts.n)).copy()
+        for i0 in (I_P, I_V, I_PSI):
+            Tr[:, i0 : i0 + 3, i0 : i0 + 3] = np.swapaxes(C_ln, 1, 2)
+        P0 = Tr @ P0 @ np.swapaxes(Tr, 1, 2)
     return initial_state(k0, p0, v0, q0, P0)
 
 
