@@ -356,7 +356,8 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
     keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err[..., :3]).all(-1)
     S, J = keep.shape
     since = _since_fix(t, valid)
-    sd = lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
+    geo = truth.origin_frame().model == "geodetic"  # the filter's sigmas are local there
+    sd = res.sd[..., A.I_P : A.I_P + 3] if geo else lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
     rows[ERR_ATT] = att[keep]
