@@ -1,7 +1,8 @@
 """Loosely-coupled GNSS/INS: a batched error-state Kalman filter on the project's increments.
 
 Frames, conventions and the strapdown are those of :mod:`imugen.mechanize` (n = Earth-fixed
-ENU of the route origin; ``flat`` or ``wgs84``); one step per IMU interval:
+ENU of the route origin in ``flat`` and ``wgs84``, ECEF in ``geodetic``: the same rotating-frame
+step with ``Omega = (0, 0, Omega)`` and no transport rate); one step per IMU interval:
 ``C_{k+1} = Exp(-Omega dt) C_k Exp(dtheta)``,
 ``A(dt) (v_{k+1} + W r_{k+1}) = v_k + W r_k + C_k dv + dt/2 (A G_{k+1} + G_k)`` (solved with the
 kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g dt``) and the
@@ -18,7 +19,8 @@ Error state (estimate minus truth), ``n = 15 (+3) (+6) (+2)``
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
     accumulated by the strapdown (``int C dt``, ``int C f dt``, ``int C diag(f) dt``, ``int C
     diag(omega) dt``), second order in ``T`` for the position rows; ``Gamma`` is the gravity
-    gradient ``g/R diag(-1, -1, 2)`` (``wgs84`` only). Process noise: white densities ``N_g``,
+    gradient ``g/R diag(-1, -1, 2)`` (``wgs84``; ``g/R (3 u u^T - I)`` with ``u`` the geocentric
+    vertical at the vehicle in ``geodetic``). Process noise: white densities ``N_g``,
     ``N_a`` (ARW, VRW) and the bias random-walk densities.
 
 Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
@@ -46,6 +48,12 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
     * An optional innovation gate rejects a scalar update whose normalized innovation exceeds
       ``gate_sigma`` (0: off).
+In ``geodetic`` (n = ECEF) the receiver's errors are independent along East, North, Up at the
+antenna, not along ECEF axes: each GNSS scalar update is one local axis (rows of ``C_le`` at
+the predicted antenna applied to the residual and the sensitivities), which is the update with
+the full ECEF covariance ``C_el diag(s^2) C_le``; the GNSS bias states are along the local axes;
+the barometer predicts the ellipsoidal height of the position; the output sigmas of position,
+velocity and attitude are along the local axes at the estimate (the stored ``P`` stays in n).
 After the updates the error state is fed back (``C <- Exp(-psi) C``, ...) and reset to zero.
 
 The time recursion is one numba kernel: sequences outside, time inside, no allocation per
@@ -1312,7 +1320,8 @@ class AidedResult:
     gyro_bias, accel_bias : (S, J, 3)  estimated biases [rad/s, m/s^2]
     gyro_sf, accel_sf : (S, J, 3)      estimated scale factors (zeros when not estimated)
     gnss_bias : (S, J, 3)       estimated receiver position bias [m]
-    sd : (S, J, n)              1-sigma of every error state (:func:`state_names`)
+    sd : (S, J, n)              1-sigma of every error state (:func:`state_names`; position,
+                                velocity, attitude along the local E, N, U in ``geodetic``)
     P : (S, J, n, n) or None    full covariance (``store_P``)
     odo_sf : (S, J)             estimated odometer scale factor (zeros when not estimated)
     baro_bias : (S, J)          estimated barometer drift [m] (zeros when not estimated)
@@ -1561,7 +1570,7 @@ def run(
     dt : float
         IMU sample interval [s].
     frame : OriginFrame
-        Origin and Earth model (``flat`` or ``wgs84``).
+        Origin and Earth model (``flat``, ``wgs84`` or ``geodetic``).
     gnss : imugen.gnss.GnssData
         Fixes of the same S sequences (possibly altered by :mod:`imugen.scenarios`): only
         ``index``, ``p_n``, ``v_n``, ``sigma_p_n``, ``sigma_v_n``, ``valid``,
