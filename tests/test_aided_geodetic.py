@@ -36,6 +36,7 @@ from imugen import rotations as R
 from imugen import scenarios as SC
 from imugen import simulate as SIM
 from imugen import truth
+from imugen.rotations import quat_to_dcm
 from imugen.tables import truth as col
 
 
@@ -227,7 +228,7 @@ def _as_geodetic(df, frame):
 def test_same_drive_wgs84_and_geodetic_same_local_errors():
     """The test_aided car drive (within 450 m of its origin) as a wgs84 truth and re-expressed in
     ECEF as a geodetic one; the same IMU draws, the same GNSS draws (standalone, with bias
-    states, latency, lever arm), NHC, barometer, alignment from GNSS: the aided errors in the
+    states, latency, lever arm), NHC, odometer, barometer, alignment from GNSS: the aided errors in the
     local level at the truth agree to a small fraction of themselves (the local level and the
     origin's ENU differ by 7e-5 rad here)."""
     df, fw = TA.car_truth("wgs84"), E.OriginFrame.from_deg(*ORIGIN, model="wgs84")
@@ -235,14 +236,16 @@ def test_same_drive_wgs84_and_geodetic_same_local_errors():
     S = 4
     sh = SIM.simulate(df, "consumer", sequences=S, seed=3, draw="nominal")
     tun = A.Tuning.from_grade("consumer")
-    opts = A.Options(nhc=True, baro=True)
+    opts = A.Options(nhc=True, baro=True, odometer=True)
     out = {}
     for name, d, fr in (("wgs84", df, fw), ("geodetic", dg, fg)):
         t, p, v, q, w = arrays(d)
         gn = G.simulate_gnss(t, p, v, q, w, "standalone", sequences=S, seed=3,
                              lever_arm_b_m=LEVER, omega_ie_n=E.earth_rate_n(fr), frame=fr)  # fmt: skip
         baro = CP.simulate_barometer(t, p, fr, "bmp388", S, 3, 0)
-        ce = CP.filter_input(gn.index, S, None, baro, h0_m=fr.h0_m)
+        w_eb = w - np.einsum("kji,j->ki", quat_to_dcm(q), E.earth_rate_n(fr))
+        odo = CP.simulate_odometer(t, v, q, w_eb, "abs", S, 3, 0)
+        ce = CP.filter_input(gn.index, S, odo, baro, h0_m=fr.h0_m)
         res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, fr, gn, tun, opts, companions=ce)
         idx = res.index
         p_true_e = fr.ecef_from_n(p[idx])
@@ -256,6 +259,8 @@ def test_same_drive_wgs84_and_geodetic_same_local_errors():
     a, fa = out["wgs84"]
     b, fb = out["geodetic"]
     assert np.array_equal(fa, fb)  # the same updates, the same starts
+    for bit in (A.F_GNSS_P, A.F_GNSS_V, A.F_NHC, A.F_ODO, A.F_BARO):
+        assert np.mean((fa & bit) != 0) > 0.3, bit
     ok = np.isfinite(a[..., 0])
     assert ok.sum() > S * 1500
     size = np.abs(a[ok]).max(axis=0)
