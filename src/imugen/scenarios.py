@@ -24,6 +24,9 @@ Kinds (state code per epoch in brackets; 0 = nominal)
 ``freeze`` [8]
     The last fix before the start repeats (position and velocity), with a fresh time stamp.
 
+Directions and the jamming noise are along the local East, North, Up at the antenna: n itself
+in ``flat`` and ``wgs84``, rotated to ECEF on a ``geodetic`` truth (``apply(..., frame=)``).
+
 Intervals are declared (:class:`Interval`, or dicts with ``kind``, ``start_s``,
 ``duration_s`` and the kind's parameters) or drawn per sequence (:func:`draw`). Labels: the
 state of every epoch, the attack offset of every epoch (measured minus what the receiver alone
