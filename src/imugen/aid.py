@@ -242,6 +242,7 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None)
             t, *states, rec, 1, ent, 0,
             rate_hz=params.rate_hz, draw=params.draw, lever_arm_b_m=params.lever_arm_b_m,
             lever_sd_m=params.lever_arm_sd_m, omega_ie_n=earth_rate_n(frame), first=int(sid),
+            frame=frame,
         )  # fmt: skip
         ivs = list(params.intervals_parsed)
         if params.draw_kinds:
@@ -249,7 +250,7 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None)
                 params.draw_kinds, duration, ent, 0, 1, settle_s=params.settle_s,
                 durations_s=params.outage_durations_s,
             )[0]  # fmt: skip
-        parts.append(SC.apply(g, [ivs], ent, 0, first=int(sid)))
+        parts.append(SC.apply(g, [ivs], ent, 0, first=int(sid), frame=frame))
     return _stack(parts)
 
 
@@ -355,7 +356,8 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
     keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err[..., :3]).all(-1)
     S, J = keep.shape
     since = _since_fix(t, valid)
-    sd = lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
+    geo = truth.origin_frame().model == "geodetic"  # the filter's sigmas are local there
+    sd = res.sd[..., A.I_P : A.I_P + 3] if geo else lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
     rows[ERR_ATT] = att[keep]

@@ -1,7 +1,8 @@
 """Loosely-coupled GNSS/INS: a batched error-state Kalman filter on the project's increments.
 
 Frames, conventions and the strapdown are those of :mod:`imugen.mechanize` (n = Earth-fixed
-ENU of the route origin; ``flat`` or ``wgs84``); one step per IMU interval:
+ENU of the route origin in ``flat`` and ``wgs84``, ECEF in ``geodetic``: the same rotating-frame
+step with ``Omega = (0, 0, Omega)`` and no transport rate); one step per IMU interval:
 ``C_{k+1} = Exp(-Omega dt) C_k Exp(dtheta)``,
 ``A(dt) (v_{k+1} + W r_{k+1}) = v_k + W r_k + C_k dv + dt/2 (A G_{k+1} + G_k)`` (solved with the
 kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g dt``) and the
@@ -18,7 +19,8 @@ Error state (estimate minus truth), ``n = 15 (+3) (+6) (+2)``
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
     accumulated by the strapdown (``int C dt``, ``int C f dt``, ``int C diag(f) dt``, ``int C
     diag(omega) dt``), second order in ``T`` for the position rows; ``Gamma`` is the gravity
-    gradient ``g/R diag(-1, -1, 2)`` (``wgs84`` only). Process noise: white densities ``N_g``,
+    gradient ``g/R diag(-1, -1, 2)`` (``wgs84``; ``g/R (3 u u^T - I)`` with ``u`` the geocentric
+    vertical at the vehicle in ``geodetic``). Process noise: white densities ``N_g``,
     ``N_a`` (ARW, VRW) and the bias random-walk densities.
 
 Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
@@ -46,6 +48,12 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
     * An optional innovation gate rejects a scalar update whose normalized innovation exceeds
       ``gate_sigma`` (0: off).
+In ``geodetic`` (n = ECEF) the receiver's errors are independent along East, North, Up at the
+antenna, not along ECEF axes: each GNSS scalar update is one local axis (rows of ``C_le`` at
+the predicted antenna applied to the residual and the sensitivities), which is the update with
+the full ECEF covariance ``C_el diag(s^2) C_le``; the GNSS bias states are along the local axes;
+the barometer predicts the ellipsoidal height of the position; the output sigmas of position,
+velocity and attitude are along the local axes at the estimate (the stored ``P`` stays in n).
 After the updates the error state is fed back (``C <- Exp(-psi) C``, ...) and reset to zero.
 
 The time recursion is one numba kernel: sequences outside, time inside, no allocation per
@@ -362,7 +370,8 @@ A_A = A_DT + 1  # A(dt) = Exp(W dt), 9 row-major
 A_D = A_A + 9  # D = A(dt)^T - I, 9 (computed without cancellation)
 A_MT = A_D + 9  # (I + dt/2 W)^{-1}, 9
 A_QW = A_MT + 9  # quaternion of Exp(-Omega dt) minus (1, 0, 0, 0), 4
-N_STEP_PARAMS = A_QW + 4
+A_H0 = A_QW + 4  # origin's ellipsoidal height [m] (the barometer's reference)
+N_STEP_PARAMS = A_H0 + 1
 
 
 def step_params(frame, dt: float) -> np.ndarray:
@@ -388,7 +397,57 @@ def step_params(frame, dt: float) -> np.ndarray:
     prm[A_D : A_D + 9] = D.ravel()
     prm[A_MT : A_MT + 9] = MT.ravel()
     prm[A_QW : A_QW + 4] = qw
+    prm[A_H0] = frame.h0_m
     return prm
+
+
+@njit(cache=True, inline="always")
+def _level_nb(x, y, z):
+    """ECEF -> ``(sin lat, cos lat, cos lon, sin lon, h)``: the numba twin of
+    :func:`imugen.earth._geodetic_parts` (same operations, same order)."""
+    p = math.sqrt(x * x + y * y)
+    su = z * earth.A_WGS84
+    cu = p * earth.B_WGS84
+    ir = 1.0 / math.sqrt(su * su + cu * cu)
+    su = su * ir
+    cu = cu * ir
+    num = z + earth.EP2_WGS84 * earth.B_WGS84 * su * su * su
+    den = p - earth.E2_WGS84 * earth.A_WGS84 * cu * cu * cu
+    ir = 1.0 / math.sqrt(num * num + den * den)
+    sl = num * ir
+    cl = den * ir
+    h = p * cl + z * sl - earth.A_WGS84 * math.sqrt(1.0 - earth.E2_WGS84 * sl * sl)
+    if p > 0.0:
+        return sl, cl, x / p, y / p, h
+    return sl, cl, 1.0, 0.0, h
+
+
+@njit(cache=True)
+def _local_level_nb(x, y, z, L):
+    """``L = C_le`` (ECEF -> East, North, Up at the ECEF point ``(x, y, z)``); returns ``h``."""
+    sl, cl, co, so, hgt = _level_nb(x, y, z)
+    L[0, 0] = -so
+    L[0, 1] = co
+    L[0, 2] = 0.0
+    L[1, 0] = -sl * co
+    L[1, 1] = -sl * so
+    L[1, 2] = cl
+    L[2, 0] = cl * co
+    L[2, 1] = cl * so
+    L[2, 2] = sl
+    return hgt
+
+
+@njit(cache=True)
+def _local_sd(P, L, i0, out, o0):
+    """``out[o0 + a] = sqrt(L_a P_blk L_a^T)``: 1-sigma along the rows of ``L`` of the 3x3
+    block of ``P`` starting at ``i0``."""
+    for a in range(3):
+        acc = 0.0
+        for b in range(3):
+            for c in range(3):
+                acc += L[a, b] * P[i0 + b, i0 + c] * L[a, c]
+        out[o0 + a] = math.sqrt(max(acc, 0.0))
 
 
 @njit(cache=True, inline="always")
@@ -516,6 +575,105 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
 
 
 @njit(cache=True)
+def _gnss_update_geo(
+    P, dx, h, hz, PHt, Lm, Xc, C, x, zp, zv, sp, sv, pred, predv, clv, cwv, lever, Lat, gb_on,
+    i_gb, tun, use_vel, gate,
+):  # fmt: skip
+    """GNSS position (and velocity) updates in ``geodetic`` (n = ECEF), one scalar update per
+    local-level axis: rows ``Lm = C_le`` (at the predicted antenna) applied to the n-frame
+    residual and sensitivities. The receiver's errors are independent per local axis, so this
+    equals one update with the full ECEF covariance ``C_el diag(s^2) C_le``; the GNSS bias
+    states are along the local axes. Returns the flag bits."""
+    n = P.shape[0]
+    flag = 0
+    _skew(clv[0], clv[1], clv[2], Xc)
+    for a in range(3):
+        for i in range(n):
+            h[i] = 0.0
+        r = 0.0
+        for c in range(3):
+            h[c] = Lm[a, c]
+            hz[c] = c
+            r += Lm[a, c] * (pred[c] - zp[c])
+            # dp - [(C l) x] psi - Lat dv
+            acc = 0.0
+            for e in range(3):
+                acc -= Lm[a, e] * Xc[e, c]
+            h[6 + c] = acc
+            hz[3 + c] = 6 + c
+        m = 6
+        if Lat > 0.0:
+            for c in range(3):
+                h[3 + c] = -Lat * Lm[a, c]
+                hz[m] = 3 + c
+                m += 1
+        var = sp[a] ** 2
+        if gb_on:
+            h[i_gb + a] = 1.0
+            hz[m] = i_gb + a
+            m += 1
+            r += x[X_GB + a]
+            wsd = tun[T_GW + a]
+            tot = wsd * wsd + tun[T_GB_SD + a] ** 2
+            var = var * (wsd * wsd / tot) if tot > 0.0 else var
+        var = max(var, 1e-12)
+        if _scalar_update(P, dx, h, hz, m, r, var, gate, PHt):
+            flag |= F_GNSS_P
+        else:
+            flag |= F_REJECT
+    if not use_vel:
+        return flag
+    _skew(cwv[0], cwv[1], cwv[2], Xc)
+    lx, ly, lz = lever[0], lever[1], lever[2]
+    for a in range(3):
+        for i in range(n):
+            h[i] = 0.0
+        r = 0.0
+        for c in range(3):
+            h[3 + c] = Lm[a, c]
+            hz[c] = 3 + c
+            r += Lm[a, c] * (predv[c] - zv[c])
+            acc = 0.0
+            for e in range(3):
+                acc -= Lm[a, e] * Xc[e, c]
+            h[6 + c] = acc
+            hz[3 + c] = 6 + c
+            # d(C (w x l))/d dbg = C [l x] (w_hat = w - dbg)
+            eb0 = 1.0 if c == 0 else 0.0
+            eb1 = 1.0 if c == 1 else 0.0
+            eb2 = 1.0 if c == 2 else 0.0
+            lxe0 = ly * eb2 - lz * eb1
+            lxe1 = lz * eb0 - lx * eb2
+            lxe2 = lx * eb1 - ly * eb0
+            acc = 0.0
+            for e in range(3):
+                acc += Lm[a, e] * (C[e, 0] * lxe0 + C[e, 1] * lxe1 + C[e, 2] * lxe2)
+            h[9 + c] = acc
+            hz[6 + c] = 9 + c
+        var = max(sv[a] ** 2, 1e-12)
+        if _scalar_update(P, dx, h, hz, 9, r, var, gate, PHt):
+            flag |= F_GNSS_V
+        else:
+            flag |= F_REJECT
+    return flag
+
+
+@njit(cache=True)
+def _baro_update_geo(P, dx, h, hz, PHt, z, var, Lm, px, py, pz, h0, b_hat, i_bb, gate):
+    """Barometric height in ``geodetic``: ``z_pred = h(p) - h0 + b`` with ``h`` the ellipsoidal
+    height of the ECEF position, ``dh = u^T dp`` (``u`` the local Up, row 2 of ``Lm``)."""
+    for i in range(P.shape[0]):
+        h[i] = 0.0
+    hgt = _local_level_nb(px, py, pz, Lm)
+    for c in range(3):
+        h[c] = Lm[2, c]
+        hz[c] = c
+    h[i_bb] = 1.0
+    hz[3] = i_bb
+    return _scalar_update(P, dx, h, hz, 4, hgt - h0 + b_hat - z, var, gate, PHt)
+
+
+@njit(cache=True)
 def _kernel(
     dth, dvb, k0, ep_idx, zp, zv, sp, sv, ok, lever, lat, x0, P0, prm, tun, opt,
     out_x, out_sd, out_P, out_flag, cz, cmark, clever,
@@ -533,6 +691,7 @@ def _kernel(
     J = ep_idx.shape[0]
     n = P0.shape[1]
     wgs = prm[earth.P_MODEL] != 0.0
+    geo = prm[earth.P_MODEL] == 2.0
     dt = prm[A_DT]
     g0 = prm[earth.P_G0]
     w0 = prm[earth.P_OMEGA]
@@ -604,6 +763,8 @@ def _kernel(
     R_gamma = g0 / earth.R_MEAN
     Xm = np.zeros((3, 3))
     Wm = np.zeros((3, 3))
+    Lm = np.zeros((3, 3))
+    Xc = np.zeros((3, 3))
     _skew(w0, w1, w2, Wm)
     for s in range(S):
         for i in range(NX):
@@ -792,10 +953,17 @@ def _kernel(
                         for b in range(3):
                             Phi[3 + a, 3 + b] -= 2.0 * Wm[a, b] * Tint
                             Phi[6 + a, 6 + b] -= Wm[a, b] * Tint
-                    # gravity gradient at the origin, local ENU: g/R diag(-1, -1, 2)
-                    Phi[3, 0] = -R_gamma * Tint
-                    Phi[4, 1] = -R_gamma * Tint
-                    Phi[5, 2] = 2.0 * R_gamma * Tint
+                    if geo:  # gravity gradient g/R (3 u u^T - I), u = r / |r| in ECEF
+                        ir = 1.0 / math.sqrt(px * px + py * py + pz * pz)
+                        ur = (px * ir, py * ir, pz * ir)
+                        for a in range(3):
+                            for b in range(3):
+                                d = 3.0 * ur[a] * ur[b] - (1.0 if a == b else 0.0)
+                                Phi[3 + a, b] = R_gamma * Tint * d
+                    else:  # gravity gradient at the origin, local ENU: g/R diag(-1, -1, 2)
+                        Phi[3, 0] = -R_gamma * Tint
+                        Phi[4, 1] = -R_gamma * Tint
+                        Phi[5, 2] = 2.0 * R_gamma * Tint
                 for a in range(3):
                     qa = tun[s, T_NA + a] ** 2
                     qdiag[3 + a] = qa * Tint
@@ -871,7 +1039,22 @@ def _kernel(
             cw1 = C[1, 0] * cwx + C[1, 1] * cwy + C[1, 2] * cwz - (w2 * cl0 - w0 * cl2)
             cw2 = C[2, 0] * cwx + C[2, 1] * cwy + C[2, 2] * cwz - (w0 * cl1 - w1 * cl0)
             gnss_ok = ok[s, jj]
-            if gnss_ok:
+            if gnss_ok and geo:
+                L = lat[s] if opt[O_LATENCY] != 0.0 else 0.0
+                hL = 0.5 * L * L
+                pred = (
+                    px + cl0 - L * (vx + cw0) + hL * acx,
+                    py + cl1 - L * (vy + cw1) + hL * acy,
+                    pz + cl2 - L * (vz + cw2) + hL * acz,
+                )
+                predv = (vx + cw0 - L * acx, vy + cw1 - L * acy, vz + cw2 - L * acz)
+                _local_level_nb(pred[0], pred[1], pred[2], Lm)
+                flag |= _gnss_update_geo(
+                    P, dx, h, hz, PHt, Lm, Xc, C, x, zp[s, jj], zv[s, jj], sp[s, jj], sv[s, jj],
+                    pred, predv, (cl0, cl1, cl2), (cw0, cw1, cw2), lever[s], L, gb_on, i_gb,
+                    tun[s], opt[O_USE_VEL] != 0.0, gate,
+                )  # fmt: skip
+            elif gnss_ok:
                 L = lat[s] if opt[O_LATENCY] != 0.0 else 0.0
                 va0 = vx + cw0
                 va1 = vy + cw1
@@ -1035,7 +1218,15 @@ def _kernel(
                 for a in range(3):
                     hv[a] = 0.0
                     hpsi[a] = 0.0
-            if baro_on and math.isfinite(cz[s, jj, C_BARO]):
+            if baro_on and geo and math.isfinite(cz[s, jj, C_BARO]):
+                if _baro_update_geo(
+                    P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], Lm, px, py, pz,
+                    prm[A_H0], x[X_BB], i_bb, gate,
+                ):  # fmt: skip
+                    flag |= F_BARO
+                else:
+                    flag |= F_REJECT
+            elif baro_on and math.isfinite(cz[s, jj, C_BARO]):
                 if _baro_update(
                     P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], px, py, pz,
                     x[X_BB], i_bb, wgs, gate,
@@ -1089,6 +1280,10 @@ def _kernel(
                 out_x[s, jj, i] = x[i]
             for i in range(n):
                 out_sd[s, jj, i] = math.sqrt(max(P[i, i], 0.0))
+            if geo:  # position, velocity and attitude sigmas along the local E, N, U
+                _local_level_nb(px, py, pz, Lm)
+                for i0 in (I_P, I_V, I_PSI):
+                    _local_sd(P, Lm, i0, out_sd[s, jj], i0)
             if store_P:
                 for i in range(n):
                     for j in range(n):
@@ -1125,7 +1320,8 @@ class AidedResult:
     gyro_bias, accel_bias : (S, J, 3)  estimated biases [rad/s, m/s^2]
     gyro_sf, accel_sf : (S, J, 3)      estimated scale factors (zeros when not estimated)
     gnss_bias : (S, J, 3)       estimated receiver position bias [m]
-    sd : (S, J, n)              1-sigma of every error state (:func:`state_names`)
+    sd : (S, J, n)              1-sigma of every error state (:func:`state_names`; position,
+                                velocity, attitude along the local E, N, U in ``geodetic``)
     P : (S, J, n, n) or None    full covariance (``store_P``)
     odo_sf : (S, J)             estimated odometer scale factor (zeros when not estimated)
     baro_bias : (S, J)          estimated barometer drift [m] (zeros when not estimated)
@@ -1235,7 +1431,7 @@ def align(
     """Initial alignment of every sequence from its first seconds.
 
     * Static start (every sample of the first ``static_s`` seconds still by the ZUPT
-      thresholds) in ``wgs84`` with gyros good enough to gyrocompass (heading sigma
+      thresholds) in ``wgs84`` or ``geodetic`` with gyros good enough to gyrocompass (heading sigma
       ``sqrt(sigma_bg^2 + N_g^2 / T) / (Omega cos lat) < 5 deg`` over the window ``T``): coarse
       alignment -- roll and pitch from the mean specific force (sigma ``sqrt(sigma_ba^2 +
       N_a^2 / T) / g``), yaw from the levelled mean angular rate -- at the end of the window.
@@ -1243,6 +1439,8 @@ def align(
       horizontal speed reaches ``speed_mps``: yaw along the GNSS velocity, pitch its climb
       angle, roll 0 (a land vehicle), sigmas ``level_sd_rad`` and ``hypot(sigma_v / speed,
       heading_sd_rad)``.
+    Angles are relative to the local level at the fix (in ``geodetic``, ``C_nb = C_ln^T C_lb``
+    and the initial covariance of position, velocity and attitude is rotated likewise).
     Position and velocity come from the fix at that epoch (lever arm removed, position carried
     forward over the latency).
 
@@ -1254,7 +1452,11 @@ def align(
     g0 = frame.g0
     idx = np.asarray(gnss.index)
     valid = np.asarray(gnss.valid)
-    vh = np.hypot(gnss.v_n[..., 0], gnss.v_n[..., 1])
+    v_l = np.asarray(gnss.v_n, float)
+    if frame.model == "geodetic":  # horizontal speed in the local level at each fix
+        p_ok = np.where(valid[..., None], gnss.p_n, [earth.A_WGS84, 0.0, 0.0])
+        v_l = np.einsum("sjik,sjk->sji", frame.C_ln(p_ok), v_l)
+    vh = np.hypot(v_l[..., 0], v_l[..., 1])
     moving = valid & (np.nan_to_num(vh) >= speed_mps)
     k0 = np.full(S, K, np.int64)
     rpy = np.zeros((S, 3))
@@ -1271,9 +1473,15 @@ def align(
         float(np.max(tun.gyro_bias_sd)) ** 2 + float(np.max(tun.gyro_white)) ** 2 / Tw
     )
     acc_sd = np.sqrt(tun.accel_bias_sd**2 + tun.accel_white**2 / Tw)
-    can_compass = frame.model == "wgs84" and gyro_sd < math.radians(5.0) * Om
+    can_compass = frame.model != "flat" and gyro_sd < math.radians(5.0) * Om
+    geo = frame.model == "geodetic"
+    C_ln = np.broadcast_to(np.eye(3), (S, 3, 3)).copy()  # n -> local level at the start fix
     for s in range(S):
         done = False
+        if geo:
+            jv = np.flatnonzero(valid[s])
+            if len(jv):
+                C_ln[s] = frame.C_ln(gnss.p_n[s, jv[0]])
         if can_compass and 1 <= ns < K:
             w = dth[s, 1 : ns + 1] / dt
             f = dvb[s, 1 : ns + 1] / dt
@@ -1281,6 +1489,8 @@ def align(
                 np.abs(np.linalg.norm(f, axis=1) - g0) < opts.zupt_accel_mps2
             )
             je = np.searchsorted(idx, ns)
+            if geo and je < len(idx) and valid[s, je]:
+                C_ln[s] = frame.C_ln(gnss.p_n[s, je])
             if still and je < len(idx) and valid[s, je]:
                 fm, wm = f.mean(0), w.mean(0)
                 roll = math.atan2(fm[1], fm[2])
@@ -1298,7 +1508,9 @@ def align(
             if len(js) == 0:
                 continue
             j0 = js[0]
-            v = gnss.v_n[s, j0]
+            if geo:
+                C_ln[s] = frame.C_ln(gnss.p_n[s, j0])
+            v = C_ln[s] @ gnss.v_n[s, j0]  # heading from the velocity in the local level
             sp = math.hypot(v[0], v[1])
             rpy[s] = 0.0, math.atan2(v[2], sp), math.atan2(v[1], v[0])
             svh = float(gnss.sigma_v_n[s, j0, 0])
@@ -1308,7 +1520,7 @@ def align(
                 math.hypot(svh / sp, heading_sd_rad),
             )
             k0[s] = idx[j0]
-        C = euler_to_dcm(*rpy[s])
+        C = C_ln[s].T @ euler_to_dcm(*rpy[s])
         lb = gnss.params.lever_arm_b_m[s]
         v0[s] = gnss.v_n[s, j0]
         # the fix is late by the latency: carry it forward to the epoch
@@ -1318,13 +1530,19 @@ def align(
             v0[s] = 0.0
         sd_p[s] = gnss.sigma_p_n[s, j0]
         sd_v[s] = gnss.sigma_v_n[s, j0]
-    q0 = dcm_to_quat(euler_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]))
+    C0 = euler_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2])
+    q0 = dcm_to_quat(np.swapaxes(C_ln, 1, 2) @ C0 if geo else C0)
     gb = None
     if opts.gnss_bias and tuning_T is not None:
         gb = tuning_T[:, T_GB_SD : T_GB_SD + 3]
         sd_p = np.sqrt(gb**2 + tuning_T[:, T_GW : T_GW + 3] ** 2)
     osd, bsd = (0.0, 0.0) if tuning_T is None else (tuning_T[:, T_OSF_SD], tuning_T[:, T_BB_SD])
     P0 = initial_covariance(tun, opts, sd_p, sd_v, sd_att, gb, osd, bsd)
+    if geo:  # the sigmas are along the local axes: P_n = T P_l T^T, T = C_nl on p, v, psi
+        Tr = np.broadcast_to(np.eye(opts.n), (S, opts.n, opts.n)).copy()
+        for i0 in (I_P, I_V, I_PSI):
+            Tr[:, i0 : i0 + 3, i0 : i0 + 3] = np.swapaxes(C_ln, 1, 2)
+        P0 = Tr @ P0 @ np.swapaxes(Tr, 1, 2)
     return initial_state(k0, p0, v0, q0, P0)
 
 
@@ -1352,7 +1570,7 @@ def run(
     dt : float
         IMU sample interval [s].
     frame : OriginFrame
-        Origin and Earth model (``flat`` or ``wgs84``).
+        Origin and Earth model (``flat``, ``wgs84`` or ``geodetic``).
     gnss : imugen.gnss.GnssData
         Fixes of the same S sequences (possibly altered by :mod:`imugen.scenarios`): only
         ``index``, ``p_n``, ``v_n``, ``sigma_p_n``, ``sigma_v_n``, ``valid``,

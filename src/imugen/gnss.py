@@ -13,13 +13,18 @@ Antenna (lever arm ``l_b`` in the body frame, metres)
     ``p_ant = p_n + C_nb l_b``, ``v_ant = v_n + C_nb (omega_eb_b x l_b)`` with
     ``omega_eb_b = omega_ib_b - C_nb^T omega_ie_n`` (Earth rate 0 in ``flat``).
 
-Errors (per axis; East and North use the horizontal figures, Up the vertical ones)
+Errors (per axis of the local level at the antenna; East and North use the horizontal
+figures, Up the vertical ones)
     ``p_meas = p_ant + b_j + w_j``: white ``w ~ N(0, s_w^2)`` plus a first-order Gauss-Markov
     bias with exact discretization ``b_{j+1} = phi b_j + s_b sqrt(1 - phi^2) xi``,
     ``phi = exp(-T / tau)``, started from its stationary law ``b_0 ~ N(0, s_b^2)``;
     ``v_meas = v_ant + u_j``, ``u ~ N(0, s_v^2)``. The receiver reports the 1-sigma per axis
     ``sqrt(s_w^2 + s_b^2)`` (horizontal, vertical) and ``s_v`` (velocity), and the GGA fix
-    quality of its preset (0 where no fix).
+    quality of its preset (0 where no fix). In ``flat`` and ``wgs84`` the local level is taken
+    as the origin's ENU axes (n itself, within the Earth budget's tilt); in ``geodetic`` (n =
+    ECEF) the errors are drawn along East, North, Up at the true antenna position and rotated
+    to n, ``e_n = C_ln^T e_l``, so the reported sigmas stay per local-level axis (what the
+    aided filter rotates back, :mod:`imugen.aided`).
 
 Randomness
 ----------
@@ -257,8 +262,9 @@ class GnssData:
     p_ant_n, v_ant_n : (M, J, 3)  true antenna position / velocity at the time of validity
     bias_n : (M, J, 3)      true Gauss-Markov position bias [m]
     offset_p_n, offset_v_n : (M, J, 3)  true total error ``measured - true`` at validity
-    sigma_p_n : (M, J, 3)   reported 1-sigma per axis of the position [m]
-    sigma_v_n : (M, J, 3)   reported 1-sigma per axis of the velocity [m/s]
+    sigma_p_n : (M, J, 3)   reported 1-sigma of the position per local-level axis (E, N, U at
+                            the antenna; the n axes in flat/wgs84) [m]
+    sigma_v_n : (M, J, 3)   reported 1-sigma of the velocity, likewise [m/s]
     fix : (M, J) int8       GGA fix quality (0: no fix)
     params : ReceiverParams
     receiver : Receiver
@@ -316,6 +322,7 @@ def simulate_gnss(
     lever_sd_m=0.0,
     omega_ie_n=(0.0, 0.0, 0.0),
     first=None,
+    frame=None,
 ) -> GnssData:
     """GNSS fixes of ``sequences`` sequences sharing one truth.
 
@@ -324,7 +331,8 @@ def simulate_gnss(
     time_s : ndarray, shape (K,)
         Uniform IMU time grid [s].
     p_n, v_n : ndarray, shape (K, 3)
-        True position [m] and velocity [m/s] of the IMU in n (ENU of the route origin).
+        True position [m] and velocity [m/s] of the IMU in n (ENU of the route origin, or
+        ECEF in ``geodetic``).
     q_nb : ndarray, shape (K, 4)
         True attitude (scalar first).
     omega_ib_b : ndarray, shape (K, 3)
@@ -342,6 +350,9 @@ def simulate_gnss(
         Earth rate in n (:func:`imugen.earth.earth_rate_n`; zeros in ``flat``).
     first : int, optional
         Global id of the first sequence (labels; default ``shard * sequences``).
+    frame : OriginFrame, optional
+        The truth's frame; in ``geodetic`` the errors are drawn in the local level at the
+        antenna and rotated to n (otherwise, and by default, n is the local level).
     """
     rec = get_receiver(receiver)
     if draw not in ("ranges", "nominal"):
@@ -371,6 +382,7 @@ def simulate_gnss(
     q_nb, omega = np.asarray(q_nb, float), np.asarray(omega_ib_b, float)
     Om = np.asarray(omega_ie_n, float).reshape(3)
     T = step / imu_rate
+    geo = frame is not None and frame.model == "geodetic"
     shape = (M, J, 3)
     out = {k: np.full(shape, np.nan) for k in ("p", "v", "pa", "va", "b", "op", "ov")}
     sig_p = np.zeros(shape)
@@ -394,6 +406,9 @@ def simulate_gnss(
         b = lfilter([1.0], [1.0, -phi], x, axis=0)
         w = s_w * _rng(seed, rec.id, shard, j, "position_white").standard_normal((J, 3))
         u = s_u * _rng(seed, rec.id, shard, j, "velocity_white").standard_normal((J, 3))
+        if geo:  # drawn in the local level at the antenna: e_n = C_ln^T e_l
+            C_ln = frame.C_ln(p_ant)
+            b, w, u = (np.einsum("jki,jk->ji", C_ln, e) for e in (b, w, u))
         out["pa"][j], out["va"][j], out["b"][j] = p_ant, v_ant, b
         out["op"][j], out["ov"][j] = b + w, u
         out["p"][j] = np.where(ok[:, None], p_ant + b + w, np.nan)

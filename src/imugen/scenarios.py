@@ -24,6 +24,9 @@ Kinds (state code per epoch in brackets; 0 = nominal)
 ``freeze`` [8]
     The last fix before the start repeats (position and velocity), with a fresh time stamp.
 
+Directions and the jamming noise are along the local East, North, Up at the antenna: n itself
+in ``flat`` and ``wgs84``, rotated to ECEF on a ``geodetic`` truth (``apply(..., frame=)``).
+
 Intervals are declared (:class:`Interval`, or dicts with ``kind``, ``start_s``,
 ``duration_s`` and the kind's parameters) or drawn per sequence (:func:`draw`). Labels: the
 state of every epoch, the attack offset of every epoch (measured minus what the receiver alone
@@ -192,6 +195,10 @@ def draw(kinds, duration_s, seed=0, shard=0, sequences=1, *, settle_s=60.0, dura
     return out
 
 
+_LOCAL_KINDS = ("jamming", "spoof_ramp", "spoof_step", "spoof_oscillation")
+"""Kinds whose offsets are drawn along local-level axes (rotated to n in ``geodetic``)."""
+
+
 @dataclass
 class ScenarioResult:
     """Fixes after the scenarios, and the labels.
@@ -216,7 +223,7 @@ class ScenarioResult:
     intervals: pd.DataFrame
 
 
-def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None) -> ScenarioResult:
+def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None, frame=None) -> ScenarioResult:
     """Apply scenario intervals to the fixes of ``M`` sequences.
 
     Parameters
@@ -229,6 +236,10 @@ def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None) -> ScenarioRes
         Streams of the jamming noise.
     first : int, optional
         Global id of the first sequence (labels).
+    frame : OriginFrame, optional
+        The truth's frame: in ``geodetic`` (n = ECEF) the spoofing direction ``u`` and the
+        jamming noise are in the local level at the antenna, rotated to n (elsewhere n is
+        the local level).
     """
     M, J = gnss.fix.shape
     if len(intervals) and not isinstance(intervals[0], list | tuple):
@@ -236,6 +247,7 @@ def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None) -> ScenarioRes
     if len(intervals) != M:
         raise InputError("scenario", f"{len(intervals)} interval lists for {M} sequences")
     t = np.asarray(gnss.time_s, float)
+    geo = frame is not None and frame.model == "geodetic"
     p = gnss.p_n.copy()
     v = gnss.v_n.copy()
     sp = gnss.sigma_p_n.copy()
@@ -296,6 +308,10 @@ def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None) -> ScenarioRes
                     dp = p[j, k0] - p[j, m]
                     dv = v[j, k0] - v[j, m]
                     fix[j, m] = fix[j, k0]
+            if geo and iv.kind in _LOCAL_KINDS and m.any():  # local level -> n
+                C_ln = frame.C_ln(gnss.p_ant_n[j, m])
+                dp = np.einsum("jki,jk->ji", C_ln, dp)
+                dv = np.einsum("jki,jk->ji", C_ln, dv)
             p[j, m] += dp
             v[j, m] += dv
             if iv.kind == "freeze" and k0 >= 0:

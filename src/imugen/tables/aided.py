@@ -31,6 +31,10 @@ has the quantity; conventions of :mod:`imugen`: ENU navigation frame, FLU body f
 - ``sd_v_{e,n,u}_mps``, ``sd_att_{e,n,u}_rad`` (attitude error ``psi`` resolved in n),
   ``sd_gyro_bias_{x,y,z}_radps``, ``sd_accel_bias_{x,y,z}_mps2``: their 1-sigma.
 
+On a ``geodetic`` truth the state columns are in its navigation coordinates (ECEF position,
+velocity, ``q_eb``), and the velocity and attitude sigmas are along East, North, Up at the
+estimated position (as the position sigmas of the first group).
+
 Tables written before the state columns existed hold the first group only; :func:`read` with
 ``columns=None`` returns whatever the file holds.
 

@@ -13,6 +13,10 @@ One row per sequence and GNSS epoch, sorted by ``sequence`` then time:
 - ``attack_p_{e,n,u}_m``, ``attack_v_{e,n,u}_mps``: the part the scenario adds (0 outside
   attacks, NaN where the fix is lost).
 
+On a ``geodetic`` truth the positions, velocities, offsets and attacks are in its navigation
+coordinates (ECEF, m and m/s), while ``sigma_*`` stay along East, North, Up at the antenna (the
+receiver's errors are drawn in that local level and rotated to ECEF).
+
 Sidecars: ``<stem>.labels.parquet``, one row per sequence with the drawn receiver parameters
 (``sequence``, ``gnss_receiver_id``, ``gnss_rate_hz``, ``gnss_<figure>``,
 ``gnss_lever_arm_{x,y,z}_m``), and ``<stem>.intervals.parquet``, one row per scenario interval
