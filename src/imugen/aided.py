@@ -55,15 +55,15 @@ step, no I/O. Initial alignment (:func:`align`) is vectorized NumPy.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from imugen import earth
+from imugen import earth, units
 from imugen import mechanize as mech
 from imugen.earth import OriginFrame
 from imugen.errors import InputError
-from imugen.grades import Grade, get_grade
+from imugen.grades import TERMS, Grade, get_grade
 from imugen.jit import njit
 from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
 
@@ -88,7 +88,11 @@ N_BASE = 15
 # --- tuning vector (per sequence) ---------------------------------------------------------------
 T_NG, T_NA, T_QBG, T_QBA, T_GB_SD, T_GB_TAU, T_GW, T_QS = 0, 3, 6, 9, 12, 15, 16, 19
 T_OSF_SD, T_BB_SD, T_BB_TAU = 20, 21, 22
-N_TUNE = 23
+# motion-dependent noise (module docstring, "Process noise"): per body axis scale-factor,
+# cross-coupling and g-sensitivity sigmas, their correlation time, quantization variances
+T_MSG, T_MCG, T_MGS, T_MSA, T_MCA = 23, 26, 29, 32, 35
+T_MTAU, T_QNG, T_QNA = 38, 39, 40
+N_TUNE = 41
 # --- options vector (shared) --------------------------------------------------------------------
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
@@ -142,17 +146,30 @@ def state_names(
 
 
 # --- tuning -------------------------------------------------------------------------------------
+MOTION_CORR_S = 5.0
+"""Default correlation time [s] of the motion-dependent noise (scale factor, cross-coupling,
+g-sensitivity): a constant error times a rate held for about a car's turn."""
+
+
 @dataclass(frozen=True)
 class Tuning:
-    """Filter noise model (SI, per body axis).
+    """Filter noise model (SI, per body axis), derived from the grade's full error model.
 
     Attributes
     ----------
     gyro_white, accel_white : (3,)  ARW [rad/sqrt(s)], VRW [m/s/sqrt(s)]
-    gyro_bias_sd, accel_bias_sd : (3,)  initial bias 1-sigma [rad/s, m/s^2]
+    gyro_bias_sd, accel_bias_sd : (3,)  initial bias 1-sigma [rad/s, m/s^2], with the static
+        error on gravity of an uncalibrated grade (``sigma_G g0``; ``sigma_cc g0`` on x, y and
+        ``sigma_s g0`` on z for the accelerometer)
     gyro_bias_q, accel_bias_q : (3,)  bias random-walk PSD [(rad/s)^2/s, (m/s^2)^2/s]
-    gyro_sf_sd, accel_sf_sd : (3,)  initial scale-factor 1-sigma
+    gyro_sf_sd, accel_sf_sd : (3,)  scale-factor 1-sigma
     sf_q : float  scale-factor random-walk PSD [1/s]
+    gyro_cc_sd, accel_cc_sd : (3,)  cross-coupling 1-sigma of each element of a row
+    gyro_gs_sd : (3,)  g-sensitivity 1-sigma of each element of a row [rad/s per m/s^2]
+    gyro_lsb, accel_lsb : float  rate-output quantization step [rad/s, m/s^2] (0: none)
+    accel_static_sf_sd : (3,)  the part of ``accel_bias_sd`` due to the scale factor on
+        gravity (left out of the bias prior when the scale factors are states)
+    motion_corr_s : float  correlation time of the motion-dependent noise [s]
     """
 
     gyro_white: np.ndarray
@@ -164,27 +181,41 @@ class Tuning:
     gyro_sf_sd: np.ndarray
     accel_sf_sd: np.ndarray
     sf_q: float = 0.0
+    gyro_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_gs_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_lsb: float = 0.0
+    accel_lsb: float = 0.0
+    accel_static_sf_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    motion_corr_s: float = MOTION_CORR_S
 
     @classmethod
-    def from_grade(cls, grade: Grade | str, level: str = "nominal", inflate: float = 1.0):
-        """Tuning from a grade's figures.
+    def from_grade(
+        cls, grade: Grade | str, level: str = "nominal", inflate: float = 1.0,
+        motion_corr_s: float = MOTION_CORR_S, terms=None,
+    ):  # fmt: skip
+        """Tuning from a grade's figures (every term the simulator injects, see the module
+        docstring).
 
         ``level``: ``"nominal"`` (the grade's values) or ``"upper"`` (the top of each range,
         for a filter that knows the grade but not the device). Initial bias sigma:
-        ``sqrt(turn_on^2 + sigma_GM^2)``; bias random walk ``2 sigma_GM^2 / T + K^2`` (the
-        Gauss-Markov's short-time growth plus the rate random walk). ``inflate`` scales the
-        white densities (unmodelled terms such as cross-coupling or g-sensitivity).
+        ``sqrt(turn_on^2 + sigma_GM^2 + static^2)`` (``static``: the error on gravity of an
+        uncalibrated grade); bias random walk ``2 sigma_GM^2 / T + K^2`` (the Gauss-Markov's
+        short-time growth plus the rate random walk). ``inflate`` scales the white densities.
+        ``terms``: the error terms the simulator injected (names of
+        :data:`imugen.grades.TERMS`; default every configured one); the others are left out.
         """
         g = get_grade(grade)
         if level not in ("nominal", "upper"):
             raise InputError("aided.tuning", f"level must be nominal or upper, got {level!r}")
 
         def val(p):
-            if p is None:
+            if p is None or (terms is not None and _term_of(spec, p) not in terms):
                 return np.zeros(3)
             return np.asarray(p.hi if (level == "upper" and p.hi is not None) else p.value)
 
-        out = {}
+        g0 = units.G0
+        out = {"motion_corr_s": float(motion_corr_s)}
         for s in ("gyro", "accel"):
             spec = g.sensor(s)
             on = val(spec.turn_on_bias)
@@ -199,13 +230,42 @@ class Tuning:
                     tau = float(np.min(val(bi.correlation_time)))
                 else:
                     tau = float(bi.flicker_band[0])
-                q_gm = 2.0 * sig**2 / tau
+                q_gm = 2.0 * sig**2 / tau if tau > 0 else np.zeros(3)
             rrw = val(spec.rate_random_walk)
+            sf, cc = val(spec.scale_factor), val(spec.cross_coupling)
+            # static error on gravity (0, 0, g0), a constant bias unless calibrated away
+            if spec.static_g_removed:
+                static = np.zeros(3)
+            elif s == "gyro":
+                static = val(spec.g_sensitivity) * g0
+            else:
+                static = g0 * np.array([cc[0], cc[1], sf[2]])
+                out["accel_static_sf_sd"] = g0 * np.array([0.0, 0.0, sf[2]])
             out[f"{s}_white"] = inflate * val(spec.white_noise)
-            out[f"{s}_bias_sd"] = np.hypot(on, sig)
+            out[f"{s}_bias_sd"] = np.sqrt(on**2 + sig**2 + static**2)
             out[f"{s}_bias_q"] = q_gm + rrw**2
-            out[f"{s}_sf_sd"] = val(spec.scale_factor)
+            out[f"{s}_sf_sd"] = sf
+            out[f"{s}_cc_sd"] = cc
+            q = spec.quantization
+            out[f"{s}_lsb"] = float(q.value[0]) if q is not None else 0.0
+        spec = g.sensor("gyro")
+        out["gyro_gs_sd"] = val(spec.g_sensitivity)
+        if terms is not None and "quantization" not in terms:
+            out["gyro_lsb"] = out["accel_lsb"] = 0.0
         return cls(**out)
+
+
+def _term_of(spec, p) -> str:
+    """Name of the term of ``spec`` whose figure is ``p`` (the bias instability's parts count
+    as ``bias_instability``)."""
+    for t in TERMS:
+        v = getattr(spec, t)
+        if v is p:
+            return t
+        if t == "bias_instability" and v is not None:
+            if p is v.level or p is v.correlation_time:
+                return t
+    return ""
 
 
 @dataclass(frozen=True)
@@ -335,6 +395,14 @@ def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> 
     T[:, T_QBG : T_QBG + 3] = tun.gyro_bias_q
     T[:, T_QBA : T_QBA + 3] = tun.accel_bias_q
     T[:, T_QS] = tun.sf_q
+    T[:, T_MSG : T_MSG + 3] = tun.gyro_sf_sd
+    T[:, T_MCG : T_MCG + 3] = tun.gyro_cc_sd
+    T[:, T_MGS : T_MGS + 3] = tun.gyro_gs_sd
+    T[:, T_MSA : T_MSA + 3] = tun.accel_sf_sd
+    T[:, T_MCA : T_MCA + 3] = tun.accel_cc_sd
+    T[:, T_MTAU] = tun.motion_corr_s
+    T[:, T_QNG] = tun.gyro_lsb**2 / 12.0
+    T[:, T_QNA] = tun.accel_lsb**2 / 12.0
     T[:, T_GB_TAU] = 60.0
     T[:, T_BB_TAU] = 3600.0
     if gnss_params is not None:
@@ -515,6 +583,49 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
     return _scalar_update(P, dx, h, hz, m + 1, pred - z, var, gate, PHt)
 
 
+@njit(cache=True, inline="always")
+def _motion_axis(tn, i, ti, di, t2, d2, c, dt, sf_on):
+    """Gyro and accelerometer variances of body axis ``i`` over one interval (see
+    :func:`_motion_noise`)."""
+    sg = 0.0 if sf_on else tn[T_MSG + i] ** 2
+    sa = 0.0 if sf_on else tn[T_MSA + i] ** 2
+    vg = sg * ti * ti + tn[T_MCG + i] ** 2 * (t2 - ti * ti) + tn[T_MGS + i] ** 2 * d2
+    va = sa * di * di + tn[T_MCA + i] ** 2 * (d2 - di * di)
+    return c * vg + tn[T_QNG] * dt * dt, c * va + tn[T_QNA] * dt * dt
+
+
+@njit(cache=True)
+def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, dt, sf_on):
+    """Add the motion-dependent process noise of one interval of length ``T`` to ``P``.
+
+    ``t`` (body) the corrected angle increment over the interval, ``u`` (n) the kinematic
+    velocity change (specific force plus gravitation, integrated); per body axis ``i``
+    (``d = C^T u``): gyro ``c (s_g,i^2 t_i^2 + cc_g,i^2 (|t|^2 - t_i^2) + G_i^2 |d|^2) + (q_g
+    dt)^2 / 12``, accelerometer ``c (s_a,i^2 d_i^2 + cc_a,i^2 (|d|^2 - d_i^2)) + (q_a dt)^2 /
+    12`` with ``c = max(1, tau / T)`` (scale-factor terms left out when they are states),
+    rotated to n (``C diag(.) C^T``) into the attitude and velocity blocks; the velocity part
+    also integrates into position (``T^2/3``, ``T/2``) like the VRW.
+    """
+    dx = C[0, 0] * ux + C[1, 0] * uy + C[2, 0] * uz
+    dy = C[0, 1] * ux + C[1, 1] * uy + C[2, 1] * uz
+    dz = C[0, 2] * ux + C[1, 2] * uy + C[2, 2] * uz
+    t2 = tx * tx + ty * ty + tz * tz
+    d2 = dx * dx + dy * dy + dz * dz
+    c = max(1.0, tn[T_MTAU] / T)
+    vg0, va0 = _motion_axis(tn, 0, tx, dx, t2, d2, c, dt, sf_on)
+    vg1, va1 = _motion_axis(tn, 1, ty, dy, t2, d2, c, dt, sf_on)
+    vg2, va2 = _motion_axis(tn, 2, tz, dz, t2, d2, c, dt, sf_on)
+    for a in range(3):
+        for b in range(3):
+            qg = C[a, 0] * C[b, 0] * vg0 + C[a, 1] * C[b, 1] * vg1 + C[a, 2] * C[b, 2] * vg2
+            qa = C[a, 0] * C[b, 0] * va0 + C[a, 1] * C[b, 1] * va1 + C[a, 2] * C[b, 2] * va2
+            P[6 + a, 6 + b] += qg
+            P[3 + a, 3 + b] += qa
+            P[a, 3 + b] += 0.5 * T * qa
+            P[3 + a, b] += 0.5 * T * qa
+            P[a, b] += T * T * qa / 3.0
+
+
 @njit(cache=True)
 def _kernel(
     dth, dvb, k0, ep_idx, zp, zv, sp, sv, ok, lever, lat, x0, P0, prm, tun, opt,
@@ -643,6 +754,7 @@ def _kernel(
                     Cf[a, b] = 0.0
                     Cw[a, b] = 0.0
             still = ke > k
+            thx, thy, thz = 0.0, 0.0, 0.0  # corrected angle over the interval (motion noise)
             bgx, bgy, bgz = x[X_BG], x[X_BG + 1], x[X_BG + 2]
             bax, bay, baz = x[X_BA], x[X_BA + 1], x[X_BA + 2]
             sgx, sgy, sgz = x[X_SG], x[X_SG + 1], x[X_SG + 2]
@@ -662,6 +774,9 @@ def _kernel(
                 ux = (dvb[s, i, 0] - bax * dt) / (1.0 + sax)
                 uy = (dvb[s, i, 1] - bay * dt) / (1.0 + say)
                 uz = (dvb[s, i, 2] - baz * dt) / (1.0 + saz)
+                thx += tx
+                thy += ty
+                thz += tz
                 if still:
                     wn = math.sqrt(tx * tx + ty * ty + tz * tz) / dt
                     fn = math.sqrt(ux * ux + uy * uy + uz * uz) / dt
@@ -833,6 +948,12 @@ def _kernel(
                     P[a, a] += qa * Tint**3 / 3.0
                     P[a, 3 + a] += qa * Tint**2 / 2.0
                     P[3 + a, a] += qa * Tint**2 / 2.0
+                # motion-dependent noise (scale factor, cross-coupling, g-sensitivity, quant.)
+                _dcm(q0, q1, q2, q3, C)
+                _motion_noise(
+                    P, C, thx, thy, thz, dvn[0] + Gx * Tint, dvn[1] + Gy * Tint,
+                    dvn[2] + Gz * Tint, tun[s], Tint, dt, sf_on,
+                )  # fmt: skip
             k = ke
             # --- measurement updates -----------------------------------------------------------
             flag = F_ALIGNED
@@ -1193,6 +1314,8 @@ def initial_covariance(
     P[:, 6 + ix, 6 + ix] = np.broadcast_to(sd_att, (S, 3)) ** 2
     P[:, 9 + ix, 9 + ix] = tun.gyro_bias_sd**2
     P[:, 12 + ix, 12 + ix] = tun.accel_bias_sd**2
+    if opts.scale_factors:  # the scale-factor state carries its error on gravity
+        P[:, 12 + ix, 12 + ix] -= tun.accel_static_sf_sd**2
     i = N_BASE
     if opts.gnss_bias:
         gb = np.broadcast_to(
