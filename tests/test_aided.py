@@ -185,7 +185,7 @@ def test_outage_drift_matches_closed_form(grade, outage):
     t, p, v, q, w = still_truth(Ttot)
     gn = G.simulate_gnss(t, p, v, q, w, "standalone", sequences=M, seed=3, draw="nominal")
     gn = replace(gn, fix=np.where(gn.time_s[None] <= t0 + 1e-9, gn.fix, 0).astype(np.int8))
-    tun = A.Tuning.from_grade(grade)
+    tun = A.Tuning.from_grade(grade, terms=TERMS)
     opts = A.Options(gnss_bias=True)
     Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
     gb, gw = Tm[:, A.T_GB_SD : A.T_GB_SD + 3], Tm[:, A.T_GW : A.T_GW + 3]
