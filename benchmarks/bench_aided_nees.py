@@ -64,7 +64,7 @@ def nees(e, P):
     return np.einsum("...i,...i->...", e, np.linalg.solve(P, e[..., None])[..., 0])
 
 
-def run_grade(df, grade: str, M: int, seed: int = 11) -> dict:
+def run_grade(df, grade: str, M: int, seed: int = 11, opts: A.Options | None = None) -> dict:
     """Monte-Carlo run of one grade: NEES per dof (pos, att, bias), bound misses, RMSE."""
     t = df["time_s"].to_numpy()
     p = df[["e_m", "n_m", "u_m"]].to_numpy()
@@ -81,7 +81,7 @@ def run_grade(df, grade: str, M: int, seed: int = 11) -> dict:
     fix[:, (tt >= OUTAGE_S[0]) & (tt < OUTAGE_S[1])] = 0
     gn = replace(gn, fix=fix)
     tun = A.Tuning.from_grade(grade, "nominal")
-    opts = A.Options()
+    opts = opts or A.Options()
     Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
     gb = Tm[:, A.T_GB_SD : A.T_GB_SD + 3]
     sd_p = np.sqrt(gb**2 + Tm[:, A.T_GW : A.T_GW + 3] ** 2)
@@ -128,9 +128,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sequences", type=int, default=40)
     ap.add_argument("--grades", nargs="+", default=["consumer", "industrial", "tactical"])
+    ap.add_argument("--cross-coupling", action="store_true", help="gyro cross-coupling states")
     a = ap.parse_args(argv)
     df = scene()
-    rows = [run_grade(df, g, a.sequences) for g in a.grades]
+    opts = A.Options(gyro_cross_coupling=True) if a.cross_coupling else None
+    rows = [run_grade(df, g, a.sequences, opts=opts) for g in a.grades]
     print(pd.DataFrame(rows).round(3).to_string(index=False))
 
 

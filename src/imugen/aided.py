@@ -110,7 +110,8 @@ X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB, X_MT = (
     26,
     27,
 )
-NX = 29
+X_CG = 29  # gyro cross-coupling (6, off-diagonal elements in _CC_PAIRS order)
+NX = 35
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
@@ -127,7 +128,10 @@ N_TUNE = 39
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
 O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
 O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
-N_OPT = 22
+O_CG = 22
+N_OPT = 23
+_CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+"""Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors`."""
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
 C_ODO, C_ODO_VAR, C_BARO, C_BARO_VAR = 0, 1, 2, 3
 # --- flags per epoch ----------------------------------------------------------------------------
@@ -144,11 +148,13 @@ def n_states(
     odo_sf: bool = False,
     baro: bool = False,
     mounting: bool = False,
+    gyro_cc: bool = False,
 ) -> int:
     """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
-    ``mounting``: the IMU's pitch and yaw from the vehicle)."""
+    ``mounting``: the IMU's pitch and yaw from the vehicle, ``gyro_cc``: the gyro's six
+    cross-coupling elements)."""
     n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
-    return n + 2 * bool(mounting)
+    return n + 2 * bool(mounting) + 6 * bool(gyro_cc)
 
 
 def state_names(
@@ -157,6 +163,7 @@ def state_names(
     odo_sf: bool = False,
     baro: bool = False,
     mounting: bool = False,
+    gyro_cc: bool = False,
 ) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
@@ -171,6 +178,8 @@ def state_names(
         names.append("dbaro_bias")
     if mounting:
         names += ["dmount_pitch", "dmount_yaw"]
+    if gyro_cc:
+        names += [f"dcg_{'xyz'[i]}{'xyz'[j]}" for i, j in _CC_PAIRS]
     return names
 
 
@@ -197,6 +206,8 @@ class Tuning:
     gyro_gs_sd : (3,)  g-sensitivity 1-sigma of each element of a row [rad/s per m/s^2]
     accel_static_sf_sd : (3,)  the part of ``accel_bias_sd`` due to the scale factor on
         gravity (left out of the bias prior when the scale factors are states)
+    accel_tilt_cc_sd : (3,)  the part of ``accel_bias_sd`` standing for the gyro
+        cross-coupling's body-fixed tilt (left out when the cross-coupling is estimated)
     motion_corr_s : float  correlation time of the motion-dependent noise [s]
     """
 
@@ -213,6 +224,7 @@ class Tuning:
     accel_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gyro_gs_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_static_sf_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_tilt_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
     motion_corr_s: float = MOTION_CORR_S
 
     @classmethod
@@ -272,7 +284,8 @@ class Tuning:
                 # the gyro cross-coupling across a rotation: a bounded, body-fixed tilt, seen
                 # as an accelerometer bias g x u (module docstring)
                 gcc = out["gyro_cc_sd"]
-                static = np.hypot(static, g0 * np.array([gcc[1], gcc[0], 0.0]))
+                out["accel_tilt_cc_sd"] = g0 * np.array([gcc[1], gcc[0], 0.0])
+                static = np.hypot(static, out["accel_tilt_cc_sd"])
             out[f"{s}_bias_sd"] = np.sqrt(on**2 + sig**2 + static**2)
             out[f"{s}_bias_q"] = q_gm + rrw**2
             out[f"{s}_sf_sd"] = sf
@@ -312,6 +325,9 @@ class Options:
     unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
     random constants with that prior (:attr:`mounting`; see the module docstring);
     ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m].
+    ``gyro_cross_coupling``: estimate the gyro's six cross-coupling elements (random
+    constants, prior the grade's sigma; they then leave the process noise and the
+    accelerometer bias prior, see the module docstring).
     """
 
     scale_factors: bool = False
@@ -332,11 +348,15 @@ class Options:
     nhc_lever_arm_m: tuple = (0.0, 0.0, 0.0)
     nhc_misalignment_sd_rad: tuple = (0.0, 0.0)
     nhc_lever_arm_sd_m: tuple = (0.0, 0.0, 0.0)
+    gyro_cross_coupling: bool = False
 
     @property
     def n(self) -> int:
         """Size of the error state."""
-        return n_states(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting)
+        return n_states(
+            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
+            self.gyro_cross_coupling,
+        )  # fmt: skip
 
     @property
     def odo_sf(self) -> bool:
@@ -351,8 +371,9 @@ class Options:
     def names(self) -> list[str]:
         """Names of the error-state components."""
         return state_names(
-            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting
-        )
+            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
+            self.gyro_cross_coupling,
+        )  # fmt: skip
 
     def vector(self) -> np.ndarray:
         o = np.zeros(N_OPT)
@@ -374,6 +395,7 @@ class Options:
         o[O_NHC_LEVER : O_NHC_LEVER + 3] = self.nhc_lever_arm_m
         o[O_MT] = self.mounting
         o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
+        o[O_CG] = self.gyro_cross_coupling
         return o
 
 
@@ -609,18 +631,19 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
 
 
 @njit(cache=True, inline="always")
-def _motion_axis(tn, i, ti, di, t2, d2, sf_on):
+def _motion_axis(tn, i, ti, di, t2, d2, sf_on, cg_on):
     """Gyro variance of body axis ``i`` along the rotation (times ``|t|^2``) and
     accelerometer variance of axis ``i`` over one interval (see :func:`_motion_noise`)."""
     sg = 0.0 if sf_on else tn[T_MSG + i] ** 2
     sa = 0.0 if sf_on else tn[T_MSA + i] ** 2
-    vi = sg * ti * ti + tn[T_MCG + i] ** 2 * (t2 - ti * ti)
+    cg = 0.0 if cg_on else tn[T_MCG + i] ** 2
+    vi = sg * ti * ti + cg * (t2 - ti * ti)
     va = sa * di * di + tn[T_MCA + i] ** 2 * (d2 - di * di)
     return vi, va
 
 
 @njit(cache=True)
-def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on):
+def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
     """Add the motion-dependent process noise of one interval of length ``T`` to ``P``
     (module docstring, "Process noise").
 
@@ -631,7 +654,7 @@ def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on):
     across it ``(sum_i v_i - v_par) / 2`` per axis, plus ``sum_i G_i^2 |d|^2 / 3`` per axis
     (g-sensitivity). Accelerometer per body axis ``c (s_a,i^2 d_i^2 + cc_a,i^2 (|d|^2 -
     d_i^2))``, rotated to n, into velocity and (``T^2/3``, ``T/2``) position. Scale-factor
-    terms are left out when they are states.
+    (cross-coupling) terms are left out when they are states.
     """
     dx = C[0, 0] * ux + C[1, 0] * uy + C[2, 0] * uz
     dy = C[0, 1] * ux + C[1, 1] * uy + C[2, 1] * uz
@@ -639,9 +662,9 @@ def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on):
     t2 = tx * tx + ty * ty + tz * tz
     d2 = dx * dx + dy * dy + dz * dz
     c = max(1.0, tn[T_MTAU] / T)
-    vg0, va0 = _motion_axis(tn, 0, tx, dx, t2, d2, sf_on)
-    vg1, va1 = _motion_axis(tn, 1, ty, dy, t2, d2, sf_on)
-    vg2, va2 = _motion_axis(tn, 2, tz, dz, t2, d2, sf_on)
+    vg0, va0 = _motion_axis(tn, 0, tx, dx, t2, d2, sf_on, cg_on)
+    vg1, va1 = _motion_axis(tn, 1, ty, dy, t2, d2, sf_on, cg_on)
+    vg2, va2 = _motion_axis(tn, 2, tz, dz, t2, d2, sf_on, cg_on)
     # along the rotation: c vpar e e^T with e = C t / |t|, i.e. c vpar / |t|^2 (C t)(C t)^T
     vpar = (tx * tx * vg0 + ty * ty * vg1 + tz * tz * vg2) / t2 if t2 > 0.0 else 0.0
     vperp = (vg0 + vg1 + vg2 - vpar) / 2.0  # per axis across the rotation, uncorrelated
@@ -650,7 +673,7 @@ def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on):
     e1 = C[1, 0] * tx + C[1, 1] * ty + C[1, 2] * tz
     e2 = C[2, 0] * tx + C[2, 1] * ty + C[2, 2] * tz
     ev = (e0, e1, e2)
-    viso = (tn[T_MGS] ** 2 + tn[T_MGS + 1] ** 2 + tn[T_MGS + 2] ** 2) * d2 / 3.0
+    viso = c * (tn[T_MGS] ** 2 + tn[T_MGS + 1] ** 2 + tn[T_MGS + 2] ** 2) * d2 / 3.0
     viso += vperp
     va0, va1, va2 = c * va0, c * va1, c * va2
     for a in range(3):
@@ -701,6 +724,9 @@ def _kernel(
     hpsi = np.zeros(3)
     mt_on = opt[O_MT] != 0.0
     i_mt = i_bb + (1 if baro_on else 0)
+    cg_on = opt[O_CG] != 0.0
+    i_cg = i_mt + (2 if mt_on else 0)
+    Ccc = np.zeros((3, 6))  # int C[:, r] omega_c dt of each cross-coupling pair (r, c)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
     nzc = np.zeros((n, n), np.int64)
@@ -728,6 +754,9 @@ def _kernel(
                 cols[k] = True
             if sf_on:
                 for k in range(i_sg, i_sg + 3):
+                    cols[k] = True
+            if cg_on:
+                for k in range(i_cg, i_cg + 6):
                     cols[k] = True
         m = 0
         for k in range(n):
@@ -793,6 +822,10 @@ def _kernel(
                     Cw[a, b] = 0.0
             still = ke > k
             thx, thy, thz = 0.0, 0.0, 0.0  # corrected angle over the interval (motion noise)
+            if cg_on:
+                for a in range(3):
+                    for m in range(6):
+                        Ccc[a, m] = 0.0
             bgx, bgy, bgz = x[X_BG], x[X_BG + 1], x[X_BG + 2]
             bax, bay, baz = x[X_BA], x[X_BA + 1], x[X_BA + 2]
             sgx, sgy, sgz = x[X_SG], x[X_SG + 1], x[X_SG + 2]
@@ -812,6 +845,11 @@ def _kernel(
                 ux = (dvb[s, i, 0] - bax * dt) / (1.0 + sax)
                 uy = (dvb[s, i, 1] - bay * dt) / (1.0 + say)
                 uz = (dvb[s, i, 2] - baz * dt) / (1.0 + saz)
+                if cg_on:  # minus the estimated cross-coupling (first order)
+                    ttx = tx - x[X_CG] * ty - x[X_CG + 1] * tz
+                    tty = ty - x[X_CG + 2] * tx - x[X_CG + 3] * tz
+                    tz = tz - x[X_CG + 4] * tx - x[X_CG + 5] * ty
+                    tx, ty = ttx, tty
                 thx += tx
                 thy += ty
                 thz += tz
@@ -839,6 +877,14 @@ def _kernel(
                         Cw[a, 0] += C[a, 0] * tx
                         Cw[a, 1] += C[a, 1] * ty
                         Cw[a, 2] += C[a, 2] * tz
+                if cg_on:  # pairs (0,1) (0,2) (1,0) (1,2) (2,0) (2,1): C[:, row] t_col
+                    for a in range(3):
+                        Ccc[a, 0] += C[a, 0] * ty
+                        Ccc[a, 1] += C[a, 0] * tz
+                        Ccc[a, 2] += C[a, 1] * tx
+                        Ccc[a, 3] += C[a, 1] * tz
+                        Ccc[a, 4] += C[a, 2] * tx
+                        Ccc[a, 5] += C[a, 2] * ty
                 ovx, ovy, ovz = vx, vy, vz
                 if wgs:
                     rx = prm[earth.P_R0N] + px
@@ -940,6 +986,9 @@ def _kernel(
                             Phi[3 + a, i_sa + b] = -Cf[a, b]
                             Phi[a, i_sa + b] = -0.5 * Tint * Cf[a, b]
                             Phi[6 + a, i_sg + b] = -Cw[a, b]
+                    if cg_on:
+                        for m in range(6):
+                            Phi[6 + a, i_cg + m] = -Ccc[a, m]
                 if wgs:
                     for a in range(3):
                         for b in range(3):
@@ -990,7 +1039,7 @@ def _kernel(
                 _dcm(q0, q1, q2, q3, C)
                 _motion_noise(
                     P, C, thx, thy, thz, dvn[0] + Gx * Tint, dvn[1] + Gy * Tint,
-                    dvn[2] + Gz * Tint, tun[s], Tint, sf_on,
+                    dvn[2] + Gz * Tint, tun[s], Tint, sf_on, cg_on,
                 )  # fmt: skip
             k = ke
             # --- measurement updates -----------------------------------------------------------
@@ -1234,6 +1283,9 @@ def _kernel(
             if mt_on:
                 x[X_MT] -= dx[i_mt]
                 x[X_MT + 1] -= dx[i_mt + 1]
+            if cg_on:
+                for m in range(6):
+                    x[X_CG + m] -= dx[i_cg + m]
             x[0], x[1], x[2] = px, py, pz
             x[3], x[4], x[5] = vx, vy, vz
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
@@ -1293,6 +1345,8 @@ class AidedResult:
     names : list of str         error-state names
     mount_angles : (S, J, 2)    estimated IMU pitch and yaw from the vehicle [rad] (zeros when
                                 not estimated, :attr:`Options.mounting`)
+    gyro_cc : (S, J, 6)         estimated gyro cross-coupling, pairs :data:`_CC_PAIRS` (zeros
+                                when not estimated, ``Options.gyro_cross_coupling``)
     """
 
     time_s: np.ndarray
@@ -1312,6 +1366,7 @@ class AidedResult:
     odo_sf: np.ndarray | None = None
     baro_bias: np.ndarray | None = None
     mount_angles: np.ndarray | None = None
+    gyro_cc: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -1354,6 +1409,8 @@ def initial_covariance(
     P[:, 12 + ix, 12 + ix] = tun.accel_bias_sd**2
     if opts.scale_factors:  # the scale-factor state carries its error on gravity
         P[:, 12 + ix, 12 + ix] -= tun.accel_static_sf_sd**2
+    if opts.gyro_cross_coupling:  # the cross-coupling states carry the body-fixed tilt
+        P[:, 12 + ix, 12 + ix] -= tun.accel_tilt_cc_sd**2
     i = N_BASE
     if opts.gnss_bias:
         gb = np.broadcast_to(
@@ -1375,6 +1432,10 @@ def initial_covariance(
         i += 1
     if opts.mounting:
         P[:, i, i], P[:, i + 1, i + 1] = np.square(opts.nhc_misalignment_sd_rad)
+        i += 2
+    if opts.gyro_cross_coupling:
+        for m, (r, _) in enumerate(_CC_PAIRS):
+            P[:, i + m, i + m] = tun.gyro_cc_sd[r] ** 2
     return P
 
 
@@ -1620,6 +1681,7 @@ def run(
         odo_sf=out_x[..., X_OSF],
         baro_bias=out_x[..., X_BB],
         mount_angles=out_x[..., X_MT : X_MT + 2],
+        gyro_cc=out_x[..., X_CG : X_CG + 6],
     )
 
 
