@@ -8,11 +8,12 @@ kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g d
 trapezoid for position. Increments are corrected with the estimated biases and scale factors,
 ``dtheta_hat = (dtheta - b_g dt) / (1 + s_g)`` (likewise ``dv``).
 
-Error state (estimate minus truth), ``n = 15 (+3) (+6) (+2)``
+Error state (estimate minus truth), ``n = 15 (+3) (+6) (+1) (+1) (+2) (+6)``
     ``dp, dv`` [m, m/s] in n; ``psi`` [rad] with ``C_hat = Exp(psi) C``; gyro and accelerometer
     bias errors; optionally the GNSS receiver's Gauss-Markov position bias (E, N, U), then
     gyro and accelerometer scale-factor errors, then the IMU's pitch and yaw misalignment from
-    the vehicle (constants, NHC only). Continuous model
+    the vehicle (constants, NHC only), then the gyro's six cross-coupling elements
+    (constants, ``Options.gyro_cross_coupling``; ``psi' = ... - C cc omega``). Continuous model
     ``dp' = dv``; ``dv' = -[f_n x] psi - C (db_a + diag(f) ds_a) - 2 Omega x dv + Gamma dp``;
     ``psi' = -Omega x psi - C (db_g + diag(omega) ds_g)``; biases random walks; GNSS bias
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
@@ -35,13 +36,18 @@ Process noise, from the grade's full error model (:meth:`Tuning.from_grade`; eve
       ``c sum_i (t_i/|t|)^2 v_i`` (``v_i = s_i^2 t_i^2 + cc_i^2 (|t|^2 - t_i^2)``,
       ``c = max(1, tau / T)``, ``tau`` :data:`MOTION_CORR_S`) on the rotation axis; across
       the rotation the error integrates to a bounded vector turning with the body (``(R(Theta)
-      - I) u``, ``|u| = |cc|``): the body-fixed part of it is an accelerometer bias ``g x u``
-      (``g0 sigma_cc`` added to the x, y accelerometer bias priors) and the rest enters
-      uncorrelated per interval, ``(sum v_i - v_par) / 2`` per axis. Modelling it as
-      coherent noise instead makes the filter forget the tilt/bias separation at every turn:
-      consistent (NEES 1.3) but the consumer's 30 s outage drift grows from 5 m to 46 m;
+      - I) u``, ``|u| = |cc|``): a body-fixed tilt, which the filter takes for an
+      accelerometer bias ``g x u`` (``g0 sigma_cc`` added to the x, y accelerometer bias
+      priors), the rest entering uncorrelated per interval, ``(sum v_i - v_par) / 2`` per
+      axis. No process noise stands for that tilt: modelled as coherent noise, the filter
+      forgets the tilt/bias separation at every turn (consistent, NEES 1.3, but the consumer's
+      30 s outage drift grows from 5 m to 46 m); as above, position stays consistent but tilt
+      and bias NEES are 5-11 (consumer, industrial). The cross-coupling states
+      (``Options.gyro_cross_coupling``) model it exactly: the cross-coupling then leaves
+      ``Q`` and the bias prior;
     * gyro g-sensitivity on the kinematic acceleration (``d`` = integrated ``f`` plus
-      gravitation, body): ``sum_i sigma_G,i^2 |d|^2 / 3`` per axis per interval;
+      gravitation, body), coherent over a turn like the scale factor: ``c sum_i
+      sigma_G,i^2 |d|^2 / 3`` per axis per interval;
     * accelerometer scale factor and cross-coupling on ``d``: ``c (s_i^2 d_i^2 + cc_i^2
       (|d|^2 - d_i^2))`` per body axis, rotated to n, into velocity and position;
     * quantization with residual carry: a bounded error of variance ``(q dt)^2 / 12`` on the
@@ -651,7 +657,7 @@ def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
     velocity change (specific force plus gravitation, integrated), ``d = C^T u``,
     ``c = max(1, tau / T)``, ``v_i = s_g,i^2 t_i^2 + cc_g,i^2 (|t|^2 - t_i^2)``. Gyro: along
     the rotation axis ``e = C t / |t|`` the variance ``c sum_i (t_i / |t|)^2 v_i`` (rank one),
-    across it ``(sum_i v_i - v_par) / 2`` per axis, plus ``sum_i G_i^2 |d|^2 / 3`` per axis
+    across it ``(sum_i v_i - v_par) / 2`` per axis, plus ``c sum_i G_i^2 |d|^2 / 3`` per axis
     (g-sensitivity). Accelerometer per body axis ``c (s_a,i^2 d_i^2 + cc_a,i^2 (|d|^2 -
     d_i^2))``, rotated to n, into velocity and (``T^2/3``, ``T/2``) position. Scale-factor
     (cross-coupling) terms are left out when they are states.
