@@ -128,10 +128,12 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sequences", type=int, default=40)
     ap.add_argument("--grades", nargs="+", default=["consumer", "industrial", "tactical"])
-    ap.add_argument("--cross-coupling", action="store_true", help="gyro cross-coupling states")
+    ap.add_argument(
+        "--no-cross-coupling", action="store_true", help="no gyro cross-coupling states"
+    )
     a = ap.parse_args(argv)
     df = scene()
-    opts = A.Options(gyro_cross_coupling=True) if a.cross_coupling else None
+    opts = A.Options(gyro_cross_coupling=not a.no_cross_coupling)
     rows = [run_grade(df, g, a.sequences, opts=opts) for g in a.grades]
     print(pd.DataFrame(rows).round(3).to_string(index=False))
 

@@ -79,7 +79,7 @@ class AidParams:
     tuning_level: str = "upper"
     gnss_bias_states: bool = True
     scale_factors: bool = False
-    gyro_cross_coupling: bool = False
+    gyro_cross_coupling: bool = True
     nhc: bool | None = None
     zupt: bool = True
     gate_sigma: float = 0.0

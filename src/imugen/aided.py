@@ -354,7 +354,7 @@ class Options:
     nhc_lever_arm_m: tuple = (0.0, 0.0, 0.0)
     nhc_misalignment_sd_rad: tuple = (0.0, 0.0)
     nhc_lever_arm_sd_m: tuple = (0.0, 0.0, 0.0)
-    gyro_cross_coupling: bool = False
+    gyro_cross_coupling: bool = True
 
     @property
     def n(self) -> int:
