@@ -6,7 +6,8 @@ turn-on bias, bias instability, white noise, rate random walk, scale factor, cro
 g-sensitivity, quantization, range), standalone GNSS at 10 Hz (nominal draw, Gauss-Markov
 bias modelled by the filter's bias states with the drawn figures) with a 0.6/0.3/1.2 m lever
 arm and a 30 s outage from t = 60 s. The filter starts at t = 5 s from an initial error drawn
-from its own P0 (no alignment), tuning ``Tuning.from_grade(grade, "nominal")``.
+from its own P0 (no alignment), tuning ``Tuning.from_grade(grade, "nominal")``, default
+options (gyro cross-coupling states on unless ``--no-cross-coupling``).
 
 Reported per grade: mean NEES per degree of freedom over the sequences and the epochs after
 t = 15 s (position 3, attitude 3, gyro + accelerometer biases 6, the bias truth being the
@@ -17,6 +18,7 @@ estimates with it), the fraction of epochs whose Monte-Carlo mean is outside the
 Usage::
 
     python benchmarks/bench_aided_nees.py [--sequences 40] [--grades consumer industrial tactical]
+        [--no-cross-coupling]
 
 Run it with ``PYTHONPATH`` on another source tree to compare versions of the filter.
 """
