@@ -66,8 +66,13 @@ def nees(e, P):
     return np.einsum("...i,...i->...", e, np.linalg.solve(P, e[..., None])[..., 0])
 
 
-def run_grade(df, grade: str, M: int, seed: int = 11, opts: A.Options | None = None) -> dict:
-    """Monte-Carlo run of one grade: NEES per dof (pos, att, bias), bound misses, RMSE."""
+def run_grade(
+    df, grade: str, M: int, seed: int = 11, opts: A.Options | None = None, model_terms=None
+) -> dict:
+    """Monte-Carlo run of one grade: NEES per dof (pos, att, bias), bound misses, RMSE.
+
+    ``model_terms``: the terms the filter's tuning models (default all; the IMU always has
+    every configured term)."""
     t = df["time_s"].to_numpy()
     p = df[["e_m", "n_m", "u_m"]].to_numpy()
     v = df[["v_e_mps", "v_n_mps", "v_u_mps"]].to_numpy()
@@ -82,7 +87,7 @@ def run_grade(df, grade: str, M: int, seed: int = 11, opts: A.Options | None = N
     tt = np.asarray(gn.time_s)
     fix[:, (tt >= OUTAGE_S[0]) & (tt < OUTAGE_S[1])] = 0
     gn = replace(gn, fix=fix)
-    tun = A.Tuning.from_grade(grade, "nominal")
+    tun = A.Tuning.from_grade(grade, "nominal", terms=model_terms)
     opts = opts or A.Options()
     Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
     gb = Tm[:, A.T_GB_SD : A.T_GB_SD + 3]

@@ -31,12 +31,13 @@ def scene():
 
 _CONSUMER = pytest.mark.xfail(
     strict=True,
-    reason="consumer tilt and accelerometer-bias NEES 1.5-1.7 per dof: g-sensitivity and "
+    reason="consumer tilt and accelerometer-bias NEES 1.4-1.7 per dof: g-sensitivity and "
     "accelerometer cross-coupling on the centripetal acceleration, coherent over a turn, "
     "covered by noise only (README, aided baseline)",
 )
 CC = A.Options(gyro_cross_coupling=True)
 NO_CC = A.Options(gyro_cross_coupling=False)
+BIAS_WHITE = ["turn_on_bias", "bias_instability", "rate_random_walk", "white_noise"]
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +54,7 @@ def _run(scene, results, grade, opts=CC):
 
 @pytest.mark.parametrize("grade", ["consumer", "industrial", "tactical"])
 def test_position_nees_all_terms(scene, results, grade):
-    r = _run(scene, results, grade, NO_CC)
+    r = _run(scene, results, grade)
     hi = chi2.ppf(0.995, 3 * M) / (3 * M)
     assert 0.5 < r["nees_pos"] < hi, r
 
@@ -63,14 +64,18 @@ def test_position_nees_all_terms(scene, results, grade):
 )
 def test_attitude_and_bias_nees_with_cross_coupling_states(scene, results, grade):
     r = _run(scene, results, grade, CC)
-    for name, d in (("pos", 3), ("att", 3), ("bias", 6)):
+    for name, d in (("att", 3), ("bias", 6)):
         hi = chi2.ppf(0.995, d * M) / (d * M)
         assert 0.5 < r[f"nees_{name}"] < hi, (name, r)
 
 
-def test_cross_coupling_states_keep_outage_accuracy(scene, results):
-    """Consumer: the states do not cost accuracy (drift at the end of the 30 s outage, median
-    over the runs, within 20 % of the filter without them) while shrinking NEES."""
-    r0, r1 = _run(scene, results, "consumer", NO_CC), _run(scene, results, "consumer", CC)
-    assert r1["outage_end_h_m"] < 1.2 * r0["outage_end_h_m"], (r0, r1)
-    assert r1["nees_att"] < 0.5 * r0["nees_att"], (r0, r1)
+def test_full_model_keeps_outage_accuracy(scene, results):
+    """Consumer: the full-model tuning (default, with the cross-coupling states) does not cost
+    accuracy against a filter modelling only the biases and the white noise (median drift at
+    the end of the 30 s outage within 20 %, RMSE with GNSS within 10 %) while its attitude NEES
+    falls from far outside the bounds."""
+    old = B.run_grade(scene, "consumer", M, opts=NO_CC, model_terms=BIAS_WHITE)
+    new = _run(scene, results, "consumer")
+    assert new["outage_end_h_m"] < 1.2 * old["outage_end_h_m"], (old, new)
+    assert new["rmse_h_m"] < 1.1 * old["rmse_h_m"], (old, new)
+    assert old["nees_att"] > 10.0 > 2.0 > new["nees_att"], (old, new)
