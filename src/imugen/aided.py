@@ -40,9 +40,10 @@ Process noise, from the grade's full error model (:meth:`Tuning.from_grade`; eve
       accelerometer bias ``g x u`` (``g0 sigma_cc`` added to the x, y accelerometer bias
       priors), the rest entering uncorrelated per interval, ``(sum v_i - v_par) / 2`` per
       axis. No process noise stands for that tilt: modelled as coherent noise, the filter
-      forgets the tilt/bias separation at every turn (consistent, NEES 1.3 at tau 5 s, but the consumer's
-      30 s outage drift grows from 5 m to 46 m); as this bounded noise, position stays consistent but tilt
-      and bias NEES are 3-8 (consumer, industrial). The cross-coupling states
+      forgets the tilt/bias separation at every turn (consistent, NEES 1.3 at tau 5 s, but
+      the consumer's 30 s outage drift grows from 5 m to 46 m); as this bounded noise,
+      position stays consistent but tilt and bias NEES are 3-8 (consumer, industrial). The
+      cross-coupling states
       (``Options.gyro_cross_coupling``) model it exactly: the cross-coupling then leaves
       ``Q`` and the bias prior;
     * gyro g-sensitivity on the kinematic acceleration (``d`` = integrated ``f`` plus
