@@ -97,7 +97,7 @@ def test_nees_within_chi_square_bounds(flat_car, grade):
     gn = G.simulate_gnss(
         t, p, v, q, w, "standalone", sequences=M, seed=11, draw="nominal", lever_arm_b_m=LEVER
     )
-    tun = A.Tuning.from_grade(grade)
+    tun = A.Tuning.from_grade(grade, terms=TERMS)  # the filter models the injected terms
     opts = A.Options(gnss_bias=False)  # GNSS errors white for this test (bias states off)
     gn = replace(gn, p_n=gn.p_ant_n + (gn.offset_p_n - gn.bias_n), sigma_p_n=gn.sigma_p_n * 0 + 0.3)
     gn.sigma_p_n[..., 2] = 0.5
@@ -224,7 +224,7 @@ def test_outage_drift_matches_closed_form(grade, outage):
     t, p, v, q, w = still_truth(Ttot)
     gn = G.simulate_gnss(t, p, v, q, w, "standalone", sequences=M, seed=3, draw="nominal")
     gn = replace(gn, fix=np.where(gn.time_s[None] <= t0 + 1e-9, gn.fix, 0).astype(np.int8))
-    tun = A.Tuning.from_grade(grade)
+    tun = A.Tuning.from_grade(grade, terms=TERMS)
     opts = A.Options(gnss_bias=True)
     Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
     gb, gw = Tm[:, A.T_GB_SD : A.T_GB_SD + 3], Tm[:, A.T_GW : A.T_GW + 3]
@@ -345,7 +345,7 @@ def test_scale_factors_converge_to_labels(flat_car):
     terms = ["turn_on_bias", "white_noise", "scale_factor"]
     frame = OriginFrame.from_deg(*ORIGIN, model="flat")
     sh, gn = car_shard(flat_car, "industrial", M, 31, terms=terms, receiver="rtk")
-    tun = A.Tuning.from_grade("industrial")
+    tun = A.Tuning.from_grade("industrial", terms=terms)
     tun = replace(tun, gyro_bias_q=tun.gyro_bias_q * 0, accel_bias_q=tun.accel_bias_q * 0)
     opts = A.Options(scale_factors=True, nhc=True)
     Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)

@@ -175,7 +175,7 @@ def car_run(df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="sta
     od = CP.simulate_odometer(t, v, q, w, "abs", M, seed) if odo else None
     ba = CP.simulate_barometer(t, p, frame, "bmp388", M, seed) if baro else None
     ce = CP.filter_input(gn.index, M, od, ba, h0_m=frame.h0_m, oracle=True)
-    tun = A.Tuning.from_grade("consumer")
+    tun = A.Tuning.from_grade("consumer", terms=TERMS)
     opts = A.Options(nhc=True, odometer=odo, baro=baro, odo_scale_state=sf_state)
     T = ce.tune(A.tuning_matrix(tun, M, gnss_params=gn.params))
     res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, gn, tun, opts, tuning_T=T,

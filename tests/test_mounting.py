@@ -358,7 +358,7 @@ def aided_run(car, M, seed, spec, opts, terms, receiver, white_gnss=False, pertu
         gn.sigma_p_n[...] = (0.3, 0.3, 0.5)
     Om = earth_rate_n(frame)
     P_, V_, Q_ = MT.imu_states(truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b, Om, *mount)
-    tun = A.Tuning.from_grade("consumer")
+    tun = A.Tuning.from_grade("consumer", terms=terms)
     k0 = 500
     sd = ([0.5, 0.5, 0.8], 0.05, [0.01, 0.01, 0.02]) if perturb else (0.01, 0.001, 1e-4)
     P0 = np.repeat(A.initial_covariance(tun, opts, *sd), M, 0)

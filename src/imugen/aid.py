@@ -79,6 +79,7 @@ class AidParams:
     tuning_level: str = "upper"
     gnss_bias_states: bool = True
     scale_factors: bool = False
+    gyro_cross_coupling: bool = True
     nhc: bool | None = None
     zupt: bool = True
     gate_sigma: float = 0.0
@@ -137,6 +138,7 @@ class AidParams:
             }
         return A.Options(
             scale_factors=self.scale_factors,
+            gyro_cross_coupling=self.gyro_cross_coupling,
             gnss_bias=self.gnss_bias_states,
             nhc=nhc,
             zupt=self.zupt,

@@ -9,19 +9,55 @@ kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g d
 trapezoid for position. Increments are corrected with the estimated biases and scale factors,
 ``dtheta_hat = (dtheta - b_g dt) / (1 + s_g)`` (likewise ``dv``).
 
-Error state (estimate minus truth), ``n = 15 (+3) (+6) (+2)``
+Error state (estimate minus truth), ``n = 15 (+3) (+6) (+1) (+1) (+2) (+6)``
     ``dp, dv`` [m, m/s] in n; ``psi`` [rad] with ``C_hat = Exp(psi) C``; gyro and accelerometer
     bias errors; optionally the GNSS receiver's Gauss-Markov position bias (E, N, U), then
     gyro and accelerometer scale-factor errors, then the IMU's pitch and yaw misalignment from
-    the vehicle (constants, NHC only). Continuous model
+    the vehicle (constants, NHC only), then the gyro's six cross-coupling elements
+    (constants, ``Options.gyro_cross_coupling``; ``psi' = ... - C cc omega``). Continuous model
     ``dp' = dv``; ``dv' = -[f_n x] psi - C (db_a + diag(f) ds_a) - 2 Omega x dv + Gamma dp``;
     ``psi' = -Omega x psi - C (db_g + diag(omega) ds_g)``; biases random walks; GNSS bias
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
     accumulated by the strapdown (``int C dt``, ``int C f dt``, ``int C diag(f) dt``, ``int C
     diag(omega) dt``), second order in ``T`` for the position rows; ``Gamma`` is the gravity
     gradient ``g/R diag(-1, -1, 2)`` (``wgs84``; ``g/R (3 u u^T - I)`` with ``u`` the geocentric
-    vertical at the vehicle in ``geodetic``). Process noise: white densities ``N_g``,
-    ``N_a`` (ARW, VRW) and the bias random-walk densities.
+    vertical at the vehicle in ``geodetic``).
+
+Process noise, from the grade's full error model (:meth:`Tuning.from_grade`; every term
+    :mod:`imugen.sensors` injects is a state, in a prior, or in ``Q``):
+    * white noise: ``N_g^2 T`` (attitude), ``N_a^2 T`` (velocity, with ``T^3/3``, ``T^2/2``
+      into position);
+    * turn-on bias and bias instability: bias states, prior ``sqrt(b_on^2 + sigma_GM^2)``,
+      random walk ``2 sigma_GM^2 / tau + K^2`` (GM growth plus rate random walk);
+    * static error on gravity of an uncalibrated grade (a constant bias while the vehicle is
+      level): gyro ``sigma_G g0``, accelerometer ``sigma_cc g0`` (x, y) and ``sigma_s g0`` (z)
+      added to the bias priors (the z part left to the scale-factor state when estimated);
+    * scale factor and cross-coupling of the gyro, per interval with the corrected angle
+      ``t`` (body): the error ``E t`` along the rotation accumulates with the turned angle
+      (a car's heading error ``s_z Theta``) and is coherent over a turn, so it enters as
+      ``c sum_i (t_i/|t|)^2 v_i`` (``v_i = s_i^2 t_i^2 + cc_i^2 (|t|^2 - t_i^2)``,
+      ``c = max(1, tau / T)``, ``tau`` :data:`MOTION_CORR_S`) on the rotation axis; across
+      the rotation the error integrates to a bounded vector turning with the body (``(R(Theta)
+      - I) u``, ``|u| = |cc|``): a body-fixed tilt, which the filter takes for an
+      accelerometer bias ``g x u`` (``g0 sigma_cc`` added to the x, y accelerometer bias
+      priors), the rest entering uncorrelated per interval, ``(sum v_i - v_par) / 2`` per
+      axis. No process noise stands for that tilt: modelled as coherent noise, the filter
+      forgets the tilt/bias separation at every turn (consistent, NEES 1.3 at tau 5 s, but
+      the consumer's 30 s outage drift grows from 5 m to 46 m); as this bounded noise,
+      position stays consistent but tilt and bias NEES are 3-8 (consumer, industrial). The
+      cross-coupling states
+      (``Options.gyro_cross_coupling``) model it exactly: the cross-coupling then leaves
+      ``Q`` and the bias prior;
+    * gyro g-sensitivity on the kinematic acceleration (``d`` = integrated ``f`` plus
+      gravitation, body), coherent over a turn like the scale factor: ``c sum_i
+      sigma_G,i^2 |d|^2 / 3`` per axis per interval;
+    * accelerometer scale factor and cross-coupling on ``d``: ``c (s_i^2 d_i^2 + cc_i^2
+      (|d|^2 - d_i^2))`` per body axis, rotated to n, into velocity and position;
+    * quantization with residual carry: a bounded error of variance ``(q dt)^2 / 12`` on the
+      integrated angle and velocity (2e-5 rad, 3e-4 m/s for the consumer grade), not a random
+      walk, below the GNSS noise: not modelled; temperature terms (only with a temperature
+      profile) and vibration (a real motion of the case, zero mean) are not modelled either.
+    Scale factors as states (``Options.scale_factors``) take the ``s_i`` terms out of ``Q``.
 
 Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
     * GNSS position of the antenna ``p + C l_b (+ b_gnss)`` and velocity ``v + C (omega x l_b)``
@@ -63,15 +99,15 @@ step, no I/O. Initial alignment (:func:`align`) is vectorized NumPy.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from imugen import earth
+from imugen import earth, units
 from imugen import mechanize as mech
 from imugen.earth import OriginFrame
 from imugen.errors import InputError
-from imugen.grades import Grade, get_grade
+from imugen.grades import TERMS, Grade, get_grade
 from imugen.jit import njit
 from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
 
@@ -89,20 +125,28 @@ X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB, X_MT = (
     26,
     27,
 )
-NX = 29
+X_CG = 29  # gyro cross-coupling (6, off-diagonal elements in _CC_PAIRS order)
+NX = 35
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
 # --- tuning vector (per sequence) ---------------------------------------------------------------
 T_NG, T_NA, T_QBG, T_QBA, T_GB_SD, T_GB_TAU, T_GW, T_QS = 0, 3, 6, 9, 12, 15, 16, 19
 T_OSF_SD, T_BB_SD, T_BB_TAU = 20, 21, 22
-N_TUNE = 23
+# motion-dependent noise (module docstring, "Process noise"): per body axis scale-factor,
+# cross-coupling and g-sensitivity sigmas, their correlation time, quantization variances
+T_MSG, T_MCG, T_MGS, T_MSA, T_MCA = 23, 26, 29, 32, 35
+T_MTAU = 38
+N_TUNE = 39
 # --- options vector (shared) --------------------------------------------------------------------
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
 O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
 O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
-N_OPT = 22
+O_CG = 22
+N_OPT = 23
+_CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+"""Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors`."""
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
 C_ODO, C_ODO_VAR, C_BARO, C_BARO_VAR = 0, 1, 2, 3
 # --- flags per epoch ----------------------------------------------------------------------------
@@ -119,11 +163,13 @@ def n_states(
     odo_sf: bool = False,
     baro: bool = False,
     mounting: bool = False,
+    gyro_cc: bool = False,
 ) -> int:
     """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
-    ``mounting``: the IMU's pitch and yaw from the vehicle)."""
+    ``mounting``: the IMU's pitch and yaw from the vehicle, ``gyro_cc``: the gyro's six
+    cross-coupling elements)."""
     n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
-    return n + 2 * bool(mounting)
+    return n + 2 * bool(mounting) + 6 * bool(gyro_cc)
 
 
 def state_names(
@@ -132,6 +178,7 @@ def state_names(
     odo_sf: bool = False,
     baro: bool = False,
     mounting: bool = False,
+    gyro_cc: bool = False,
 ) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
@@ -146,21 +193,39 @@ def state_names(
         names.append("dbaro_bias")
     if mounting:
         names += ["dmount_pitch", "dmount_yaw"]
+    if gyro_cc:
+        names += [f"dcg_{'xyz'[i]}{'xyz'[j]}" for i, j in _CC_PAIRS]
     return names
 
 
 # --- tuning -------------------------------------------------------------------------------------
+MOTION_CORR_S = 10.0
+"""Default correlation time [s] of the motion-dependent noise (scale factor, cross-coupling,
+g-sensitivity): a constant error times a rate or an acceleration held for about a turn. Set
+on the consistency benchmark (``benchmarks/bench_aided_nees.py``, a car's 90-degree turns of
+about 5 s): consumer attitude NEES per dof 2.9 / 1.5 / 1.0 / 0.7 at 2 / 5 / 10 / 20 s."""
+
+
 @dataclass(frozen=True)
 class Tuning:
-    """Filter noise model (SI, per body axis).
+    """Filter noise model (SI, per body axis), derived from the grade's full error model.
 
     Attributes
     ----------
     gyro_white, accel_white : (3,)  ARW [rad/sqrt(s)], VRW [m/s/sqrt(s)]
-    gyro_bias_sd, accel_bias_sd : (3,)  initial bias 1-sigma [rad/s, m/s^2]
+    gyro_bias_sd, accel_bias_sd : (3,)  initial bias 1-sigma [rad/s, m/s^2], with the static
+        error on gravity of an uncalibrated grade (``sigma_G g0``; ``sigma_cc g0`` on x, y and
+        ``sigma_s g0`` on z for the accelerometer)
     gyro_bias_q, accel_bias_q : (3,)  bias random-walk PSD [(rad/s)^2/s, (m/s^2)^2/s]
-    gyro_sf_sd, accel_sf_sd : (3,)  initial scale-factor 1-sigma
+    gyro_sf_sd, accel_sf_sd : (3,)  scale-factor 1-sigma
     sf_q : float  scale-factor random-walk PSD [1/s]
+    gyro_cc_sd, accel_cc_sd : (3,)  cross-coupling 1-sigma of each element of a row
+    gyro_gs_sd : (3,)  g-sensitivity 1-sigma of each element of a row [rad/s per m/s^2]
+    accel_static_sf_sd : (3,)  the part of ``accel_bias_sd`` due to the scale factor on
+        gravity (left out of the bias prior when the scale factors are states)
+    accel_tilt_cc_sd : (3,)  the part of ``accel_bias_sd`` standing for the gyro
+        cross-coupling's body-fixed tilt (left out when the cross-coupling is estimated)
+    motion_corr_s : float  correlation time of the motion-dependent noise [s]
     """
 
     gyro_white: np.ndarray
@@ -172,27 +237,40 @@ class Tuning:
     gyro_sf_sd: np.ndarray
     accel_sf_sd: np.ndarray
     sf_q: float = 0.0
+    gyro_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_gs_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_static_sf_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_tilt_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    motion_corr_s: float = MOTION_CORR_S
 
     @classmethod
-    def from_grade(cls, grade: Grade | str, level: str = "nominal", inflate: float = 1.0):
-        """Tuning from a grade's figures.
+    def from_grade(
+        cls, grade: Grade | str, level: str = "nominal", inflate: float = 1.0,
+        motion_corr_s: float = MOTION_CORR_S, terms=None,
+    ):  # fmt: skip
+        """Tuning from a grade's figures (every term the simulator injects, see the module
+        docstring).
 
         ``level``: ``"nominal"`` (the grade's values) or ``"upper"`` (the top of each range,
         for a filter that knows the grade but not the device). Initial bias sigma:
-        ``sqrt(turn_on^2 + sigma_GM^2)``; bias random walk ``2 sigma_GM^2 / T + K^2`` (the
-        Gauss-Markov's short-time growth plus the rate random walk). ``inflate`` scales the
-        white densities (unmodelled terms such as cross-coupling or g-sensitivity).
+        ``sqrt(turn_on^2 + sigma_GM^2 + static^2)`` (``static``: the error on gravity of an
+        uncalibrated grade); bias random walk ``2 sigma_GM^2 / T + K^2`` (the Gauss-Markov's
+        short-time growth plus the rate random walk). ``inflate`` scales the white densities.
+        ``terms``: the error terms the simulator injected (names of
+        :data:`imugen.grades.TERMS`; default every configured one); the others are left out.
         """
         g = get_grade(grade)
         if level not in ("nominal", "upper"):
             raise InputError("aided.tuning", f"level must be nominal or upper, got {level!r}")
 
         def val(p):
-            if p is None:
+            if p is None or (terms is not None and _term_of(spec, p) not in terms):
                 return np.zeros(3)
             return np.asarray(p.hi if (level == "upper" and p.hi is not None) else p.value)
 
-        out = {}
+        g0 = units.G0
+        out = {"motion_corr_s": float(motion_corr_s)}
         for s in ("gyro", "accel"):
             spec = g.sensor(s)
             on = val(spec.turn_on_bias)
@@ -207,13 +285,44 @@ class Tuning:
                     tau = float(np.min(val(bi.correlation_time)))
                 else:
                     tau = float(bi.flicker_band[0])
-                q_gm = 2.0 * sig**2 / tau
+                q_gm = 2.0 * sig**2 / tau if tau > 0 else np.zeros(3)
             rrw = val(spec.rate_random_walk)
+            sf, cc = val(spec.scale_factor), val(spec.cross_coupling)
+            # static error on gravity (0, 0, g0), a constant bias unless calibrated away
+            if spec.static_g_removed:
+                static = np.zeros(3)
+            elif s == "gyro":
+                static = val(spec.g_sensitivity) * g0
+            else:
+                static = g0 * np.array([cc[0], cc[1], sf[2]])
+                out["accel_static_sf_sd"] = g0 * np.array([0.0, 0.0, sf[2]])
             out[f"{s}_white"] = inflate * val(spec.white_noise)
-            out[f"{s}_bias_sd"] = np.hypot(on, sig)
+            if s == "accel":
+                # the gyro cross-coupling across a rotation: a bounded, body-fixed tilt, seen
+                # as an accelerometer bias g x u (module docstring)
+                gcc = out["gyro_cc_sd"]
+                out["accel_tilt_cc_sd"] = g0 * np.array([gcc[1], gcc[0], 0.0])
+                static = np.hypot(static, out["accel_tilt_cc_sd"])
+            out[f"{s}_bias_sd"] = np.sqrt(on**2 + sig**2 + static**2)
             out[f"{s}_bias_q"] = q_gm + rrw**2
-            out[f"{s}_sf_sd"] = val(spec.scale_factor)
+            out[f"{s}_sf_sd"] = sf
+            out[f"{s}_cc_sd"] = cc
+        spec = g.sensor("gyro")
+        out["gyro_gs_sd"] = val(spec.g_sensitivity)
         return cls(**out)
+
+
+def _term_of(spec, p) -> str:
+    """Name of the term of ``spec`` whose figure is ``p`` (the bias instability's parts count
+    as ``bias_instability``)."""
+    for t in TERMS:
+        v = getattr(spec, t)
+        if v is p:
+            return t
+        if t == "bias_instability" and v is not None:
+            if p is v.level or p is v.correlation_time:
+                return t
+    return ""
 
 
 @dataclass(frozen=True)
@@ -233,6 +342,9 @@ class Options:
     unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
     random constants with that prior (:attr:`mounting`; see the module docstring);
     ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m].
+    ``gyro_cross_coupling``: estimate the gyro's six cross-coupling elements (random
+    constants, prior the grade's sigma; they then leave the process noise and the
+    accelerometer bias prior, see the module docstring).
     """
 
     scale_factors: bool = False
@@ -253,11 +365,15 @@ class Options:
     nhc_lever_arm_m: tuple = (0.0, 0.0, 0.0)
     nhc_misalignment_sd_rad: tuple = (0.0, 0.0)
     nhc_lever_arm_sd_m: tuple = (0.0, 0.0, 0.0)
+    gyro_cross_coupling: bool = True
 
     @property
     def n(self) -> int:
         """Size of the error state."""
-        return n_states(self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting)
+        return n_states(
+            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
+            self.gyro_cross_coupling,
+        )  # fmt: skip
 
     @property
     def odo_sf(self) -> bool:
@@ -272,8 +388,9 @@ class Options:
     def names(self) -> list[str]:
         """Names of the error-state components."""
         return state_names(
-            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting
-        )
+            self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
+            self.gyro_cross_coupling,
+        )  # fmt: skip
 
     def vector(self) -> np.ndarray:
         o = np.zeros(N_OPT)
@@ -295,6 +412,7 @@ class Options:
         o[O_NHC_LEVER : O_NHC_LEVER + 3] = self.nhc_lever_arm_m
         o[O_MT] = self.mounting
         o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
+        o[O_CG] = self.gyro_cross_coupling
         return o
 
 
@@ -343,6 +461,12 @@ def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> 
     T[:, T_QBG : T_QBG + 3] = tun.gyro_bias_q
     T[:, T_QBA : T_QBA + 3] = tun.accel_bias_q
     T[:, T_QS] = tun.sf_q
+    T[:, T_MSG : T_MSG + 3] = tun.gyro_sf_sd
+    T[:, T_MCG : T_MCG + 3] = tun.gyro_cc_sd
+    T[:, T_MGS : T_MGS + 3] = tun.gyro_gs_sd
+    T[:, T_MSA : T_MSA + 3] = tun.accel_sf_sd
+    T[:, T_MCA : T_MCA + 3] = tun.accel_cc_sd
+    T[:, T_MTAU] = tun.motion_corr_s
     T[:, T_GB_TAU] = 60.0
     T[:, T_BB_TAU] = 3600.0
     if gnss_params is not None:
@@ -574,6 +698,63 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
     return _scalar_update(P, dx, h, hz, m + 1, pred - z, var, gate, PHt)
 
 
+@njit(cache=True, inline="always")
+def _motion_axis(tn, i, ti, di, t2, d2, sf_on, cg_on):
+    """Gyro variance of body axis ``i`` along the rotation (times ``|t|^2``) and
+    accelerometer variance of axis ``i`` over one interval (see :func:`_motion_noise`)."""
+    sg = 0.0 if sf_on else tn[T_MSG + i] ** 2
+    sa = 0.0 if sf_on else tn[T_MSA + i] ** 2
+    cg = 0.0 if cg_on else tn[T_MCG + i] ** 2
+    vi = sg * ti * ti + cg * (t2 - ti * ti)
+    va = sa * di * di + tn[T_MCA + i] ** 2 * (d2 - di * di)
+    return vi, va
+
+
+@njit(cache=True)
+def _motion_noise(P, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
+    """Add the motion-dependent process noise of one interval of length ``T`` to ``P``
+    (module docstring, "Process noise").
+
+    ``t`` (body) the corrected angle increment over the interval, ``u`` (n) the kinematic
+    velocity change (specific force plus gravitation, integrated), ``d = C^T u``,
+    ``c = max(1, tau / T)``, ``v_i = s_g,i^2 t_i^2 + cc_g,i^2 (|t|^2 - t_i^2)``. Gyro: along
+    the rotation axis ``e = C t / |t|`` the variance ``c sum_i (t_i / |t|)^2 v_i`` (rank one),
+    across it ``(sum_i v_i - v_par) / 2`` per axis, plus ``c sum_i G_i^2 |d|^2 / 3`` per axis
+    (g-sensitivity). Accelerometer per body axis ``c (s_a,i^2 d_i^2 + cc_a,i^2 (|d|^2 -
+    d_i^2))``, rotated to n, into velocity and (``T^2/3``, ``T/2``) position. Scale-factor
+    (cross-coupling) terms are left out when they are states.
+    """
+    dx = C[0, 0] * ux + C[1, 0] * uy + C[2, 0] * uz
+    dy = C[0, 1] * ux + C[1, 1] * uy + C[2, 1] * uz
+    dz = C[0, 2] * ux + C[1, 2] * uy + C[2, 2] * uz
+    t2 = tx * tx + ty * ty + tz * tz
+    d2 = dx * dx + dy * dy + dz * dz
+    c = max(1.0, tn[T_MTAU] / T)
+    vg0, va0 = _motion_axis(tn, 0, tx, dx, t2, d2, sf_on, cg_on)
+    vg1, va1 = _motion_axis(tn, 1, ty, dy, t2, d2, sf_on, cg_on)
+    vg2, va2 = _motion_axis(tn, 2, tz, dz, t2, d2, sf_on, cg_on)
+    # along the rotation: c vpar e e^T with e = C t / |t|, i.e. c vpar / |t|^2 (C t)(C t)^T
+    vpar = (tx * tx * vg0 + ty * ty * vg1 + tz * tz * vg2) / t2 if t2 > 0.0 else 0.0
+    vperp = (vg0 + vg1 + vg2 - vpar) / 2.0  # per axis across the rotation, uncorrelated
+    kpar = (c * vpar - vperp) / t2 if t2 > 0.0 else 0.0
+    e0 = C[0, 0] * tx + C[0, 1] * ty + C[0, 2] * tz
+    e1 = C[1, 0] * tx + C[1, 1] * ty + C[1, 2] * tz
+    e2 = C[2, 0] * tx + C[2, 1] * ty + C[2, 2] * tz
+    ev = (e0, e1, e2)
+    viso = c * (tn[T_MGS] ** 2 + tn[T_MGS + 1] ** 2 + tn[T_MGS + 2] ** 2) * d2 / 3.0
+    viso += vperp
+    va0, va1, va2 = c * va0, c * va1, c * va2
+    for a in range(3):
+        for b in range(3):
+            qa = C[a, 0] * C[b, 0] * va0 + C[a, 1] * C[b, 1] * va1 + C[a, 2] * C[b, 2] * va2
+            P[6 + a, 6 + b] += kpar * ev[a] * ev[b]
+            P[3 + a, 3 + b] += qa
+            P[a, 3 + b] += 0.5 * T * qa
+            P[3 + a, b] += 0.5 * T * qa
+            P[a, b] += T * T * qa / 3.0
+        P[6 + a, 6 + a] += viso
+
+
 @njit(cache=True)
 def _gnss_update_geo(
     P, dx, h, hz, PHt, Lm, Xc, C, x, zp, zv, sp, sv, pred, predv, clv, cwv, lever, Lat, gb_on,
@@ -711,6 +892,9 @@ def _kernel(
     hpsi = np.zeros(3)
     mt_on = opt[O_MT] != 0.0
     i_mt = i_bb + (1 if baro_on else 0)
+    cg_on = opt[O_CG] != 0.0
+    i_cg = i_mt + (2 if mt_on else 0)
+    Ccc = np.zeros((3, 6))  # int C[:, r] omega_c dt of each cross-coupling pair (r, c)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
     nzc = np.zeros((n, n), np.int64)
@@ -738,6 +922,9 @@ def _kernel(
                 cols[k] = True
             if sf_on:
                 for k in range(i_sg, i_sg + 3):
+                    cols[k] = True
+            if cg_on:
+                for k in range(i_cg, i_cg + 6):
                     cols[k] = True
         m = 0
         for k in range(n):
@@ -804,6 +991,11 @@ def _kernel(
                     Cf[a, b] = 0.0
                     Cw[a, b] = 0.0
             still = ke > k
+            thx, thy, thz = 0.0, 0.0, 0.0  # corrected angle over the interval (motion noise)
+            if cg_on:
+                for a in range(3):
+                    for m in range(6):
+                        Ccc[a, m] = 0.0
             bgx, bgy, bgz = x[X_BG], x[X_BG + 1], x[X_BG + 2]
             bax, bay, baz = x[X_BA], x[X_BA + 1], x[X_BA + 2]
             sgx, sgy, sgz = x[X_SG], x[X_SG + 1], x[X_SG + 2]
@@ -823,6 +1015,14 @@ def _kernel(
                 ux = (dvb[s, i, 0] - bax * dt) / (1.0 + sax)
                 uy = (dvb[s, i, 1] - bay * dt) / (1.0 + say)
                 uz = (dvb[s, i, 2] - baz * dt) / (1.0 + saz)
+                if cg_on:  # minus the estimated cross-coupling (first order)
+                    ttx = tx - x[X_CG] * ty - x[X_CG + 1] * tz
+                    tty = ty - x[X_CG + 2] * tx - x[X_CG + 3] * tz
+                    tz = tz - x[X_CG + 4] * tx - x[X_CG + 5] * ty
+                    tx, ty = ttx, tty
+                thx += tx
+                thy += ty
+                thz += tz
                 if still:
                     wn = math.sqrt(tx * tx + ty * ty + tz * tz) / dt
                     fn = math.sqrt(ux * ux + uy * uy + uz * uz) / dt
@@ -847,6 +1047,14 @@ def _kernel(
                         Cw[a, 0] += C[a, 0] * tx
                         Cw[a, 1] += C[a, 1] * ty
                         Cw[a, 2] += C[a, 2] * tz
+                if cg_on:  # pairs (0,1) (0,2) (1,0) (1,2) (2,0) (2,1): C[:, row] t_col
+                    for a in range(3):
+                        Ccc[a, 0] += C[a, 0] * ty
+                        Ccc[a, 1] += C[a, 0] * tz
+                        Ccc[a, 2] += C[a, 1] * tx
+                        Ccc[a, 3] += C[a, 1] * tz
+                        Ccc[a, 4] += C[a, 2] * tx
+                        Ccc[a, 5] += C[a, 2] * ty
                 ovx, ovy, ovz = vx, vy, vz
                 if wgs:
                     rx = prm[earth.P_R0N] + px
@@ -948,6 +1156,9 @@ def _kernel(
                             Phi[3 + a, i_sa + b] = -Cf[a, b]
                             Phi[a, i_sa + b] = -0.5 * Tint * Cf[a, b]
                             Phi[6 + a, i_sg + b] = -Cw[a, b]
+                    if cg_on:
+                        for m in range(6):
+                            Phi[6 + a, i_cg + m] = -Ccc[a, m]
                 if wgs:
                     for a in range(3):
                         for b in range(3):
@@ -1001,6 +1212,12 @@ def _kernel(
                     P[a, a] += qa * Tint**3 / 3.0
                     P[a, 3 + a] += qa * Tint**2 / 2.0
                     P[3 + a, a] += qa * Tint**2 / 2.0
+                # motion-dependent noise (scale factor, cross-coupling, g-sensitivity, quant.)
+                _dcm(q0, q1, q2, q3, C)
+                _motion_noise(
+                    P, C, thx, thy, thz, dvn[0] + Gx * Tint, dvn[1] + Gy * Tint,
+                    dvn[2] + Gz * Tint, tun[s], Tint, sf_on, cg_on,
+                )  # fmt: skip
             k = ke
             # --- measurement updates -----------------------------------------------------------
             flag = F_ALIGNED
@@ -1266,6 +1483,9 @@ def _kernel(
             if mt_on:
                 x[X_MT] -= dx[i_mt]
                 x[X_MT + 1] -= dx[i_mt + 1]
+            if cg_on:
+                for m in range(6):
+                    x[X_CG + m] -= dx[i_cg + m]
             x[0], x[1], x[2] = px, py, pz
             x[3], x[4], x[5] = vx, vy, vz
             x[6], x[7], x[8], x[9] = q0, q1, q2, q3
@@ -1330,6 +1550,8 @@ class AidedResult:
     names : list of str         error-state names
     mount_angles : (S, J, 2)    estimated IMU pitch and yaw from the vehicle [rad] (zeros when
                                 not estimated, :attr:`Options.mounting`)
+    gyro_cc : (S, J, 6)         estimated gyro cross-coupling, pairs :data:`_CC_PAIRS` (zeros
+                                when not estimated, ``Options.gyro_cross_coupling``)
     """
 
     time_s: np.ndarray
@@ -1349,6 +1571,7 @@ class AidedResult:
     odo_sf: np.ndarray | None = None
     baro_bias: np.ndarray | None = None
     mount_angles: np.ndarray | None = None
+    gyro_cc: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -1389,6 +1612,10 @@ def initial_covariance(
     P[:, 6 + ix, 6 + ix] = np.broadcast_to(sd_att, (S, 3)) ** 2
     P[:, 9 + ix, 9 + ix] = tun.gyro_bias_sd**2
     P[:, 12 + ix, 12 + ix] = tun.accel_bias_sd**2
+    if opts.scale_factors:  # the scale-factor state carries its error on gravity
+        P[:, 12 + ix, 12 + ix] -= tun.accel_static_sf_sd**2
+    if opts.gyro_cross_coupling:  # the cross-coupling states carry the body-fixed tilt
+        P[:, 12 + ix, 12 + ix] -= tun.accel_tilt_cc_sd**2
     i = N_BASE
     if opts.gnss_bias:
         gb = np.broadcast_to(
@@ -1410,6 +1637,10 @@ def initial_covariance(
         i += 1
     if opts.mounting:
         P[:, i, i], P[:, i + 1, i + 1] = np.square(opts.nhc_misalignment_sd_rad)
+        i += 2
+    if opts.gyro_cross_coupling:
+        for m, (r, _) in enumerate(_CC_PAIRS):
+            P[:, i + m, i + m] = tun.gyro_cc_sd[r] ** 2
     return P
 
 
@@ -1677,6 +1908,7 @@ def run(
         odo_sf=out_x[..., X_OSF],
         baro_bias=out_x[..., X_BB],
         mount_angles=out_x[..., X_MT : X_MT + 2],
+        gyro_cc=out_x[..., X_CG : X_CG + 6],
     )
 
 

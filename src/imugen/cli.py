@@ -164,6 +164,7 @@ def _cmd_aid(a) -> int:
         receiver=a.receiver, rate_hz=a.gnss_rate_hz, draw=a.gnss_draw, lever_arm_b_m=lever,
         lever_arm_sd_m=a.lever_arm_sd, settle_s=a.settle_s, tuning_level=a.tuning_level,
         gnss_bias_states=not a.no_gnss_bias_states, scale_factors=a.scale_factors, nhc=a.nhc,
+        gyro_cross_coupling=not a.no_cross_coupling,
         zupt=not a.no_zupt, gate_sigma=a.gate_sigma, align_speed_mps=a.align_speed,
         eval_rate_hz=a.eval_rate_hz, seed=a.seed,
         grade=a.grade, odometer=a.odometer, odometer_rate_hz=a.odometer_rate_hz,
@@ -558,6 +559,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--no-gnss-bias-states", action="store_true", help="no receiver-bias states")
     p.add_argument("--scale-factors", action="store_true", help="estimate scale factors")
+    p.add_argument(
+        "--no-cross-coupling", action="store_true", help="do not estimate the gyro cross-coupling"
+    )
     p.add_argument(
         "--nhc",
         action=argparse.BooleanOptionalAction,

@@ -211,6 +211,8 @@ def aid_opts(wildcards):
         opts.append("--no-gnss-bias-states")
     if AIDED["scale_factors"]:
         opts.append("--scale-factors")
+    if not AIDED["cross_coupling"]:
+        opts.append("--no-cross-coupling")
     if AIDED["nhc"] is not None:
         opts.append("--nhc" if AIDED["nhc"] else "--no-nhc")
     if not AIDED["zupt"]:
