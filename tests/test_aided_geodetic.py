@@ -181,8 +181,8 @@ def test_nees_within_chi_square_bounds_far_from_the_origin(road):
     })  # fmt: skip
     gn = G.simulate_gnss(t, p, v, q, w, rec, sequences=M, seed=11, lever_arm_b_m=LEVER,
                          omega_ie_n=E.earth_rate_n(frame), frame=frame)  # fmt: skip
-    tun = A.Tuning.from_grade("consumer")
-    opts = A.Options(gnss_bias=False)
+    tun = A.Tuning.from_grade("consumer", terms=terms)  # the filter models the injected terms
+    opts = A.Options(gnss_bias=False, gyro_cross_coupling=False)
     k0 = 200
     # prior along the local axes, rotated to ECEF
     Pl = A.initial_covariance(tun, opts, [0.5, 0.5, 1.5], [0.05, 0.05, 0.1], [0.01, 0.01, 0.02])
