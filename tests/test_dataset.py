@@ -547,3 +547,50 @@ def test_extras_absent_unless_asked_and_clear_errors(tmp_path):
     taided.write(a, {}, p)
     with pytest.raises(InputError, match="not an IMU sample time"):
         ds.WindowDataset(routes, window=20, extras=["aided"])
+
+
+def test_companion_streams_each_hold_their_own_sensor(tmp_path):
+    """Odometer and barometer share one long table (:mod:`imugen.tables.companions`): each
+    stream holds its own sensor's epochs only (a barometer epoch never masks the odometer),
+    and the error streams give the labelled true errors."""
+    from imugen.tables import companions as tcomp
+
+    make_results(tmp_path)
+    rng = np.random.default_rng(3)
+    truth = {}
+    for sh in (0, 1):
+        parts = []
+        for sid in sh * M + np.arange(M):
+            for code, every, first in ((tcomp.ODOMETER, 5, 2), (tcomp.BAROMETER, 7, 4)):
+                k = np.arange(first, K, every)
+                d = {c: np.full(len(k), np.nan) for c in tcomp.COLUMNS}
+                d[tcomp.SEQUENCE], d[tcomp.TIME] = np.full(len(k), sid), k * 0.01
+                d[tcomp.SENSOR] = np.full(len(k), code, np.int8)
+                d[tcomp.ODO_TICKS] = rng.integers(0, 50, len(k)) if code == 1 else np.zeros(len(k))
+                cols = tcomp.ODO_COLUMNS[1:] if code == 1 else tcomp.BARO_COLUMNS
+                for c in cols:
+                    d[c] = rng.standard_normal(len(k))
+                df = pd.DataFrame(d)
+                parts.append(df)
+                truth[(int(sid), code)] = df.assign(k=k)
+        df = pd.concat(parts, ignore_index=True).astype(
+            {tcomp.SEQUENCE: np.int64, tcomp.SENSOR: np.int8, tcomp.ODO_TICKS: np.int64}
+        )
+        tcomp.write(
+            df, pd.DataFrame({"sequence": [0]}), {},
+            tmp_path / "alpha" / "companions" / "consumer" / f"shard-{sh:03d}.parquet",
+        )  # fmt: skip
+    routes = [r for r in ds.find_routes(tmp_path, "consumer") if r.name == "alpha"]
+    names = ["odometer", "odometer_error", "barometer", "barometer_error"]
+    d = ds.WindowDataset(routes, window=30, stride=23, extras=names, dtype=np.float64)
+    _, _, ex = d.get_batch(np.arange(len(d)))
+    for i in range(len(d)):
+        info = d.window_info(i)
+        for name, code in zip(names, (1, 1, 2, 2), strict=True):
+            t = truth[(info["sequence"], code)]
+            ks, vals = t["k"].to_numpy(), t[list(ds.EXTRAS[name].columns)].to_numpy(float)
+            for w, k in enumerate(range(info["start"], info["stop"])):
+                v, valid, age = _held(ks, vals, k)
+                got = ex[name][i, w]
+                np.testing.assert_allclose(got[: vals.shape[1]], v, atol=1e-12)
+                assert (got[-2], got[-1]) == pytest.approx((valid, age))

@@ -55,7 +55,10 @@ loader works on results without GNSS or aided outputs.
 - ``"gnss_offset"``: the true total GNSS error ``offset_p_*_m``, ``offset_v_*_mps`` (a label:
   measured minus true antenna; invalid where no fix was delivered);
 - ``"aided"`` (:mod:`imugen.tables.aided`): the filter's position, velocity and ``q_nb``
-  (scalar first) at its evaluation epochs (invalid before the filter's alignment).
+  (scalar first) at its evaluation epochs (invalid before the filter's alignment);
+- ``"odometer"``, ``"barometer"`` (:mod:`imugen.tables.companions`): the measured ticks and
+  speed, the barometric altitude; ``"odometer_error"``, ``"barometer_error"``: their true
+  errors (labels: speed error; drift and total altitude error).
 
 ``extras_align="hold"`` (default) holds the latest epoch at or before each row
 (sample-and-hold); ``"event"`` gives the values only at the rows where an epoch arrived. In
@@ -115,6 +118,7 @@ import numpy as np
 from imugen.errors import InputError
 from imugen.jit import njit
 from imugen.tables import aided as taided
+from imugen.tables import companions as tcomp
 from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
@@ -149,8 +153,14 @@ EXTRAS: dict[str, Extra] = {
     "scenario": Extra("gnss", tgnss.read, (tgnss.STATE,)),
     "gnss_offset": Extra("gnss", tgnss.read, (*tgnss.OFFSET_P, *tgnss.OFFSET_V)),
     "aided": Extra("aided", taided.read, (*ttruth.POS, *ttruth.VEL, *ttruth.QUAT)),
+    "odometer": Extra("companions", tcomp.read_odometer, (tcomp.ODO_TICKS, tcomp.ODO_SPEED)),
+    "odometer_error": Extra("companions", tcomp.read_odometer, (tcomp.ODO_ERROR,)),
+    "barometer": Extra("companions", tcomp.read_barometer, (tcomp.BARO_ALT,)),
+    "barometer_error": Extra(
+        "companions", tcomp.read_barometer, (tcomp.BARO_DRIFT, tcomp.BARO_ERROR)
+    ),
 }
-"""Streams ``extras`` may name. Companion sensors add one line each."""
+"""Streams ``extras`` may name (``*_error``: labels, the companion's true error)."""
 EXTRA_ALIGN = ("hold", "event")
 
 

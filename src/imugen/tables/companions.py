@@ -110,14 +110,18 @@ def read(path, columns=None, filters=None) -> pd.DataFrame:
     return read_table(path, columns, filters, WHAT).to_pandas()
 
 
-def read_odometer(path) -> pd.DataFrame:
-    """The odometer rows: ``sequence``, ``time_s`` and the ``odo_*`` columns."""
-    return read(path, [SEQUENCE, TIME, *ODO_COLUMNS], [(SENSOR, "==", ODOMETER)])
+def read_odometer(path, columns=None, filters=None) -> pd.DataFrame:
+    """The odometer rows: ``columns`` (default ``sequence``, ``time_s`` and the ``odo_*``
+    columns), rows also kept by ``filters``."""
+    cols = list(columns or (SEQUENCE, TIME, *ODO_COLUMNS))
+    return read(path, cols, [(SENSOR, "==", ODOMETER), *(filters or [])])
 
 
-def read_barometer(path) -> pd.DataFrame:
-    """The barometer rows: ``sequence``, ``time_s`` and the ``baro_*`` columns."""
-    return read(path, [SEQUENCE, TIME, *BARO_COLUMNS], [(SENSOR, "==", BAROMETER)])
+def read_barometer(path, columns=None, filters=None) -> pd.DataFrame:
+    """The barometer rows: ``columns`` (default ``sequence``, ``time_s`` and the ``baro_*``
+    columns), rows also kept by ``filters``."""
+    cols = list(columns or (SEQUENCE, TIME, *BARO_COLUMNS))
+    return read(path, cols, [(SENSOR, "==", BAROMETER), *(filters or [])])
 
 
 def read_labels(path) -> pd.DataFrame:
