@@ -390,7 +390,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--vehicle",
         choices=list(VEHICLE_LIMITS),
         default="car",
-        help="vehicle class whose limits decide what is an outlier (default car)",
+        help="vehicle class whose limits decide what is an outlier",
     )
     p.add_argument(
         "--max-gap-s",
@@ -666,7 +666,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_export_mat)
 
     p = sub.add_parser("serve", help="local web page: upload a route, pick grades, run, download")
-    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765)")
+    p.add_argument("--port", type=int, default=8765, help="TCP port")
     p.add_argument(
         "--host",
         default="127.0.0.1",
@@ -690,9 +690,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--route", help="route name in folder names (default: the truth's folder)")
     p.add_argument("--grade", help="grade name in folder names (default: from the shards)")
-    p.add_argument(
-        "--nav-rate-hz", type=float, default=10.0, help="rate of TUM trajectories (default 10)"
-    )
+    p.add_argument("--nav-rate-hz", type=float, default=10.0, help="rate of TUM trajectories (Hz)")
     p.add_argument("--split-seed", type=int, default=0, help="seed of the TLIO split lists")
     p.add_argument(
         "--sequences", type=int, nargs="+", metavar="ID", help="export only these sequence ids"
@@ -720,13 +718,13 @@ def build_parser() -> argparse.ArgumentParser:
     q = gsub.add_parser("import", help="IMU description -> imugen custom grade (YAML)")
     q.add_argument("file", help="Kalibr/EuRoC imu.yaml, VINS config, i2Nav/KF-GINS config")
     q.add_argument("--name", help="grade name (default: from the file name)")
-    q.add_argument("--id", type=int, default=1000, help="stable grade id >= 100 (default 1000)")
+    q.add_argument("--id", type=int, default=1000, help="stable grade id >= 100")
     q.add_argument("-o", "--output", help="grades YAML to write (default: print)")
     q.set_defaults(func=_cmd_grade_import)
     q = gsub.add_parser("export", help="grade -> Kalibr imu.yaml (white noise + random walk)")
     q.add_argument("grade", help="preset name, or FILE.yaml:NAME")
     q.add_argument("--grades-file", help="YAML file with custom grades")
-    q.add_argument("--rate-hz", type=float, default=100.0, help="update_rate (default 100)")
+    q.add_argument("--rate-hz", type=float, default=100.0, help="update_rate (Hz)")
     q.add_argument("--topic", default="/imu0", help="rostopic (default /imu0)")
     q.add_argument("-o", "--output", help="imu.yaml to write (default: print)")
     q.set_defaults(func=_cmd_grade_export)
@@ -740,7 +738,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_truth_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate (default 100)")
+    p.add_argument("--rate-hz", type=float, default=100.0, help="IMU rate (Hz)")
     p.add_argument(
         "--earth",
         choices=["flat", "wgs84", "geodetic", "auto"],
