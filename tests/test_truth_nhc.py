@@ -156,3 +156,22 @@ def test_paper_trajectory_nhc():
     worst, kept = _departure_outside_implausible(tr, vp)
     assert kept > 0.9
     assert worst.max() < 1e-6, worst
+
+
+def test_stepped_heights_leave_no_one_signed_vertical_slip():
+    """An altimeter's stepped record (level 17 s, then 2 m in 2 s, 20 steps, 0.2 m rounding) on
+    a straight road at 6 m/s: the steps are beyond the pitch model, so the pitch follows the
+    grade over the whole stepped slope and the body vertical slip, integrated, stays within one
+    step (it would be the whole 40 m climb, step by step, if the pitch followed the level runs'
+    velocity between the steps)."""
+    t = np.arange(0.0, 401.0, 1.0)
+    x = 6.0 * t
+    h = 2.0 * (t // 20.0) + 2.0 * np.clip((np.mod(t, 20.0) - 17.0) / 2.0, 0.0, 1.0)
+    h = np.round(h / 0.2) * 0.2
+    df, meta = truth.enu_table(np.column_stack([x, 0.0 * x, h]), t, ORIGIN)
+    tr, meta = truth.build_truth(df, meta, rate_hz=20, earth="flat", vehicle="car", verbose=False)
+    vb = _body_velocity(tr)
+    tt = tr[col.TIME].to_numpy()
+    z = np.r_[0.0, np.cumsum(0.5 * (vb[1:, 2] + vb[:-1, 2]) * np.diff(tt))]
+    assert np.abs(vb[:, 2]).max() > 0.1  # the steps do slip
+    assert np.abs(z).max() < 2.0

@@ -385,8 +385,10 @@ class GroundAttitude:
       exactly 0 within ``SLIP_MARGIN_M`` of a node the vehicle crosses below twice
       ``stop_speed_mps`` (the direction is undefined at a stop), of a turn tighter than
       ``max_curvature`` or of a velocity more than ``SLIP_GAP_RAD`` off the heading above
-      (a reversal); for the pitch, of a vertical curvature beyond ``SLIP_PITCH_FACTOR x
-      max_pitch / grade_smooth_m`` (height wiggles of a noisy fit). The plausibility report
+      (a reversal); for the pitch, within ``grade_smooth_m`` of a vertical curvature beyond
+      ``SLIP_PITCH_FACTOR x max_pitch / grade_smooth_m`` (height wiggles of a noisy fit, the
+      steps of an altimeter's record: the grade spreads them, the slip integrates to ~0 over
+      that length). The plausibility report
       gives the resulting slip;
     * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
       ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
@@ -466,6 +468,12 @@ class GroundAttitude:
         hl_d = (v_l[:, 0] * a_l[:, 0] + v_l[:, 1] * a_l[:, 1]) / np.sqrt(vh2)
         kv = np.abs(np.sqrt(vh2) * a_l[:, 2] - vu * hl_d) / ((vh2 + vu * vu) * np.sqrt(vh2))
         steep = kv > SLIP_PITCH_FACTOR * vp.max_pitch_rad / vp.grade_smooth_m
+        # ... nor within grade_smooth_m of such a node: the grade model spreads a height step
+        # (an altimeter's record: level runs, then a climb) over that length, so the body
+        # vertical slip it leaves integrates to ~0 there; followed on the level runs, the
+        # velocity's pitch would leave the whole climb of each step to slip, of one sign
+        # over a slope
+        steep = maximum_filter1d(steep, 2 * math.ceil(vp.grade_smooth_m / ds) + 1)
         self.W = self._weight(bad | slow, ds)
         self.Wp = self._weight(steep | slow, ds)
         self.report["follows_velocity_fraction"] = {

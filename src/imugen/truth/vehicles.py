@@ -17,7 +17,7 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   that lean), ``grade_bin_m`` (bin of the height-against-distance fit),
   ``grade_smooth_m`` (least smoothing length of that fit: roads and paths change grade over
   vertical curves, not at a GNSS height step; the pitch follows the velocity where the path's
-  vertical curvature is within 3 x ``max_pitch_rad / grade_smooth_m``).
+  vertical curvature is within 3 x ``max_pitch_rad / grade_smooth_m`` over this length).
 * coordinated flight: ``hold_speed_mps``, ``hold_perp`` (attitude held below these speed and
   perpendicular-force thresholds), ``airborne_speed_mps``, ``airborne_height_m`` (blend from
   ground to flight between 0.8x and 1x this speed, or 0.5x and 1x this height above the
