@@ -13,6 +13,7 @@ from imugen import earth as ea
 from imugen import rotations as rot
 from imugen.jit import njit
 from imugen.truth.fit import fit_height_profile
+from imugen.truth.grade import distance_steps
 
 
 def _smoothstep(x, lo, hi):
@@ -308,7 +309,6 @@ def _blend_holds(out, ci, sigma, sigma_d, E, vp):
 # ------------------------------------------------------------------------------------------
 G_LEAN = 9.80665  # gravity of the lean of a coordinated turn [m/s^2]
 _PAD = 6  # coefficients added at each end of the node splines
-_GL = np.polynomial.legendre.leggauss(4)
 SLIP_CURVATURE_MARGIN = 1.0  # the attitude follows paths up to this fraction of max curvature
 SLIP_GAP_RAD = math.radians(10.0)  # ... and velocity directions this close to the heading
 SLIP_MARGIN_M = 2.0  # distance over which it leaves / rejoins the velocity direction [m]
@@ -360,12 +360,6 @@ def _node_spline(values, ds, x0=0.0):
     return BSpline(knots, c, 5)
 
 
-def _gl_nodes(t):
-    """4-node Gauss-Legendre nodes (n-1, 4) and weights (n-1, 4) on the intervals of ``t``."""
-    h = np.diff(t)[:, None]
-    return t[:-1, None] + 0.5 * h * (_GL[0] + 1.0), 0.5 * h * _GL[1]
-
-
 class GroundAttitude:
     """Attitude of a ground vehicle against the horizontal distance travelled ``s``.
 
@@ -405,11 +399,14 @@ class GroundAttitude:
         Input times [s] and heights [m] of a timed route (None: the motion's own heights).
     noise_up_m : float
         Noise of those heights [m].
+    profile : (BSpline, dict) or None
+        A height profile ``H(s)`` already fitted and its report (a graded motion's,
+        :func:`imugen.truth.grade.graded_motion`): used instead of fitting one.
     grid_dt : float
         Step of the internal time grid of the distance [s].
     """
 
-    def __init__(self, motion, E, vp, heights=None, noise_up_m=0.0, grid_dt=0.1):
+    def __init__(self, motion, E, vp, heights=None, noise_up_m=0.0, profile=None, grid_dt=0.1):
         self.E, self.vp = E, vp
         n = max(2, math.ceil((motion.t1 - motion.t0) / grid_dt) + 1)
         tg = np.linspace(motion.t0, motion.t1, n)
@@ -481,14 +478,17 @@ class GroundAttitude:
             "pitch": float(np.mean(self.Wp(sn[:-1] + 0.5 * ds) > 1.0 - 1e-9)),
         }
         # grade: heights against distance, from the input points when there are some
-        if heights is not None:
-            t_in, h_in = heights
-            s_in = np.interp(t_in, tg, sg)
+        if profile is not None:
+            H, grep = profile
         else:
-            s_in, h_in = sg, self.E.height(motion.position(tg))
-        H, grep = fit_height_profile(
-            s_in, h_in, noise_up_m, vp.grade_bin_m, vp.grade_smooth_m, vp.fit_floor_m
-        )
+            if heights is not None:
+                t_in, h_in = heights
+                s_in = np.interp(t_in, tg, sg)
+            else:
+                s_in, h_in = sg, self.E.height(motion.position(tg))
+            H, grep = fit_height_profile(
+                s_in, h_in, noise_up_m, vp.grade_bin_m, vp.grade_smooth_m, vp.fit_floor_m
+            )
         if H is None:
             theta = np.zeros(ns + 1)
         else:
@@ -508,15 +508,8 @@ class GroundAttitude:
         return _node_spline(np.clip(w, 0.0, 1.0), ds, 0.5 * ds)
 
     def distance_steps(self, motion, t):
-        """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre
-        quadrature of the horizontal speed, :meth:`EarthField.horizontal_speed`), shape
-        (len(t) - 1,) [m]."""
-        tq, wq = _gl_nodes(t)
-        tq = tq.ravel()
-        v = motion.velocity(tq)
-        p = motion.position(tq) if self.E.ecef else None
-        vh = self.E.horizontal_speed(p, v)[0].reshape(wq.shape)
-        return np.sum(wq * vh, axis=1)
+        """Horizontal distance over each interval of ``t`` (:func:`imugen.truth.grade.distance_steps`)."""
+        return distance_steps(motion, self.E, t)
 
     def attitude(self, s, p, v, a):
         """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,

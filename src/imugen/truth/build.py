@@ -18,6 +18,7 @@ from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.flight import flight_geometry
+from imugen.truth.grade import graded_motion
 from imugen.truth.increments import imu_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
@@ -153,18 +154,44 @@ class EcefMotion:
         return self.r0_e + self._rotate(p), self._rotate(v), self._rotate(a), self._rotate(j)
 
 
-def _ground(motion, E, vp, enu, fit) -> GroundAttitude:
-    """The ground-vehicle attitude of the motion; heights from the input points of a timed
-    route (their own noise), else from the smoothed path."""
+def _input_heights(E, enu):
+    """Times [s] and heights [m] of a timed route's input points: n's Up in ``flat``, else
+    ellipsoidal (the input ENU is the origin's)."""
+    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
+    h = y[:, 2] if E.flat else E.frame.with_model("wgs84").geodetic_from_n(y)[2]
+    return enu[col.TIME].to_numpy(float), h
+
+
+def _graded(motion, E, vp, enu, fit):
+    """A timed ground route's motion with the vertical of its road profile
+    (:func:`imugen.truth.grade.graded_motion`, in the origin's ENU) and that profile; the fit
+    report gets the profile's report and the distances of the graded motion to the input."""
+    E_enu = EarthField(E.frame.with_model("wgs84")) if E.ecef else E
+    t_in, h = _input_heights(E, enu)
+    noise_up = float(fit["noise_estimate_m"][2])
+    graded, H, rep = graded_motion(motion, E_enu, vp, (t_in, h), noise_up, fit.get("stops", []))
+    fit["vertical"] = rep
+    if H is None:
+        return motion, None
+    d = graded.position(t_in) - enu[list(tenu.ENU)].to_numpy(float)
+    dist = np.linalg.norm(d, axis=1)
+    fit["rms_distance_m"] = float(np.sqrt(np.mean(dist**2)))
+    fit["max_distance_m"] = float(dist.max())
+    fit["rms_horizontal_distance_m"] = float(np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))))
+    fit["rms_vertical_distance_m"] = float(np.sqrt(np.mean(d[:, 2] ** 2)))
+    return graded, (H, rep["grade"])
+
+
+def _ground(motion, E, vp, enu, fit, profile=None) -> GroundAttitude:
+    """The ground-vehicle attitude of the motion: on a graded motion its road profile; heights
+    from the input points of other timed routes (their own noise), else from the smoothed
+    path."""
+    if profile is not None:
+        return GroundAttitude(motion, E, vp, profile=profile)
     if motion.kind != "timed":
         return GroundAttitude(motion, E, vp)
-    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
-    if E.flat:
-        h = y[:, 2]
-    else:  # ellipsoidal heights of the input points (y is ENU of the origin)
-        h = E.frame.with_model("wgs84").geodetic_from_n(y)[2]
     noise_up = float(fit["noise_estimate_m"][2])
-    return GroundAttitude(motion, E, vp, (enu[col.TIME].to_numpy(float), h), noise_up)
+    return GroundAttitude(motion, E, vp, _input_heights(E, enu), noise_up)
 
 
 def _column_slices() -> dict:
@@ -268,9 +295,12 @@ def build_truth(
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)
         model = budget.model
     E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+    profile = None
+    if motion.kind == "timed" and vp.attitude == "ground":
+        motion, profile = _graded(motion, E, vp, enu, fit)
     if E.ecef:
         motion = EcefMotion(motion, E.frame)
-    ground = _ground(motion, E, vp, enu, fit)
+    ground = _ground(motion, E, vp, enu, fit, profile)
 
     ci = _column_slices()
     out = np.zeros((K, len(col.COLUMNS)))

@@ -184,24 +184,38 @@ class _PenalizedSpline:
 # timed routes
 # ------------------------------------------------------------------------------------------
 class TimedMotion:
-    """Position spline p(t) (vector-valued quintic BSpline) and its derivatives."""
+    """Position spline p(t) (vector-valued quintic BSpline) and its derivatives; with
+    ``vertical``, a scalar spline replacing the third coordinate (a road profile,
+    :func:`imugen.truth.grade.graded_motion`)."""
 
     kind = "timed"
 
-    def __init__(self, spline: BSpline, t0: float, t1: float):
+    def __init__(self, spline: BSpline, t0: float, t1: float, vertical: BSpline | None = None):
         self.spline = spline
+        self.vertical = vertical
         self.d = [spline] + [spline.derivative(nu) for nu in (1, 2, 3)]
+        self.dv = (
+            None
+            if vertical is None
+            else [vertical.derivative(nu) if nu else vertical for nu in range(4)]
+        )
         self.t0, self.t1 = t0, t1
 
+    def _at(self, nu, t):
+        x = self.d[nu](t)
+        if self.dv is not None:
+            x[..., 2] = self.dv[nu](t)
+        return x
+
     def position(self, t):
-        return self.d[0](t)
+        return self._at(0, t)
 
     def velocity(self, t):
-        return self.d[1](t)
+        return self._at(1, t)
 
     def eval(self, t):
         """(p, v, a, j), each shape (m, 3), at times ``t`` (m,)."""
-        return tuple(s(t) for s in self.d)
+        return tuple(self._at(nu, t) for nu in range(4))
 
 
 def _find_stops(t, y, noise_m, vp: VehicleParams):
