@@ -8,7 +8,9 @@ Run with this checkout's code (after) or another's (before, e.g. main)::
 always computed by this checkout's :mod:`imugen.truth.report` with its vehicle limits, so
 before and after are measured alike. Tracks: the shipped example route and paper trajectory,
 and every file in ``../shared/data/trajectories`` (the Colorado GPX holds a drive and then a
-walk: both); a file no reader of that code reads is listed as such.
+walk: both); a file no reader of that code reads is listed as such. The last columns are the
+body-frame velocity on the ground (the non-holonomic constraint): RMS and max of its lateral and
+vertical components and the moving time slipping beyond 0.1 deg.
 """
 
 from __future__ import annotations
@@ -120,15 +122,19 @@ def main():
             f"| {r['max_accel_mps2']:.2f} | {r['max_jerk_mps3']:.1f} "
             f"| {r['max_rate_increment_radps']:.2g} | {r['max_attitude_step_excess_rad']:.2g} "
             f"| {r['length_ratio']:.3f} | {inv} | {r['time_stopped_s']:.0f}/{r['time_moving_s']:.0f}"
-            f"/{r['time_airborne_s']:.0f} | {len(r['warnings'])} | {dt:.1f} |"
+            f"/{r['time_airborne_s']:.0f} | {len(r['warnings'])} | {dt:.1f} "
+            f"| {r['rms_body_lateral_speed_mps']:.2g} | {r['max_body_lateral_speed_mps']:.2g} "
+            f"| {r['rms_body_vertical_speed_mps']:.2g} | {r['max_body_vertical_speed_mps']:.2g} "
+            f"| {100 * r['slip_fraction']:.1f} |"
         )
         print(rows[-1], file=sys.stderr)
     head = (
         "| track | vehicle | max abs pitch deg | max abs roll deg | max yaw rate deg/s "
         "| yaw rate beyond v k_max deg/s | max accel m/s^2 | max jerk m/s^3 "
         "| dtheta vs gyro rad/s | attitude step excess rad | length truth/input "
-        "| invented % | stopped/moving/airborne s | warnings | build s |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| invented % | stopped/moving/airborne s | warnings | build s "
+        "| body lateral RMS m/s | max | body vertical RMS m/s | max | slip > 0.1 deg % |\n"
+        "|" + "---|" * 20
     )
     text = head + "\n" + "\n".join(rows) + "\n"
     print(text)
