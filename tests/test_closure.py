@@ -138,6 +138,19 @@ def test_hairpins_and_polyline_corners(tmp_path):
         check(res, label=f"corners {earth}")
 
 
+def test_untimed_path_with_stepped_noisy_heights(tmp_path):
+    # a polyline whose heights step (2 m altimeter rounding) and jitter (0.5 m): its vertical
+    # becomes the road profile (heights against horizontal distance) before the speed profile
+    rng = np.random.default_rng(1)
+    s = np.arange(0.0, 3000.0, 10.0)
+    h = np.round((0.04 * s + 3.0 * np.sin(s / 300.0)) / 2.0) * 2.0
+    p = np.column_stack([s, 80.0 * np.sin(s / 400.0), h + rng.normal(scale=0.5, size=len(s))])
+    src = write_enu(tmp_path / "stepped.txt", None, p, timed=False)
+    for earth in ("flat", "wgs84"):
+        res = closure(src, earth=earth, origin=ORIGIN)
+        check(res, label=f"stepped heights untimed {earth}")
+
+
 def test_sparse_points_10s_apart(tmp_path):
     t = np.arange(0, 600.0, 10.0)
     p = np.column_stack([400 * np.sin(t / 120), 300 * np.sin(t / 90), 5 * np.sin(t / 200)])

@@ -179,3 +179,61 @@ def test_stepped_heights_become_a_road_profile_without_vertical_slip():
     u = tr[col.POS[2]].to_numpy()
     assert np.abs(np.interp(t, tt, u) - h).max() < 2.0
     assert abs(u[-1] - u[0] - (h[-1] - h[0])) < 1.0
+
+
+def _stepped_noisy_path():
+    """A 3 km untimed polyline, a vertex every 10 m on an S-curve (curvature <= 0.0005 /m),
+    climbing 4 % with 3 m hills, its heights rounded to 2 m steps (an altimeter) plus 0.5 m
+    of white noise: raw vertex-to-vertex grades up to ~30 %."""
+    rng = np.random.default_rng(1)
+    s = np.arange(0.0, 3000.0, 10.0)
+    h = 0.04 * s + 3.0 * np.sin(s / 300.0)
+    h = np.round(h / 2.0) * 2.0 + rng.normal(scale=0.5, size=len(s))
+    return np.column_stack([s, 80.0 * np.sin(s / 400.0), h])
+
+
+@pytest.mark.parametrize("earth", ["flat", "wgs84", "geodetic"])
+def test_untimed_path_climbs_its_road_profile_without_vertical_slip(earth):
+    """An untimed path's vertical is its road profile: the input heights against horizontal
+    distance smoothed over the car's 50 m vertical curves, built into the geometry before the
+    speed profile. So the velocity's pitch is the grade, the pitch follows it everywhere the
+    vehicle moves (no blend to a separately fitted grade) and the body has no vertical
+    velocity; the truth's heights at the input points are within the profile's own residual
+    of the input heights, and it climbs their total."""
+    y = _stepped_noisy_path()
+    df, meta = truth.enu_table(y, None, ORIGIN)
+    tr, meta = truth.build_truth(df, meta, rate_hz=20, earth=earth, vehicle="car", verbose=False)
+    rep, vert = meta["plausibility"], meta["fit"]["vertical"]
+    assert rep["warnings"] == []
+    assert rep["max_rate_increment_radps"] < 1e-5
+    assert vert["max_departure_m"] < 1e-6  # the geometry's height is H(s_h)
+    grade = vert["grade"]
+    assert grade["rms_residual_m"] < 1.0  # the noise and steps' own RMS: 0.76 m
+    if earth == "geodetic":
+        frame = truth.attitude.ea.OriginFrame.from_deg(*ORIGIN, "wgs84")
+        height = tr[col.ALT].to_numpy()
+        p_n = frame.n_from_geodetic(np.radians(tr[col.LAT]), np.radians(tr[col.LON]), height)
+    else:
+        p_n = _arr(tr, col.POS)
+        frame = truth.attitude.ea.OriginFrame.from_deg(*ORIGIN, earth)
+        height = p_n[:, 2] if earth == "flat" else frame.geodetic_from_n(p_n)[2]
+    h_in = y[:, 2] if earth == "flat" else frame.geodetic_from_n(y)[2]
+    # the truth's height at the sample horizontally nearest each input point
+    from scipy.spatial import cKDTree
+
+    _, k = cKDTree(p_n[:, :2]).query(y[:, :2])
+    dh = height[k] - h_in
+    assert np.sqrt(np.mean(dh**2)) <= 1.02 * grade["rms_residual_m"] + 0.01
+    assert abs(height[-1] - height[0] - (h_in[-1] - h_in[0])) < 1.0
+    if earth == "geodetic":
+        assert rep["max_vertical_slip_deg"] < 1e-3
+        return
+    vb = _body_velocity(tr)
+    # flat: exactly none; wgs84: the grade is against distance in n's East-North plane, the
+    # pitch in the local level at the vehicle (3 km from the origin: 5e-4 rad apart), which
+    # the pitch blends to only near the rests at the ends (speed < 3 m/s)
+    assert np.abs(vb[:, 2]).max() < (1e-6 if earth == "flat" else 1e-5)
+    tt = tr[col.TIME].to_numpy()
+    mid = (tt > 0.1 * tt[-1]) & (tt < 0.9 * tt[-1])
+    pitch = tr["pitch_rad"].to_numpy()
+    assert np.abs(pitch[mid] - math.atan(0.04)).max() < 0.03  # raw vertex grades ~0.3

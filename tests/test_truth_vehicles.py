@@ -3,7 +3,8 @@
 Oracles: the stated limits of each vehicle class (curvature-bounded yaw rate, roll zero or a
 coordinated lean, pitch = atan(grade), bounded), continuity (no attitude step beyond what
 the rates allow), an independent 4th-order quadrature of the gyro columns against the
-increments, and, on every real timed track in ../shared, the plausibility figures.
+increments, and, on every real timed track and untimed ground path in ../shared, the
+plausibility figures.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import pytest
 
 from imugen import truth
 from imugen.errors import InputError
+from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
 
@@ -327,3 +329,55 @@ def test_real_timed_tracks_are_plausible(path):
         checked += 1
     if not checked:
         pytest.skip("no timed path")
+
+
+MAX_GROUND_PATH_M = 500e3  # longer "ground" paths (an ocean crossing) take minutes at 10 Hz
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
+@pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
+def test_real_untimed_ground_paths_are_plausible(path):
+    """Every untimed path of every shared real file driven by a ground vehicle, at 10 Hz: its
+    vertical is the road profile of its heights (no pitch blend between two verticals, so no
+    rate bumps), the vehicle's limits hold and its heights stay within the profile's residual
+    of the input heights."""
+    from imugen.ingest import ingest
+    from imugen.readers import read_route_file
+
+    try:
+        cands = read_route_file(path)
+    except InputError as exc:
+        pytest.skip(f"not readable here: {exc}")
+    checked = 0
+    for i in range(1, len(cands) + 1):
+        try:
+            ing = ingest(path, path=i)
+        except InputError:
+            continue
+        vehicle = _vehicle(path.name, i)
+        vp = truth.VEHICLES[vehicle]
+        enu = ing.table[list(tenu.ENU)].to_numpy()
+        length = np.sum(np.linalg.norm(np.diff(enu[:, :2], axis=0), axis=1))
+        if ing.meta["timed"] or vp.attitude != "ground" or length > MAX_GROUND_PATH_M:
+            continue
+        _, meta = truth.build_truth(
+            ing.table, ing.meta, rate_hz=10, vehicle=vehicle, earth="wgs84", verbose=False
+        )
+        rep = meta["plausibility"]
+        label = f"{path.name} #{i} ({vehicle})"
+        assert rep["max_abs_pitch_deg"] <= math.degrees(vp.max_pitch_rad) + 1e-6, label
+        if vehicle == "car":
+            assert rep["max_abs_pitch_deg"] < 20.0, label
+        if vehicle in ("car", "pedestrian"):
+            assert rep["max_abs_roll_deg"] < 1e-6, label
+        assert rep["max_yaw_rate_excess_dps"] < 0.06, label
+        assert rep["max_attitude_step_excess_rad"] < 1e-3, label
+        assert rep["max_rate_increment_radps"] < 1e-3, label
+        vert = meta["fit"]["vertical"]
+        if "max_departure_m" in vert:  # long enough for a profile
+            assert vert["max_departure_m"] < 1e-3, label
+            res = vert["grade"]["rms_residual_m"]
+            assert vert["rms_vertical_distance_m"] <= 1.02 * res + 1e-3, label
+        checked += 1
+    if not checked:
+        pytest.skip("no untimed ground path")

@@ -400,8 +400,9 @@ class GroundAttitude:
     noise_up_m : float
         Noise of those heights [m].
     profile : (BSpline, dict) or None
-        A height profile ``H(s)`` already fitted and its report (a graded motion's,
-        :func:`imugen.truth.grade.graded_motion`): used instead of fitting one.
+        A height profile ``H(s)`` already fitted and its report (a graded motion's or path's,
+        :func:`imugen.truth.grade.graded_motion`, :func:`imugen.truth.grade.graded_path`):
+        used instead of fitting one.
     grid_dt : float
         Step of the internal time grid of the distance [s].
     """

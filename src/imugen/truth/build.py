@@ -18,7 +18,7 @@ from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.flight import flight_geometry
-from imugen.truth.grade import graded_motion
+from imugen.truth.grade import graded_motion, graded_path
 from imugen.truth.increments import imu_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
@@ -83,8 +83,12 @@ def enu_table(enu_m, time_s=None, origin=(0.0, 0.0, 0.0)) -> tuple[pd.DataFrame,
     return pd.DataFrame(data), meta
 
 
-def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOptions):
-    """Fit the route: returns (motion, fit report, timing report)."""
+def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOptions, E=None):
+    """Fit the route: returns (motion, fit report, timing report).
+
+    With ``E`` (the :class:`EarthField` of the truth), an untimed ground route's geometry
+    takes the vertical of its road profile before its speed profile (:func:`_graded_path`);
+    the motion's ``profile`` holds it."""
     for c in tenu.ENU:
         if c not in enu.columns:
             raise InputError(None, f"ENU table lacks column {c!r}")
@@ -96,7 +100,10 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
         motion, fit = fit_timed(enu[col.TIME].to_numpy(float), y, vp, opts.fit_tol_m, opts.stops)
         timing = {"timed": True, "source": "input clock"}
     else:
-        G, L, fit = fit_path(y, vp, opts.corner_m)
+        G, L, fit, s_v = fit_path(y, vp, opts.corner_m, vertices=True)
+        profile = None
+        if E is not None and vp.attitude == "ground":
+            G, L, profile = _graded_path(G, L, E, vp, enu, fit, s_v)
         vmax, plan = None, None
         if vp.phases:
             alt = enu[tenu.ALT].to_numpy(float) if tenu.ALT in enu.columns else y[:, 2]
@@ -108,7 +115,7 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
             "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
         }
         s_pp, rep = speed_profile(G, L, **prof, vmax_mps=vmax)
-        motion = PathMotion(G, s_pp, L)
+        motion = PathMotion(G, s_pp, L, profile)
         timing = {"timed": False, "source": "speed profile", **rep}
         if plan is not None:
             timing["flight"] = plan
@@ -154,19 +161,49 @@ class EcefMotion:
         return self.r0_e + self._rotate(p), self._rotate(v), self._rotate(a), self._rotate(j)
 
 
-def _input_heights(E, enu):
-    """Times [s] and heights [m] of a timed route's input points: n's Up in ``flat``, else
-    ellipsoidal (the input ENU is the origin's)."""
+def _heights(E, enu):
+    """Heights [m] of the input points: n's Up in ``flat``, else ellipsoidal (the input ENU
+    is the origin's)."""
     y = enu[list(tenu.ENU)].to_numpy(dtype=float)
-    h = y[:, 2] if E.flat else E.frame.with_model("wgs84").geodetic_from_n(y)[2]
-    return enu[col.TIME].to_numpy(float), h
+    return y[:, 2] if E.flat else E.frame.with_model("wgs84").geodetic_from_n(y)[2]
+
+
+def _input_heights(E, enu):
+    """Times [s] and heights [m] of a timed route's input points (:func:`_heights`)."""
+    return enu[col.TIME].to_numpy(float), _heights(E, enu)
+
+
+def _enu_field(E):
+    """The field of the origin's ENU where routes are fitted: ``E`` itself, or its ``wgs84``
+    field in ``geodetic``."""
+    return EarthField(E.frame.with_model("wgs84")) if E.ecef else E
+
+
+def _graded_path(G, L, E, vp, enu, fit, s_v):
+    """An untimed ground path with the vertical of its road profile
+    (:func:`imugen.truth.grade.graded_path`, in the origin's ENU; sampled at the fine grid of
+    :func:`fit_path`, ``densify_step_m / 4``), its length and ``(H, grade report)`` (None when
+    too short for a profile); the fit report gets the profile's report and the distances of
+    the graded path to the input."""
+    y = enu[list(tenu.ENU)].to_numpy(float)
+    G2, L2, H, rep = graded_path(
+        G, L, _enu_field(E), vp, (s_v, _heights(E, enu)), y, fit["densify_step_m"] / 4.0
+    )
+    fit["vertical"] = rep
+    if H is None:
+        return G, L, None
+    fit["length_m"] = L2
+    fit["rms_distance_m"] = rep["rms_distance_m"]
+    fit["max_distance_m"] = rep["max_distance_m"]
+    fit["rms_vertical_distance_m"] = rep["rms_vertical_distance_m"]
+    return G2, L2, (H, rep["grade"])
 
 
 def _graded(motion, E, vp, enu, fit):
     """A timed ground route's motion with the vertical of its road profile
     (:func:`imugen.truth.grade.graded_motion`, in the origin's ENU) and that profile; the fit
     report gets the profile's report and the distances of the graded motion to the input."""
-    E_enu = EarthField(E.frame.with_model("wgs84")) if E.ecef else E
+    E_enu = _enu_field(E)
     t_in, h = _input_heights(E, enu)
     noise_up = float(fit["noise_estimate_m"][2])
     graded, H, rep = graded_motion(motion, E_enu, vp, (t_in, h), noise_up, fit.get("stops", []))
@@ -183,9 +220,9 @@ def _graded(motion, E, vp, enu, fit):
 
 
 def _ground(motion, E, vp, enu, fit, profile=None) -> GroundAttitude:
-    """The ground-vehicle attitude of the motion: on a graded motion its road profile; heights
-    from the input points of other timed routes (their own noise), else from the smoothed
-    path."""
+    """The ground-vehicle attitude of the motion: on a graded motion or path its road profile;
+    heights from the input points of other timed routes (their own noise), else from the
+    smoothed path."""
     if profile is not None:
         return GroundAttitude(motion, E, vp, profile=profile)
     if motion.kind != "timed":
@@ -213,6 +250,15 @@ def _column_slices() -> dict:
         assert idx == list(range(idx[0], idx[0] + len(idx))), name
         out[name] = slice(idx[0], idx[-1] + 1)
     return out
+
+
+def _samples(motion, rate_hz):
+    """Number of IMU samples ``t0 + k / rate_hz`` over the motion (at least 2)."""
+    duration = motion.t1 - motion.t0
+    K = math.floor(duration * rate_hz + 1e-9) + 1
+    if K < 2:
+        raise InputError(None, f"route lasts {duration:.3g} s: shorter than one IMU interval")
+    return K
 
 
 def _origin(meta):
@@ -281,23 +327,25 @@ def build_truth(
         vp = replace(vp, hold_speed_mps=tuple(opts.hold_speed_mps))
     lat0, lon0, h0 = _origin(meta)
 
-    motion, fit, timing = build_motion(enu, meta, vp, opts)
     dt = 1.0 / rate_hz
-    duration = motion.t1 - motion.t0
-    K = math.floor(duration * rate_hz + 1e-9) + 1
-    if K < 2:
-        raise InputError(None, f"route lasts {duration:.3g} s: shorter than one IMU interval")
-    times = motion.t0 + np.arange(K) * dt
-
     budget = None
     model = earth
+    E = None if earth == "auto" else EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+    motion, fit, timing = build_motion(enu, meta, vp, opts, E)
+    K = _samples(motion, rate_hz)
     if earth == "auto":
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)
         model = budget.model
-    E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+        E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
+        if motion.kind == "untimed" and vp.attitude == "ground":  # graded in E's heights
+            motion, fit, timing = build_motion(enu, meta, vp, opts, E)
+            K = _samples(motion, rate_hz)
+    times = motion.t0 + np.arange(K) * dt
     profile = None
     if motion.kind == "timed" and vp.attitude == "ground":
         motion, profile = _graded(motion, E, vp, enu, fit)
+    elif motion.kind == "untimed":
+        profile = motion.profile
     if E.ecef:
         motion = EcefMotion(motion, E.frame)
     ground = _ground(motion, E, vp, enu, fit, profile)

@@ -344,14 +344,17 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
 # ------------------------------------------------------------------------------------------
 # untimed routes: geometry
 # ------------------------------------------------------------------------------------------
-def fit_path(y, vp: VehicleParams, corner_m=None):
+def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     """Smooth a polyline and re-parameterize by arc length.
 
-    Returns (G BSpline of s, length L, report dict).
+    Returns (G BSpline of s, length L, report dict) and, with ``vertices``, the arc length
+    [m] of the curve's point nearest each input point (N,): the smoothed point of its chord
+    length (repeated points share it), monotonic along the path.
     """
     y = np.asarray(y, float)
     seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
     keep = np.r_[True, seg > 1e-9]
+    kept = np.cumsum(keep) - 1  # index of each input point among the kept ones
     y = y[keep]
     seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
     if len(y) < 2 or seg.sum() <= 0:
@@ -395,6 +398,9 @@ def fit_path(y, vp: VehicleParams, corner_m=None):
         "max_distance_m": float(d.max()),
         "length_m": L,
     }
+    if vertices:
+        s_v = np.interp(np.r_[0.0, np.cumsum(seg)], uf, s)
+        return G, L, report, s_v[kept]
     return G, L, report
 
 

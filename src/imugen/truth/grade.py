@@ -1,5 +1,5 @@
-"""Road grade of a timed ground route: the height profile against horizontal distance, and the
-vertical of the motion that follows it.
+"""Road grade of a ground route: the height profile against horizontal distance, and the
+vertical of the motion (timed) or of the path geometry (untimed) that follows it.
 
 A GNSS track's heights are noisier than its horizontal positions and often step (quantized or
 held altimeter records). Fitted in time with the horizontal, they leave the path wiggling up and
@@ -8,15 +8,24 @@ metres, which the attitude can neither follow (its pitch rate would be implausib
 (the body would slip vertically, breaking the non-holonomic constraint). A road has a profile:
 the vertical of the truth is ``H(s(t))``, the height profile ``H`` (smoothed over at least
 ``grade_smooth_m``, :func:`imugen.truth.fit.fit_height_profile`) at the horizontal distance
-``s(t)`` travelled, so the velocity's pitch is the road's grade.
+``s(t)`` travelled, so the velocity's pitch is the road's grade. An untimed path's geometry
+``G`` gets the vertical ``H(s_h)`` at its horizontal distance ``s_h`` before its speed profile
+(:func:`graded_path`): the polyline's heights step and wander like a track's.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import BSpline
+from scipy.interpolate import BSpline, make_interp_spline
 
-from imugen.truth.fit import K_SPLINE, TimedMotion, _PenalizedSpline, fit_height_profile
+from imugen.truth.fit import (
+    K_SPLINE,
+    TimedMotion,
+    _distance_to_curve,
+    _PenalizedSpline,
+    fit_height_profile,
+    noise_estimate,
+)
 
 _GL = np.polynomial.legendre.leggauss(4)
 KNOT_MAX_S = 1.0  # knots of the graded vertical at most this far apart in time [s]
@@ -41,6 +50,19 @@ def distance_steps(motion, E, t):
     p = motion.position(tq) if E.ecef else None
     vh = E.horizontal_speed(p, v)[0].reshape(wq.shape)
     return np.sum(wq * vh, axis=1)
+
+
+def _up_of_height(E, p, h):
+    """n's Up giving the heights ``h`` (m,) above the East/North of ``p`` (m, 3): ``h`` itself
+    in ``flat``, else by fixed-point iteration on the ellipsoidal height."""
+    if E.flat:
+        return np.array(h, float)
+    p = np.array(p, float)
+    u = p[:, 2].copy()
+    for _ in range(_HEIGHT_ITER):
+        p[:, 2] = u
+        u = u + (h - E.height(p))
+    return u
 
 
 def _knot_sites(t_in, ds_in, smooth_m):
@@ -95,13 +117,7 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
     z[0::2], z[1::2] = x, 0.5 * (x[1:] + x[:-1])
     s_z = np.r_[0.0, np.cumsum(distance_steps(motion, E, z))]
     h_x = H(s_z[0::2])
-    u_x = h_x.copy()
-    if not E.flat:  # n's Up giving that ellipsoidal height above the same East/North
-        p_x = motion.position(x)
-        u_x = p_x[:, 2].copy()
-        for _ in range(_HEIGHT_ITER):
-            p_x[:, 2] = u_x
-            u_x = u_x + (h_x - E.height(p_x))
+    u_x = _up_of_height(E, motion.position(x) if not E.flat else None, h_x)
     ties = [
         (int(idx[np.searchsorted(t_in, a)]), int(idx[np.searchsorted(t_in, b)]) + K_SPLINE - 1)
         for a, b in stops
@@ -122,3 +138,90 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
         "max_change_from_time_fit_m": float(np.max(np.abs(pz[:, 2] - motion.position(z)[:, 2]))),
     }
     return graded, H, report
+
+
+def _integrals(f, x):
+    """Integral of ``f`` (callable, (m,) -> (m,)) over each interval of ``x`` (N,): 4-node
+    Gauss-Legendre, in chunks; shape (N - 1,)."""
+    out = np.empty(len(x) - 1)
+    step = 1 << 17
+    for i in range(0, len(x) - 1, step):
+        xq, wq = gl_nodes(x[i : i + step + 1])
+        out[i : i + len(wq)] = np.sum(wq * f(xq.ravel()).reshape(wq.shape), axis=1)
+    return out
+
+
+def graded_path(G, L, E, vp, vertices, y, spacing_m):
+    """An untimed path whose vertical is the road profile ``H(s_h)``, re-parameterized by
+    arc length.
+
+    ``H`` is fitted to the input heights against the horizontal distance ``s_h`` of their
+    points on ``G`` (:func:`imugen.truth.fit.fit_height_profile`; noise from the heights'
+    neighbour predictions along ``s_h``, :func:`imugen.truth.fit.noise_estimate`). The graded
+    curve keeps the East/North of ``G`` and takes n's Up giving ``H(s_h)``: both sampled
+    every ``spacing_m`` of ``G`` are interpolated (quintic) against their new arc length.
+
+    Parameters
+    ----------
+    G : BSpline
+        Path geometry of its arc length, in the route origin's ENU [m] (:func:`fit_path`).
+    L : float
+        Its length [m].
+    E : imugen.truth.attitude.EarthField
+        ``flat`` or ``wgs84`` field of that ENU (heights: n's Up, or ellipsoidal; horizontal:
+        its East/North).
+    vp : imugen.truth.vehicles.VehicleParams
+    vertices : (ndarray (N,), ndarray (N,))
+        Arc length on ``G`` of the input points [m] and their heights [m].
+    y : ndarray, shape (N, 3)
+        Input points (ENU) [m], for the distances of the report.
+    spacing_m : float
+        Sampling of ``G`` [m] (its own interpolation sites' spacing keeps its horizontal).
+
+    Returns
+    -------
+    (BSpline, float, BSpline or None, dict)
+        Graded geometry ``G`` and its length (the input ones when the path is too short for a
+        profile), ``H(s_h)`` and a report (grade fit, largest departure of the vertical from
+        ``H(s_h)``, distances of the input points to the graded path).
+    """
+    sig_v, h_v = (np.asarray(a, float) for a in vertices)
+    n = max(64, int(np.ceil(L / spacing_m)))
+    x = np.linspace(0.0, L, n + 1)
+    G1 = G.derivative(1)
+    sh = np.r_[0.0, np.cumsum(_integrals(lambda q: E.horizontal_speed(None, G1(q))[0], x))]
+    s_v = np.interp(sig_v, x, sh)
+    up = np.r_[True, np.diff(s_v) > 1e-9 * max(sh[-1], 1.0)]  # distinct abscissae
+    noise = float(noise_estimate(s_v[up], h_v[up, None])[0])
+    H, grep = fit_height_profile(s_v, h_v, noise, vp.grade_bin_m, vp.grade_smooth_m, vp.fit_floor_m)
+    if H is None:
+        return G, L, None, {"grade": grep, "method": "path heights (too short for a profile)"}
+    P = G(x)
+    u0 = P[:, 2].copy()
+    P[:, 2] = _up_of_height(E, P, H(sh))
+    U1 = make_interp_spline(x, P[:, 2], k=K_SPLINE).derivative(1)
+
+    def speed(q):  # |dP/dx|: East/North of G, Up of the graded vertical
+        d = G1(q)
+        return np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + U1(q) ** 2)
+
+    lam = np.r_[0.0, np.cumsum(_integrals(speed, x))]
+    G2 = make_interp_spline(lam, P, k=K_SPLINE)
+    L2 = float(lam[-1])
+    xm = 0.5 * (lam[1:] + lam[:-1])  # between the sites: interpolation's largest errors
+    G21 = G2.derivative(1)
+    shm = np.cumsum(_integrals(lambda q: E.horizontal_speed(None, G21(q))[0], np.r_[0.0, xm]))
+    dh = E.height(G2(np.interp(sig_v, x, lam))) - h_v
+    d = _distance_to_curve(G2, L2, y, spacing_m / 2.0)
+    report = {
+        "method": "road profile H(s_h): input heights against horizontal distance (grade), "
+        "the path's East/North with the Up of H, quintic against its new arc length",
+        "grade": grep,
+        "samples": n + 1,
+        "max_departure_m": float(np.max(np.abs(E.height(G2(xm)) - H(shm)))),
+        "max_change_from_path_m": float(np.max(np.abs(P[:, 2] - u0))),
+        "rms_vertical_distance_m": float(np.sqrt(np.mean(dh**2))),
+        "rms_distance_m": float(np.sqrt(np.mean(d**2))),
+        "max_distance_m": float(d.max()),
+    }
+    return G2, L2, H, report

@@ -13,11 +13,14 @@ from imugen.errors import InputError
 
 
 class PathMotion:
-    """Position ``G(s(t))``: geometry G(s) (arc length) and speed profile s(t) (PPoly)."""
+    """Position ``G(s(t))``: geometry G(s) (arc length) and speed profile s(t) (PPoly);
+    ``profile``: the road profile ``(H, report)`` whose vertical ``G`` has
+    (:func:`imugen.truth.grade.graded_path`), or None."""
 
     kind = "untimed"
 
-    def __init__(self, G: BSpline, s_of_t: PPoly, length: float):
+    def __init__(self, G: BSpline, s_of_t: PPoly, length: float, profile=None):
+        self.profile = profile
         self.G = [G] + [G.derivative(nu) for nu in (1, 2, 3)]
         self.S = [s_of_t] + [s_of_t.derivative(nu) for nu in (1, 2, 3)]
         self.length = length
