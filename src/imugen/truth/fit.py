@@ -469,7 +469,12 @@ def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
     ps = _PenalizedSpline(sm, weights=cnt)
     target = max(float(noise_m), floor_m)
     h0 = float(np.average(hm, weights=cnt))  # fitted about the mean: no offset to round off
-    lam = max(10.0 ** ps.lam_for_rms(hm - h0, target), (smooth_m / ps.scale) ** 6)
+    # smoothing beyond the bins' own extent (bandwidth ~ lambda^(1/6) bins) changes nothing (the
+    # fit is the least-squares quadratic) but the conditioning: few bins cap it
+    hi = min(12.0, 6.0 * math.log10(len(sm)))
+    lam = min(
+        max(10.0 ** ps.lam_for_rms(hm - h0, target, hi=hi), (smooth_m / ps.scale) ** 6), 10**hi
+    )
     H = ps.bspline(ps.solve(lam, hm - h0))
     H = BSpline(H.t, H.c + h0, H.k, extrapolate=True)  # the B-splines sum to 1
     res = H(sm) - hm
