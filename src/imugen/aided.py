@@ -9,12 +9,14 @@ kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g d
 trapezoid for position. Increments are corrected with the estimated biases and scale factors,
 ``dtheta_hat = (dtheta - b_g dt) / (1 + s_g)`` (likewise ``dv``).
 
-Error state (estimate minus truth), ``n = 15 (+3) (+6) (+1) (+1) (+2) (+6)``
+Error state (estimate minus truth), ``n = 15 (+3) (+6) (+1) (+1) (+2) (+6) (+2)``
     ``dp, dv`` [m, m/s] in n; ``psi`` [rad] with ``C_hat = Exp(psi) C``; gyro and accelerometer
     bias errors; optionally the GNSS receiver's Gauss-Markov position bias (E, N, U), then
-    gyro and accelerometer scale-factor errors, then the IMU's pitch and yaw misalignment from
-    the vehicle (constants, NHC only), then the gyro's six cross-coupling elements
-    (constants, ``Options.gyro_cross_coupling``; ``psi' = ... - C cc omega``). Continuous model
+    gyro and accelerometer scale-factor errors, then the odometer scale factor and the
+    barometer drift (companions), then the IMU's pitch and yaw misalignment from the vehicle
+    (constants, NHC only), then the gyro's six cross-coupling elements (constants,
+    ``Options.gyro_cross_coupling``; ``psi' = ... - C cc omega``), then the odometer's tick
+    residuals at the start and end of its window [m] (odometer on). Continuous model
     ``dp' = dv``; ``dv' = -[f_n x] psi - C (db_a + diag(f) ds_a) - 2 Omega x dv + Gamma dp``;
     ``psi' = -Omega x psi - C (db_g + diag(omega) ds_g)``; biases random walks; GNSS bias
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
@@ -67,10 +69,21 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       is the reported variance.
     * NHC (cars): lateral and vertical velocity of the vehicle reference point zero in the
       vehicle frame ``v``, at the NOMINAL lever arm ``l`` (the filter does not know the drawn
-      one, :mod:`imugen.mounting`): ``(R (C^T v - omega x l))_{y,z} = 0``, variance ``nhc_sd_mps^2``
-      plus ``(omega x sd_l)^2`` per component for the lever arm's 1-sigma about the nominal
+      one, :mod:`imugen.mounting`): ``(R (C^T v - omega x l))_{y,z} = 0``. Its variance is what
+      is uncertain in that zero, per component: the vehicle's own residual slip
+      ``nhc_sd_mps`` (lateral, vertical; none for the simulator's vehicles, whose body
+      velocity has no y, z component: 4e-9 m/s RMS, the truth's plausibility report), plus
+      ``(omega x sd_l)^2`` for the lever arm's 1-sigma about the nominal
       ``nhc_lever_arm_sd_m`` (white: it only acts in turns) (``omega`` the corrected rate; the
-      Earth rate's part, ``7e-5 |l|`` m/s, is left out).
+      Earth rate's part, ``7e-5 |l|`` m/s, is left out), plus the constraint's second-order
+      error, state-dependent: with ``psi``, ``dv`` in vehicle axes, ``v_b,hat - v_b = ... -
+      psi x dv + u/2 psi psi_x``, so row y has ``var(u/2 psi_y psi_x - psi_z dv_x + psi_x
+      dv_z)`` from ``P`` (Gaussian products, ``var(a b) = s_a^2 s_b^2 + s_ab^2``), likewise
+      row z; 1e-3 m/s after a moving alignment (tilt 1 deg, 14 m/s), 1e-5 m/s converged.
+      Without that term an exact constraint is overconfident after the alignment (NEES 130-200
+      at the first epoch, at 3e-5 m/s); a constant noise instead (the former 0.1 m/s, or even
+      1e-3 m/s) over-covers the two attitude directions NHC fixes (NEES 0.3 per direction
+      where 1 is due, measured in P's eigenbasis, car rectangle of tests/test_companions.py).
       ``R`` is the nominal mounting (identity), or, with ``nhc_misalignment_sd_rad`` set,
       ``Rz(yaw) Ry(-pitch)`` of two more error states, the IMU's pitch and yaw from the vehicle
       (random constants with that prior sigma): a misaligned IMU driving straight at ``u`` sees
@@ -79,6 +92,20 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       the direction of the vehicle's forward axis in IMU axes only, so the two states converge
       to its angles (:func:`imugen.mounting.forward_axis_angles`), not to the roll-dependent
       Euler pitch and yaw of the labels (they differ by ``roll x yaw``).
+    * Odometer (marked epochs, :class:`CompanionEpochs`): the distance counted over the window
+      since the previous mark, ``z = (1 + k) d + w + e_b - e_a``: ``d`` the forward distance
+      of the odometer point (trapezoid of ``e_x^T (C^T v + omega x l)``), ``k`` the scale
+      factor (a state, or its prior added to the variance), ``w`` the white speed noise
+      integrated over the window (variance ``n (s_w T_o)^2``), and ``e = (1/2 - r) c`` the
+      residual of the tick count at each end (``c`` the tick length, ``r`` the fraction of a
+      tick counted late, uniform: variance ``c^2 / 12``). The residual at a window's end is
+      the next window's start, so it is not white noise: both ends are states (start, end),
+      the end's drawn fresh at each mark and then becoming the next window's start (the
+      start's marginalized). Taken as white noise of ``c^2 / 6`` per window instead, the
+      telescoping of the residuals is lost: the scale factor's NEES is 0.09 (10 times
+      conservative) and the velocity's too (per-component 0.85 along-track).
+    * Barometer: the height above the origin's plus a first-order Gauss-Markov drift state
+      (the labelled model, :mod:`imugen.companions`), white noise ``s_w^2``.
     * ZUPT: velocity zero when the interval was still (every sample's corrected rate below
       ``zupt_gyro_radps``, specific-force magnitude within ``zupt_accel_mps2`` of gravity) and
       the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
@@ -126,7 +153,8 @@ X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB, X_MT = (
     27,
 )
 X_CG = 29  # gyro cross-coupling (6, off-diagonal elements in _CC_PAIRS order)
-NX = 35
+X_OQ = 35  # odometer tick residual at the start of the current window [m]
+NX = 36
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
@@ -137,14 +165,16 @@ T_OSF_SD, T_BB_SD, T_BB_TAU = 20, 21, 22
 # cross-coupling and g-sensitivity sigmas, their correlation time, quantization variances
 T_MSG, T_MCG, T_MGS, T_MSA, T_MCA = 23, 26, 29, 32, 35
 T_MTAU = 38
-N_TUNE = 39
+T_OQ_SD = 39  # odometer tick residual 1-sigma, c / sqrt(12) [m]
+N_TUNE = 40
 # --- options vector (shared) --------------------------------------------------------------------
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
 O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
 O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
 O_CG = 22
-N_OPT = 23
+O_NHC_SD_V = 23  # vertical NHC sigma (O_NHC_SD: lateral)
+N_OPT = 24
 _CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 """Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors`."""
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
@@ -164,12 +194,13 @@ def n_states(
     baro: bool = False,
     mounting: bool = False,
     gyro_cc: bool = False,
+    odometer: bool = False,
 ) -> int:
     """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
     ``mounting``: the IMU's pitch and yaw from the vehicle, ``gyro_cc``: the gyro's six
-    cross-coupling elements)."""
+    cross-coupling elements, ``odometer``: the tick residuals at the two ends of a window)."""
     n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
-    return n + 2 * bool(mounting) + 6 * bool(gyro_cc)
+    return n + 2 * bool(mounting) + 6 * bool(gyro_cc) + 2 * bool(odometer)
 
 
 def state_names(
@@ -179,6 +210,7 @@ def state_names(
     baro: bool = False,
     mounting: bool = False,
     gyro_cc: bool = False,
+    odometer: bool = False,
 ) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
@@ -195,6 +227,8 @@ def state_names(
         names += ["dmount_pitch", "dmount_yaw"]
     if gyro_cc:
         names += [f"dcg_{'xyz'[i]}{'xyz'[j]}" for i, j in _CC_PAIRS]
+    if odometer:
+        names += ["dodo_tick_start_m", "dodo_tick_end_m"]
     return names
 
 
@@ -337,6 +371,10 @@ class Options:
     ``odometer``: odometer distance updates (needs :class:`CompanionEpochs`), with an
     odometer scale-factor state if ``odo_scale_state`` (else the noise is inflated by the
     scale factor's prior); ``baro``: barometric height updates with a drift state.
+    ``nhc_sd_mps``: residual slip of the vehicle reference point, 1-sigma of its lateral and
+    vertical body speed [m/s] (a pair, or one number for both; the simulator's vehicles have
+    none, :mod:`imugen.aid` takes the truth's plausibility report); the NHC variance adds the
+    lever arm's and the constraint's second-order terms (module docstring).
     ``nhc_lever_arm_m``: nominal IMU position from the vehicle reference point (vehicle
     axes, m) where NHC applies; ``nhc_misalignment_sd_rad``: (pitch, yaw) 1-sigma of the
     unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
@@ -350,7 +388,7 @@ class Options:
     scale_factors: bool = False
     gnss_bias: bool = True
     nhc: bool = False
-    nhc_sd_mps: float = 0.1
+    nhc_sd_mps: tuple = (0.0, 0.0)
     zupt: bool = False
     zupt_sd_mps: float = 0.02
     zupt_gyro_radps: float = 0.02
@@ -372,7 +410,7 @@ class Options:
         """Size of the error state."""
         return n_states(
             self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
-            self.gyro_cross_coupling,
+            self.gyro_cross_coupling, self.odometer,
         )  # fmt: skip
 
     @property
@@ -389,7 +427,7 @@ class Options:
         """Names of the error-state components."""
         return state_names(
             self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
-            self.gyro_cross_coupling,
+            self.gyro_cross_coupling, self.odometer,
         )  # fmt: skip
 
     def vector(self) -> np.ndarray:
@@ -397,7 +435,7 @@ class Options:
         o[O_SF] = self.scale_factors
         o[O_GB] = self.gnss_bias
         o[O_NHC] = self.nhc
-        o[O_NHC_SD] = self.nhc_sd_mps
+        o[O_NHC_SD], o[O_NHC_SD_V] = np.broadcast_to(np.asarray(self.nhc_sd_mps, float), (2,))
         o[O_ZUPT] = self.zupt
         o[O_ZUPT_SD] = self.zupt_sd_mps
         o[O_ZUPT_GYRO] = self.zupt_gyro_radps
@@ -424,13 +462,17 @@ class CompanionEpochs:
     Attributes
     ----------
     z : (S, J, 4)       per epoch ``C_ODO`` odometer distance [m] over the window ending at the
-                        epoch (from the previous marked epoch), ``C_ODO_VAR`` its variance [m^2],
+                        epoch (from the previous marked epoch), ``C_ODO_VAR`` the variance of
+                        its white part [m^2] (the tick quantization is modelled by states,
+                        ``odo_tick_m``),
                         ``C_BARO`` barometric height above the origin's [m], ``C_BARO_VAR`` its
                         variance [m^2]; NaN where absent
     mark : (J,) int8    1 where the epoch is an odometer epoch (a window boundary)
     lever_b_m : (S, 3)  odometer reference point in the body frame [m]
     odo_sf_sd : (S,)    prior 1-sigma of the odometer scale factor
     baro_sd_m, baro_tau_s : (S,)  barometer drift model (stationary sigma [m], tau [s])
+    odo_tick_m : (S,)   odometer tick length ``c`` [m]: the count's residual at a window end is
+                        a state of prior ``c^2 / 12`` (module docstring, "Measurements")
     """
 
     z: np.ndarray
@@ -439,6 +481,7 @@ class CompanionEpochs:
     odo_sf_sd: np.ndarray
     baro_sd_m: np.ndarray
     baro_tau_s: np.ndarray
+    odo_tick_m: np.ndarray | None = None
 
     def tune(self, T: np.ndarray) -> np.ndarray:
         """A copy of the tuning matrix ``T`` (S, N_TUNE) with the companion columns set."""
@@ -446,6 +489,8 @@ class CompanionEpochs:
         T[:, T_OSF_SD] = self.odo_sf_sd
         T[:, T_BB_SD] = self.baro_sd_m
         T[:, T_BB_TAU] = self.baro_tau_s
+        if self.odo_tick_m is not None:
+            T[:, T_OQ_SD] = np.asarray(self.odo_tick_m, float) / math.sqrt(12.0)
         return T
 
 
@@ -656,10 +701,24 @@ def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
 
 
 @njit(cache=True)
-def _odometer_update(P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf_state, gate):
-    """Odometer distance ``z`` over a window: ``z_pred = (1 + k) d`` with ``d`` the predicted
-    forward distance; ``hv``, ``hpsi`` its sensitivities to the velocity and attitude errors
-    (``int C^T e_x dt``, ``int (C e_x) x v dt``; errors taken constant over the window)."""
+def _fresh_state(P, dx, i, sd):
+    """Start state ``i`` afresh: uncorrelated, zero mean error, variance ``sd^2``."""
+    for j in range(P.shape[0]):
+        P[i, j] = 0.0
+        P[j, i] = 0.0
+    P[i, i] = sd * sd
+    dx[i] = 0.0
+
+
+@njit(cache=True)
+def _odometer_update(
+    P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf_state, e_hat, i_oq, gate
+):  # fmt: skip
+    """Odometer distance ``z`` over a window: ``z_pred = (1 + k) d - e_a`` with ``d`` the
+    predicted forward distance, ``e_a`` the estimated tick residual at the window's start
+    (state ``i_oq``; the end's, state ``i_oq + 1``, has prior mean 0); ``hv``, ``hpsi`` the
+    sensitivities of ``d`` to the velocity and attitude errors (``int C^T e_x dt``, ``int (C
+    e_x) x v dt``; errors taken constant over the window)."""
     for i in range(P.shape[0]):
         h[i] = 0.0
     g = 1.0 + k_hat
@@ -668,12 +727,16 @@ def _odometer_update(P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf
         hz[a] = 3 + a
         h[6 + a] = g * hpsi[a]
         hz[3 + a] = 6 + a
-    m = 6
+    h[i_oq] = -1.0
+    h[i_oq + 1] = 1.0
+    hz[6] = i_oq
+    hz[7] = i_oq + 1
+    m = 8
     if sf_state:
         h[i_od] = d_hat
-        hz[6] = i_od
-        m = 7
-    return _scalar_update(P, dx, h, hz, m, g * d_hat - z, var, gate, PHt)
+        hz[8] = i_od
+        m = 9
+    return _scalar_update(P, dx, h, hz, m, g * d_hat - e_hat - z, var, gate, PHt)
 
 
 @njit(cache=True)
@@ -696,6 +759,35 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
     h[i_bb] = 1.0
     hz[m] = i_bb
     return _scalar_update(P, dx, h, hz, m + 1, pred - z, var, gate, PHt)
+
+
+@njit(cache=True, inline="always")
+def _body_cov(P, i0, Cv, i, j):
+    """``Cv[:, i]^T P_blk Cv[:, j]``: covariance of components ``i``, ``j`` (vehicle axes) of
+    the 3x3 block of ``P`` starting at ``i0``."""
+    acc = 0.0
+    for a in range(3):
+        for b in range(3):
+            acc += Cv[a, i] * P[i0 + a, i0 + b] * Cv[b, j]
+    return acc
+
+
+@njit(cache=True)
+def _nhc_second_order_var(P, Cv, u, row):
+    """Variance of the NHC prediction's second-order error (module docstring,
+    "Measurements"): with ``psi``, ``dv`` in vehicle axes, ``v_b,hat - v_b = -(psi x dv) +
+    u/2 psi (psi_x) + ...``, so row y carries ``u/2 psi_y psi_x - psi_z dv_x + psi_x dv_z``
+    and row z ``u/2 psi_z psi_x - psi_x dv_y + psi_y dv_x``; products of zero-mean Gaussian
+    components, ``var(a b) = s_a^2 s_b^2 + s_ab^2`` (the products taken uncorrelated)."""
+    sxx = _body_cov(P, 6, Cv, 0, 0)
+    o = 1 if row == 1 else 2  # the row's own axis, and the remaining one
+    r = 2 if row == 1 else 1
+    soo = _body_cov(P, 6, Cv, o, o)
+    sxo = _body_cov(P, 6, Cv, 0, o)
+    srr = _body_cov(P, 6, Cv, r, r)
+    vxx = _body_cov(P, 3, Cv, 0, 0)
+    vrr = _body_cov(P, 3, Cv, r, r)
+    return 0.25 * u * u * (sxx * soo + sxo * sxo) + srr * vxx + sxx * vrr
 
 
 @njit(cache=True, inline="always")
@@ -894,6 +986,7 @@ def _kernel(
     i_mt = i_bb + (1 if baro_on else 0)
     cg_on = opt[O_CG] != 0.0
     i_cg = i_mt + (2 if mt_on else 0)
+    i_oq = i_cg + (6 if cg_on else 0)  # odometer tick residuals: window start, end
     Ccc = np.zeros((3, 6))  # int C[:, r] omega_c dt of each cross-coupling pair (r, c)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
@@ -1400,7 +1493,8 @@ def _kernel(
                     else:
                         vb = vbz
                         var = (wbx * lsy) ** 2 + (wby * lsx) ** 2
-                    var += opt[O_NHC_SD] ** 2
+                    slip = opt[O_NHC_SD] if row == 1 else opt[O_NHC_SD_V]
+                    var += slip * slip + _nhc_second_order_var(P, Cv, ub, row)
                     for a in range(3):
                         h[3 + a] = Cv[a, row]
                         hz[a] = 3 + a
@@ -1420,16 +1514,28 @@ def _kernel(
             # --- companions: odometer distance over the window, barometric height -------------
             if odo_on and cmark[jj] != 0:
                 zo = cz[s, jj, C_ODO]
+                # the residual of the count at this epoch ends this window and starts the next
+                _fresh_state(P, dx, i_oq + 1, tun[s, T_OQ_SD])
                 if armed and ke > k0[s] and math.isfinite(zo):
                     vo = cz[s, jj, C_ODO_VAR]
                     if not osf_on:
                         vo += (tun[s, T_OSF_SD] * zo) ** 2
                     if _odometer_update(
-                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, x[X_OSF], i_od, osf_on, gate
-                    ):
+                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, x[X_OSF], i_od, osf_on,
+                        x[X_OQ], i_oq, gate,
+                    ):  # fmt: skip
                         flag |= F_ODO
                     else:
                         flag |= F_REJECT
+                # the end's residual becomes the next window's start (the start's marginalized)
+                for i in range(n):
+                    P[i_oq, i] = P[i_oq + 1, i]
+                for i in range(n):
+                    P[i, i_oq] = P[i, i_oq + 1]
+                P[i_oq, i_oq] = P[i_oq + 1, i_oq + 1]
+                dx[i_oq] = dx[i_oq + 1]
+                x[X_OQ] = 0.0
+                _fresh_state(P, dx, i_oq + 1, 0.0)
                 armed = True
                 dist = 0.0
                 for a in range(3):
@@ -1475,6 +1581,8 @@ def _kernel(
                     x[X_SA + a] -= dx[i_sa + a]
             if osf_on:
                 x[X_OSF] -= dx[i_od]
+            if odo_on:
+                x[X_OQ] -= dx[i_oq]
             if baro_on:
                 x[X_BB] -= dx[i_bb]
             if odo_on and armed:  # a window spans this epoch: correct its distance so far
