@@ -154,7 +154,8 @@ X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB, X_MT = (
 )
 X_CG = 29  # gyro cross-coupling (6, off-diagonal elements in _CC_PAIRS order)
 X_OQ = 35  # odometer tick residual at the start of the current window [m]
-NX = 36
+X_LA = 36  # NHC lever arm's departure from the nominal (3, body) [m]
+NX = 39
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
@@ -174,7 +175,8 @@ O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
 O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
 O_CG = 22
 O_NHC_SD_V = 23  # vertical NHC sigma (O_NHC_SD: lateral)
-N_OPT = 24
+O_LA = 24  # NHC lever-arm states
+N_OPT = 25
 _CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 """Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors`."""
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
@@ -195,12 +197,14 @@ def n_states(
     mounting: bool = False,
     gyro_cc: bool = False,
     odometer: bool = False,
+    lever: bool = False,
 ) -> int:
     """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
     ``mounting``: the IMU's pitch and yaw from the vehicle, ``gyro_cc``: the gyro's six
-    cross-coupling elements, ``odometer``: the tick residuals at the two ends of a window)."""
+    cross-coupling elements, ``odometer``: the tick residuals at the two ends of a window,
+    ``lever``: the NHC lever arm's departure from its nominal)."""
     n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
-    return n + 2 * bool(mounting) + 6 * bool(gyro_cc) + 2 * bool(odometer)
+    return n + 2 * bool(mounting) + 3 * bool(lever) + 6 * bool(gyro_cc) + 2 * bool(odometer)
 
 
 def state_names(
@@ -211,6 +215,7 @@ def state_names(
     mounting: bool = False,
     gyro_cc: bool = False,
     odometer: bool = False,
+    lever: bool = False,
 ) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
@@ -225,6 +230,8 @@ def state_names(
         names.append("dbaro_bias")
     if mounting:
         names += ["dmount_pitch", "dmount_yaw"]
+    if lever:
+        names += [f"dlever_{a}" for a in "xyz"]
     if gyro_cc:
         names += [f"dcg_{'xyz'[i]}{'xyz'[j]}" for i, j in _CC_PAIRS]
     if odometer:
@@ -410,13 +417,18 @@ class Options:
         """Size of the error state."""
         return n_states(
             self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
-            self.gyro_cross_coupling, self.odometer,
+            self.gyro_cross_coupling, self.odometer, self.lever_states,
         )  # fmt: skip
 
     @property
     def odo_sf(self) -> bool:
         """The odometer scale factor is a state."""
         return self.odometer and self.odo_scale_state
+
+    @property
+    def lever_states(self) -> bool:
+        """Whether the NHC lever arm's departure from its nominal is a state."""
+        return bool(self.nhc) and any(x > 0 for x in self.nhc_lever_arm_sd_m)
 
     @property
     def mounting(self) -> bool:
@@ -427,7 +439,7 @@ class Options:
         """Names of the error-state components."""
         return state_names(
             self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
-            self.gyro_cross_coupling, self.odometer,
+            self.gyro_cross_coupling, self.odometer, self.lever_states,
         )  # fmt: skip
 
     def vector(self) -> np.ndarray:
@@ -451,6 +463,7 @@ class Options:
         o[O_MT] = self.mounting
         o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
         o[O_CG] = self.gyro_cross_coupling
+        o[O_LA] = self.lever_states
         return o
 
 
@@ -985,7 +998,9 @@ def _kernel(
     mt_on = opt[O_MT] != 0.0
     i_mt = i_bb + (1 if baro_on else 0)
     cg_on = opt[O_CG] != 0.0
-    i_cg = i_mt + (2 if mt_on else 0)
+    la_on = opt[O_LA] != 0.0
+    i_la = i_mt + (2 if mt_on else 0)
+    i_cg = i_la + (3 if la_on else 0)
     i_oq = i_cg + (6 if cg_on else 0)  # odometer tick residuals: window start, end
     Ccc = np.zeros((3, 6))  # int C[:, r] omega_c dt of each cross-coupling pair (r, c)
     store_P = out_P.shape[1] > 0
@@ -1459,6 +1474,10 @@ def _kernel(
                 # v_b = C^T v - w x l; rows y, z: dv_b = C^T dv + C^T [v x] psi
                 _skew(vx, vy, vz, Xm)
                 nlx, nly, nlz = opt[O_NHC_LEVER], opt[O_NHC_LEVER + 1], opt[O_NHC_LEVER + 2]
+                if la_on:  # the estimated lever arm
+                    nlx += x[X_LA]
+                    nly += x[X_LA + 1]
+                    nlz += x[X_LA + 2]
                 ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
                 vby = C[0, 1] * vx + C[1, 1] * vy + C[2, 1] * vz - (wbz * nlx - wbx * nlz)
                 vbz = C[0, 2] * vx + C[1, 2] * vy + C[2, 2] * vz - (wbx * nly - wby * nlx)
@@ -1480,21 +1499,33 @@ def _kernel(
                         c0, c1, c2 = C[a, 0], C[a, 1], C[a, 2]
                         Cv[a, 1] = msy * (mcp * c0 - msp * c2) + mcy * c1
                         Cv[a, 2] = msp * c0 + mcp * c2
+                # the lever arm is observed through the rate components well above their
+                # noise (the extrapolated rate's, 2.5 N_g^2 / dt): a Jacobian taken at a noisy
+                # rate, correlated with the innovation's own noise, pulls the lever arm towards
+                # zero (errors in variables; 0.5 m -> 0.1 m in 25 s of straight road)
+                wgx = wbx if wbx * wbx > 250.0 * tun[s, T_NG] ** 2 / dt else 0.0
+                wgy = wby if wby * wby > 250.0 * tun[s, T_NG + 1] ** 2 / dt else 0.0
+                wgz = wbz if wbz * wbz > 250.0 * tun[s, T_NG + 2] ** 2 / dt else 0.0
                 for row in (1, 2):
                     for i in range(n):
                         h[i] = 0.0
-                    # the unknown part of the lever arm, (omega x dl)_row, as white noise
-                    lsx = opt[O_NHC_LEVER_SD]
-                    lsy = opt[O_NHC_LEVER_SD + 1]
-                    lsz = opt[O_NHC_LEVER_SD + 2]
-                    if row == 1:
-                        vb = vby
-                        var = (wbz * lsx) ** 2 + (wbx * lsz) ** 2
-                    else:
-                        vb = vbz
-                        var = (wbx * lsy) ** 2 + (wby * lsx) ** 2
+                    vb = vby if row == 1 else vbz
                     slip = opt[O_NHC_SD] if row == 1 else opt[O_NHC_SD_V]
-                    var += slip * slip + _nhc_second_order_var(P, Cv, ub, row)
+                    var = slip * slip + _nhc_second_order_var(P, Cv, ub, row)
+                    # the vehicle row r (body) and l x r: the rate's error enters as
+                    # r . (dw x l) = dw . (l x r); its white noise (the rate extrapolated from
+                    # two intervals' means, 1.5 and -0.5: 2.5 N_g^2 / dt per axis) as noise,
+                    # the gyro bias error as a sensitivity (dw = -dbg)
+                    r0 = C[0, 0] * Cv[0, row] + C[1, 0] * Cv[1, row] + C[2, 0] * Cv[2, row]
+                    r1 = C[0, 1] * Cv[0, row] + C[1, 1] * Cv[1, row] + C[2, 1] * Cv[2, row]
+                    r2 = C[0, 2] * Cv[0, row] + C[1, 2] * Cv[1, row] + C[2, 2] * Cv[2, row]
+                    lr0 = nly * r2 - nlz * r1
+                    lr1 = nlz * r0 - nlx * r2
+                    lr2 = nlx * r1 - nly * r0
+                    var += (2.5 / dt) * (
+                        (tun[s, T_NG] * lr0) ** 2 + (tun[s, T_NG + 1] * lr1) ** 2
+                        + (tun[s, T_NG + 2] * lr2) ** 2
+                    )  # fmt: skip
                     for a in range(3):
                         h[3 + a] = Cv[a, row]
                         hz[a] = 3 + a
@@ -1504,11 +1535,24 @@ def _kernel(
                             Cv[0, row] * Xm[0, b] + Cv[1, row] * Xm[1, b] + Cv[2, row] * Xm[2, b]
                         )
                         hz[3 + b] = 6 + b
-                    m = 6
+                    h[9] = lr0
+                    h[10] = lr1
+                    h[11] = lr2
+                    hz[6] = 9
+                    hz[7] = 10
+                    hz[8] = 11
+                    m = 9
                     if mt_on:
                         h[i_mt + (1 if row == 1 else 0)] = ub
-                        hz[6] = i_mt + (1 if row == 1 else 0)
-                        m = 7
+                        hz[m] = i_mt + (1 if row == 1 else 0)
+                        m += 1
+                    if la_on:  # d(-omega x l)/dl: -(r x omega)
+                        h[i_la] = -(r1 * wgz - r2 * wgy)
+                        h[i_la + 1] = -(r2 * wgx - r0 * wgz)
+                        h[i_la + 2] = -(r0 * wgy - r1 * wgx)
+                        for a in range(3):
+                            hz[m + a] = i_la + a
+                        m += 3
                     _scalar_update(P, dx, h, hz, m, vb, var, 0.0, PHt)
                 flag |= F_NHC
             # --- companions: odometer distance over the window, barometric height -------------
@@ -1591,6 +1635,9 @@ def _kernel(
             if mt_on:
                 x[X_MT] -= dx[i_mt]
                 x[X_MT + 1] -= dx[i_mt + 1]
+            if la_on:
+                for a in range(3):
+                    x[X_LA + a] -= dx[i_la + a]
             if cg_on:
                 for m in range(6):
                     x[X_CG + m] -= dx[i_cg + m]
@@ -1660,6 +1707,8 @@ class AidedResult:
                                 not estimated, :attr:`Options.mounting`)
     gyro_cc : (S, J, 6)         estimated gyro cross-coupling, pairs :data:`_CC_PAIRS` (zeros
                                 when not estimated, ``Options.gyro_cross_coupling``)
+    nhc_lever_b_m : (S, J, 3)   estimated NHC lever arm, body [m] (the nominal when not
+                                estimated, :attr:`Options.lever_states`)
     """
 
     time_s: np.ndarray
@@ -1680,6 +1729,7 @@ class AidedResult:
     baro_bias: np.ndarray | None = None
     mount_angles: np.ndarray | None = None
     gyro_cc: np.ndarray | None = None
+    nhc_lever_b_m: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -1746,6 +1796,13 @@ def initial_covariance(
     if opts.mounting:
         P[:, i, i], P[:, i + 1, i + 1] = np.square(opts.nhc_misalignment_sd_rad)
         i += 2
+    if opts.lever_states:
+        # body axes: C_bv l = l + [l x] theta to first order, theta the misalignment (pitch,
+        # yaw; roll not modelled)
+        lx = np.cross(np.asarray(opts.nhc_lever_arm_m, float), np.eye(3))  # [l x] = lx.T
+        sth = np.diag([0.0, *np.square(opts.nhc_misalignment_sd_rad)])
+        P[:, i : i + 3, i : i + 3] = np.diag(np.square(opts.nhc_lever_arm_sd_m)) + lx.T @ sth @ lx
+        i += 3
     if opts.gyro_cross_coupling:
         for m, (r, _) in enumerate(_CC_PAIRS):
             P[:, i + m, i + m] = tun.gyro_cc_sd[r] ** 2
@@ -2016,6 +2073,7 @@ def run(
         odo_sf=out_x[..., X_OSF],
         baro_bias=out_x[..., X_BB],
         mount_angles=out_x[..., X_MT : X_MT + 2],
+        nhc_lever_b_m=out_x[..., X_LA : X_LA + 3] + np.asarray(opts.nhc_lever_arm_m, float),
         gyro_cc=out_x[..., X_CG : X_CG + 6],
     )
 
