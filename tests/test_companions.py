@@ -400,6 +400,13 @@ def test_companion_options_are_checked(stage, tmp_path, cli):
     d, _ = stage
     with pytest.raises(InputError, match="unknown preset"):
         AID.AidParams(odometer="tyre")
+    with pytest.raises(InputError, match="nhc-slip-sd"):
+        AID.AidParams(nhc_slip_sd_mps=(0.1, -0.01))
+    # one number is both components; unset: the truth's report (an old truth: the fallback)
+    assert AID.AidParams(nhc_slip_sd_mps=0.05).options("car").nhc_sd_mps == (0.05, 0.05)
+    rep = {"max_body_lateral_speed_mps": 0.3, "max_body_vertical_speed_mps": 1e-3}
+    assert AID.AidParams().options("car", None, rep).nhc_sd_mps == (0.3, 1e-3)
+    assert AID.AidParams().options("car").nhc_sd_mps == (AID.SLIP_FALLBACK_MPS,) * 2
     r = cli("aid", str(d / "truth.parquet"), str(d / "imu.parquet"), "--gnss-out",
             str(tmp_path / "g.parquet"), "-o", str(tmp_path / "a.parquet"), "--baro", "bmp388")  # fmt: skip
     assert r.returncode == 2 and "--companions-out" in r.stderr
@@ -420,10 +427,13 @@ def test_workflow_passes_the_companion_keys(tmp_path):
     cfg = {k: v for k, v in W.TINY.items() if k != "grades"}
     cfg["grades"] = {"consumer": {}}
     comp = {"odometer": "abs", "barometer": "ms5611", "barometer_rate_hz": 5}
-    W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": comp})
+    aided = {"nhc_slip_sd_mps": [0.05, 0.01]}
+    W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": comp,
+                              "aided": aided})  # fmt: skip
     proc = W.snakemake(tmp_path, "-n", "-j1", "-p")
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out
+    assert "--nhc-slip-sd 0.05,0.01" in out
     assert "--odometer abs" in out and "--baro ms5611 --baro-rate-hz 5.0" in out
     assert "--companions-out" in out and "companions/consumer/shard-" in out
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": {"odometer": "x"}})
