@@ -725,13 +725,15 @@ def _fresh_state(P, dx, i, sd):
 
 @njit(cache=True)
 def _odometer_update(
-    P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf_state, e_hat, i_oq, gate
+    P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, hbg, hla, k_hat, i_od, sf_state, e_hat, i_oq,
+    la_on, i_la, gate,
 ):  # fmt: skip
     """Odometer distance ``z`` over a window: ``z_pred = (1 + k) d - e_a`` with ``d`` the
     predicted forward distance, ``e_a`` the estimated tick residual at the window's start
     (state ``i_oq``; the end's, state ``i_oq + 1``, has prior mean 0); ``hv``, ``hpsi`` the
     sensitivities of ``d`` to the velocity and attitude errors (``int C^T e_x dt``, ``int (C
-    e_x) x v dt``; errors taken constant over the window)."""
+    e_x) x v dt``; errors taken constant over the window), ``hbg``, ``hla`` to the gyro bias
+    and the IMU lever-arm errors (:func:`_odo_axes`)."""
     for i in range(P.shape[0]):
         h[i] = 0.0
     g = 1.0 + k_hat
@@ -740,16 +742,62 @@ def _odometer_update(
         hz[a] = 3 + a
         h[6 + a] = g * hpsi[a]
         hz[3 + a] = 6 + a
+        h[9 + a] = g * hbg[a]
+        hz[6 + a] = 9 + a
     h[i_oq] = -1.0
     h[i_oq + 1] = 1.0
-    hz[6] = i_oq
-    hz[7] = i_oq + 1
-    m = 8
+    hz[9] = i_oq
+    hz[10] = i_oq + 1
+    m = 11
+    if la_on:
+        for a in range(3):
+            h[i_la + a] = g * hla[a]
+            hz[m] = i_la + a
+            m += 1
     if sf_state:
         h[i_od] = d_hat
-        hz[8] = i_od
-        m = 9
+        hz[m] = i_od
+        m += 1
     return _scalar_update(P, dx, h, hz, m, g * d_hat - e_hat - z, var, gate, PHt)
+
+
+@njit(cache=True)
+def _odo_axes(x, opt, l_odo, mt_on, la_on, ra):
+    """The odometer's geometry in IMU axes: ``ra[:3]`` the vehicle's forward axis ``r``
+    (``R^T e_x`` with the estimated mounting ``R = Rz(yaw) Ry(-pitch)``, else ``e_x``),
+    ``ra[3:]`` ``a = (l_odo - l_imu) x r`` (``l_imu`` the NHC lever arm, nominal plus its
+    estimate): the wheel's forward speed is ``r . (C^T v) + omega . a``."""
+    if mt_on:
+        mcp, msp = math.cos(x[X_MT]), math.sin(x[X_MT])
+        mcy, msy = math.cos(x[X_MT + 1]), math.sin(x[X_MT + 1])
+        ra[0], ra[1], ra[2] = mcy * mcp, -msy, -mcy * msp
+    else:
+        ra[0], ra[1], ra[2] = 1.0, 0.0, 0.0
+    d0 = l_odo[0] - opt[O_NHC_LEVER]
+    d1 = l_odo[1] - opt[O_NHC_LEVER + 1]
+    d2 = l_odo[2] - opt[O_NHC_LEVER + 2]
+    if la_on:
+        d0 -= x[X_LA]
+        d1 -= x[X_LA + 1]
+        d2 -= x[X_LA + 2]
+    ra[3] = d1 * ra[2] - d2 * ra[1]
+    ra[4] = d2 * ra[0] - d0 * ra[2]
+    ra[5] = d0 * ra[1] - d1 * ra[0]
+
+
+@njit(cache=True)
+def _odo_window_sens(tw, Tw, ra, tn, dt, hbg, hla):
+    """Sensitivities of the window's distance to the gyro bias (``-a T_w``) and to the IMU
+    lever arm (``-(r x theta_w)``, ``theta_w`` the window's corrected angle, only its components
+    well above their noise ``N_g^2 T_w``: see the NHC's lever arm in :func:`_kernel`)."""
+    g0 = tw[0] if tw[0] * tw[0] > 250.0 * tn[T_NG] ** 2 * Tw else 0.0
+    g1 = tw[1] if tw[1] * tw[1] > 250.0 * tn[T_NG + 1] ** 2 * Tw else 0.0
+    g2 = tw[2] if tw[2] * tw[2] > 250.0 * tn[T_NG + 2] ** 2 * Tw else 0.0
+    for a in range(3):
+        hbg[a] = -ra[3 + a] * Tw
+    hla[0] = -(ra[1] * g2 - ra[2] * g1)
+    hla[1] = -(ra[2] * g0 - ra[0] * g2)
+    hla[2] = -(ra[0] * g1 - ra[1] * g0)
 
 
 @njit(cache=True)
@@ -995,6 +1043,11 @@ def _kernel(
     i_bb = i_od + (1 if osf_on else 0)
     hv = np.zeros(3)
     hpsi = np.zeros(3)
+    hbg = np.zeros(3)
+    hla = np.zeros(3)
+    tw = np.zeros(3)  # corrected angle over the odometer window (body)
+    ra = np.zeros(6)  # odometer geometry (_odo_axes)
+    Cn = np.zeros((3, 3))
     mt_on = opt[O_MT] != 0.0
     i_mt = i_bb + (1 if baro_on else 0)
     cg_on = opt[O_CG] != 0.0
@@ -1081,7 +1134,9 @@ def _kernel(
         for a in range(3):
             hv[a] = 0.0
             hpsi[a] = 0.0
-        oly, olz = clever[s, 1], clever[s, 2]  # (omega x l)_x needs l_y, l_z
+        Tw = 0.0  # duration of the odometer window [s]
+        for a in range(3):
+            tw[a] = 0.0
         for jj in range(J):
             ke = ep_idx[jj]
             if ke < k:
@@ -1110,11 +1165,17 @@ def _kernel(
             sax, say, saz = x[X_SA], x[X_SA + 1], x[X_SA + 2]
             ovx, ovy, ovz = vx, vy, vz
             if odo_on:  # forward speed at t_k (lever-arm term: the first interval's rate)
+                _odo_axes(x, opt, clever[s], mt_on, la_on, ra)
                 _dcm(q0, q1, q2, q3, C)
-                u0 = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                cr0 = C[0, 0] * ra[0] + C[0, 1] * ra[1] + C[0, 2] * ra[2]
+                cr1 = C[1, 0] * ra[0] + C[1, 1] * ra[1] + C[1, 2] * ra[2]
+                cr2 = C[2, 0] * ra[0] + C[2, 1] * ra[1] + C[2, 2] * ra[2]
+                u0 = cr0 * vx + cr1 * vy + cr2 * vz
                 if ke > k:
                     u0 += (
-                        (dth[s, k + 1, 1] - bgy * dt) * olz - (dth[s, k + 1, 2] - bgz * dt) * oly
+                        (dth[s, k + 1, 0] - bgx * dt) * ra[3]
+                        + (dth[s, k + 1, 1] - bgy * dt) * ra[4]
+                        + (dth[s, k + 1, 2] - bgz * dt) * ra[5]
                     ) / dt
             for i in range(k + 1, ke + 1):
                 tx = (dth[s, i, 0] - bgx * dt) / (1.0 + sgx)
@@ -1220,15 +1281,23 @@ def _kernel(
                 q2 *= nq
                 q3 *= nq
                 if odo_on:  # trapezoid of the forward speed, as the odometer's truth
-                    cx = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
-                    cy = 2.0 * (q1 * q2 + q0 * q3)
-                    cz_ = 2.0 * (q1 * q3 - q0 * q2)
-                    u1 = cx * vx + cy * vy + cz_ * vz + (ty * olz - tz * oly) / dt
+                    _dcm(q0, q1, q2, q3, Cn)  # C r before (C) and after (Cn) the step
+                    cx = Cn[0, 0] * ra[0] + Cn[0, 1] * ra[1] + Cn[0, 2] * ra[2]
+                    cy = Cn[1, 0] * ra[0] + Cn[1, 1] * ra[1] + Cn[1, 2] * ra[2]
+                    cz_ = Cn[2, 0] * ra[0] + Cn[2, 1] * ra[1] + Cn[2, 2] * ra[2]
+                    cr0 = C[0, 0] * ra[0] + C[0, 1] * ra[1] + C[0, 2] * ra[2]
+                    cr1 = C[1, 0] * ra[0] + C[1, 1] * ra[1] + C[1, 2] * ra[2]
+                    cr2 = C[2, 0] * ra[0] + C[2, 1] * ra[1] + C[2, 2] * ra[2]
+                    u1 = cx * vx + cy * vy + cz_ * vz + (tx * ra[3] + ty * ra[4] + tz * ra[5]) / dt
                     dist += 0.5 * dt * (u0 + u1)
                     u0 = u1
-                    hv[0] += 0.5 * dt * (C[0, 0] + cx)
-                    hv[1] += 0.5 * dt * (C[1, 0] + cy)
-                    hv[2] += 0.5 * dt * (C[2, 0] + cz_)
+                    tw[0] += tx
+                    tw[1] += ty
+                    tw[2] += tz
+                    Tw += dt
+                    hv[0] += 0.5 * dt * (cr0 + cx)
+                    hv[1] += 0.5 * dt * (cr1 + cy)
+                    hv[2] += 0.5 * dt * (cr2 + cz_)
                     hpsi[0] += dt * (cy * vz - cz_ * vy)
                     hpsi[1] += dt * (cz_ * vx - cx * vz)
                     hpsi[2] += dt * (cx * vy - cy * vx)
@@ -1478,7 +1547,10 @@ def _kernel(
                     nlx += x[X_LA]
                     nly += x[X_LA + 1]
                     nlz += x[X_LA + 2]
-                ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                # the reference point's whole body velocity C^T v - omega x l (its x part
+                # matters once rotated by the mounting: yaw x (omega x l)_x, 0.02 m/s in a
+                # turn at 5 deg and 0.5 m)
+                ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz - (wby * nlz - wbz * nly)
                 vby = C[0, 1] * vx + C[1, 1] * vy + C[2, 1] * vz - (wbz * nlx - wbx * nlz)
                 vbz = C[0, 2] * vx + C[1, 2] * vy + C[2, 2] * vz - (wbx * nly - wby * nlx)
                 for a in range(3):
@@ -1564,9 +1636,13 @@ def _kernel(
                     vo = cz[s, jj, C_ODO_VAR]
                     if not osf_on:
                         vo += (tun[s, T_OSF_SD] * zo) ** 2
+                    _odo_window_sens(tw, Tw, ra, tun[s], dt, hbg, hla)
+                    # the rate's white noise in omega . a over the window: N_g^2 T_w a^2
+                    for a in range(3):
+                        vo += (tun[s, T_NG + a] * ra[3 + a]) ** 2 * Tw
                     if _odometer_update(
-                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, x[X_OSF], i_od, osf_on,
-                        x[X_OQ], i_oq, gate,
+                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, hbg, hla, x[X_OSF], i_od,
+                        osf_on, x[X_OQ], i_oq, la_on, i_la, gate,
                     ):  # fmt: skip
                         flag |= F_ODO
                     else:
@@ -1582,9 +1658,11 @@ def _kernel(
                 _fresh_state(P, dx, i_oq + 1, 0.0)
                 armed = True
                 dist = 0.0
+                Tw = 0.0
                 for a in range(3):
                     hv[a] = 0.0
                     hpsi[a] = 0.0
+                    tw[a] = 0.0
             if baro_on and geo and math.isfinite(cz[s, jj, C_BARO]):
                 if _baro_update_geo(
                     P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], Lm, px, py, pz,
@@ -1630,8 +1708,11 @@ def _kernel(
             if baro_on:
                 x[X_BB] -= dx[i_bb]
             if odo_on and armed:  # a window spans this epoch: correct its distance so far
+                _odo_window_sens(tw, Tw, ra, tun[s], dt, hbg, hla)
                 for a in range(3):
-                    dist -= hv[a] * dx[3 + a] + hpsi[a] * dx[6 + a]
+                    dist -= hv[a] * dx[3 + a] + hpsi[a] * dx[6 + a] + hbg[a] * dx[9 + a]
+                    if la_on:
+                        dist -= hla[a] * dx[i_la + a]
             if mt_on:
                 x[X_MT] -= dx[i_mt]
                 x[X_MT + 1] -= dx[i_mt + 1]
