@@ -68,14 +68,24 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       white part (``R``) and the modelled bias in the tuning's proportions; without them ``R``
       is the reported variance.
     * NHC (cars): lateral and vertical velocity of the vehicle reference point zero in the
-      vehicle frame ``v``, at the NOMINAL lever arm ``l`` (the filter does not know the drawn
-      one, :mod:`imugen.mounting`): ``(R (C^T v - omega x l))_{y,z} = 0``. Its variance is what
-      is uncertain in that zero, per component: the vehicle's own residual slip
-      ``nhc_sd_mps`` (lateral, vertical; none for the simulator's vehicles, whose body
-      velocity has no y, z component: 4e-9 m/s RMS, the truth's plausibility report), plus
-      ``(omega x sd_l)^2`` for the lever arm's 1-sigma about the nominal
-      ``nhc_lever_arm_sd_m`` (white: it only acts in turns) (``omega`` the corrected rate; the
-      Earth rate's part, ``7e-5 |l|`` m/s, is left out), plus the constraint's second-order
+      vehicle frame ``v``: ``(R (C^T v - omega x l))_{y,z} = 0`` (the whole body vector
+      rotated: its x part, ``-(omega x l)_x``, enters the y row through the mounting yaw),
+      ``l`` the IMU's lever arm from that point (body axes): the nominal
+      ``nhc_lever_arm_m`` (the filter does not know the drawn one, :mod:`imugen.mounting`)
+      plus, with ``nhc_lever_arm_sd_m`` set, three random-constant states (prior that sigma
+      plus the misalignment's rotation of the nominal, ``[l x] theta``). A constant lever-arm
+      error is no white noise: taken as ``(omega x sd_l)^2`` it averaged down over each turn
+      (mounting NEES 20, pitch z^2 166 against 60). The states' Jacobian ``-(r x omega)``
+      (``r`` the vehicle row in body axes) keeps only the rate components above 15.8 times
+      their noise: at the noisy rate it correlates with the innovation's own noise and pulls
+      the lever arm to zero (errors in variables: 0.5 m -> 0.1 m in 25 s of straight road).
+      The rate's error enters ``r . (dw x l) = dw . (l x r)``: the gyro-bias error as a
+      sensitivity, the extrapolated rate's white noise (``2.5 N_g^2 / dt`` per axis: the two
+      intervals' means weighted 1.5 and -0.5) as variance; the Earth rate's part, ``7e-5
+      |l|`` m/s, is left out. The variance is what is uncertain in that zero, per component:
+      the vehicle's own residual slip ``nhc_sd_mps`` (lateral, vertical; none for the
+      simulator's vehicles, whose body velocity has no y, z component: 4e-9 m/s RMS, the
+      truth's plausibility report), the rate's noise above, plus the constraint's second-order
       error, state-dependent: with ``psi``, ``dv`` in vehicle axes, ``v_b,hat - v_b = ... -
       psi x dv + u/2 psi psi_x``, so row y has ``var(u/2 psi_y psi_x - psi_z dv_x + psi_x
       dv_z)`` from ``P`` (Gaussian products, ``var(a b) = s_a^2 s_b^2 + s_ab^2``), likewise
@@ -94,7 +104,15 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       Euler pitch and yaw of the labels (they differ by ``roll x yaw``).
     * Odometer (marked epochs, :class:`CompanionEpochs`): the distance counted over the window
       since the previous mark, ``z = (1 + k) d + w + e_b - e_a``: ``d`` the forward distance
-      of the odometer point (trapezoid of ``e_x^T (C^T v + omega x l)``), ``k`` the scale
+      of the odometer point along the vehicle's x (trapezoid of ``r . (C^T v) + omega . a``,
+      ``r = R^T e_x`` the vehicle's forward axis in IMU axes through the estimated mounting,
+      ``a = (l_o - l) x r`` with ``l_o`` the odometer point from the vehicle reference point
+      and ``l`` the IMU's, nominal plus its states; sensitivities to the gyro bias ``-a T_w``
+      and to the lever-arm states ``-(r x theta_w)``, ``theta_w`` the window's angle, gated
+      as NHC's; the rate's white noise adds ``N_g^2 T_w a^2``; the mounting angles' effect is
+      second order, ``u theta dtheta``, and left out: with large misalignments, 3, 3, 5 deg,
+      and a 1 m lever arm, NEES 9.3, 192 with the wheel along the IMU's x at the IMU), ``k``
+      the scale
       factor (a state, or its prior added to the variance), ``w`` the white speed noise
       integrated over the window (variance ``n (s_w T_o)^2``), and ``e = (1/2 - r) c`` the
       residual of the tick count at each end (``c`` the tick length, ``r`` the fraction of a
@@ -386,7 +404,9 @@ class Options:
     axes, m) where NHC applies; ``nhc_misalignment_sd_rad``: (pitch, yaw) 1-sigma of the
     unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
     random constants with that prior (:attr:`mounting`; see the module docstring);
-    ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m].
+    ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m]:
+    when not zero (and NHC on) the lever arm is three states (:attr:`lever_states`), used by
+    NHC and the odometer.
     ``gyro_cross_coupling``: estimate the gyro's six cross-coupling elements (random
     constants, prior the grade's sigma; they then leave the process noise and the
     accelerometer bias prior, see the module docstring).
@@ -481,7 +501,8 @@ class CompanionEpochs:
                         ``C_BARO`` barometric height above the origin's [m], ``C_BARO_VAR`` its
                         variance [m^2]; NaN where absent
     mark : (J,) int8    1 where the epoch is an odometer epoch (a window boundary)
-    lever_b_m : (S, 3)  odometer reference point in the body frame [m]
+    lever_b_m : (S, 3)  odometer point from the vehicle reference point, vehicle axes [m] (the
+                        IMU's own lever arm, ``Options.nhc_lever_arm_m``, is taken off)
     odo_sf_sd : (S,)    prior 1-sigma of the odometer scale factor
     baro_sd_m, baro_tau_s : (S,)  barometer drift model (stationary sigma [m], tau [s])
     odo_tick_m : (S,)   odometer tick length ``c`` [m]: the count's residual at a window end is
