@@ -190,11 +190,9 @@ N_TUNE = 40
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
 O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
-O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
-O_CG = 22
-O_NHC_SD_V = 23  # vertical NHC sigma (O_NHC_SD: lateral)
-O_LA = 24  # NHC lever-arm states
-N_OPT = 25
+O_NHC_LEVER, O_MT = 15, 18  # nominal lever arm: 3 slots
+O_NHC_SD_V, O_LA, O_CG = 19, 20, 21  # vertical NHC sigma (O_NHC_SD: lateral), lever states
+N_OPT = 22
 _CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 """Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors`."""
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
@@ -481,7 +479,6 @@ class Options:
         o[O_BARO] = self.baro
         o[O_NHC_LEVER : O_NHC_LEVER + 3] = self.nhc_lever_arm_m
         o[O_MT] = self.mounting
-        o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
         o[O_CG] = self.gyro_cross_coupling
         o[O_LA] = self.lever_states
         return o
