@@ -12,8 +12,8 @@ the cores):
 * 18 states (+ GNSS Gauss-Markov bias), the default;
 * 18 states + NHC + ZUPT (a car);
 * 24 states (+ gyro and accelerometer scale factors) + NHC + ZUPT;
-* 20 states (18 + odometer scale factor + barometer drift) + NHC + ZUPT + odometer (``abs``,
-  10 Hz) and barometer (``bmp388``, 10 Hz) updates;
+* 22 states (18 + odometer scale factor + barometer drift + the odometer's two tick residuals)
+  + NHC + ZUPT + odometer (``abs``, 10 Hz) and barometer (``bmp388``, 10 Hz) updates;
 * 18 states + NHC + ZUPT in ``wgs84``.
 
 ``--outage`` instead measures the horizontal error at the end of a 30 s and a 60 s GNSS outage
@@ -83,7 +83,8 @@ def scene(earth: str, M: int):
     from dataclasses import replace as _r
 
     ce = _r(ce, z=tile(ce.z), lever_b_m=tile(ce.lever_b_m), odo_sf_sd=tile(ce.odo_sf_sd),
-            baro_sd_m=tile(ce.baro_sd_m), baro_tau_s=tile(ce.baro_tau_s))  # fmt: skip
+            baro_sd_m=tile(ce.baro_sd_m), baro_tau_s=tile(ce.baro_tau_s),
+            odo_tick_m=tile(ce.odo_tick_m))  # fmt: skip
 
     dth, dv = tile(sh.data["dtheta"]), tile(sh.data["dv"])
     from dataclasses import replace
@@ -112,7 +113,8 @@ def bench(frame, dth, dv, gn, p, v, q, ce, opts, repeat):
     P0 = A.initial_covariance(tun, opts, 2.0, 0.1, [0.02, 0.02, 0.05], 1.0, 0.01, 0.66)
     init = A.initial_state(0, p[0], v[0], q[0], np.repeat(P0, M, 0))
     ce2 = replace(ce, z=ce.z[:2], lever_b_m=ce.lever_b_m[:2], odo_sf_sd=ce.odo_sf_sd[:2],
-                  baro_sd_m=ce.baro_sd_m[:2], baro_tau_s=ce.baro_tau_s[:2])  # fmt: skip
+                  baro_sd_m=ce.baro_sd_m[:2], baro_tau_s=ce.baro_tau_s[:2],
+                  odo_tick_m=ce.odo_tick_m[:2])  # fmt: skip
     A.run(dth[:2], dv[:2], 0.01, frame, _head(gn, 2), tun, opts, _init_head(init, 2),
           companions=ce2)  # fmt: skip
     best, best_cpu = np.inf, np.inf
@@ -197,7 +199,7 @@ def main():
         "24 states (+ scale factors) + NHC + ZUPT": A.Options(
             scale_factors=True, nhc=True, zupt=True
         ),
-        "20 states + NHC + ZUPT + odometer + barometer": A.Options(
+        "22 states + NHC + ZUPT + odometer + barometer": A.Options(
             nhc=True, zupt=True, odometer=True, baro=True
         ),
     }

@@ -113,9 +113,10 @@ def test_outage_end_equals_filter_in_memory(scene):
 
     scen = _stack(gs)
     tun = A.Tuning.from_grade("consumer", "upper")
-    res = A.run(
-        dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, A.Options(nhc=True, zupt=True)
-    )
+    # the stage's NHC noise: the truth's own slip (its plausibility report)
+    slip = AID.truth_slip_sd(truth.meta.get("plausibility"))
+    opts = A.Options(nhc=True, zupt=True, nhc_sd_mps=slip)
+    res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts)
     last = np.flatnonzero(scen.gnss.time_s < 110.0 - 1e-9)[-1]  # last epoch without a fix
     err = res.p_n[:, last] - truth.p_n[res.index[last]]
     a = taided.read(scene / "a.parquet")

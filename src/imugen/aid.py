@@ -29,6 +29,7 @@ same entropy with their own key (:data:`imugen.companions.COMPANION_KEY`), senso
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -63,8 +64,10 @@ class AidParams:
     """Receiver, scenarios and filter settings of the stage (config keys ``gnss``,
     ``scenarios``, ``aided``; see config/README.md).
 
-    ``nhc=None`` turns the non-holonomic constraint on for a ``car`` truth; ``seed=None``
-    takes the shard's simulation seed.
+    ``nhc=None`` turns the non-holonomic constraint on for a ``car`` truth;
+    ``nhc_slip_sd_mps`` (lateral, vertical) [m/s] the vehicle's residual slip NHC must cover,
+    None: the truth's own (:func:`truth_slip_sd`); ``seed=None`` takes the shard's simulation
+    seed.
     """
 
     receiver: str = "standalone"
@@ -81,6 +84,7 @@ class AidParams:
     scale_factors: bool = False
     gyro_cross_coupling: bool = True
     nhc: bool | None = None
+    nhc_slip_sd_mps: tuple | None = None
     zupt: bool = True
     gate_sigma: float = 0.0
     align_speed_mps: float = 5.0
@@ -123,15 +127,29 @@ class AidParams:
             CP.get_sensor("barometer", self.barometer)
         if self.companion_draw not in ("ranges", "nominal"):
             raise InputError("--companion-draw", "must be ranges or nominal")
+        if self.nhc_slip_sd_mps is not None:
+            slip = np.atleast_1d(np.asarray(self.nhc_slip_sd_mps, float))
+            if slip.shape not in ((1,), (2,)) or not np.all(np.isfinite(slip) & (slip >= 0)):
+                raise InputError(
+                    "--nhc-slip-sd", "expected LATERAL[,VERTICAL] m/s, finite and >= 0"
+                )
+            object.__setattr__(
+                self, "nhc_slip_sd_mps", tuple(float(x) for x in np.broadcast_to(slip, (2,)))
+            )
 
-    def options(self, vehicle: str | None, mounting: dict | None = None) -> A.Options:
+    def options(
+        self, vehicle: str | None, mounting: dict | None = None, plausibility: dict | None = None
+    ) -> A.Options:
         """Filter options; ``mounting`` (the shard metadata's, :mod:`imugen.mounting`) gives
-        NHC its nominal lever arm and the misalignment sigmas its noise must cover."""
+        NHC its nominal lever arm and the misalignment sigmas its noise must cover;
+        ``plausibility`` (the truth's report) the vehicle's residual slip, unless
+        ``nhc_slip_sd_mps`` is set."""
         nhc = (vehicle == "car") if self.nhc is None else bool(self.nhc)
-        mount = {}
+        slip = self.nhc_slip_sd_mps
+        mount = {"nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip}
         if mounting:
             sd = np.radians(mounting["misalignment_sd_deg"])
-            mount = {
+            mount |= {
                 "nhc_lever_arm_m": tuple(mounting["lever_arm_m"]),
                 "nhc_misalignment_sd_rad": (float(sd[1]), float(sd[2])),
                 "nhc_lever_arm_sd_m": tuple(mounting["lever_arm_sd_m"]),
@@ -148,6 +166,28 @@ class AidParams:
             baro=self.barometer is not None,
             **mount,
         )
+
+
+def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:
+    """The vehicle's residual slip (lateral, vertical) [m/s] NHC must cover: the largest
+    lateral and vertical body speeds of the truth's plausibility report
+    (:mod:`imugen.truth.report`), or :data:`SLIP_FALLBACK_MPS` for a truth without them.
+
+    The largest, not the RMS: the truth slips in bursts where its path is implausible (the
+    paper scene: RMS 0.010 m/s, largest 0.33 m/s, 1 % of the moving time), which white noise
+    of the RMS cannot cover (zero-error inputs through a 180 s outage: 0.043 m and 0.012 rad
+    off the truth, against 0.002 m and 8e-5 rad with the largest). On a plausible route the
+    simulator's car has none (5e-8 m/s)."""
+    rep = plausibility or {}
+    out = []
+    for key in ("max_body_lateral_speed_mps", "max_body_vertical_speed_mps"):
+        v = rep.get(key)
+        out.append(float(v) if v is not None and math.isfinite(v) else SLIP_FALLBACK_MPS)
+    return out[0], out[1]
+
+
+SLIP_FALLBACK_MPS = 0.1
+"""NHC slip sigma [m/s] of a truth whose report gives no body speeds (the former constant)."""
 
 
 def parse_scenarios(specs) -> dict:
@@ -414,7 +454,9 @@ def aid(
     if not grade:
         raise InputError(shard_path, "records no grade: pass --grade")
     tun = A.Tuning.from_grade(grade, params.tuning_level)
-    opts = params.options(truth.meta.get("vehicle"), smeta.get("mounting"))
+    opts = params.options(
+        truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility")
+    )
     mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
     frame = truth.origin_frame()
     columns, kind = tshard.measurement(shard_path)

@@ -9,12 +9,14 @@ kernel's ``(I + dt/2 W)^-1``; in ``flat`` exactly ``v_{k+1} = v_k + C_k dv + g d
 trapezoid for position. Increments are corrected with the estimated biases and scale factors,
 ``dtheta_hat = (dtheta - b_g dt) / (1 + s_g)`` (likewise ``dv``).
 
-Error state (estimate minus truth), ``n = 15 (+3) (+6) (+1) (+1) (+2) (+6)``
+Error state (estimate minus truth), ``n = 15 (+3) (+6) (+1) (+1) (+2) (+6) (+2)``
     ``dp, dv`` [m, m/s] in n; ``psi`` [rad] with ``C_hat = Exp(psi) C``; gyro and accelerometer
     bias errors; optionally the GNSS receiver's Gauss-Markov position bias (E, N, U), then
-    gyro and accelerometer scale-factor errors, then the IMU's pitch and yaw misalignment from
-    the vehicle (constants, NHC only), then the gyro's six cross-coupling elements
-    (constants, ``Options.gyro_cross_coupling``; ``psi' = ... - C cc omega``). Continuous model
+    gyro and accelerometer scale-factor errors, then the odometer scale factor and the
+    barometer drift (companions), then the IMU's pitch and yaw misalignment from the vehicle
+    (constants, NHC only), then the gyro's six cross-coupling elements (constants,
+    ``Options.gyro_cross_coupling``; ``psi' = ... - C cc omega``), then the odometer's tick
+    residuals at the start and end of its window [m] (odometer on). Continuous model
     ``dp' = dv``; ``dv' = -[f_n x] psi - C (db_a + diag(f) ds_a) - 2 Omega x dv + Gamma dp``;
     ``psi' = -Omega x psi - C (db_g + diag(omega) ds_g)``; biases random walks; GNSS bias
     first-order Gauss-Markov. The transition over one GNSS interval ``T`` uses the integrals
@@ -66,11 +68,32 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       white part (``R``) and the modelled bias in the tuning's proportions; without them ``R``
       is the reported variance.
     * NHC (cars): lateral and vertical velocity of the vehicle reference point zero in the
-      vehicle frame ``v``, at the NOMINAL lever arm ``l`` (the filter does not know the drawn
-      one, :mod:`imugen.mounting`): ``(R (C^T v - omega x l))_{y,z} = 0``, variance ``nhc_sd_mps^2``
-      plus ``(omega x sd_l)^2`` per component for the lever arm's 1-sigma about the nominal
-      ``nhc_lever_arm_sd_m`` (white: it only acts in turns) (``omega`` the corrected rate; the
-      Earth rate's part, ``7e-5 |l|`` m/s, is left out).
+      vehicle frame ``v``: ``(R (C^T v - omega x l))_{y,z} = 0`` (the whole body vector
+      rotated: its x part, ``-(omega x l)_x``, enters the y row through the mounting yaw),
+      ``l`` the IMU's lever arm from that point (body axes): the nominal
+      ``nhc_lever_arm_m`` (the filter does not know the drawn one, :mod:`imugen.mounting`)
+      plus, with ``nhc_lever_arm_sd_m`` set, three random-constant states (prior that sigma
+      plus the misalignment's rotation of the nominal, ``[l x] theta``). A constant lever-arm
+      error is no white noise: taken as ``(omega x sd_l)^2`` it averaged down over each turn
+      (mounting NEES 20, pitch z^2 166 against 60). The states' Jacobian ``-(r x omega)``
+      (``r`` the vehicle row in body axes) keeps only the rate components above 15.8 times
+      their noise: at the noisy rate it correlates with the innovation's own noise and pulls
+      the lever arm to zero (errors in variables: 0.5 m -> 0.1 m in 25 s of straight road).
+      The rate's error enters ``r . (dw x l) = dw . (l x r)``: the gyro-bias error as a
+      sensitivity, the extrapolated rate's white noise (``2.5 N_g^2 / dt`` per axis: the two
+      intervals' means weighted 1.5 and -0.5) as variance; the Earth rate's part, ``7e-5
+      |l|`` m/s, is left out. The variance is what is uncertain in that zero, per component:
+      the vehicle's own residual slip ``nhc_sd_mps`` (lateral, vertical; none for the
+      simulator's vehicles, whose body velocity has no y, z component: 4e-9 m/s RMS, the
+      truth's plausibility report), the rate's noise above, plus the constraint's second-order
+      error, state-dependent: with ``psi``, ``dv`` in vehicle axes, ``v_b,hat - v_b = ... -
+      psi x dv + u/2 psi psi_x``, so row y has ``var(u/2 psi_y psi_x - psi_z dv_x + psi_x
+      dv_z)`` from ``P`` (Gaussian products, ``var(a b) = s_a^2 s_b^2 + s_ab^2``), likewise
+      row z; 1e-3 m/s after a moving alignment (tilt 1 deg, 14 m/s), 1e-5 m/s converged.
+      Without that term an exact constraint is overconfident after the alignment (NEES 130-200
+      at the first epoch, at 3e-5 m/s); a constant noise instead (the former 0.1 m/s, or even
+      1e-3 m/s) over-covers the two attitude directions NHC fixes (NEES 0.3 per direction
+      where 1 is due, measured in P's eigenbasis, car rectangle of tests/test_companions.py).
       ``R`` is the nominal mounting (identity), or, with ``nhc_misalignment_sd_rad`` set,
       ``Rz(yaw) Ry(-pitch)`` of two more error states, the IMU's pitch and yaw from the vehicle
       (random constants with that prior sigma): a misaligned IMU driving straight at ``u`` sees
@@ -79,6 +102,28 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       the direction of the vehicle's forward axis in IMU axes only, so the two states converge
       to its angles (:func:`imugen.mounting.forward_axis_angles`), not to the roll-dependent
       Euler pitch and yaw of the labels (they differ by ``roll x yaw``).
+    * Odometer (marked epochs, :class:`CompanionEpochs`): the distance counted over the window
+      since the previous mark, ``z = (1 + k) d + w + e_b - e_a``: ``d`` the forward distance
+      of the odometer point along the vehicle's x (trapezoid of ``r . (C^T v) + omega . a``,
+      ``r = R^T e_x`` the vehicle's forward axis in IMU axes through the estimated mounting,
+      ``a = (l_o - l) x r`` with ``l_o`` the odometer point from the vehicle reference point
+      and ``l`` the IMU's, nominal plus its states; sensitivities to the gyro bias ``-a T_w``
+      and to the lever-arm states ``-(r x theta_w)``, ``theta_w`` the window's angle, gated
+      as NHC's; the rate's white noise adds ``N_g^2 T_w a^2``; the mounting angles' effect is
+      second order, ``u theta dtheta``, and left out: with large misalignments, 3, 3, 5 deg,
+      and a 1 m lever arm, NEES 9.3, 192 with the wheel along the IMU's x at the IMU), ``k``
+      the scale
+      factor (a state, or its prior added to the variance), ``w`` the white speed noise
+      integrated over the window (variance ``n (s_w T_o)^2``), and ``e = (1/2 - r) c`` the
+      residual of the tick count at each end (``c`` the tick length, ``r`` the fraction of a
+      tick counted late, uniform: variance ``c^2 / 12``). The residual at a window's end is
+      the next window's start, so it is not white noise: both ends are states (start, end),
+      the end's drawn fresh at each mark and then becoming the next window's start (the
+      start's marginalized). Taken as white noise of ``c^2 / 6`` per window instead, the
+      telescoping of the residuals is lost: the scale factor's NEES is 0.09 (10 times
+      conservative) and the velocity's too (per-component 0.85 along-track).
+    * Barometer: the height above the origin's plus a first-order Gauss-Markov drift state
+      (the labelled model, :mod:`imugen.companions`), white noise ``s_w^2``.
     * ZUPT: velocity zero when the interval was still (every sample's corrected rate below
       ``zupt_gyro_radps``, specific-force magnitude within ``zupt_accel_mps2`` of gravity) and
       the speed (GNSS when valid, else the filter's) below ``zupt_speed_mps``.
@@ -126,7 +171,9 @@ X_P, X_V, X_Q, X_BG, X_BA, X_SG, X_SA, X_GB, X_OSF, X_BB, X_MT = (
     27,
 )
 X_CG = 29  # gyro cross-coupling (6, off-diagonal elements in _CC_PAIRS order)
-NX = 35
+X_OQ = 35  # odometer tick residual at the start of the current window [m]
+X_LA = 36  # NHC lever arm's departure from the nominal (3, body) [m]
+NX = 39
 # --- error-state indices (fixed part) -----------------------------------------------------------
 I_P, I_V, I_PSI, I_BG, I_BA = 0, 3, 6, 9, 12
 N_BASE = 15
@@ -137,14 +184,15 @@ T_OSF_SD, T_BB_SD, T_BB_TAU = 20, 21, 22
 # cross-coupling and g-sensitivity sigmas, their correlation time, quantization variances
 T_MSG, T_MCG, T_MGS, T_MSA, T_MCA = 23, 26, 29, 32, 35
 T_MTAU = 38
-N_TUNE = 39
+T_OQ_SD = 39  # odometer tick residual 1-sigma, c / sqrt(12) [m]
+N_TUNE = 40
 # --- options vector (shared) --------------------------------------------------------------------
 (O_SF, O_GB, O_NHC, O_NHC_SD, O_ZUPT, O_ZUPT_SD, O_ZUPT_GYRO, O_ZUPT_ACC, O_ZUPT_SPEED) = range(9)
 O_GATE, O_USE_VEL, O_LATENCY = 9, 10, 11
 O_ODO, O_ODO_SF, O_BARO = 12, 13, 14
-O_NHC_LEVER, O_MT, O_NHC_LEVER_SD = 15, 18, 19  # lever and its sigma: 3 slots each
-O_CG = 22
-N_OPT = 23
+O_NHC_LEVER, O_MT = 15, 18  # nominal lever arm: 3 slots
+O_NHC_SD_V, O_LA, O_CG = 19, 20, 21  # vertical NHC sigma (O_NHC_SD: lateral), lever states
+N_OPT = 22
 _CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 """Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors`."""
 # --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
@@ -164,12 +212,15 @@ def n_states(
     baro: bool = False,
     mounting: bool = False,
     gyro_cc: bool = False,
+    odometer: bool = False,
+    lever: bool = False,
 ) -> int:
     """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
     ``mounting``: the IMU's pitch and yaw from the vehicle, ``gyro_cc``: the gyro's six
-    cross-coupling elements)."""
+    cross-coupling elements, ``odometer``: the tick residuals at the two ends of a window,
+    ``lever``: the NHC lever arm's departure from its nominal)."""
     n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
-    return n + 2 * bool(mounting) + 6 * bool(gyro_cc)
+    return n + 2 * bool(mounting) + 3 * bool(lever) + 6 * bool(gyro_cc) + 2 * bool(odometer)
 
 
 def state_names(
@@ -179,6 +230,8 @@ def state_names(
     baro: bool = False,
     mounting: bool = False,
     gyro_cc: bool = False,
+    odometer: bool = False,
+    lever: bool = False,
 ) -> list[str]:
     """Names of the error-state components, in order."""
     names = [f"{g}_{a}" for g in ("dp", "dv", "psi", "dbg", "dba") for a in "enu"[:3]]
@@ -193,8 +246,12 @@ def state_names(
         names.append("dbaro_bias")
     if mounting:
         names += ["dmount_pitch", "dmount_yaw"]
+    if lever:
+        names += [f"dlever_{a}" for a in "xyz"]
     if gyro_cc:
         names += [f"dcg_{'xyz'[i]}{'xyz'[j]}" for i, j in _CC_PAIRS]
+    if odometer:
+        names += ["dodo_tick_start_m", "dodo_tick_end_m"]
     return names
 
 
@@ -337,11 +394,17 @@ class Options:
     ``odometer``: odometer distance updates (needs :class:`CompanionEpochs`), with an
     odometer scale-factor state if ``odo_scale_state`` (else the noise is inflated by the
     scale factor's prior); ``baro``: barometric height updates with a drift state.
+    ``nhc_sd_mps``: residual slip of the vehicle reference point, 1-sigma of its lateral and
+    vertical body speed [m/s] (a pair, or one number for both; the simulator's vehicles have
+    none, :mod:`imugen.aid` takes the truth's plausibility report); the NHC variance adds the
+    lever arm's and the constraint's second-order terms (module docstring).
     ``nhc_lever_arm_m``: nominal IMU position from the vehicle reference point (vehicle
     axes, m) where NHC applies; ``nhc_misalignment_sd_rad``: (pitch, yaw) 1-sigma of the
     unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
     random constants with that prior (:attr:`mounting`; see the module docstring);
-    ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m].
+    ``nhc_lever_arm_sd_m``: 1-sigma of the lever arm about its nominal, per vehicle axis [m]:
+    when not zero (and NHC on) the lever arm is three states (:attr:`lever_states`), used by
+    NHC and the odometer.
     ``gyro_cross_coupling``: estimate the gyro's six cross-coupling elements (random
     constants, prior the grade's sigma; they then leave the process noise and the
     accelerometer bias prior, see the module docstring).
@@ -350,7 +413,7 @@ class Options:
     scale_factors: bool = False
     gnss_bias: bool = True
     nhc: bool = False
-    nhc_sd_mps: float = 0.1
+    nhc_sd_mps: tuple = (0.0, 0.0)
     zupt: bool = False
     zupt_sd_mps: float = 0.02
     zupt_gyro_radps: float = 0.02
@@ -372,13 +435,18 @@ class Options:
         """Size of the error state."""
         return n_states(
             self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
-            self.gyro_cross_coupling,
+            self.gyro_cross_coupling, self.odometer, self.lever_states,
         )  # fmt: skip
 
     @property
     def odo_sf(self) -> bool:
         """The odometer scale factor is a state."""
         return self.odometer and self.odo_scale_state
+
+    @property
+    def lever_states(self) -> bool:
+        """Whether the NHC lever arm's departure from its nominal is a state."""
+        return bool(self.nhc) and any(x > 0 for x in self.nhc_lever_arm_sd_m)
 
     @property
     def mounting(self) -> bool:
@@ -389,7 +457,7 @@ class Options:
         """Names of the error-state components."""
         return state_names(
             self.scale_factors, self.gnss_bias, self.odo_sf, self.baro, self.mounting,
-            self.gyro_cross_coupling,
+            self.gyro_cross_coupling, self.odometer, self.lever_states,
         )  # fmt: skip
 
     def vector(self) -> np.ndarray:
@@ -397,7 +465,7 @@ class Options:
         o[O_SF] = self.scale_factors
         o[O_GB] = self.gnss_bias
         o[O_NHC] = self.nhc
-        o[O_NHC_SD] = self.nhc_sd_mps
+        o[O_NHC_SD], o[O_NHC_SD_V] = np.broadcast_to(np.asarray(self.nhc_sd_mps, float), (2,))
         o[O_ZUPT] = self.zupt
         o[O_ZUPT_SD] = self.zupt_sd_mps
         o[O_ZUPT_GYRO] = self.zupt_gyro_radps
@@ -411,8 +479,8 @@ class Options:
         o[O_BARO] = self.baro
         o[O_NHC_LEVER : O_NHC_LEVER + 3] = self.nhc_lever_arm_m
         o[O_MT] = self.mounting
-        o[O_NHC_LEVER_SD : O_NHC_LEVER_SD + 3] = self.nhc_lever_arm_sd_m
         o[O_CG] = self.gyro_cross_coupling
+        o[O_LA] = self.lever_states
         return o
 
 
@@ -424,13 +492,18 @@ class CompanionEpochs:
     Attributes
     ----------
     z : (S, J, 4)       per epoch ``C_ODO`` odometer distance [m] over the window ending at the
-                        epoch (from the previous marked epoch), ``C_ODO_VAR`` its variance [m^2],
+                        epoch (from the previous marked epoch), ``C_ODO_VAR`` the variance of
+                        its white part [m^2] (the tick quantization is modelled by states,
+                        ``odo_tick_m``),
                         ``C_BARO`` barometric height above the origin's [m], ``C_BARO_VAR`` its
                         variance [m^2]; NaN where absent
     mark : (J,) int8    1 where the epoch is an odometer epoch (a window boundary)
-    lever_b_m : (S, 3)  odometer reference point in the body frame [m]
+    lever_b_m : (S, 3)  odometer point from the vehicle reference point, vehicle axes [m] (the
+                        IMU's own lever arm, ``Options.nhc_lever_arm_m``, is taken off)
     odo_sf_sd : (S,)    prior 1-sigma of the odometer scale factor
     baro_sd_m, baro_tau_s : (S,)  barometer drift model (stationary sigma [m], tau [s])
+    odo_tick_m : (S,)   odometer tick length ``c`` [m]: the count's residual at a window end is
+                        a state of prior ``c^2 / 12`` (module docstring, "Measurements")
     """
 
     z: np.ndarray
@@ -439,6 +512,7 @@ class CompanionEpochs:
     odo_sf_sd: np.ndarray
     baro_sd_m: np.ndarray
     baro_tau_s: np.ndarray
+    odo_tick_m: np.ndarray | None = None
 
     def tune(self, T: np.ndarray) -> np.ndarray:
         """A copy of the tuning matrix ``T`` (S, N_TUNE) with the companion columns set."""
@@ -446,6 +520,8 @@ class CompanionEpochs:
         T[:, T_OSF_SD] = self.odo_sf_sd
         T[:, T_BB_SD] = self.baro_sd_m
         T[:, T_BB_TAU] = self.baro_tau_s
+        if self.odo_tick_m is not None:
+            T[:, T_OQ_SD] = np.asarray(self.odo_tick_m, float) / math.sqrt(12.0)
         return T
 
 
@@ -656,10 +732,26 @@ def _scalar_update(P, dx, h, nz, nnz, r, var, gate, PHt):
 
 
 @njit(cache=True)
-def _odometer_update(P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf_state, gate):
-    """Odometer distance ``z`` over a window: ``z_pred = (1 + k) d`` with ``d`` the predicted
-    forward distance; ``hv``, ``hpsi`` its sensitivities to the velocity and attitude errors
-    (``int C^T e_x dt``, ``int (C e_x) x v dt``; errors taken constant over the window)."""
+def _fresh_state(P, dx, i, sd):
+    """Start state ``i`` afresh: uncorrelated, zero mean error, variance ``sd^2``."""
+    for j in range(P.shape[0]):
+        P[i, j] = 0.0
+        P[j, i] = 0.0
+    P[i, i] = sd * sd
+    dx[i] = 0.0
+
+
+@njit(cache=True)
+def _odometer_update(
+    P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, hbg, hla, k_hat, i_od, sf_state, e_hat, i_oq,
+    la_on, i_la, gate,
+):  # fmt: skip
+    """Odometer distance ``z`` over a window: ``z_pred = (1 + k) d - e_a`` with ``d`` the
+    predicted forward distance, ``e_a`` the estimated tick residual at the window's start
+    (state ``i_oq``; the end's, state ``i_oq + 1``, has prior mean 0); ``hv``, ``hpsi`` the
+    sensitivities of ``d`` to the velocity and attitude errors (``int C^T e_x dt``, ``int (C
+    e_x) x v dt``; errors taken constant over the window), ``hbg``, ``hla`` to the gyro bias
+    and the IMU lever-arm errors (:func:`_odo_axes`)."""
     for i in range(P.shape[0]):
         h[i] = 0.0
     g = 1.0 + k_hat
@@ -668,12 +760,62 @@ def _odometer_update(P, dx, h, hz, PHt, z, var, d_hat, hv, hpsi, k_hat, i_od, sf
         hz[a] = 3 + a
         h[6 + a] = g * hpsi[a]
         hz[3 + a] = 6 + a
-    m = 6
+        h[9 + a] = g * hbg[a]
+        hz[6 + a] = 9 + a
+    h[i_oq] = -1.0
+    h[i_oq + 1] = 1.0
+    hz[9] = i_oq
+    hz[10] = i_oq + 1
+    m = 11
+    if la_on:
+        for a in range(3):
+            h[i_la + a] = g * hla[a]
+            hz[m] = i_la + a
+            m += 1
     if sf_state:
         h[i_od] = d_hat
-        hz[6] = i_od
-        m = 7
-    return _scalar_update(P, dx, h, hz, m, g * d_hat - z, var, gate, PHt)
+        hz[m] = i_od
+        m += 1
+    return _scalar_update(P, dx, h, hz, m, g * d_hat - e_hat - z, var, gate, PHt)
+
+
+@njit(cache=True)
+def _odo_axes(x, opt, l_odo, mt_on, la_on, ra):
+    """The odometer's geometry in IMU axes: ``ra[:3]`` the vehicle's forward axis ``r``
+    (``R^T e_x`` with the estimated mounting ``R = Rz(yaw) Ry(-pitch)``, else ``e_x``),
+    ``ra[3:]`` ``a = (l_odo - l_imu) x r`` (``l_imu`` the NHC lever arm, nominal plus its
+    estimate): the wheel's forward speed is ``r . (C^T v) + omega . a``."""
+    if mt_on:
+        mcp, msp = math.cos(x[X_MT]), math.sin(x[X_MT])
+        mcy, msy = math.cos(x[X_MT + 1]), math.sin(x[X_MT + 1])
+        ra[0], ra[1], ra[2] = mcy * mcp, -msy, -mcy * msp
+    else:
+        ra[0], ra[1], ra[2] = 1.0, 0.0, 0.0
+    d0 = l_odo[0] - opt[O_NHC_LEVER]
+    d1 = l_odo[1] - opt[O_NHC_LEVER + 1]
+    d2 = l_odo[2] - opt[O_NHC_LEVER + 2]
+    if la_on:
+        d0 -= x[X_LA]
+        d1 -= x[X_LA + 1]
+        d2 -= x[X_LA + 2]
+    ra[3] = d1 * ra[2] - d2 * ra[1]
+    ra[4] = d2 * ra[0] - d0 * ra[2]
+    ra[5] = d0 * ra[1] - d1 * ra[0]
+
+
+@njit(cache=True)
+def _odo_window_sens(tw, Tw, ra, tn, dt, hbg, hla):
+    """Sensitivities of the window's distance to the gyro bias (``-a T_w``) and to the IMU
+    lever arm (``-(r x theta_w)``, ``theta_w`` the window's corrected angle, only its components
+    well above their noise ``N_g^2 T_w``: see the NHC's lever arm in :func:`_kernel`)."""
+    g0 = tw[0] if tw[0] * tw[0] > 250.0 * tn[T_NG] ** 2 * Tw else 0.0
+    g1 = tw[1] if tw[1] * tw[1] > 250.0 * tn[T_NG + 1] ** 2 * Tw else 0.0
+    g2 = tw[2] if tw[2] * tw[2] > 250.0 * tn[T_NG + 2] ** 2 * Tw else 0.0
+    for a in range(3):
+        hbg[a] = -ra[3 + a] * Tw
+    hla[0] = -(ra[1] * g2 - ra[2] * g1)
+    hla[1] = -(ra[2] * g0 - ra[0] * g2)
+    hla[2] = -(ra[0] * g1 - ra[1] * g0)
 
 
 @njit(cache=True)
@@ -696,6 +838,35 @@ def _baro_update(P, dx, h, hz, PHt, z, var, px, py, pz, b_hat, i_bb, wgs, gate):
     h[i_bb] = 1.0
     hz[m] = i_bb
     return _scalar_update(P, dx, h, hz, m + 1, pred - z, var, gate, PHt)
+
+
+@njit(cache=True, inline="always")
+def _body_cov(P, i0, Cv, i, j):
+    """``Cv[:, i]^T P_blk Cv[:, j]``: covariance of components ``i``, ``j`` (vehicle axes) of
+    the 3x3 block of ``P`` starting at ``i0``."""
+    acc = 0.0
+    for a in range(3):
+        for b in range(3):
+            acc += Cv[a, i] * P[i0 + a, i0 + b] * Cv[b, j]
+    return acc
+
+
+@njit(cache=True)
+def _nhc_second_order_var(P, Cv, u, row):
+    """Variance of the NHC prediction's second-order error (module docstring,
+    "Measurements"): with ``psi``, ``dv`` in vehicle axes, ``v_b,hat - v_b = -(psi x dv) +
+    u/2 psi (psi_x) + ...``, so row y carries ``u/2 psi_y psi_x - psi_z dv_x + psi_x dv_z``
+    and row z ``u/2 psi_z psi_x - psi_x dv_y + psi_y dv_x``; products of zero-mean Gaussian
+    components, ``var(a b) = s_a^2 s_b^2 + s_ab^2`` (the products taken uncorrelated)."""
+    sxx = _body_cov(P, 6, Cv, 0, 0)
+    o = 1 if row == 1 else 2  # the row's own axis, and the remaining one
+    r = 2 if row == 1 else 1
+    soo = _body_cov(P, 6, Cv, o, o)
+    sxo = _body_cov(P, 6, Cv, 0, o)
+    srr = _body_cov(P, 6, Cv, r, r)
+    vxx = _body_cov(P, 3, Cv, 0, 0)
+    vrr = _body_cov(P, 3, Cv, r, r)
+    return 0.25 * u * u * (sxx * soo + sxo * sxo) + srr * vxx + sxx * vrr
 
 
 @njit(cache=True, inline="always")
@@ -890,10 +1061,18 @@ def _kernel(
     i_bb = i_od + (1 if osf_on else 0)
     hv = np.zeros(3)
     hpsi = np.zeros(3)
+    hbg = np.zeros(3)
+    hla = np.zeros(3)
+    tw = np.zeros(3)  # corrected angle over the odometer window (body)
+    ra = np.zeros(6)  # odometer geometry (_odo_axes)
+    Cn = np.zeros((3, 3))
     mt_on = opt[O_MT] != 0.0
     i_mt = i_bb + (1 if baro_on else 0)
     cg_on = opt[O_CG] != 0.0
-    i_cg = i_mt + (2 if mt_on else 0)
+    la_on = opt[O_LA] != 0.0
+    i_la = i_mt + (2 if mt_on else 0)
+    i_cg = i_la + (3 if la_on else 0)
+    i_oq = i_cg + (6 if cg_on else 0)  # odometer tick residuals: window start, end
     Ccc = np.zeros((3, 6))  # int C[:, r] omega_c dt of each cross-coupling pair (r, c)
     store_P = out_P.shape[1] > 0
     # transition sparsity pattern: columns that may be non-zero in each row
@@ -973,7 +1152,9 @@ def _kernel(
         for a in range(3):
             hv[a] = 0.0
             hpsi[a] = 0.0
-        oly, olz = clever[s, 1], clever[s, 2]  # (omega x l)_x needs l_y, l_z
+        Tw = 0.0  # duration of the odometer window [s]
+        for a in range(3):
+            tw[a] = 0.0
         for jj in range(J):
             ke = ep_idx[jj]
             if ke < k:
@@ -1002,11 +1183,17 @@ def _kernel(
             sax, say, saz = x[X_SA], x[X_SA + 1], x[X_SA + 2]
             ovx, ovy, ovz = vx, vy, vz
             if odo_on:  # forward speed at t_k (lever-arm term: the first interval's rate)
+                _odo_axes(x, opt, clever[s], mt_on, la_on, ra)
                 _dcm(q0, q1, q2, q3, C)
-                u0 = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                cr0 = C[0, 0] * ra[0] + C[0, 1] * ra[1] + C[0, 2] * ra[2]
+                cr1 = C[1, 0] * ra[0] + C[1, 1] * ra[1] + C[1, 2] * ra[2]
+                cr2 = C[2, 0] * ra[0] + C[2, 1] * ra[1] + C[2, 2] * ra[2]
+                u0 = cr0 * vx + cr1 * vy + cr2 * vz
                 if ke > k:
                     u0 += (
-                        (dth[s, k + 1, 1] - bgy * dt) * olz - (dth[s, k + 1, 2] - bgz * dt) * oly
+                        (dth[s, k + 1, 0] - bgx * dt) * ra[3]
+                        + (dth[s, k + 1, 1] - bgy * dt) * ra[4]
+                        + (dth[s, k + 1, 2] - bgz * dt) * ra[5]
                     ) / dt
             for i in range(k + 1, ke + 1):
                 tx = (dth[s, i, 0] - bgx * dt) / (1.0 + sgx)
@@ -1112,15 +1299,23 @@ def _kernel(
                 q2 *= nq
                 q3 *= nq
                 if odo_on:  # trapezoid of the forward speed, as the odometer's truth
-                    cx = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
-                    cy = 2.0 * (q1 * q2 + q0 * q3)
-                    cz_ = 2.0 * (q1 * q3 - q0 * q2)
-                    u1 = cx * vx + cy * vy + cz_ * vz + (ty * olz - tz * oly) / dt
+                    _dcm(q0, q1, q2, q3, Cn)  # C r before (C) and after (Cn) the step
+                    cx = Cn[0, 0] * ra[0] + Cn[0, 1] * ra[1] + Cn[0, 2] * ra[2]
+                    cy = Cn[1, 0] * ra[0] + Cn[1, 1] * ra[1] + Cn[1, 2] * ra[2]
+                    cz_ = Cn[2, 0] * ra[0] + Cn[2, 1] * ra[1] + Cn[2, 2] * ra[2]
+                    cr0 = C[0, 0] * ra[0] + C[0, 1] * ra[1] + C[0, 2] * ra[2]
+                    cr1 = C[1, 0] * ra[0] + C[1, 1] * ra[1] + C[1, 2] * ra[2]
+                    cr2 = C[2, 0] * ra[0] + C[2, 1] * ra[1] + C[2, 2] * ra[2]
+                    u1 = cx * vx + cy * vy + cz_ * vz + (tx * ra[3] + ty * ra[4] + tz * ra[5]) / dt
                     dist += 0.5 * dt * (u0 + u1)
                     u0 = u1
-                    hv[0] += 0.5 * dt * (C[0, 0] + cx)
-                    hv[1] += 0.5 * dt * (C[1, 0] + cy)
-                    hv[2] += 0.5 * dt * (C[2, 0] + cz_)
+                    tw[0] += tx
+                    tw[1] += ty
+                    tw[2] += tz
+                    Tw += dt
+                    hv[0] += 0.5 * dt * (cr0 + cx)
+                    hv[1] += 0.5 * dt * (cr1 + cy)
+                    hv[2] += 0.5 * dt * (cr2 + cz_)
                     hpsi[0] += dt * (cy * vz - cz_ * vy)
                     hpsi[1] += dt * (cz_ * vx - cx * vz)
                     hpsi[2] += dt * (cx * vy - cy * vx)
@@ -1366,7 +1561,14 @@ def _kernel(
                 # v_b = C^T v - w x l; rows y, z: dv_b = C^T dv + C^T [v x] psi
                 _skew(vx, vy, vz, Xm)
                 nlx, nly, nlz = opt[O_NHC_LEVER], opt[O_NHC_LEVER + 1], opt[O_NHC_LEVER + 2]
-                ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz
+                if la_on:  # the estimated lever arm
+                    nlx += x[X_LA]
+                    nly += x[X_LA + 1]
+                    nlz += x[X_LA + 2]
+                # the reference point's whole body velocity C^T v - omega x l (its x part
+                # matters once rotated by the mounting: yaw x (omega x l)_x, 0.02 m/s in a
+                # turn at 5 deg and 0.5 m)
+                ub = C[0, 0] * vx + C[1, 0] * vy + C[2, 0] * vz - (wby * nlz - wbz * nly)
                 vby = C[0, 1] * vx + C[1, 1] * vy + C[2, 1] * vz - (wbz * nlx - wbx * nlz)
                 vbz = C[0, 2] * vx + C[1, 2] * vy + C[2, 2] * vz - (wbx * nly - wby * nlx)
                 for a in range(3):
@@ -1387,20 +1589,33 @@ def _kernel(
                         c0, c1, c2 = C[a, 0], C[a, 1], C[a, 2]
                         Cv[a, 1] = msy * (mcp * c0 - msp * c2) + mcy * c1
                         Cv[a, 2] = msp * c0 + mcp * c2
+                # the lever arm is observed through the rate components well above their
+                # noise (the extrapolated rate's, 2.5 N_g^2 / dt): a Jacobian taken at a noisy
+                # rate, correlated with the innovation's own noise, pulls the lever arm towards
+                # zero (errors in variables; 0.5 m -> 0.1 m in 25 s of straight road)
+                wgx = wbx if wbx * wbx > 250.0 * tun[s, T_NG] ** 2 / dt else 0.0
+                wgy = wby if wby * wby > 250.0 * tun[s, T_NG + 1] ** 2 / dt else 0.0
+                wgz = wbz if wbz * wbz > 250.0 * tun[s, T_NG + 2] ** 2 / dt else 0.0
                 for row in (1, 2):
                     for i in range(n):
                         h[i] = 0.0
-                    # the unknown part of the lever arm, (omega x dl)_row, as white noise
-                    lsx = opt[O_NHC_LEVER_SD]
-                    lsy = opt[O_NHC_LEVER_SD + 1]
-                    lsz = opt[O_NHC_LEVER_SD + 2]
-                    if row == 1:
-                        vb = vby
-                        var = (wbz * lsx) ** 2 + (wbx * lsz) ** 2
-                    else:
-                        vb = vbz
-                        var = (wbx * lsy) ** 2 + (wby * lsx) ** 2
-                    var += opt[O_NHC_SD] ** 2
+                    vb = vby if row == 1 else vbz
+                    slip = opt[O_NHC_SD] if row == 1 else opt[O_NHC_SD_V]
+                    var = slip * slip + _nhc_second_order_var(P, Cv, ub, row)
+                    # the vehicle row r (body) and l x r: the rate's error enters as
+                    # r . (dw x l) = dw . (l x r); its white noise (the rate extrapolated from
+                    # two intervals' means, 1.5 and -0.5: 2.5 N_g^2 / dt per axis) as noise,
+                    # the gyro bias error as a sensitivity (dw = -dbg)
+                    r0 = C[0, 0] * Cv[0, row] + C[1, 0] * Cv[1, row] + C[2, 0] * Cv[2, row]
+                    r1 = C[0, 1] * Cv[0, row] + C[1, 1] * Cv[1, row] + C[2, 1] * Cv[2, row]
+                    r2 = C[0, 2] * Cv[0, row] + C[1, 2] * Cv[1, row] + C[2, 2] * Cv[2, row]
+                    lr0 = nly * r2 - nlz * r1
+                    lr1 = nlz * r0 - nlx * r2
+                    lr2 = nlx * r1 - nly * r0
+                    var += (2.5 / dt) * (
+                        (tun[s, T_NG] * lr0) ** 2 + (tun[s, T_NG + 1] * lr1) ** 2
+                        + (tun[s, T_NG + 2] * lr2) ** 2
+                    )  # fmt: skip
                     for a in range(3):
                         h[3 + a] = Cv[a, row]
                         hz[a] = 3 + a
@@ -1410,31 +1625,62 @@ def _kernel(
                             Cv[0, row] * Xm[0, b] + Cv[1, row] * Xm[1, b] + Cv[2, row] * Xm[2, b]
                         )
                         hz[3 + b] = 6 + b
-                    m = 6
+                    h[9] = lr0
+                    h[10] = lr1
+                    h[11] = lr2
+                    hz[6] = 9
+                    hz[7] = 10
+                    hz[8] = 11
+                    m = 9
                     if mt_on:
                         h[i_mt + (1 if row == 1 else 0)] = ub
-                        hz[6] = i_mt + (1 if row == 1 else 0)
-                        m = 7
+                        hz[m] = i_mt + (1 if row == 1 else 0)
+                        m += 1
+                    if la_on:  # d(-omega x l)/dl: -(r x omega)
+                        h[i_la] = -(r1 * wgz - r2 * wgy)
+                        h[i_la + 1] = -(r2 * wgx - r0 * wgz)
+                        h[i_la + 2] = -(r0 * wgy - r1 * wgx)
+                        for a in range(3):
+                            hz[m + a] = i_la + a
+                        m += 3
                     _scalar_update(P, dx, h, hz, m, vb, var, 0.0, PHt)
                 flag |= F_NHC
             # --- companions: odometer distance over the window, barometric height -------------
             if odo_on and cmark[jj] != 0:
                 zo = cz[s, jj, C_ODO]
+                # the residual of the count at this epoch ends this window and starts the next
+                _fresh_state(P, dx, i_oq + 1, tun[s, T_OQ_SD])
                 if armed and ke > k0[s] and math.isfinite(zo):
                     vo = cz[s, jj, C_ODO_VAR]
                     if not osf_on:
                         vo += (tun[s, T_OSF_SD] * zo) ** 2
+                    _odo_window_sens(tw, Tw, ra, tun[s], dt, hbg, hla)
+                    # the rate's white noise in omega . a over the window: N_g^2 T_w a^2
+                    for a in range(3):
+                        vo += (tun[s, T_NG + a] * ra[3 + a]) ** 2 * Tw
                     if _odometer_update(
-                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, x[X_OSF], i_od, osf_on, gate
-                    ):
+                        P, dx, h, hz, PHt, zo, vo, dist, hv, hpsi, hbg, hla, x[X_OSF], i_od,
+                        osf_on, x[X_OQ], i_oq, la_on, i_la, gate,
+                    ):  # fmt: skip
                         flag |= F_ODO
                     else:
                         flag |= F_REJECT
+                # the end's residual becomes the next window's start (the start's marginalized)
+                for i in range(n):
+                    P[i_oq, i] = P[i_oq + 1, i]
+                for i in range(n):
+                    P[i, i_oq] = P[i, i_oq + 1]
+                P[i_oq, i_oq] = P[i_oq + 1, i_oq + 1]
+                dx[i_oq] = dx[i_oq + 1]
+                x[X_OQ] = 0.0
+                _fresh_state(P, dx, i_oq + 1, 0.0)
                 armed = True
                 dist = 0.0
+                Tw = 0.0
                 for a in range(3):
                     hv[a] = 0.0
                     hpsi[a] = 0.0
+                    tw[a] = 0.0
             if baro_on and geo and math.isfinite(cz[s, jj, C_BARO]):
                 if _baro_update_geo(
                     P, dx, h, hz, PHt, cz[s, jj, C_BARO], cz[s, jj, C_BARO_VAR], Lm, px, py, pz,
@@ -1475,14 +1721,22 @@ def _kernel(
                     x[X_SA + a] -= dx[i_sa + a]
             if osf_on:
                 x[X_OSF] -= dx[i_od]
+            if odo_on:
+                x[X_OQ] -= dx[i_oq]
             if baro_on:
                 x[X_BB] -= dx[i_bb]
             if odo_on and armed:  # a window spans this epoch: correct its distance so far
+                _odo_window_sens(tw, Tw, ra, tun[s], dt, hbg, hla)
                 for a in range(3):
-                    dist -= hv[a] * dx[3 + a] + hpsi[a] * dx[6 + a]
+                    dist -= hv[a] * dx[3 + a] + hpsi[a] * dx[6 + a] + hbg[a] * dx[9 + a]
+                    if la_on:
+                        dist -= hla[a] * dx[i_la + a]
             if mt_on:
                 x[X_MT] -= dx[i_mt]
                 x[X_MT + 1] -= dx[i_mt + 1]
+            if la_on:
+                for a in range(3):
+                    x[X_LA + a] -= dx[i_la + a]
             if cg_on:
                 for m in range(6):
                     x[X_CG + m] -= dx[i_cg + m]
@@ -1552,6 +1806,8 @@ class AidedResult:
                                 not estimated, :attr:`Options.mounting`)
     gyro_cc : (S, J, 6)         estimated gyro cross-coupling, pairs :data:`_CC_PAIRS` (zeros
                                 when not estimated, ``Options.gyro_cross_coupling``)
+    nhc_lever_b_m : (S, J, 3)   estimated NHC lever arm, body [m] (the nominal when not
+                                estimated, :attr:`Options.lever_states`)
     """
 
     time_s: np.ndarray
@@ -1572,6 +1828,7 @@ class AidedResult:
     baro_bias: np.ndarray | None = None
     mount_angles: np.ndarray | None = None
     gyro_cc: np.ndarray | None = None
+    nhc_lever_b_m: np.ndarray | None = None
 
 
 def initial_state(k0, p_n, v_n, q_nb, P0, gyro_bias=None, accel_bias=None) -> Initial:
@@ -1638,6 +1895,13 @@ def initial_covariance(
     if opts.mounting:
         P[:, i, i], P[:, i + 1, i + 1] = np.square(opts.nhc_misalignment_sd_rad)
         i += 2
+    if opts.lever_states:
+        # body axes: C_bv l = l + [l x] theta to first order, theta the misalignment (pitch,
+        # yaw; roll not modelled)
+        lx = np.cross(np.asarray(opts.nhc_lever_arm_m, float), np.eye(3))  # [l x] = lx.T
+        sth = np.diag([0.0, *np.square(opts.nhc_misalignment_sd_rad)])
+        P[:, i : i + 3, i : i + 3] = np.diag(np.square(opts.nhc_lever_arm_sd_m)) + lx.T @ sth @ lx
+        i += 3
     if opts.gyro_cross_coupling:
         for m, (r, _) in enumerate(_CC_PAIRS):
             P[:, i + m, i + m] = tun.gyro_cc_sd[r] ** 2
@@ -1908,6 +2172,7 @@ def run(
         odo_sf=out_x[..., X_OSF],
         baro_bias=out_x[..., X_BB],
         mount_angles=out_x[..., X_MT : X_MT + 2],
+        nhc_lever_b_m=out_x[..., X_LA : X_LA + 3] + np.asarray(opts.nhc_lever_arm_m, float),
         gyro_cc=out_x[..., X_CG : X_CG + 6],
     )
 

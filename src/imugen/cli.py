@@ -164,6 +164,7 @@ def _cmd_aid(a) -> int:
         receiver=a.receiver, rate_hz=a.gnss_rate_hz, draw=a.gnss_draw, lever_arm_b_m=lever,
         lever_arm_sd_m=a.lever_arm_sd, settle_s=a.settle_s, tuning_level=a.tuning_level,
         gnss_bias_states=not a.no_gnss_bias_states, scale_factors=a.scale_factors, nhc=a.nhc,
+        nhc_slip_sd_mps=_floats(a.nhc_slip_sd, "--nhc-slip-sd"),
         gyro_cross_coupling=not a.no_cross_coupling,
         zupt=not a.no_zupt, gate_sigma=a.gate_sigma, align_speed_mps=a.align_speed,
         eval_rate_hz=a.eval_rate_hz, seed=a.seed,
@@ -175,6 +176,16 @@ def _cmd_aid(a) -> int:
     )  # fmt: skip
     run(a.truth, a.shard, a.gnss_out, a.output, params, out_companions=a.companions_out)
     return 0
+
+
+def _floats(text: str | None, option: str) -> list[float] | None:
+    """``"A[,B...]"`` -> floats (None stays None; InputError naming ``option`` otherwise)."""
+    if text is None:
+        return None
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(option, f"expected comma-separated numbers, got {text!r}") from None
 
 
 def _xyz(text: str, option: str) -> list[float]:
@@ -567,6 +578,11 @@ def build_parser() -> argparse.ArgumentParser:
         action=argparse.BooleanOptionalAction,
         default=None,
         help="non-holonomic constraint (default: on for a car truth)",
+    )
+    p.add_argument(
+        "--nhc-slip-sd",
+        metavar="LAT[,VERT]",
+        help="vehicle slip NHC must cover, 1-sigma m/s (default: the truth's plausibility report)",
     )
     p.add_argument("--no-zupt", action="store_true", help="no zero-velocity updates")
     p.add_argument("--gate-sigma", type=float, default=0.0, help="innovation gate (0: off)")

@@ -329,10 +329,12 @@ def filter_input(
     """Companion measurements on the GNSS epoch grid ``gnss_index`` (J,) for the aided filter.
 
     Odometer: the epochs that are also odometer epochs are marked; at a mark, the distance
-    counted since the previous mark, ``(N(k_j) - N(k_prev)) c``, with variance ``n (s_w
-    T_o)^2 + c^2 / 6`` (``n`` odometer epochs; white speed noise, and the quantization of the
-    two tick counts). Barometer: the altitude minus ``h0_m`` (the origin's height) at the
-    epochs that are barometer epochs, variance ``s_w^2``. The noise figures and the drift /
+    counted since the previous mark, ``(N(k_j) - N(k_prev)) c``, with the variance of its white
+    part ``n (s_w T_o)^2`` (``n`` odometer epochs of white speed noise) and the tick length
+    ``c``: the quantization of the two counts, residuals of ``c^2 / 12`` each shared by
+    consecutive windows, is modelled by the filter's states (:mod:`imugen.aided`).
+    Barometer: the altitude minus ``h0_m`` (the origin's height) at the epochs that are
+    barometer epochs, variance ``s_w^2``. The noise figures and the drift /
     scale-factor priors are the preset's top of range (``level="upper"``) or nominal
     (``"nominal"``), or the drawn values of each sequence (``oracle=True``).
 
@@ -344,7 +346,7 @@ def filter_input(
     S, J = int(sequences), len(idx)
     z = np.full((S, J, 4), np.nan)
     mark = np.zeros(J, np.int8)
-    osd = np.zeros(S)
+    osd, tick = np.zeros(S), np.zeros(S)
     bsd, btau = np.zeros(S), np.full(S, 3600.0)
 
     def fig(data, name):
@@ -367,8 +369,8 @@ def filter_input(
         a, b = js[:-1], js[1:]
         nep = (idx[b] - idx[a]) / step
         z[:, b, C_ODO] = (cnt[:, pos[b]] - cnt[:, pos[a]]) * c[:, None]
-        z[:, b, C_ODO_VAR] = nep * ((sw * T) ** 2)[:, None] + (c**2 / 6.0)[:, None]
-        osd = fig(o, "scale_factor_sd")
+        z[:, b, C_ODO_VAR] = nep * ((sw * T) ** 2)[:, None]
+        osd, tick = fig(o, "scale_factor_sd"), np.asarray(c, float)
     if barometer is not None:
         b = barometer
         pos = np.searchsorted(b.index, idx)
@@ -377,7 +379,7 @@ def filter_input(
         z[:, hit, C_BARO_VAR] = (fig(b, "white_m") ** 2)[:, None]
         bsd, btau = fig(b, "bias_sd_m"), fig(b, "bias_tau_s")
     lever = np.broadcast_to(np.asarray(lever_arm_b_m, float).reshape(-1, 3), (S, 3)).copy()
-    return CompanionEpochs(z, mark, lever, osd, bsd, btau)
+    return CompanionEpochs(z, mark, lever, osd, bsd, btau, tick)
 
 
 def sensor_table() -> pd.DataFrame:

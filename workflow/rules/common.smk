@@ -215,6 +215,10 @@ def aid_opts(wildcards):
         opts.append("--no-cross-coupling")
     if AIDED["nhc"] is not None:
         opts.append("--nhc" if AIDED["nhc"] else "--no-nhc")
+    slip = AIDED["nhc_slip_sd_mps"]
+    if slip is not None:
+        slip = slip if isinstance(slip, list) else [slip]
+        opts.append("--nhc-slip-sd " + ",".join(repr(float(x)) for x in slip))
     if not AIDED["zupt"]:
         opts.append("--no-zupt")
     opts.append(f"--gate-sigma {float(AIDED['gate_sigma'])!r}")
