@@ -51,8 +51,8 @@ effective error (optional output)
 
 Everything is vectorized over a batch of sequences (leading axis ``S``) in a numba kernel
 that resumes from a state array, so time can be processed in chunks (increments alone, without
-series or temperature: a one-pass kernel giving the same bits as the general one). The random normals are
-drawn outside (NumPy ``Generator``) so reproducibility is NumPy's.
+series or temperature: a one-pass kernel giving the same bits as the general one). The random
+normals are drawn outside (NumPy ``Generator``) so reproducibility is NumPy's.
 """
 
 from __future__ import annotations

@@ -453,8 +453,11 @@ class _NavSink:
         lo = max(k0, self.skip)
         if lo < k0 + L:
             for buf, g in zip(self.bufs, self.groups, strict=True):
-                # the stored rounding (float32 by default), widened exactly to float64
-                buf[self.n, lo - self.skip : k0 + L - self.skip] = outs[g][lo - k0 :]
+                # the stored rounding (float32 by default), widened exactly to float64; axis
+                # by axis: each is a contiguous row of the writer's column buffers
+                dst = buf[self.n, lo - self.skip : k0 + L - self.skip]
+                for i in range(3):
+                    dst[:, i] = outs[g][lo - k0 :, i]
         if self.inner is not None:
             self.inner.put(j, k0, L, t, outs)
         if k0 + L == self.K:
