@@ -398,18 +398,22 @@ class _MemorySink:
 
 
 class _WriterSink:
-    """Hands each chunk to a :class:`imugen.tables.shard.Writer` under its global id.
+    """Lets the kernels write each chunk in place into a :class:`imugen.tables.shard.Writer`'s
+    column buffers (strided ``(L, 3)`` views), committed under the sequence's global id.
 
-    The kernels write into contiguous ``(L, 3)`` chunk buffers, copied once into the writer's
-    column buffers: measured, this is faster than the kernels writing into the column buffers
-    in place (strided ``(L, 3)`` views: 94 against 40 + 17 ns per sample, both triads)."""
+    Measured (``benchmarks/README.md``, issue 14): 219 against 230 CPU-ns per sample-sequence
+    of generation + Parquet write for the former contiguous chunk buffers copied into the
+    column buffers (the copy wrote every row group's 24 MiB a second time, out of cache)."""
 
     def __init__(self, writer, ids):
         self.w = writer
         self.ids = ids
 
+    def reserve(self, j, k0, L):
+        return self.w.reserve(L)
+
     def put(self, j, k0, L, t, outs):
-        self.w.put(int(self.ids[j]), t, outs)
+        self.w.commit(int(self.ids[j]), t)
 
 
 class _NavSink:
@@ -449,8 +453,11 @@ class _NavSink:
         lo = max(k0, self.skip)
         if lo < k0 + L:
             for buf, g in zip(self.bufs, self.groups, strict=True):
-                # the stored rounding (float32 by default), widened exactly to float64
-                buf[self.n, lo - self.skip : k0 + L - self.skip] = outs[g][lo - k0 :]
+                # the stored rounding (float32 by default), widened exactly to float64; axis
+                # by axis: each is a contiguous row of the writer's column buffers
+                dst = buf[self.n, lo - self.skip : k0 + L - self.skip]
+                for i in range(3):
+                    dst[:, i] = outs[g][lo - k0 :, i]
         if self.inner is not None:
             self.inner.put(j, k0, L, t, outs)
         if k0 + L == self.K:

@@ -234,6 +234,10 @@ def implicit_clock(meta: dict) -> dict | None:
 # --- writing -----------------------------------------------------------------------------
 ROW_GROUP = 1 << 20
 """Rows per Parquet row group."""
+WRITE_BATCH = 1 << 16
+"""Rows the Parquet encoder takes per step (pyarrow's default: 1,024). A page is closed after
+the step that fills it, so pages hold up to ~1.25 MiB instead of 1 MiB; the values written
+are the same and the encoder's CPU falls by ~2.5 ns per row (benchmarks/README.md)."""
 
 
 class Writer:
@@ -362,6 +366,7 @@ def writer(
             compression=compression,
             use_dictionary=[SEQUENCE],
             write_statistics=[SEQUENCE] if clock else [SEQUENCE, TIME],
+            write_batch_size=WRITE_BATCH,
         ) as pw:
             w = Writer(pw, sch, group_names, np.dtype(dtype), row_group or ROW_GROUP)
             yield w
