@@ -48,12 +48,12 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from imugen import columns as col  # noqa: E402
 from imugen import earth as ea  # noqa: E402
 from imugen import mechanize as M  # noqa: E402
 from imugen import rotations as rot  # noqa: E402
 from imugen import truth as tr  # noqa: E402
 from imugen.ingest import ingest  # noqa: E402
+from imugen.tables import truth as col  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import paper_method as pm  # noqa: E402

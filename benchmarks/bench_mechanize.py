@@ -48,10 +48,10 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from imugen import columns as col  # noqa: E402
 from imugen import earth as E  # noqa: E402
 from imugen import mechanize as M  # noqa: E402
 from imugen import rotations as rot  # noqa: E402
+from imugen.tables import truth as col  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT.parent / "shared" / "data" / "trajectories" / "seed_reference_trajectory_enu.txt"

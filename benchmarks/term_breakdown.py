@@ -27,13 +27,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imugen import columns as col
 from imugen.earth import OriginFrame
 from imugen.evaluate import sequence_metrics
 from imugen.grades import SENSORS, TERMS, get_grade
 from imugen.ingest import ingest
 from imugen.mechanize import mechanize
 from imugen.simulate import simulate
+from imugen.tables import truth as col
 from imugen.truth import build_truth
 
 REPO = Path(__file__).resolve().parents[1]

@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 import scipy.io
 
-from imugen import columns as col
 from imugen import export
 from imugen.errors import InputError
 from imugen.io import write_parquet
+from imugen.tables import truth as col
 from imugen.tables.shard import labels_path
 
 K, M, E = 37, 3, 5
@@ -36,7 +36,7 @@ def make_route(
     """
     rng = np.random.default_rng(seed)
     t = np.arange(K) * 0.01
-    truth = pd.DataFrame({c: rng.standard_normal(K) for c in col.TRUTH_COLUMNS})
+    truth = pd.DataFrame({c: rng.standard_normal(K) for c in col.COLUMNS})
     truth[col.TIME] = t
     tpath = write_parquet(
         truth,

@@ -296,7 +296,7 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
     # oracle: the same increments, rounded to float32 as stored, mechanized directly
     mem = S.simulate(route["truth"], "consumer", sequences=5, seed=3)
     tr = pq.read_table(route["truth"]).to_pandas()
-    from imugen import columns as col
+    from imugen.tables import truth as col
 
     dth = mem.data["dtheta"].astype(np.float32).astype(np.float64)[:, 1:]
     dv = mem.data["dv"].astype(np.float32).astype(np.float64)[:, 1:]

@@ -6,11 +6,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import columns as col
 from imugen import figures as fg
 from imugen.errors import InputError
 from imugen.evaluate import sequence_metrics
 from imugen.io import write_parquet
+from imugen.tables import enu as tenu
+from imugen.tables import truth as col
 
 RATE = 10.0  # Hz, truth
 DUR = 40.0  # s
@@ -26,7 +27,11 @@ def _truth_df() -> pd.DataFrame:
     w = 2 * np.pi / DUR  # one circle of radius 100 m
     R = 100.0
     df = pd.DataFrame({col.TIME: t})
-    df[col.E], df[col.N], df[col.U] = R * np.cos(w * t), R * np.sin(w * t), 0.5 * np.sin(3 * w * t)
+    df[tenu.E], df[tenu.N], df[tenu.U] = (
+        R * np.cos(w * t),
+        R * np.sin(w * t),
+        0.5 * np.sin(3 * w * t),
+    )
     df[col.VEL[0]], df[col.VEL[1]], df[col.VEL[2]] = (
         -R * w * np.sin(w * t),
         R * w * np.cos(w * t),

@@ -5,10 +5,10 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from imugen import columns as col
 from imugen import simulate as S
 from imugen.errors import InputError
 from imugen.tables import shard as tshard
+from imugen.tables import truth as col
 
 SEQ = tshard.SEQUENCE
 

@@ -7,10 +7,11 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from imugen import columns as col
 from imugen import simulate as S
 from imugen.errors import InputError
+from imugen.io import METADATA_KEY
 from imugen.tables import shard as tshard
+from imugen.tables import truth as col
 
 KW = {"static_s": 3.0, "rate_hz": 100.0}
 
@@ -103,7 +104,7 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     assert list(df[S.SEQUENCE].unique()) == [(rid << 31) + i for i in (3, 4, 5)]
     assert df.groupby(S.SEQUENCE)[col.TIME].apply(lambda t: bool(np.all(np.diff(t) > 0))).all()
     assert np.all(df.groupby(S.SEQUENCE)[col.DTHETA[0]].first() == 0)
-    meta = json.loads(sch.metadata[col.METADATA_KEY])
+    meta = json.loads(sch.metadata[METADATA_KEY])
     for k in ("units", "grade", "preset_source", "seed", "shard", "spawn_key", "code_version"):
         assert k in meta
     assert (

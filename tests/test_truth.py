@@ -11,11 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imugen import columns as col
 from imugen import earth as ea
 from imugen import rotations as rot
 from imugen import truth
 from imugen.errors import InputError
+from imugen.io import METADATA_KEY
+from imugen.tables import truth as col
 
 ORIGIN = (45.0, 7.0, 300.0)
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories"
@@ -473,10 +474,10 @@ def test_run_writes_parquet_atomically(tmp_path):
     out = tmp_path / "sub" / "truth.parquet"
     m = truth.run(enu_path, out, rate_hz=20, earth="auto", vehicle="car")
     tbl = pq.read_table(out)
-    assert tbl.column_names == list(col.TRUTH_COLUMNS)
+    assert tbl.column_names == list(col.COLUMNS)
     import json
 
-    md = json.loads(tbl.schema.metadata[col.METADATA_KEY])
+    md = json.loads(tbl.schema.metadata[METADATA_KEY])
     assert md["earth"] in ("flat", "wgs84") and md["earth_budget"]["lines"]
     assert md["rate_hz"] == 20 and md["vehicle"] == "car" and m["source"] == str(enu_path)
     assert [p.name for p in out.parent.iterdir()] == ["truth.parquet"]
