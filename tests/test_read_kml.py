@@ -541,6 +541,33 @@ def test_kmz_lying_header_refused(tmp_path, monkeypatch):
         read_kmz(path)
 
 
+@pytest.mark.parametrize(
+    "field, value, expected",
+    [
+        # compression method 9 (deflate64): zipfile raises NotImplementedError
+        ("method", 9, "cannot be read .*compression method"),
+        # general-purpose flag bit 0 (encrypted): zipfile raises RuntimeError
+        ("flags", 1, "cannot be read .*encrypted"),
+    ],
+)
+def test_kmz_unreadable_member_is_one_input_error(tmp_path, field, value, expected):
+    """A member zipfile cannot open (a compression method it lacks, an encrypted member) is the
+    user's file: one InputError naming the archive and the member, no traceback."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("doc.kml", KML_A)
+    raw = bytearray(buf.getvalue())
+    local_at, central_at = raw.find(b"PK\x03\x04"), raw.find(b"PK\x01\x02")
+    # flags at offset 6 (local) / 8 (central), method at 8 / 10
+    off = {"flags": (6, 8), "method": (8, 10)}[field]
+    for base, o in zip((local_at, central_at), off, strict=True):
+        raw[base + o : base + o + 2] = value.to_bytes(2, "little")
+    path = write(tmp_path, bytes(raw), "odd.kmz")
+    with pytest.raises(InputError, match=rf"doc\.kml.*{expected}") as info:
+        read_kmz(path)
+    assert info.value.source == str(path)
+
+
 def test_kmz_stream_longer_than_header_refused(tmp_path, monkeypatch):
     """Bytes are counted while reading: a stream yielding more than its header says."""
     monkeypatch.setattr(kml_mod, "KMZ_MAX_MEMBER_BYTES", 4096)
