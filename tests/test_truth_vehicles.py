@@ -285,11 +285,8 @@ def _real_tracks():
     return sorted(p for p in SHARED.iterdir() if p.suffix.lower() not in (".md", ".txt"))
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
-@pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
-def test_real_timed_tracks_are_plausible(path):
-    """Every timed path of every shared real track, at a low IMU rate (10 Hz): the limits of
-    its vehicle hold and nothing is invented (where no gap is bridged)."""
+def _ingested_paths(path):
+    """(index, ingestion, vehicle, its params) of every path of a shared file that ingests."""
     from imugen.ingest import ingest
     from imugen.readers import read_route_file
 
@@ -297,32 +294,47 @@ def test_real_timed_tracks_are_plausible(path):
         cands = read_route_file(path)
     except InputError as exc:
         pytest.skip(f"not readable here: {exc}")
-    checked = 0
     for i in range(1, len(cands) + 1):
         try:
             ing = ingest(path, path=i)
         except InputError:
             continue
+        vehicle = _vehicle(path.name, i)
+        yield i, ing, vehicle, truth.VEHICLES[vehicle]
+
+
+def _plausibility_at_10hz(ing, vehicle, vp, label):
+    """Build the truth at 10 Hz (wgs84) and assert the limits every class shares; returns
+    the truth's metadata."""
+    _, meta = truth.build_truth(
+        ing.table, ing.meta, rate_hz=10, vehicle=vehicle, earth="wgs84", verbose=False
+    )
+    rep = meta["plausibility"]
+    assert rep["max_abs_pitch_deg"] <= math.degrees(vp.max_pitch_rad) + 1e-6, label
+    if vehicle == "car":
+        assert rep["max_abs_pitch_deg"] < 20.0, label  # well under 30 deg
+    if vehicle in ("car", "pedestrian"):
+        assert rep["max_abs_roll_deg"] < 1e-6, label
+    if vehicle == "aircraft":  # bank <= its limit; on the ground (and blending) small
+        assert rep["max_abs_roll_airborne_deg"] <= math.degrees(vp.max_roll_rad), label
+        assert rep["max_abs_roll_deg"] < 5.0, label
+    assert rep["max_yaw_rate_excess_dps"] < 0.06, label
+    assert rep["max_attitude_step_excess_rad"] < 1e-3, label
+    assert rep["max_rate_increment_radps"] < 1e-3, label
+    return meta
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
+@pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
+def test_real_timed_tracks_are_plausible(path):
+    """Every timed path of every shared real track, at a low IMU rate (10 Hz): the limits of
+    its vehicle hold and nothing is invented (where no gap is bridged)."""
+    checked = 0
+    for i, ing, vehicle, vp in _ingested_paths(path):
         if not ing.meta["timed"] or ing.meta["points_out"] < 5:
             continue
-        vehicle = _vehicle(path.name, i)
-        vp = truth.VEHICLES[vehicle]
-        _, meta = truth.build_truth(
-            ing.table, ing.meta, rate_hz=10, vehicle=vehicle, earth="wgs84", verbose=False
-        )
-        rep = meta["plausibility"]
         label = f"{path.name} #{i} ({vehicle})"
-        assert rep["max_abs_pitch_deg"] <= math.degrees(vp.max_pitch_rad) + 1e-6, label
-        if vehicle == "car":
-            assert rep["max_abs_pitch_deg"] < 20.0, label  # well under 30 deg
-        if vehicle in ("car", "pedestrian"):
-            assert rep["max_abs_roll_deg"] < 1e-6, label
-        if vehicle == "aircraft":  # bank <= its limit; on the ground (and blending) small
-            assert rep["max_abs_roll_airborne_deg"] <= math.degrees(vp.max_roll_rad), label
-            assert rep["max_abs_roll_deg"] < 5.0, label
-        assert rep["max_yaw_rate_excess_dps"] < 0.06, label
-        assert rep["max_attitude_step_excess_rad"] < 1e-3, label
-        assert rep["max_rate_increment_radps"] < 1e-3, label
+        rep = _plausibility_at_10hz(ing, vehicle, vp, label)["plausibility"]
         gaps = np.diff(ing.table[col.TIME].to_numpy())
         if gaps.max() <= 60.0:  # gaps longer than that are split at ingestion, not bridged
             assert rep["invented_fraction"] < 0.01, label
@@ -341,39 +353,14 @@ def test_real_untimed_ground_paths_are_plausible(path):
     vertical is the road profile of its heights (no pitch blend between two verticals, so no
     rate bumps), the vehicle's limits hold and its heights stay within the profile's residual
     of the input heights."""
-    from imugen.ingest import ingest
-    from imugen.readers import read_route_file
-
-    try:
-        cands = read_route_file(path)
-    except InputError as exc:
-        pytest.skip(f"not readable here: {exc}")
     checked = 0
-    for i in range(1, len(cands) + 1):
-        try:
-            ing = ingest(path, path=i)
-        except InputError:
-            continue
-        vehicle = _vehicle(path.name, i)
-        vp = truth.VEHICLES[vehicle]
+    for i, ing, vehicle, vp in _ingested_paths(path):
         enu = ing.table[list(tenu.ENU)].to_numpy()
         length = np.sum(np.linalg.norm(np.diff(enu[:, :2], axis=0), axis=1))
         if ing.meta["timed"] or vp.attitude != "ground" or length > MAX_GROUND_PATH_M:
             continue
-        _, meta = truth.build_truth(
-            ing.table, ing.meta, rate_hz=10, vehicle=vehicle, earth="wgs84", verbose=False
-        )
-        rep = meta["plausibility"]
         label = f"{path.name} #{i} ({vehicle})"
-        assert rep["max_abs_pitch_deg"] <= math.degrees(vp.max_pitch_rad) + 1e-6, label
-        if vehicle == "car":
-            assert rep["max_abs_pitch_deg"] < 20.0, label
-        if vehicle in ("car", "pedestrian"):
-            assert rep["max_abs_roll_deg"] < 1e-6, label
-        assert rep["max_yaw_rate_excess_dps"] < 0.06, label
-        assert rep["max_attitude_step_excess_rad"] < 1e-3, label
-        assert rep["max_rate_increment_radps"] < 1e-3, label
-        vert = meta["fit"]["vertical"]
+        vert = _plausibility_at_10hz(ing, vehicle, vp, label)["fit"]["vertical"]
         if "max_departure_m" in vert:  # long enough for a profile
             assert vert["max_departure_m"] < 1e-3, label
             res = vert["grade"]["rms_residual_m"]

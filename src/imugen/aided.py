@@ -218,9 +218,10 @@ def n_states(
     """Size of the error state (``odo_sf``: odometer scale factor, ``baro``: barometer drift,
     ``mounting``: the IMU's pitch and yaw from the vehicle, ``gyro_cc``: the gyro's six
     cross-coupling elements, ``odometer``: the tick residuals at the two ends of a window,
-    ``lever``: the NHC lever arm's departure from its nominal)."""
-    n = N_BASE + 3 * bool(gnss_bias) + 6 * bool(scale_factors) + bool(odo_sf) + bool(baro)
-    return n + 2 * bool(mounting) + 3 * bool(lever) + 6 * bool(gyro_cc) + 2 * bool(odometer)
+    ``lever``: the NHC lever arm's departure from its nominal; :func:`state_names` in order)."""
+    return len(
+        state_names(scale_factors, gnss_bias, odo_sf, baro, mounting, gyro_cc, odometer, lever)
+    )
 
 
 def state_names(

@@ -191,7 +191,7 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
             out[k0:k1, sG] = w
         if ground is None:
             continue
-        steps = ground.distance_steps(motion, times[max(k0 - 1, 0) : k1])
+        steps = distance_steps(motion, ground.E, times[max(k0 - 1, 0) : k1])
         s = s_prev + (np.r_[0.0, np.cumsum(steps)] if k0 == 0 else np.cumsum(steps))
         s_prev = float(s[-1])
         C, w = ground.attitude(s, p, v, a)
@@ -411,7 +411,7 @@ class GroundAttitude:
         self.E, self.vp = E, vp
         n = max(2, math.ceil((motion.t1 - motion.t0) / grid_dt) + 1)
         tg = np.linspace(motion.t0, motion.t1, n)
-        sg = np.r_[0.0, np.cumsum(self.distance_steps(motion, tg))]
+        sg = np.r_[0.0, np.cumsum(distance_steps(motion, E, tg))]
         L = float(sg[-1])
         self.length_m = L
         k = vp.max_curvature_1pm
@@ -507,10 +507,6 @@ class GroundAttitude:
         w[w > 1.0 - 1e-12] = 1.0
         w[w < 1e-12] = 0.0
         return _node_spline(np.clip(w, 0.0, 1.0), ds, 0.5 * ds)
-
-    def distance_steps(self, motion, t):
-        """Horizontal distance over each interval of ``t`` (:func:`imugen.truth.grade.distance_steps`)."""
-        return distance_steps(motion, self.E, t)
 
     def attitude(self, s, p, v, a):
         """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,

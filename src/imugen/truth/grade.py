@@ -40,16 +40,26 @@ def gl_nodes(t):
     return t[:-1, None] + 0.5 * h * (_GL[0] + 1.0), 0.5 * h * _GL[1]
 
 
+def _integrals(f, x):
+    """Integral of ``f`` (callable, (m,) -> (m,)) over each interval of ``x`` (N,): 4-node
+    Gauss-Legendre, in chunks; shape (N - 1,)."""
+    out = np.empty(len(x) - 1)
+    step = 1 << 17
+    for i in range(0, len(x) - 1, step):
+        xq, wq = gl_nodes(x[i : i + step + 1])
+        out[i : i + len(wq)] = np.sum(wq * f(xq.ravel()).reshape(wq.shape), axis=1)
+    return out
+
+
 def distance_steps(motion, E, t):
     """Horizontal distance travelled over each interval of ``t`` (4-node Gauss-Legendre
     quadrature of the horizontal speed of ``E``, an :class:`~imugen.truth.attitude.EarthField`),
     shape (len(t) - 1,) [m]."""
-    tq, wq = gl_nodes(t)
-    tq = tq.ravel()
-    v = motion.velocity(tq)
-    p = motion.position(tq) if E.ecef else None
-    vh = E.horizontal_speed(p, v)[0].reshape(wq.shape)
-    return np.sum(wq * vh, axis=1)
+
+    def speed(tq):
+        return E.horizontal_speed(motion.position(tq) if E.ecef else None, motion.velocity(tq))[0]
+
+    return _integrals(speed, np.asarray(t, float))
 
 
 def _up_of_height(E, p, h):
@@ -138,17 +148,6 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
         "max_change_from_time_fit_m": float(np.max(np.abs(pz[:, 2] - motion.position(z)[:, 2]))),
     }
     return graded, H, report
-
-
-def _integrals(f, x):
-    """Integral of ``f`` (callable, (m,) -> (m,)) over each interval of ``x`` (N,): 4-node
-    Gauss-Legendre, in chunks; shape (N - 1,)."""
-    out = np.empty(len(x) - 1)
-    step = 1 << 17
-    for i in range(0, len(x) - 1, step):
-        xq, wq = gl_nodes(x[i : i + step + 1])
-        out[i : i + len(wq)] = np.sum(wq * f(xq.ravel()).reshape(wq.shape), axis=1)
-    return out
 
 
 def graded_path(G, L, E, vp, vertices, y, spacing_m):
