@@ -359,8 +359,8 @@ def _ds_sensor(block, sensor, top, origin) -> tuple[dict, list[str]]:
             if spread and term not in FIXED_TERMS:
                 vv = val if isinstance(val, list) else [val]
                 if min(vv) > 0:
-                    lo = [x / spread for x in vv]
-                    hi = [x * spread for x in vv]
+                    lo = [float(f"{x / spread:.6g}") for x in vv]
+                    hi = [float(f"{x * spread:.6g}") for x in vv]
                     entry["range"] = [lo if len(lo) == 3 else lo[0], hi if len(hi) == 3 else hi[0]]
             entry["source"] = note
             cfg[term] = entry
@@ -441,7 +441,7 @@ def _datasheet_config(ds: dict, origin) -> tuple[dict, list[str]]:
 
 def _slug(text: str) -> str:
     """A grade name (lower case letters, digits, underscores) from free text."""
-    out = "".join(c if c.isalnum() else "_" for c in text.lower())
+    out = "".join(c if c.isascii() and c.isalnum() else "_" for c in text.lower())
     out = "_".join(p for p in out.split("_") if p) or "imu"
     return out if out[0].isalpha() else "imu_" + out
 
