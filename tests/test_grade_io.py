@@ -259,6 +259,24 @@ def test_datasheet_assumptions_are_warned_and_limits_are_three_sigma(tmp_path):
     assert "table 1" in g.gyro.turn_on_bias.source
 
 
+def test_density_sides_apply_to_densities_only_and_flicker_band(tmp_path):
+    p = tmp_path / "x.yaml"
+    p.write_text(
+        "datasheet:\n  density_sides: 1\n  gyro:\n    arw_deg_per_sqrt_h: 0.2\n"
+        "    in_run_bias_stability_deg_per_h: 3\n"
+        "    bias_instability_flicker_band_s: [1, 1000]\n"
+        "  accel: {noise_density_mg_per_sqrt_hz: [0.1, 0.1, 0.2]}\n"
+    )
+    g = grade_from_config(*grade_io.import_grade(p))
+    # an ARW is an Allan figure (N itself); a one-sided ASD is sqrt(2) N
+    assert g.gyro.white_noise.value[0] == pytest.approx(0.2 * math.pi / 180 / 60)
+    np.testing.assert_allclose(
+        g.accel.white_noise.value, np.array([0.1, 0.1, 0.2]) * 9.80665e-3 / math.sqrt(2)
+    )
+    bi = g.gyro.bias_instability
+    assert (bi.model, bi.level.kind, bi.flicker_band) == ("flicker", "allan_floor", (1.0, 1000.0))
+
+
 @pytest.mark.parametrize(
     "body, msg",
     [
