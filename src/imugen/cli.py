@@ -327,9 +327,15 @@ def _cmd_export(a) -> int:
 
 
 def _cmd_grade_import(a) -> int:
+    import warnings
+
     from imugen.grade_io import grades_document, import_grade, write_text
 
-    name, cfg = import_grade(a.file, name=a.name, grade_id=a.id)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        name, cfg = import_grade(a.file, name=a.name, grade_id=a.id)
+    for w in caught:
+        print(_printable(f"imugen: warning: {a.file}: {w.message}"), file=sys.stderr)
     text = grades_document(name, cfg)
     if a.output:
         write_text(a.output, text)
@@ -729,12 +735,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_export)
 
-    p = sub.add_parser("grade", help="import a Kalibr/VINS/i2Nav IMU description; export Kalibr")
+    p = sub.add_parser(
+        "grade", help="import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr"
+    )
     gsub = p.add_subparsers(dest="grade_command", required=True)
     q = gsub.add_parser("import", help="IMU description -> imugen custom grade (YAML)")
-    q.add_argument("file", help="Kalibr/EuRoC imu.yaml, VINS config, i2Nav/KF-GINS config")
-    q.add_argument("--name", help="grade name (default: from the file name)")
-    q.add_argument("--id", type=int, default=1000, help="stable grade id >= 100")
+    q.add_argument(
+        "file",
+        help="Kalibr/EuRoC imu.yaml, VINS config, i2Nav/KF-GINS config, datasheet figures "
+        "(a 'datasheet:' YAML) or an imugen grades file",
+    )
+    q.add_argument(
+        "--name", help="grade name (default: the grade's own, the datasheet part, the file name)"
+    )
+    q.add_argument(
+        "--id", type=int, help="stable grade id >= 100 (default: the grade's own, else 1000)"
+    )
     q.add_argument("-o", "--output", help="grades YAML to write (default: print)")
     q.set_defaults(func=_cmd_grade_import)
     q = gsub.add_parser("export", help="grade -> Kalibr imu.yaml (white noise + random walk)")
