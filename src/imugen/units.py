@@ -10,8 +10,11 @@ misread -- the most common datasheet confusion (``deg/h`` vs ``deg/sqrt(h)``, ``
 Conventions
 -----------
 * ``G0 = 9.80665 m/s^2`` (standard gravity, CGPM 1901) converts ``g``, ``mg`` and ``ug``.
-* Noise densities are one-sided amplitude spectral densities. A white rate noise of density
-  ``N`` [rad/s/sqrt(Hz)] is the same number as an angle random walk ``N`` [rad/sqrt(s)]:
+* A noise density is the white noise's continuous-time sigma (the square root of its two-sided
+  power spectral density; Kalibr's ``*_noise_density``, IEEE 952's ``N``); a one-sided amplitude
+  density, as Welch's method gives, is sqrt(2) times larger (see ``imugen.grade_io``). A white
+  rate noise of density ``N`` [rad/s/sqrt(Hz)] is the same number as an angle random walk ``N``
+  [rad/sqrt(s)]:
   ``deg_per_sqrt_h = deg_per_s_per_sqrt_hz / 60`` [IEEE Std 952-1997, annex C]; likewise
   ``m_per_s_per_sqrt_h`` (VRW) and ``ug_per_sqrt_hz``.
 * Rate random walk ``K`` is the density of the *derivative* of the bias: SI rad/s/sqrt(s)
