@@ -393,8 +393,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-extent-km",
         type=float,
         default=None,
-        help="refuse points farther than this from the origin (a sanity limit of your own; "
-        "default none: routes of any length, simulated in ECEF when long)",
+        help="refuse points farther than this from the origin, measured along the WGS-84 "
+        "geodesic between the origin and the point (heights ignored); a sanity limit of your "
+        "own, default none: routes of any length, simulated in ECEF when long",
     )
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
     p.add_argument(
