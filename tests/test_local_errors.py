@@ -363,6 +363,15 @@ def test_meaningless_warning_is_one_log_line(tmp_path, cli):
         assert "UserWarning" not in proc.stderr and ".py:" not in proc.stderr
 
 
+def test_other_warning_categories_stay_one_line(capsys):
+    """A library's RuntimeWarning keeps its category and origin, on one line."""
+    from imugen import cli as C
+
+    C._show_warning(RuntimeWarning("overflow\nin exp"), RuntimeWarning, "/x/y.py", 7)
+    err = capsys.readouterr().err
+    assert err == "imugen: warning: RuntimeWarning: overflow\\nin exp (/x/y.py:7)\n"
+
+
 def test_error_vs_time_track_panels(tmp_path):
     """With the track columns: four panels; the along panel's line is the median over
     sequences of |along| at each epoch; without them: the two panels of before."""
