@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -347,3 +348,32 @@ def test_auto_budget_from_presets():
     assert E.choose_earth_model(t, p, lat, budget_figures("navigation")).model == "wgs84"
     # a white-noise-only grade (the paper's) still has a finite, positive effect
     assert E.choose_earth_model(t, p, lat, budget_figures("paper_low_cost")).grade_effect_m > 0
+
+
+@pytest.mark.parametrize("config", ["config.yaml", "paper.yaml"])
+def test_auto_keeps_the_paper_scene_flat(shared_file, config):
+    """The real paper scene (619 s, 664 m from its origin) as config/paper.yaml ingests it, at
+    the configured truth rate, under ``auto`` with the grades a shipped config passes to the
+    truth (every configured grade, the workflow's ``auto_grades``): ``flat``, every dropped term
+    below 10 % of the deciding grade's effect."""
+    import yaml
+
+    from imugen.ingest import ingest
+    from imugen.truth import build_truth
+
+    repo = Path(__file__).resolve().parents[1]
+    cfg = yaml.safe_load((repo / "config" / config).read_text())
+    route = yaml.safe_load((repo / "config" / "paper.yaml").read_text())["routes"]["paper"]
+    ing = ingest(
+        shared_file("seed_reference_trajectory_enu.txt"),
+        origin=",".join(map(str, route["origin"])),
+        dt=route["dt_s"],
+    )
+    _, meta = build_truth(
+        ing.table, ing.meta, rate_hz=cfg["truth"]["rate_hz"], earth=cfg["truth"]["earth"],
+        vehicle=route["vehicle"], grade=list(cfg["grades"]), verbose=False,
+    )  # fmt: skip
+    b = meta["earth_budget"]
+    assert meta["earth"] == "flat", b["lines"]
+    assert b["grades_considered"] == list(cfg["grades"])
+    assert max(b["terms_m"].values()) < b["fraction"] * b["grade_effect_m"]
