@@ -9,7 +9,7 @@ Measured, single thread (the numbers are per core):
   (1 Hz) into one preallocated output, reused input buffers;
 * the same recursion in pure NumPy (vectorized across the 1 000 sequences, Python loop over
   time) on the same batch (identical sequences as broadcast views: same arithmetic, no copies);
-* pyins 1.0 (PyPI ``python-ins``, optional) ``Integrator.integrate`` and its numba core, one
+* pyins 1.0.1 (PyPI ``python-ins``, optional) ``Integrator.integrate`` and its numba core, one
   sequence at a time (pyins has no batch API), run in the interpreter given by
   ``--pyins-python`` (a separate virtualenv); skipped with a message when unavailable;
 * compile time of the kernel in a fresh process with an empty numba cache, and the start-up

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -119,6 +120,52 @@ def test_north_component_off_the_ellipsoid():
     # 8 ug at 10 km height and 45 deg
     g_l = E.C_en_from_geodetic(0.7854, 0.0) @ E.gravity_e(E.ecef_from_geodetic(0.7854, 0.0, 1e4))
     assert abs(g_l[1]) / E.MICRO_G == pytest.approx(8.3, abs=0.1)
+
+
+def _zonal_potential(x, y, z, n_max=5):
+    """Normal potential of the WGS-84 level ellipsoid as its zonal series, from the four
+    defining constants alone (Heiskanen & Moritz 1967, eqs. 2-92, 2-58, 2-70): gravitational
+    ``GM/r (1 - sum_n J2n (a/r)^2n P2n(z/r))`` plus centrifugal ``Omega^2 (x^2 + y^2) / 2``.
+    Converges outside the focal sphere (r > E = 521 km); through J10 the truncation is below
+    1e-13 m/s^2 at the surface (J2..J6 alone leave 1.3e-9). Complex-step safe."""
+    a, f, gm, w = 6378137.0, 1.0 / 298.257223563, 3.986004418e14, 7.292115e-5
+    b = a * (1.0 - f)
+    e2 = f * (2.0 - f)
+    ep = math.sqrt(e2 / (1.0 - e2))
+    q0 = 0.5 * ((1.0 + 3.0 / ep**2) * math.atan(ep) - 3.0 / ep)
+    m = w**2 * a**2 * b / gm
+    j2 = e2 / 3.0 * (1.0 - 2.0 * m * ep / (15.0 * q0))
+    r = np.sqrt(x * x + y * y + z * z)
+    s = z / r
+    total = 1.0
+    for n in range(1, n_max + 1):
+        j2n = (
+            (-1) ** (n + 1) * 3.0 * e2**n / ((2 * n + 1) * (2 * n + 3)) * (1 - n + 5 * n * j2 / e2)
+        )
+        p2n = np.polynomial.legendre.legval(s, np.eye(2 * n + 1)[2 * n])
+        total = total - j2n * (a / r) ** (2 * n) * p2n
+    return gm / r * total + 0.5 * w * w * (x * x + y * y)
+
+
+def test_gravity_matches_zonal_series_of_the_level_ellipsoid():
+    """Independent oracle: the gradient (complex step) of the J2..J10 zonal series built from
+    a, f, GM, Omega matches gravity_e, north component included, at 0, 1 and 10 km."""
+    lat = np.radians([0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 89.9, -45.0, -70.0])
+    for h in (0.0, 1e3, 1e4):
+        r_e = E.ecef_from_geodetic(lat, 0.3, h)
+        ref = np.zeros_like(r_e)
+        for k in range(3):
+            rc = r_e.astype(complex)
+            rc[:, k] += 1e-20j
+            ref[:, k] = np.imag(_zonal_potential(rc[:, 0], rc[:, 1], rc[:, 2])) / 1e-20
+        g = E.gravity_e(r_e)
+        np.testing.assert_allclose(g, ref, rtol=0, atol=1e-11)
+        C = E.C_en_from_geodetic(lat, 0.3)
+        north = np.einsum("ij,ij->i", C[:, 1, :], g)
+        north_ref = np.einsum("ij,ij->i", C[:, 1, :], ref)
+        np.testing.assert_allclose(north, north_ref, rtol=0, atol=1e-11)
+        if h == 1e4:  # 8 ug at 45 deg, 10 km: the series' own value, not the module's
+            assert north_ref[3] / E.MICRO_G == pytest.approx(-8.30, abs=0.01)
 
 
 def test_navigation_frames_share_one_field():
@@ -258,6 +305,26 @@ def test_auto_budget_picks_by_grade_and_scene():
     assert b.terms_m["Coriolis 2*Omega x v"] == pytest.approx(E.OMEGA_IE * 6000.0 * 600.0)
 
 
+def test_distance_from_origin_is_the_geodesic():
+    """The auto budget's distance: points placed by ``Geod.fwd`` at known distances (up to
+    15,000 km, beyond the 90 degrees where the origin's horizontal plane folds back), at 0 and
+    10 km height, given in the origin's ENU by PROJ: their distance comes back to 1 mm."""
+    from pyproj import Geod
+
+    from imugen.frames import LocalFrame, Origin
+
+    lat0, lon0 = 35.55, 139.78
+    d = np.array([0.0, 1e3, 64e3, 1e6, 5e6, 1e7, 1.5e7])
+    lon, lat, _ = Geod(ellps="WGS84").fwd(np.full(7, lon0), np.full(7, lat0), np.full(7, 55.0), d)
+    for h in (0.0, 1e4):
+        p = LocalFrame(Origin(lat0, lon0, 0.0)).to_enu(lat, lon, np.full(7, h))
+        got = E.distance_from_origin_m(p, math.radians(lat0))
+        np.testing.assert_allclose(got, d, rtol=0, atol=1e-3)
+        assert np.hypot(p[-1, 0], p[-1, 1]) < 0.5 * d[-1]  # the plane's measure folds
+    b = E.choose_earth_model(np.linspace(0.0, 3.6e4, 7), p, math.radians(lat0), CONSUMER)
+    assert b.model == "geodetic" and "max distance 15000000.0 m (geodesic)" in b.lines[1]
+
+
 def test_auto_budget_grade_effect_closed_forms():
     t, p = _line(600.0, 6000.0)
     lat = math.radians(45.0)
@@ -281,3 +348,32 @@ def test_auto_budget_from_presets():
     assert E.choose_earth_model(t, p, lat, budget_figures("navigation")).model == "wgs84"
     # a white-noise-only grade (the paper's) still has a finite, positive effect
     assert E.choose_earth_model(t, p, lat, budget_figures("paper_low_cost")).grade_effect_m > 0
+
+
+@pytest.mark.parametrize("config", ["config.yaml", "paper.yaml"])
+def test_auto_keeps_the_paper_scene_flat(shared_file, config):
+    """The real paper scene (619 s, 664 m from its origin) as config/paper.yaml ingests it, at
+    the configured truth rate, under ``auto`` with the grades a shipped config passes to the
+    truth (every configured grade, the workflow's ``auto_grades``): ``flat``, every dropped term
+    below 10 % of the deciding grade's effect."""
+    import yaml
+
+    from imugen.ingest import ingest
+    from imugen.truth import build_truth
+
+    repo = Path(__file__).resolve().parents[1]
+    cfg = yaml.safe_load((repo / "config" / config).read_text())
+    route = yaml.safe_load((repo / "config" / "paper.yaml").read_text())["routes"]["paper"]
+    ing = ingest(
+        shared_file("seed_reference_trajectory_enu.txt"),
+        origin=",".join(map(str, route["origin"])),
+        dt=route["dt_s"],
+    )
+    _, meta = build_truth(
+        ing.table, ing.meta, rate_hz=cfg["truth"]["rate_hz"], earth=cfg["truth"]["earth"],
+        vehicle=route["vehicle"], grade=list(cfg["grades"]), verbose=False,
+    )  # fmt: skip
+    b = meta["earth_budget"]
+    assert meta["earth"] == "flat", b["lines"]
+    assert b["grades_considered"] == list(cfg["grades"])
+    assert max(b["terms_m"].values()) < b["fraction"] * b["grade_effect_m"]

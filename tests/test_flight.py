@@ -1,5 +1,6 @@
 """Flight phases of untimed airliner routes (imugen.truth.flight): plan oracles and the
-plausibility of whole truths on a 429 km and a 7,600 km (antimeridian) route."""
+plausibility of whole truths on a 429 km and a 7,600 km (antimeridian) route, built in the
+model `earth: auto` picks for them (geodetic)."""
 
 import math
 from dataclasses import replace
@@ -99,7 +100,7 @@ def _check_truth(tr, meta, vp, origin):
     v = tr[list(col.VEL)].to_numpy()
     speed = np.linalg.norm(v, axis=1)
     assert speed.max() <= vp.cruise_mps * (1 + 1e-3)
-    frame = ea.OriginFrame.from_deg(*origin)
+    frame = ea.OriginFrame.from_deg(*origin, model=meta["earth"])
     p = tr[list(col.POS)].to_numpy()
     lat, lon, h = frame.geodetic_from_n(p)
     # heights from the plan: cruise level reached, climb rate and bank within the class
@@ -125,9 +126,10 @@ def test_429_km_flight_at_6800_m_is_plausible():
     df, meta = _route(lat, lon, 100.0)
     params = {"cruise_alt_m": 6800.0, "cruise_mps": 770 / 3.6}
     tr, tm = build_truth(
-        df, meta, rate_hz=2.0, earth="wgs84", vehicle="airliner", vehicle_params=params,
+        df, meta, rate_hz=2.0, earth="auto", vehicle="airliner", vehicle_params=params,
         verbose=False,
     )  # fmt: skip
+    assert tm["earth"] == "geodetic"  # 429 km: what auto simulates it in
     vp = vehicle_params("airliner", params)
     *_, h = _check_truth(tr, tm, vp, (lat[0], lon[0], 100.0))
     assert tm["timing"]["flight"]["top_m"] == 6800.0
@@ -152,7 +154,8 @@ def test_429_km_flight_at_6800_m_is_plausible():
 def test_7600_km_flight_across_the_antimeridian_is_plausible():
     lat, lon = [35.76, 52.0, 49.19], [140.39, 179.5, -123.18]
     df, meta = _route(lat, lon)
-    tr, tm = build_truth(df, meta, rate_hz=1.0, earth="wgs84", vehicle="airliner", verbose=False)
+    tr, tm = build_truth(df, meta, rate_hz=1.0, earth="auto", vehicle="airliner", verbose=False)
+    assert tm["earth"] == "geodetic"
     la, lo, _ = _check_truth(tr, tm, VP, (lat[0], lon[0], 0.0))
     assert tm["timing"]["flight"]["top_m"] == VP.cruise_alt_m
     # continuous across the antimeridian: steps on the ground no longer than the speed allows

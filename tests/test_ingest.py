@@ -171,7 +171,10 @@ def test_long_route_across_antimeridian(tmp_path):
     f = gpx(pts, tmp=tmp_path)
     ing = ingest(f)
     assert ing.meta["crosses_antimeridian"]
-    assert ing.meta["max_distance_from_origin_m"] > 5e6
+    # the route is one geodesic from its origin: its farthest point is 7,600 km away along it
+    # (the horizontal part of the origin's ENU is R sin(d/R), 5.9e6 m, no distance)
+    assert ing.meta["max_distance_from_origin_m"] == pytest.approx(7.6e6, rel=1e-9)
+    assert np.hypot(ing.table.e_m, ing.table.n_m).max() < 6.5e6
     assert ing.meta["length_horizontal_m"] == pytest.approx(7.6e6, rel=1e-6)
     enu = ing.table[["e_m", "n_m", "u_m"]].to_numpy()
     from imugen.earth import ecef_from_geodetic
@@ -186,6 +189,9 @@ def test_long_route_across_antimeridian(tmp_path):
     )
     with pytest.raises(InputError, match="beyond --max-extent-km 1000"):
         ingest(f, max_extent_km=1000.0)
+    with pytest.raises(InputError, match=r"reaches 7,600 km \(geodesic\) from its origin"):
+        ingest(f, max_extent_km=7599.0)
+    assert ingest(f, max_extent_km=7601.0).meta["points_out"] == 761
 
 
 def test_path_selection(tmp_path):
@@ -294,6 +300,29 @@ def test_real_pacific_route_is_accepted(shared_file):
     assert ing.meta["crosses_antimeridian"] and ing.meta["max_distance_from_origin_m"] > 1e6
     with pytest.raises(InputError, match=r"beyond --max-extent-km 100"):
         ingest(shared_file("f_pacific_route_antimeridian.kml"), max_extent_km=100.0)
+
+
+def test_real_pacific_route_extent_limit_is_geodesic(shared_file, tmp_path, cli):
+    """``--max-extent-km`` measures the geodesic from the origin: the Pacific route's farthest
+    point is 7,544 km away by ``Geod.inv`` (5,908 km in the origin's tangent plane, which is no
+    distance), so 7,000 km refuses it in one line and 8,000 km accepts it."""
+    src = shared_file("f_pacific_route_antimeridian.kml")
+    ing = ingest(src)
+    o = ing.meta["origin"]
+    lat, lon = ing.table.lat_deg.to_numpy(), ing.table.lon_deg.to_numpy()
+    d = GEOD.inv(np.full_like(lon, o["lon_deg"]), np.full_like(lat, o["lat_deg"]), lon, lat)[2]
+    assert ing.meta["max_distance_from_origin_m"] == pytest.approx(d.max(), rel=1e-12)
+    assert 7.0e6 < d.max() < 8.0e6 and np.hypot(ing.table.e_m, ing.table.n_m).max() < 7.0e6
+    out = tmp_path / "p.parquet"
+    proc = cli("ingest", src, "-o", out, "--max-extent-km", "7000")
+    assert proc.returncode == 2 and not out.exists()
+    assert proc.stderr == (
+        f"imugen: error: {src}: path 'Path' reaches {d.max() / 1e3:,.0f} km (geodesic) from its "
+        "origin, beyond --max-extent-km 7000; raise or drop the limit (routes of any length are "
+        "simulated in ECEF)\n"
+    )
+    cli("ingest", src, "-o", out, "--max-extent-km", "8000", check=0)
+    assert out.exists()
 
 
 def test_real_refusals(shared_file):

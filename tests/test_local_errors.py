@@ -304,9 +304,9 @@ def test_meaningless_covers_overflow_and_breakdown():
     assert EV.meaningless(1.5 * EV.EARTH_RADIUS_M, 7.6e6)  # beyond the radius, any extent
 
 
-def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
-    """A 6 h flight in ECEF coordinates, navigation errors of 3 Earth radii at the end: the
-    metrics stay finite, evaluate and tables warn, rmse.csv carries the flag."""
+def _six_hour_flight(tmp_path):
+    """A 6 h geodetic truth across the antimeridian and navigation errors growing to 3 Earth
+    radii; returns (lat, lon) of the truth [rad]."""
     n = 361
     lat = np.radians(np.linspace(40.0, 48.0, n))
     lon = np.radians(np.linspace(175.0, 195.0, n))  # across the antimeridian
@@ -320,6 +320,13 @@ def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
                         "err_n_m": 0.8 * g, "err_u_m": 0.0, "err_along_m": g,
                         "err_cross_m": 0.0, "err_att_rad": 0.0})  # fmt: skip
     tnav.write(nav, {"stage": "navigate"}, tmp_path / "nav.parquet")
+    return lat, lon
+
+
+def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
+    """A 6 h flight in ECEF coordinates, navigation errors of 3 Earth radii at the end: the
+    metrics stay finite, evaluate and tables warn, rmse.csv carries the flag."""
+    lat, lon = _six_hour_flight(tmp_path)
     with pytest.warns(UserWarning, match="too long for unaided inertial navigation"):
         EV.run(tmp_path / "truth.parquet", [tmp_path / "nav.parquet"], tmp_path / "m.parquet",
                grade="consumer")  # fmt: skip
@@ -337,6 +344,32 @@ def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
     csv = pd.read_csv(tmp_path / "rmse.csv")
     assert bool(csv.free_inertial_meaningless.item())
     assert {"along_m", "cross_m", "final_along_m", "final_cross_m"} <= set(csv.columns)
+
+
+def test_meaningless_warning_is_one_log_line(tmp_path, cli):
+    """``imugen evaluate`` and ``imugen tables`` print the warning as the one line
+    ``imugen: warning: GRADE: ...`` (no Python source location, no code line)."""
+    _six_hour_flight(tmp_path)
+    m = tmp_path / "m.parquet"
+    for args in (
+        ("evaluate", tmp_path / "truth.parquet", tmp_path / "nav.parquet", "-o", m),
+        ("tables", m, "-o", tmp_path / "rmse.csv"),
+    ):
+        proc = cli(*args, *(("--grade", "consumer") if args[0] == "evaluate" else ()), check=0)
+        lines = [ln for ln in proc.stderr.splitlines() if "warning" in ln.lower()]
+        assert len(lines) == 1, proc.stderr
+        assert lines[0].startswith("imugen: warning: consumer: median final free-inertial error ")
+        assert lines[0].endswith("turn on gnss.enabled and use the aided figures")
+        assert "UserWarning" not in proc.stderr and ".py:" not in proc.stderr
+
+
+def test_other_warning_categories_stay_one_line(capsys):
+    """A library's RuntimeWarning keeps its category and origin, on one line."""
+    from imugen import cli as C
+
+    C._show_warning(RuntimeWarning("overflow\nin exp"), RuntimeWarning, "/x/y.py", 7)
+    err = capsys.readouterr().err
+    assert err == "imugen: warning: RuntimeWarning: overflow\\nin exp (/x/y.py:7)\n"
 
 
 def test_error_vs_time_track_panels(tmp_path):

@@ -1,8 +1,11 @@
 """Command line: ``imugen <stage> ...``, a thin dispatcher onto the stages' functions.
 
 A user's mistake (bad file, bad option) prints one line ``imugen: error: FILE: problem``
-and exits with status 2; no traceback, no partial output. Control characters that a file
-could smuggle into a message (terminal escapes, carriage returns) are printed escaped.
+and exits with status 2; no traceback, no partial output. A warning a stage raises
+(``warnings.warn``, a UserWarning) prints one line ``imugen: warning: message``; other
+categories (a library's RuntimeWarning) keep their category and origin on that one line.
+Control characters that a file could smuggle into a message (terminal escapes, carriage
+returns) are printed escaped.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ import argparse
 import functools
 import json
 import sys
+import warnings
 
 from imugen import __version__
 from imugen.clean import VEHICLE_LIMITS
@@ -399,8 +403,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-extent-km",
         type=float,
         default=None,
-        help="refuse points farther than this from the origin (a sanity limit of your own; "
-        "default none: routes of any length, simulated in ECEF when long)",
+        help="refuse points farther than this from the origin, measured along the WGS-84 "
+        "geodesic between the origin and the point (heights ignored); a sanity limit of your "
+        "own, default none: routes of any length, simulated in ECEF when long",
     )
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
     p.add_argument(
@@ -787,11 +792,21 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` of the command line: one line on stderr, no source line."""
+    text = f"imugen: warning: {message}"
+    if category is not UserWarning:
+        text = f"imugen: warning: {category.__name__}: {message} ({filename}:{lineno})"
+    print(_printable(text), file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return args.func(args)
     except InputError as exc:
         print(_printable(f"imugen: error: {exc}"), file=sys.stderr)
         return 2

@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from pyproj import Geod
 
 from imugen.jit import njit
 
@@ -598,6 +599,7 @@ def _gravity_batch_nb(prm, p_n, out, gravitation):
 # --- earth model budget (--earth auto) ---------------------------------------------------------
 DEG_PER_H = math.pi / 180.0 / 3600.0
 MICRO_G = 9.80665e-6
+_GEOD = Geod(ellps="WGS84")
 GEODETIC_TILT_RAD = 0.01
 """``auto`` picks ``geodetic`` when the local vertical at the scene's farthest point tilts by
 more than this from the origin's (``D / R``: 64 km). Beyond it errors and attitudes resolved
@@ -646,12 +648,40 @@ class EarthBudget:
     grade: str = ""
 
 
+def distance_from_origin_m(p_n, lat0_rad) -> np.ndarray:
+    """Geodesic distance [m] on the WGS-84 ellipsoid from the origin to each point's foot.
+
+    A true distance at any range (the horizontal part of the origin's ENU, ``R sin(d / R)``,
+    flattens near ``R`` and folds back beyond 90 degrees). The origin is placed at height 0
+    (an origin at height ``h0`` moves a point's foot by at most ``h0 sin(d / R)``: 0.016 % of
+    ``d`` per km of ``h0``).
+
+    Parameters
+    ----------
+    p_n : ndarray, shape (N, 3)
+        ENU positions relative to the origin [m].
+    lat0_rad : float
+        Origin latitude [rad].
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    p = np.asarray(p_n, dtype=float).reshape(-1, 3)
+    r_e = ecef_from_geodetic(lat0_rad, 0.0, 0.0) + p @ C_en_from_geodetic(lat0_rad, 0.0)
+    lat, lon, _ = geodetic_from_ecef(r_e)
+    lat0 = np.full(len(p), math.degrees(lat0_rad))
+    _, _, d = _GEOD.inv(np.zeros(len(p)), lat0, np.degrees(lon), np.degrees(lat))
+    return np.asarray(d, dtype=float)
+
+
 def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.1) -> EarthBudget:
     """Pick ``flat``, ``wgs84`` or ``geodetic`` for a scene (``--earth auto``).
 
     ``flat`` or ``wgs84`` from a position-error budget; ``geodetic`` (with the exact Earth of
-    ``wgs84``) when the largest horizontal distance ``D`` from the origin tilts the local
-    vertical by ``D / R > GEODETIC_TILT_RAD``, whatever the grade.
+    ``wgs84``) when the largest distance ``D`` from the origin (the geodesic on the ellipsoid,
+    :func:`distance_from_origin_m`) tilts the local vertical by ``D / R > GEODETIC_TILT_RAD``,
+    whatever the grade.
 
     Estimates (order of magnitude, distance from the origin taken to grow linearly in time):
 
@@ -664,7 +694,7 @@ def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.
     * Schuler / gravity gradient: ``(ws T)^2 / 12`` of the grade effect (relative change of
       the bias-driven error growth once the gravity gradient restores it);
     * gravity variation over the scene (latitude and height): ``dg T^2 / 6``;
-    * tilt of the local vertical ``g d / R``: ``g D T^2 / (6 R)`` for a largest horizontal
+    * tilt of the local vertical ``g d / R``: ``g D T^2 / (6 R)`` for a largest geodesic
       distance ``D`` from the origin.
 
     Parameters
@@ -688,7 +718,7 @@ def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.
     p = np.asarray(p_n, dtype=float).reshape(-1, 3)
     T = float(t[-1] - t[0]) if t.size > 1 else 0.0
     L = float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
-    D = float(np.max(np.hypot(p[:, 0], p[:, 1]))) if len(p) else 0.0
+    D = float(np.max(distance_from_origin_m(p, lat0_rad))) if len(p) else 0.0
     dn = float(np.ptp(p[:, 1])) if len(p) else 0.0
     dh = float(np.ptp(p[:, 2])) if len(p) else 0.0
     g = float(normal_gravity(lat0_rad, 0.0))
@@ -724,8 +754,8 @@ def choose_earth_model(time_s, p_n, lat0_rad, figures: GradeFigures, fraction=0.
         f"bias {ba / MICRO_G:g} ug, gyro SF {sg * 1e6:g} ppm, ARW "
         f"{figures.arw_rad_per_sqrt_s * 60 * 180 / math.pi:g} deg/sqrt(h), VRW "
         f"{figures.vrw_mps_per_sqrt_s * 60:g} m/s/sqrt(h))",
-        f"scene: {T:.1f} s, path {L:.1f} m, max distance {D:.1f} m, north extent {dn:.1f} m, "
-        f"height range {dh:.1f} m",
+        f"scene: {T:.1f} s, path {L:.1f} m, max distance {D:.1f} m (geodesic), north extent "
+        f"{dn:.1f} m, height range {dh:.1f} m",
         f"grade position effect over the scene: {grade_m:.4g} m; limit "
         f"{fraction:.0%} = {limit:.4g} m",
     ]

@@ -10,7 +10,8 @@ Path choice
 Validation (each failure: one line naming the file, exit status 2, no output)
     At least two points; no NaN/inf; latitude in [-90, 90], longitude in [-180, 180],
     height in [-11 km, 100 km]; a non-zero path length; no point farther than
-    ``max_extent_km`` from the origin when that limit is given (a sanity check of one's own;
+    ``max_extent_km`` from the origin (geodesic distance on the WGS-84 ellipsoid between the
+    origin and the point, heights ignored) when that limit is given (a sanity check of one's own;
     by default routes of any length are accepted, and E N U rows only within
     :data:`ENU_SPAN_M` of the first row, the farthest two points near the Earth can be: a
     larger value is a unit error); for timed
@@ -344,6 +345,18 @@ def ingest(
         )  # fmt: skip
 
 
+def distance_from_origin_m(origin: Origin, lat_deg, lon_deg) -> np.ndarray:
+    """Geodesic distance [m] on the WGS-84 ellipsoid from the origin's foot to each point's,
+    shape (N,) (``pyproj.Geod.inv``; heights ignored; a true distance at any range, unlike the
+    horizontal part of the origin's ENU, which is ``R sin(d / R)``)."""
+    lat = np.asarray(lat_deg, float)
+    lon = np.asarray(lon_deg, float)
+    _, _, d = _GEOD.inv(
+        np.full_like(lon, origin.lon_deg), np.full_like(lat, origin.lat_deg), lon, lat
+    )
+    return np.asarray(d, float)
+
+
 def _densify_untimed(lat, lon, alt):
     """Untimed geodetic path: vertices joined by geodesics (:func:`imugen.geodesic.densify`);
     returns the densified lat, lon, alt and the metadata entry."""
@@ -405,20 +418,13 @@ def _ingest(
             )
         enu_first = p.enu_m - p.enu_m[0]
         _check_enu(enu_first, src)  # differences of finite huge values may overflow
-        span = ENU_SPAN_M if max_extent_km is None else min(ENU_SPAN_M, max_extent_km * 1e3)
-        far = ~(np.hypot(enu_first[:, 0], enu_first[:, 1]) <= span)
-        far |= ~(np.abs(enu_first[:, 2]) <= span)
+        far = ~(np.linalg.norm(enu_first, axis=1) <= ENU_SPAN_M)
         if far.any():
             i = _first_bad(far)
-            why = (
-                "farther than two points near the Earth can be"
-                if span == ENU_SPAN_M
-                else "beyond --max-extent-km"
-            )
             raise InputError(
                 src,
-                f"row {i + 1} lies more than {span / 1e3:,.0f} km from the first row ({why}); "
-                "check the units (metres)",
+                f"row {i + 1} lies more than {ENU_SPAN_M / 1e3:,.0f} km from the first row "
+                "(farther than two points near the Earth can be); check the units (metres)",
             )
         frame = LocalFrame(origin)
         lat, lon, alt = frame.to_geodetic(enu_first)
@@ -460,14 +466,14 @@ def _ingest(
     length_3d = float(seg.sum())
     if length_3d == 0.0:
         raise InputError(src, f"path {p.name!r} has zero length: all points are the same location")
-    horiz = np.hypot(enu[:, 0], enu[:, 1])
+    dist = distance_from_origin_m(origin, lat, lon)
     lon_jump = np.abs(np.diff(lon)) > 180.0
     crosses = bool(lon_jump.any())
-    if max_extent_km is not None and not horiz.max() <= max_extent_km * 1000.0:  # NaN-safe
-        i = int(np.argmax(np.where(np.isfinite(horiz), horiz, np.inf)))
+    if max_extent_km is not None and not dist.max() <= max_extent_km * 1000.0:  # NaN-safe
+        i = int(np.argmax(np.where(np.isfinite(dist), dist, np.inf)))
         raise InputError(
             src,
-            f"path {p.name!r} reaches {horiz[i] / 1000:,.0f} km from its origin, beyond "
+            f"path {p.name!r} reaches {dist[i] / 1000:,.0f} km (geodesic) from its origin, beyond "
             f"--max-extent-km {max_extent_km:g}; raise or drop the limit (routes of any length "
             "are simulated in ECEF)",
         )
@@ -535,7 +541,7 @@ def _ingest(
         "points_out": len(table),
         "length_3d_m": length_3d,
         "length_horizontal_m": float(_GEOD.line_length(lon, lat)),
-        "max_distance_from_origin_m": float(horiz.max()),
+        "max_distance_from_origin_m": float(dist.max()),
         "crosses_antimeridian": crosses,
         "duration_s": float(cols["time"][-1]) if timed else None,
         "gaps": gaps or None,
