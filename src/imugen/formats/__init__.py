@@ -10,7 +10,8 @@ format    files                                       read by
 euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), OpenVINS,
           ``mav0/state_groundtruth_estimate0/...``    ORB-SLAM3, AirIMU
 tum       ``truth.tum``, ``<seq>.tum`` (free-inertial) evo (``evo_ape tum``), navlie
-          ``<seq>.aided.tum`` (with ``--aided``)
+          ``<seq>.aided.tum`` (with ``--aided``),
+          ``<seq>.truth.tum`` (a mounted IMU's truth)
 tlio      ``<seq>/imu0_resampled.npy`` + description,  TLIO's ``SequencesDataset`` and forks
           ``train/val/test_list.txt``
 ronin     ``<seq>/data.hdf5`` + ``info.json``,         RoNIN, RNIN, CTIN loaders (h5py)
