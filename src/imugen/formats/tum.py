@@ -12,7 +12,8 @@ epochs that fall on the truth's navigation-rate grid are compared).
 A sequence simulated with a mounting (misaligned IMU, lever arm: labels
 :data:`imugen.tables.shard.MOUNTING` not all zero) navigates the IMU's point and axes, not the
 vehicle's: it gets its own truth ``SEQ.truth.tum`` (the IMU's true trajectory, same grid as
-``truth.tum``), and ``evo_ape tum SEQ.truth.tum SEQ.tum`` is its navigation error.
+``truth.tum``): ``evo_ape tum SEQ.truth.tum SEQ.tum`` (or ``SEQ.aided.tum``) is its
+navigation error.
 """
 
 from __future__ import annotations
