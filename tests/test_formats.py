@@ -13,7 +13,7 @@ from imugen import rotations as rot
 from imugen import simulate
 from imugen.errors import InputError
 from imugen.formats import convert, export, parse_formats
-from imugen.formats.source import iter_sequences, read_truth
+from imugen.formats.source import iter_sequences, mounting_of, read_truth
 from imugen.io import write_parquet
 from imugen.tables import truth as ttruth
 from imugen.truth import build_truth, enu_table
@@ -337,3 +337,332 @@ def test_gnss_epochs_go_to_kfgins_and_ros2(route, tmp_path):
         for conn, _, raw in reader.messages(connections=conns):
             fixes.append(reader.deserialize(raw, conn.msgtype).status.status)
     assert len(fixes) == len(rows[0]) and fixes.count(-1) == int((rows[0]["fix"] == 0).sum())
+
+
+# --- RoNIN's own loader logic, copied ----------------------------------------------------------
+# The parts of RoNIN's loaders that read our files, copied from Sachini/ronin at commit
+# 805b7f0f28bb164ce89ada9ac05a9470dbe3d715: source/data_utils.py (select_orientation_source),
+# source/math_util.py (gyro_integration), source/data_glob_speed.py (GlobSpeedSequence.load)
+# and source/data_glob_heading.py (HeadingSequence.load). numpy-quaternion's operations are
+# replaced by imugen.rotations' (the same Hamilton product, scalar first); file reads unchanged.
+def _ronin_gyro_integration(ts, gyro, init_q):
+    output_q = np.zeros((gyro.shape[0], 4))
+    output_q[0] = init_q
+    dts = ts[1:] - ts[:-1]
+    for i in range(1, gyro.shape[0]):
+        w = gyro[i - 1]
+        omega = 0.5 * np.array(
+            [[0, -w[0], -w[1], -w[2]], [w[0], 0, w[2], -w[1]],
+             [w[1], -w[2], 0, w[0]], [w[2], w[1], -w[0], 0]]
+        )  # fmt: skip
+        output_q[i] = output_q[i - 1] + np.dot(omega, output_q[i - 1]) * dts[i - 1]
+        output_q[i] /= np.linalg.norm(output_q[i])
+    return output_q
+
+
+def _ronin_select_orientation_source(data_path, max_ori_error=20.0, grv_only=True, use_ekf=True):
+    import h5py
+
+    ori_names = ["gyro_integration", "game_rv"]
+    ori_sources = [None, None, None]
+    with open(data_path / "info.json") as f:
+        info = json.load(f)
+        ori_errors = np.array(
+            [info["gyro_integration_error"], info["grv_ori_error"], info["ekf_ori_error"]]
+        )
+        init_gyro_bias = np.array(info["imu_init_gyro_bias"])
+    with h5py.File(data_path / "data.hdf5") as f:
+        ori_sources[1] = np.copy(f["synced/game_rv"])
+        if grv_only or ori_errors[1] < max_ori_error:
+            min_id = 1
+        else:
+            if use_ekf:
+                ori_names.append("ekf")
+                ori_sources[2] = np.copy(f["pose/ekf_ori"])
+            min_id = np.argmin(ori_errors[: len(ori_names)])
+            if min_id == 0:
+                ts = f["synced/time"]
+                gyro = f["synced/gyro_uncalib"] - init_gyro_bias
+                ori_sources[0] = _ronin_gyro_integration(ts, gyro, ori_sources[1][0])
+    return ori_names[min_id], ori_sources[min_id], ori_errors[min_id]
+
+
+def _ronin_glob_speed_load(data_path, max_ori_error=20.0, grv_only=False, w=1):
+    import h5py
+
+    with open(data_path / "info.json") as f:
+        info = json.load(f)
+    info["ori_source"], ori, info["source_ori_error"] = _ronin_select_orientation_source(
+        data_path, max_ori_error, grv_only
+    )
+    with h5py.File(data_path / "data.hdf5") as f:
+        gyro_uncalib = f["synced/gyro_uncalib"]
+        acce_uncalib = f["synced/acce"]
+        gyro = gyro_uncalib - np.array(info["imu_init_gyro_bias"])
+        acce = np.array(info["imu_acce_scale"]) * (acce_uncalib - np.array(info["imu_acce_bias"]))
+        ts = np.copy(f["synced/time"])
+        tango_pos = np.copy(f["pose/tango_pos"])
+        init_tango_ori = np.asarray(f["pose/tango_ori"][0])
+    ori_q = np.asarray(ori)
+    rot_imu_to_tango = np.asarray(info["start_calibration"], float)
+    init_rotor = rot.quat_mul(
+        rot.quat_mul(init_tango_ori, rot_imu_to_tango), rot.quat_conj(ori_q[0])
+    )
+    ori_q = rot.quat_mul(init_rotor, ori_q)
+    dt = (ts[w:] - ts[:-w])[:, None]
+    glob_v = (tango_pos[w:] - tango_pos[:-w]) / dt
+    gyro_q = np.concatenate([np.zeros([gyro.shape[0], 1]), gyro], axis=1)
+    acce_q = np.concatenate([np.zeros([acce.shape[0], 1]), acce], axis=1)
+    glob_gyro = rot.quat_mul(rot.quat_mul(ori_q, gyro_q), rot.quat_conj(ori_q))[:, 1:]
+    glob_acce = rot.quat_mul(rot.quat_mul(ori_q, acce_q), rot.quat_conj(ori_q))[:, 1:]
+    start_frame = info.get("start_frame", 0)
+    return {
+        "info": info,
+        "ts": ts[start_frame:],
+        "features": np.concatenate([glob_gyro, glob_acce], axis=1)[start_frame:],
+        "targets": glob_v[start_frame:, :2],
+        "orientations": ori_q[start_frame:],
+        "gt_pos": tango_pos[start_frame:],
+    }
+
+
+def _ronin_body_heading(data_path):
+    import h5py
+
+    with open(data_path / "info.json") as f:
+        info = json.load(f)
+        rot_tango_to_body = info["align_tango_to_body"]
+        start_frame = info.get("start_frame", 0)
+    with h5py.File(data_path / "data.hdf5") as f:
+        tango_ori = f["pose/tango_ori"][:]
+    body_ori_q = rot.quat_mul(tango_ori, rot.quat_conj(np.asarray(rot_tango_to_body, float)))
+    return body_ori_q[start_frame:]
+
+
+def _ronin_list(path):  # source/ronin_resnet.py get_dataset_from_list
+    with open(path) as f:
+        return [s.strip().split(",")[0] for s in f.readlines() if len(s) > 0 and s[0] != "#"]
+
+
+def _check_ronin(folder, t, w, f, q, p):
+    """RoNIN's loader on one exported sequence gives the measured signals (t, w, f) rotated
+    into the world by the true attitude q, true positions p and their velocities."""
+    for kw in ({}, {"grv_only": True}, {"max_ori_error": -1.0}):  # -1: best of all sources
+        seq = _ronin_glob_speed_load(folder, **kw)
+        assert seq["info"]["ori_source"] == "game_rv" and seq["info"]["source_ori_error"] == 0
+        np.testing.assert_allclose(seq["ts"], t, atol=1e-12)
+        np.testing.assert_allclose(seq["orientations"], q, atol=1e-12)
+        np.testing.assert_allclose(seq["features"][:, :3], convert.rotate(q, w), atol=1e-12)
+        np.testing.assert_allclose(seq["features"][:, 3:], convert.rotate(q, f), atol=1e-10)
+        np.testing.assert_allclose(seq["gt_pos"], p, atol=1e-9)
+        assert seq["targets"].shape == (len(t) - 1, 2)
+        np.testing.assert_allclose(seq["targets"], np.diff(p[:, :2], axis=0) / np.diff(t)[:, None])
+    np.testing.assert_allclose(_ronin_body_heading(folder), q, atol=1e-12)
+
+
+def test_ronin_read_by_ronins_loader(route, exported):
+    """RoNIN's own loader logic reads every sequence: measured rates rotated by the true
+    attitude, true positions; the orientation source is the true one whichever selection rule;
+    ``gyro_integration_error`` is what RoNIN's gyro integration of our file gives; the lists
+    are imugen's split."""
+    tr, seqs = _seqs(route)
+    root = exported / "ronin"
+    for sid, data, _ in seqs:
+        folder = root / f"drive_consumer_{sid:06d}"
+        w = np.column_stack([data[f"gyro_{a}_radps"] for a in "xyz"])
+        f = np.column_stack([data[f"accel_{a}_mps2"] for a in "xyz"])
+        _check_ronin(folder, tr.time_s, w, f, tr.q_nb, tr.p_n)
+        # gyro_integration_error: RoNIN's first-order integrator, ours against the truth's
+        info = json.loads((folder / "info.json").read_text())
+        q_est = _ronin_gyro_integration(tr.time_s, w, tr.q_nb[0])
+        q_ref = _ronin_gyro_integration(tr.time_s, tr.gyro, tr.q_nb[0])
+        e = rot.quat_mul(rot.quat_conj(q_ref[-1]), q_est[-1])
+        expect = np.degrees(2 * np.arctan2(np.linalg.norm(e[1:]), abs(e[0])))
+        assert expect > 0.05  # a consumer gyro drifts: the selection rule has a real choice
+        assert info["gyro_integration_error"] == pytest.approx(expect, rel=1e-3)
+    lists = {p: _ronin_list(root / f"list_{p}.txt") for p in ("train", "val", "test")}
+    tlio = {p: (exported / "tlio" / f"{p}_list.txt").read_text().split() for p in lists}
+    assert lists == tlio
+    assert sorted(n for v in lists.values() for n in v) == [
+        f"drive_consumer_{s:06d}" for s, _, _ in seqs
+    ]
+
+
+# --- the workflow's default: increments only (rates are interval means) ------------------------
+@pytest.fixture(scope="module")
+def incremental(route):
+    """Two consumer sequences simulated with ``outputs="increments"`` (the workflow default)
+    and no series, exported in the formats that want rates; the export's log lines."""
+    truth, _, tmp = route
+    shard = tmp / "drive" / "imu" / "consumer_inc" / "shard-000.parquet"
+    simulate.run(truth, shard, "consumer", sequences=M, seed=9, outputs="increments")
+    out, lines = tmp / "export_inc", []
+    export(["euroc", "tlio", "ronin"], truth, [shard], out, log=lines.append)
+    tr = read_truth(truth)
+    seqs = [
+        (s.id, {k: v.copy() for k, v in s.data.items()}, dict(s.labels))
+        for s in iter_sequences([shard], tr.K)
+    ]
+    return tr, seqs, out, lines
+
+
+def test_increments_exported_as_interval_mean_rates(incremental):
+    """EuRoC, TLIO and RoNIN get ``dtheta/dt``, ``dv/dt`` stamped at the interval midpoints."""
+    tr, seqs, out, _ = incremental
+    dt = tr.dt
+    t_mid = tr.time_s[1:] - 0.5 * dt
+    q_mid = tr.q_nb[1:] + tr.q_nb[:-1]
+    q_mid /= np.linalg.norm(q_mid, axis=1, keepdims=True)
+    p_mid = 0.5 * (tr.p_n[1:] + tr.p_n[:-1])
+    for sid, data, _ in seqs:
+        name = f"drive_consumer_{sid:06d}"
+        w = np.column_stack([data[f"dtheta_{a}_rad"] for a in "xyz"])[1:] / dt
+        f = np.column_stack([data[f"dv_{a}_mps"] for a in "xyz"])[1:] / dt
+        imu = np.loadtxt(out / "euroc" / name / "mav0" / "imu0" / "data.csv", delimiter=",")
+        assert imu.shape == (tr.K - 1, 7)
+        assert np.array_equal(imu[:, 0].astype(np.int64), np.rint(t_mid * 1e9).astype(np.int64))
+        np.testing.assert_allclose(imu[:, 1:4], w, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(imu[:, 4:], f, rtol=1e-9, atol=1e-15)
+        arr = np.load(out / "tlio" / name / "imu0_resampled.npy")
+        assert arr.shape == (tr.K - 1, 17)
+        assert np.array_equal(arr[:, 0], np.rint(t_mid * 1e6))
+        q = np.column_stack([arr[:, 10], arr[:, 7:10]])
+        C = rot.quat_to_dcm(q)
+        np.testing.assert_allclose(np.einsum("kji,kj->ki", C, arr[:, 1:4]), w, atol=1e-12)
+        np.testing.assert_allclose(np.einsum("kji,kj->ki", C, arr[:, 4:7]), f, atol=1e-10)
+        # the midpoint attitude lies halfway between its neighbours (within 1e-9 rad)
+        half = rot.relative_rotation_vector(tr.q_nb[:-1], q) - rot.relative_rotation_vector(
+            q, tr.q_nb[1:]
+        )
+        assert np.max(np.abs(half)) < 1e-9
+        _check_ronin(out / "ronin" / name, t_mid, w, f, q_mid, p_mid)
+
+
+def test_euroc_biases_and_noise_figures_are_this_sequences(route, exported, incremental):
+    """Bias columns: the true series when simulated with ``series``; else the turn-on labels,
+    with one warning (not one per sequence) that they lack the in-run part. ``sensor.yaml``:
+    this sequence's drawn white noise and the walk ``sqrt(RRW^2 + 2 sigma^2 / T)``."""
+    import yaml
+
+    from imugen.tables import shard as tshard
+
+    _, seqs = _seqs(route)
+    for sid, data, _ in seqs:  # series in the shard: exact
+        gt = np.loadtxt(
+            exported / "euroc" / f"drive_consumer_{sid:06d}" / "mav0"
+            / "state_groundtruth_estimate0" / "data.csv", delimiter=",",
+        )  # fmt: skip
+        b = np.column_stack([data[c] for c in tshard.BIAS])
+        assert np.ptp(b[:, 0]) > 0  # the in-run part moves
+        np.testing.assert_allclose(gt[:, 11:], b, rtol=1e-8, atol=1e-15)
+    tr, seqs, out, lines = incremental
+    assert sum("turn-on biases only" in m for m in lines) == 1
+    for sid, _, lab in seqs:
+        folder = out / "euroc" / f"drive_consumer_{sid:06d}" / "mav0"
+        gt = np.loadtxt(folder / "state_groundtruth_estimate0" / "data.csv", delimiter=",")
+        on = [lab[f"gyro_turn_on_bias_{a}_radps"] for a in "xyz"]
+        on += [lab[f"accel_turn_on_bias_{a}_mps2"] for a in "xyz"]
+        assert np.all(np.asarray(on) != 0)
+        np.testing.assert_allclose(gt[:, 11:], np.tile(on, (tr.K, 1)), rtol=1e-8)
+        s = yaml.safe_load((folder / "imu0" / "sensor.yaml").read_text())
+        assert "turn-on only" in s["comment"]
+        for sensor, key, dens, rrw, unit in (
+            ("gyro", "gyroscope", "rad_per_sqrt_s", "radps_per_sqrt_s", "radps"),
+            ("accel", "accelerometer", "m_per_s_per_sqrt_s", "mps2_per_sqrt_s", "mps2"),
+        ):
+            n = [lab[f"{sensor}_white_noise_{a}_{dens}"] for a in "xyz"]
+            assert np.ptp(n) == 0 and n[0] > 0  # the consumer grade draws one figure per sensor
+            assert s[f"{key}_noise_density"] == pytest.approx(n[0], rel=1e-12)
+            sig = lab[f"{sensor}_bias_instability_sigma0_x_{unit}"]
+            tau = lab[f"{sensor}_bias_instability_tau0_s"]
+            walk = math.hypot(lab[f"{sensor}_rate_random_walk_x_{rrw}"], sig * math.sqrt(2 / tau))
+            assert walk > 0 and s[f"{key}_random_walk"] == pytest.approx(walk, rel=1e-12)
+        assert s["rate_hz"] == RATE
+
+
+def test_tlio_clock_is_integer_microseconds_from_the_route_start(route, exported):
+    tr, seqs = _seqs(route)
+    for sid, _, _ in seqs:
+        folder = exported / "tlio" / f"drive_consumer_{sid:06d}"
+        ts = np.load(folder / "imu0_resampled.npy")[:, 0]
+        desc = json.loads((folder / "imu0_resampled_description.json").read_text())
+        assert ts[0] == 0 and np.array_equal(ts, np.rint(ts))
+        assert np.array_equal(ts.astype(np.int64), np.rint(tr.time_s * 1e6).astype(np.int64))
+        assert desc["t_start_us"] == ts[0] and desc["t_end_us"] == ts[-1]
+        np.testing.assert_allclose(np.diff(ts), 1e6 / RATE, atol=0.5)
+
+
+# --- a mounted IMU: its own truth ----------------------------------------------------------------
+def test_tum_truth_of_a_mounted_imu(route):
+    """An ideal IMU mounted off the vehicle's point and axes: its free-inertial trajectory
+    against ``SEQ.truth.tum`` has APE ~0; against the vehicle's ``truth.tum`` the lever arm."""
+    evo_fi = pytest.importorskip("evo.tools.file_interface")
+    from evo.core import metrics, sync
+
+    truth, _, tmp = route
+    shard = tmp / "drive" / "imu" / "mounted" / "shard-000.parquet"
+    mount = {"misalignment_sd_deg": [1.0, 1.0, 2.0], "lever_arm_m": [0.5, 0.2, 0.3]}
+    simulate.run(truth, shard, "consumer", sequences=1, seed=3, terms=[], mounting=mount)
+    out = tmp / "export_mounted"
+    export(["tum"], truth, [shard], out, log=lambda m: None)
+    (est_path,) = [p for p in (out / "tum").glob("drive_*.tum") if p.name.count(".") == 1]
+    gt_imu = evo_fi.read_tum_trajectory_file(str(est_path.with_suffix(".truth.tum")))
+    gt_veh = evo_fi.read_tum_trajectory_file(str(out / "tum" / "truth.tum"))
+    est = evo_fi.read_tum_trajectory_file(str(est_path))
+
+    def ape(gt, relation):
+        a, b = sync.associate_trajectories(gt, est, max_diff=1e-4)
+        m = metrics.APE(relation)
+        m.process_data((a, b))
+        return m.error, a.num_poses
+
+    err, n = ape(gt_imu, metrics.PoseRelation.translation_part)
+    assert n == gt_veh.num_poses and np.max(err) < 1e-3
+    err, _ = ape(gt_imu, metrics.PoseRelation.rotation_angle_deg)
+    assert np.max(err) < 1e-6
+    (seq,) = iter_sequences([shard], read_truth(truth).K)
+    angles, lever = mounting_of(seq.labels)
+    assert np.linalg.norm(lever) > 0.3 and np.max(np.abs(angles)) > 0
+    err, _ = ape(gt_veh, metrics.PoseRelation.translation_part)  # the lever arm
+    assert np.allclose(err, np.linalg.norm(lever), atol=1e-3)
+    err, _ = ape(gt_veh, metrics.PoseRelation.rotation_angle_deg)
+    assert np.min(err) > 0.01
+    # an unmounted export writes no per-sequence truth
+    assert not list((route[2] / "export" / "tum").glob("*.truth.tum"))
+
+
+# --- streaming -----------------------------------------------------------------------------------
+def test_export_streams_and_says_what_it_wrote(route):
+    """Exporting 8 sequences holds one at a time: the traced peak is within a fraction of one
+    sequence's data of exporting 1 (holding them all would add 7). Each format's log line
+    states the sequences, files and megabytes actually written."""
+    import re
+    import tracemalloc
+
+    from imugen.tables import shard as tshard
+
+    truth, _, tmp = route
+    shard = tmp / "drive" / "imu" / "eight" / "shard-000.parquet"
+    simulate.run(truth, shard, "consumer", sequences=8, seed=11, outputs="both")
+    ids = tshard.read_labels(shard, tshard.read_meta(shard))["sequence"].tolist()
+    K = read_truth(truth).K
+    one_seq = 12 * K * 8  # rates and increments, float64
+    fmts = ["euroc", "tlio", "ronin"]
+    export(fmts, truth, [shard], tmp / "warm", sequences=ids[:1], log=lambda m: None)
+    peaks, lines = {}, []
+    for n in (1, 8):
+        lines.clear()
+        tracemalloc.start()
+        export(fmts, truth, [shard], tmp / f"n{n}", sequences=ids[:n], log=lines.append)
+        peaks[n] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    print(f"traced peak: 1 sequence {peaks[1]} B, 8 sequences {peaks[8]} B, one {one_seq} B")
+    assert peaks[8] < peaks[1] + one_seq, (peaks, one_seq)
+    summary = [m for m in lines if not m.startswith("imugen: warning")]
+    assert len(summary) == len(fmts)
+    for fmt, line in zip(fmts, summary, strict=True):
+        m = re.fullmatch(r"(.+): (\w+), (\d+) sequences, (\d+) files, ([\d.]+) MB", line)
+        assert m and m[1] == str(tmp / "n8" / fmt) and m[2] == fmt and int(m[3]) == 8
+        files = [p for p in (tmp / "n8" / fmt).rglob("*") if p.is_file()]
+        assert int(m[4]) == len(files) and len(files) >= 8 * 2
+        assert float(m[5]) == round(sum(p.stat().st_size for p in files) / 1e6, 1) > 0

@@ -10,10 +10,12 @@ format    files                                       read by
 euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), OpenVINS,
           ``mav0/state_groundtruth_estimate0/...``    ORB-SLAM3, AirIMU
 tum       ``truth.tum``, ``<seq>.tum`` (free-inertial) evo (``evo_ape tum``), navlie
-          ``<seq>.aided.tum`` (with ``--aided``)
+          ``<seq>.aided.tum`` (with ``--aided``),
+          ``<seq>.truth.tum`` (a mounted IMU's truth)
 tlio      ``<seq>/imu0_resampled.npy`` + description,  TLIO's ``SequencesDataset`` and forks
           ``train/val/test_list.txt``
-ronin     ``<seq>/data.hdf5`` + ``info.json``          RoNIN, RNIN, CTIN loaders (h5py)
+ronin     ``<seq>/data.hdf5`` + ``info.json``,         RoNIN, RNIN, CTIN loaders (h5py)
+          ``list_train/val/test.txt``
 kfgins    ``imu.txt``, ``truth.nav``, ``kf-gins.yaml``  KF-GINS, OB_GINS (i2Nav), NED/FRD
 ros2      rosbag2 folder (sqlite3 or MCAP)            ros2 bag, rosbags, evo (``evo_traj bag2``)
 ========  ==========================================  =========================================
@@ -56,6 +58,8 @@ WRITERS = {
     "ros2": ros2.write,
 }
 FORMATS = tuple(WRITERS)
+SPLIT_LISTS = {"tlio": "{part}_list.txt", "ronin": "list_{part}.txt"}
+"""Formats given the train/val/test lists of imugen's split, and their file names."""
 
 
 def parse_formats(text) -> list[str]:
@@ -156,6 +160,13 @@ def export(
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
     counts = dict.fromkeys(formats, 0)
     keys = []
+    warned = set()
+
+    def warn(msg):  # once per export, not once per sequence
+        if msg not in warned:
+            warned.add(msg)
+            log(f"imugen: warning: {msg}")
+
     try:
         if "tum" in formats:
             (tmp / "tum").mkdir()
@@ -175,23 +186,26 @@ def export(
                     start_ns=start_ns,
                     every=every,
                     storage=storage,
-                    warn=lambda m: log(f"imugen: warning: {m}"),
+                    warn=warn,
                 )
                 counts[fmt] += len(files)
         if not keys:
             raise InputError(shard_paths[0], "no sequences to export")
-        if "tlio" in formats:
+        lists = {f: n for f, n in SPLIT_LISTS.items() if f in formats}
+        if lists:
             from imugen.dataset import split
 
             try:
                 parts = split([(r, s) for r, s, _ in keys], seed=split_seed, by="sequence")
             except InputError:  # too few sequences for three non-empty parts
-                log(f"imugen: warning: {len(keys)} sequences: every one in TLIO's train list")
+                log(f"imugen: warning: {len(keys)} sequences: every one in the train list")
                 parts = {"train": [(r, s) for r, s, _ in keys], "val": [], "test": []}
             names = {(r, s): n for r, s, n in keys}
-            for part, ks in parts.items():
-                (tmp / "tlio" / f"{part}_list.txt").write_text("".join(f"{names[k]}\n" for k in ks))
-                counts["tlio"] += 1
+            for fmt, pattern in lists.items():
+                for part, ks in parts.items():
+                    text = "".join(f"{names[k]}\n" for k in ks)
+                    (tmp / fmt / pattern.format(part=part)).write_text(text)
+                    counts[fmt] += 1
         if out_dir.exists():
             shutil.rmtree(out_dir)
         os.replace(tmp, out_dir)
