@@ -8,7 +8,8 @@ lateral or vertical speed), agree with their increments and raise no warning; th
 (body rate about the local vertical) is the geodesic curvature of the path times the speed,
 re-derived from the truth's velocity: 0 on the straight road, v / 300 m on the circle; an
 airliner flying over the North Pole turns at ~0 deg/s (the yaw from geographic North swings
-180 deg there).
+180 deg there). Evaluated through the pole, a leftward accelerometer bias gives the closed-form
+cross-track error, and the flight's map figure is drawn projected without a streak.
 """
 
 from __future__ import annotations
@@ -16,9 +17,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from imugen import earth as E
+from imugen import local_errors as L
+from imugen import mechanize as M
 from imugen import truth
 from imugen.closure import closure_of_truth
 from imugen.errors import InputError
@@ -164,11 +168,15 @@ def test_car_circling_the_north_pole(earth):
     np.testing.assert_allclose(w[mid], 10.0 / 300.0, rtol=1e-3)
 
 
-def test_airliner_over_the_north_pole():
-    """Timed airliner at 250 m/s, 10 km, straight over the North Pole: no false turn rate
-    (the yaw from geographic North swings 180 deg within seconds there)."""
-    position = route(89.5, 0.0, 0.0, None, 250.0, 10_000.0)
-    df, tm = build(position, 440.0, 10.0, "geodetic", "airliner")
+@pytest.fixture(scope="module")
+def airliner():
+    """Timed airliner at 250 m/s, 10 km, straight over the North Pole (110 km, 10 Hz)."""
+    return build(route(89.5, 0.0, 0.0, None, 250.0, 10_000.0), 440.0, 10.0, "geodetic", "airliner")
+
+
+def test_airliner_over_the_north_pole(airliner):
+    """No false turn rate (the yaw from geographic North swings 180 deg within seconds)."""
+    df, tm = airliner
     rep = tm["plausibility"]
     assert rep["warnings"] == []
     assert rep["time_airborne_s"] > 400.0
@@ -195,3 +203,67 @@ def test_heading_axis_choice():
     with pytest.raises(InputError, match="cover the globe"):
         Ef.heading_axis(6.4e6 * _sphere_directions(20_000))
     assert math.degrees(POLE_MARGIN_RAD) == pytest.approx(1.0)
+
+
+def _nav_errors(df, tm, accel_bias_mps2):
+    """Local-level errors (J, 5: East, North, Up, along, cross) of the truth's own increments
+    mechanized with a body-y (leftward) accelerometer bias, at every sample."""
+    frame = col.origin_frame(tm)
+    dth = df[list(col.DTHETA)].to_numpy()[1:]
+    dv = df[list(col.DV)].to_numpy()[1:].copy()
+    dt = 1.0 / tm["rate_hz"]
+    dv[:, 1] += accel_bias_mps2 * dt
+    p = df[list(col.POS)].to_numpy()
+    v = df[list(col.VEL)].to_numpy()
+    q = df[list(col.QUAT)].to_numpy()
+    nav = M.mechanize(dth, dv, dt, p[0], v[0], q[0], frame)
+    return L.local_errors(frame, p, v, nav.p_n - p)
+
+
+def test_errors_through_the_south_pole_are_along_and_cross_track():
+    """A leftward accelerometer bias b on the road over the South Pole: cross-track error
+    b t^2 / 2 (within Coriolis and Schuler terms, < 1 % over 110 s) smooth through the pole,
+    along-track ~0, while East and North turn over as the pole is passed."""
+    position = route(-89.99, 30.0, 180.0, None, 20.0, 2800.0)
+    df, tm = build(position, 110.0, 20.0, "geodetic", "car")
+    b = 1e-3
+    err = _nav_errors(df, tm, b)
+    assert np.all(np.isfinite(err))
+    t = df[col.TIME].to_numpy() - df[col.TIME].iloc[0]
+    late = t > 20.0
+    np.testing.assert_allclose(err[late, 4], 0.5 * b * t[late] ** 2, rtol=1e-2)
+    assert np.max(np.abs(err[late, 3])) < 0.02 * np.max(err[late, 4])
+    # the East error turns over at the pole (a local-level axis reverses there)
+    east = err[late, 0] / np.hypot(err[late, 0], err[late, 1])
+    assert east.max() > 0.9 and east.min() < -0.9
+
+
+def test_map_figure_of_a_polar_flight(airliner, tmp_path):
+    """Figure 8 of the flight over the pole: projected (110 km, azimuthal equidistant), scale
+    bar, the truth drawn without a step beyond its own, the navigated track finite."""
+    from pyproj import Geod
+
+    from imugen import figures as fg
+    from imugen.evaluate import sequence_metrics
+    from imugen.io import write_parquet
+
+    df, tm = airliner
+    err = _nav_errors(df, tm, 1e-3)
+    t = df[col.TIME].to_numpy()
+    nv = pd.DataFrame({"sequence": 0, "time_s": t, "err_att_rad": 0.0})
+    for i, c in enumerate(("err_e_m", "err_n_m", "err_u_m", "err_along_m", "err_cross_m")):
+        nv[c] = err[:, i]
+    truth_path = tmp_path / "truth.parquet"
+    col.write(df, tm, truth_path)
+    nav = {"tactical": [write_parquet(nv, {"grade": "tactical"}, tmp_path / "nav.parquet")]}
+    dist = float(np.sum(np.linalg.norm(np.diff(df[list(col.POS)].to_numpy(), axis=0), axis=1)))
+    met = write_parquet(sequence_metrics(nv, dist).reset_index(), {}, tmp_path / "m.parquet")
+    fig = fg.figure8_figure(truth_path, nav, {"tactical": met})
+    ax = fig.axes[0]
+    assert "azimuthal equidistant" in ax.get_xlabel()
+    assert any(a.get_gid() == "scale_bar" for a in ax.lines)
+    x, y = (np.asarray(a, float) for a in (ax.lines[0].get_xdata(), ax.lines[0].get_ydata()))
+    lat, lon = df[col.LAT].to_numpy(), df[col.LON].to_numpy()
+    step = Geod(ellps="WGS84").inv(lon[:-1], lat[:-1], lon[1:], lat[1:])[2]
+    assert np.hypot(np.diff(x), np.diff(y)).max() <= 1.01 * step.max()
+    assert all(np.all(np.isfinite(np.asarray(a.get_xydata(), float))) for a in ax.lines)

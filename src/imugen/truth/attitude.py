@@ -453,6 +453,11 @@ def _node_spline(values, ds, x0=0.0):
 class GroundAttitude:
     """Attitude of a ground vehicle against the horizontal distance travelled ``s``.
 
+    Headings are angles in the local level at the vehicle from its North: geographic North,
+    or on a route passing within ``POLE_MARGIN_RAD`` of a geographic pole the direction of a
+    transverse pole far from the whole route (:meth:`EarthField.heading_axis`), so that the
+    level, the headings and their rates stay defined and smooth through the pole.
+
     * heading ``Psi(s)``: the direction of the horizontal velocity (local level) at distance
       nodes ``ds = max(0.1 / max_curvature, 0.1 m)`` apart, unwrapped, slope-limited to
       ``|dPsi/ds| <= max_curvature`` (forward: no anticipation of a turn), Gaussian-smoothed (sigma
