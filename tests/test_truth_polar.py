@@ -153,9 +153,9 @@ def test_car_through_the_south_pole():
 
 @pytest.mark.parametrize("earth", ["geodetic", "wgs84"])
 def test_car_circling_the_north_pole(earth):
-    """A circle of 300 m radius around a point 100 m from the North Pole (the pole inside it)
-    at 10 m/s: turn rate v / 300 m, the path's own curvature."""
-    position = route(89.9982, 30.0, 90.0, 300.0, 10.0, 50.0)
+    """A circle of 300 m radius passing 1.1 m from the North Pole (the pole inside it) at
+    10 m/s: turn rate v / 300 m, the path's own curvature."""
+    position = route(89.99999, 30.0, 90.0, 300.0, 10.0, 50.0)
     df, tm = build(position, 200.0, 20.0, earth, "car")
     t, inner, frame, _ = _check_ground_truth(position, df, tm)
     _, lon, _ = frame.geodetic_from_n(df[list(col.POS)].to_numpy())
