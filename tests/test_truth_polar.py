@@ -151,6 +151,24 @@ def test_car_through_the_south_pole():
     assert abs(abs(yaw[-1] - yaw[0]) - math.pi) < 1e-3
 
 
+def test_car_stopping_at_the_south_pole():
+    """20 m/s, a smooth stop 3 cm from the South Pole for ~16 s, then on: plausible, and the
+    attitude (ECEF) exactly constant while stopped, where no heading can be read off."""
+    tf = np.linspace(0.0, 140.0, 140_001)
+    v = 10.0 * (2.0 - np.tanh((tf - 52.0) / 3.0) + np.tanh((tf - 78.0) / 3.0))
+    d = np.r_[0.0, np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(tf))]
+    road = route(-89.99, 30.0, 180.0, None, 1.0, 2800.0)  # position at distance "t"
+    shift = 1111.95 - np.interp(65.0, tf, d)  # the pole ~1,112 m along, reached at 65 s
+    df, tm = build(lambda t: road(np.interp(t, tf, d) + shift), 140.0, 20.0, "geodetic", "car")
+    rep = tm["plausibility"]
+    assert rep["warnings"] == [] and rep["time_stopped_s"] > 10.0
+    assert rep["max_rate_increment_radps"] < 1e-6 and rep["max_body_lateral_speed_mps"] < 1e-9
+    assert df[col.LAT].min() < -89.9999
+    t = df[col.TIME].to_numpy()
+    q = df[list(col.QUAT)].to_numpy()[(t > 62.0) & (t < 68.0)]
+    assert np.max(np.abs(q - q[0])) < 1e-12
+
+
 @pytest.mark.parametrize("earth", ["geodetic", "wgs84"])
 def test_car_circling_the_north_pole(earth):
     """A circle of 300 m radius passing 1.1 m from the North Pole (the pole inside it) at
