@@ -219,7 +219,8 @@ def test_vehicle_params_override_and_refusals():
 
 def test_report_flags_an_attitude_jump_and_turning_on_the_spot():
     """The report itself is an oracle only if it fails on a bad truth: a pi flip of the
-    quaternion that the gyro does not see, and a yaw jump at walking pace."""
+    quaternion that the gyro does not see, with its increment, and a turn on the spot at walking
+    pace in the gyro (the turn rate is the gyro's about the local vertical)."""
     t, enu = _reversal_route(90.0)
     tr, _ = _build(enu, t, rate_hz=10, vehicle="car")
     bad = tr.copy()
@@ -227,10 +228,12 @@ def test_report_flags_an_attitude_jump_and_turning_on_the_spot():
     q = _arr(bad, col.QUAT).copy()
     q[k:] = truth.attitude.rot.quat_mul(q[k:], np.array([0.0, 0.0, 0.0, 1.0]))
     bad[list(col.QUAT)] = q
-    bad["yaw_rad"] = np.r_[bad["yaw_rad"].to_numpy()[:k], bad["yaw_rad"].to_numpy()[k:] + 2.5]
     dth = _arr(bad, col.DTHETA).copy()
     dth[k, 2] += 2.5
     bad[list(col.DTHETA)] = dth
+    w = _arr(bad, col.GYRO).copy()
+    w[k, 2] += 2.5  # rad/s
+    bad[list(col.GYRO)] = w
     rep = truth.report.plausibility(bad, truth.VEHICLES["car"])
     text = " ".join(rep["warnings"])
     assert "beyond what the rates allow" in text

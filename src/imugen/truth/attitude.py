@@ -11,6 +11,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from imugen import earth as ea
 from imugen import rotations as rot
+from imugen.errors import InputError
 from imugen.jit import njit
 from imugen.truth.fit import fit_height_profile
 from imugen.truth.grade import distance_steps
@@ -62,6 +63,19 @@ def _target_frame(v, a, r, rd):
     return C, w, sp_, xa, rpn, zrpd
 
 
+POLE_MARGIN_RAD = math.radians(1.0)  # headings from geographic North this far from a pole
+_N_AXES = 256  # candidate transverse poles spread over the sphere
+
+
+def _sphere_directions(n):
+    """``n`` unit vectors spread evenly over the sphere (Fibonacci lattice), shape (n, 3)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    az = math.pi * (3.0 - math.sqrt(5.0)) * i
+    rho = np.sqrt(1.0 - z * z)
+    return np.column_stack([rho * np.cos(az), rho * np.sin(az), z])
+
+
 class EarthField:
     """Gravity/up helpers on top of :mod:`imugen.earth` for one origin frame."""
 
@@ -76,16 +90,17 @@ class EarthField:
         ellipsoidal height otherwise (far from the origin ``u`` is not a height)."""
         return p[:, 2] if self.flat else self.frame.geodetic_from_n(p)[2]
 
-    def horizontal_speed(self, p, v, a=None):
+    def horizontal_speed(self, p, v, a=None, axis=None):
         """Horizontal speed ``v_h`` (m,) and, with ``a``, its rate (m,): in n's East-North
         plane in ``flat`` and ``wgs84``, in the local level at the vehicle in ``geodetic``
-        (``a_l = C_ln a - omega_nl_l x v_l``)."""
+        (``a_l = C_ln a - omega_nl_l x v_l``, that level's North towards ``axis``:
+        :meth:`local`)."""
         if self.ecef and a is None:  # |v - (v . up) up| with the geodetic up at p
             sl, cl, co, so, _ = ea._geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
             vu = cl * (co * v[:, 0] + so * v[:, 1]) + sl * v[:, 2]
             return np.sqrt(np.maximum(np.einsum("mi,mi->m", v, v) - vu * vu, 0.0)), None
         if self.ecef:
-            C_ln, v, w_nl = self.local(p, v)
+            C_ln, v, w_nl = self.local(p, v, axis)
             a = np.einsum("mij,mj->mi", C_ln, a) - np.cross(w_nl, v)
         vh = np.hypot(v[:, 0], v[:, 1])
         if a is None:
@@ -101,11 +116,18 @@ class EarthField:
     def gravitation(self, p):
         return ea.gravitation_n(p, self.frame)
 
-    def local(self, p, v):
+    def local(self, p, v, axis=None):
         """Local level at the vehicle: ``C_ln`` (m,3,3), velocity in it ``v_l`` (m,3) and its
-        rotation rate relative to n in it, ``omega_nl_l`` (m,3) (transport rate)."""
+        rotation rate relative to n in it, ``omega_nl_l`` (m,3) (transport rate).
+
+        The level's North points towards the Earth's axis (ENU at the vehicle), or with
+        ``axis`` (ECEF unit vector, (3,); :meth:`heading_axis`) towards that axis: a
+        transverse pole, so that the level and its rate stay defined at the geographic poles
+        (:meth:`_local_about`)."""
         if self.flat:
             return np.broadcast_to(np.eye(3), (len(p), 3, 3)), v, np.zeros_like(v)
+        if axis is not None:
+            return self._local_about(p, v, axis)
         lat, _, h = self.frame.geodetic_from_n(p)
         C_ln = self.frame.C_ln(p)
         v_l = np.einsum("mij,mj->mi", C_ln, v)
@@ -115,6 +137,74 @@ class EarthField:
         RM = ea.A_WGS84 * (1.0 - ea.E2_WGS84) / den**3 + h
         w = np.column_stack([-v_l[:, 1] / RM, v_l[:, 0] / RN, v_l[:, 0] * np.tan(lat) / RN])
         return C_ln, v_l, w
+
+    def heading_axis(self, p):
+        """Reference axis of the headings of a route through ``p`` (m, 3) in n: None (the
+        Earth's axis: headings from geographic North) in ``flat`` and when the route keeps
+        ``POLE_MARGIN_RAD`` from both poles; else the ECEF unit axis (3,) farthest from every
+        local vertical of the route (the normal of the plane the verticals lie closest to, or
+        the best of ``_N_AXES`` directions spread over the sphere), a transverse pole.
+
+        Raises
+        ------
+        InputError
+            When every candidate axis comes within ``POLE_MARGIN_RAD`` of the route's
+            vertical (a route all over the globe).
+        """
+        if self.flat:
+            return None
+        p = np.asarray(p, float)
+        p = p[:: max(1, len(p) // 20_000)]
+        r = self.frame.ecef_from_n(p)
+        sl, cl, co, so, _ = ea._geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
+        if np.max(np.abs(sl)) <= math.cos(POLE_MARGIN_RAD):
+            return None
+        u = np.column_stack([cl * co, cl * so, sl])
+        cand = np.vstack([np.linalg.eigh(u.T @ u)[1][:, 0], _sphere_directions(_N_AXES)])
+        worst = np.max(np.abs(u @ cand.T), axis=0)
+        j = int(np.argmin(worst))
+        if worst[j] > math.cos(POLE_MARGIN_RAD):
+            raise InputError(
+                None,
+                "the route's verticals cover the globe: no heading reference axis keeps "
+                f"{math.degrees(POLE_MARGIN_RAD):g} deg from them; split the route",
+            )
+        return cand[j]
+
+    def _local_about(self, p, v, k):
+        """:meth:`local` with the level's North towards the ECEF unit axis ``k``.
+
+        Axes at the vehicle: up ``u`` (ellipsoid normal), North ``n' = m / |m|`` with
+        ``m = k - (k . u) u``, East ``n' x u``. Relative to the Earth the level turns at
+        ``omega = omega_h + omega_u u``: the normal tilts at ``omega_h = u x (K v)``,
+        ``K = P / (R_N + h) + c m_z m_z^T`` (``P = I - u u^T``, ``m_z = e_z - sin(lat) u``,
+        ``c = a e^2 / (W^3 (R_M + h) (R_N + h))``: the ellipsoid's curvature, written without
+        the geographic North, so smooth at the poles), and about the vertical at
+        ``omega_u = (k . u) (e' . du/dt) / |m|`` (``k = e_z``: ``tan(lat) v_E / (R_N + h)``).
+        """
+        C_en = self.frame.C_en
+        r = self.frame.ecef_from_n(p)
+        v_e = v @ C_en  # C_ne v per row
+        sl, cl, co, so, h = ea._geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
+        u = np.column_stack([cl * co, cl * so, sl])
+        ku = u @ k
+        m = k[None, :] - ku[:, None] * u
+        mn = np.linalg.norm(m, axis=1)
+        north = m / mn[:, None]
+        east = np.cross(north, u)
+        W2 = 1.0 - ea.E2_WGS84 * sl * sl
+        W = np.sqrt(W2)
+        RN = ea.A_WGS84 / W + h
+        RM = ea.A_WGS84 * (1.0 - ea.E2_WGS84) / (W * W2) + h
+        mz = -sl[:, None] * u
+        mz[:, 2] += 1.0
+        c = ea.A_WGS84 * ea.E2_WGS84 / (W * W2 * RM * RN)
+        Kv = (v_e - _dot(v_e, u)[:, None] * u) / RN[:, None] + (c * _dot(mz, v_e))[:, None] * mz
+        w_h = np.cross(u, Kv)
+        w_u = ku * _dot(east, np.cross(w_h, u)) / mn
+        C_le = np.stack([east, north, u], axis=1)
+        w_l = np.column_stack([_dot(east, w_h), _dot(north, w_h), w_u])
+        return C_le @ C_en.T, np.einsum("mij,mj->mi", C_le, v_e), w_l
 
     def gravity_rate(self, p, v):
         """d/dt g_n(p(t)) = (grad g) v by a central difference along v (10 m each side)."""
@@ -363,6 +453,11 @@ def _node_spline(values, ds, x0=0.0):
 class GroundAttitude:
     """Attitude of a ground vehicle against the horizontal distance travelled ``s``.
 
+    Headings are angles in the local level at the vehicle from its North: geographic North,
+    or on a route passing within ``POLE_MARGIN_RAD`` of a geographic pole the direction of a
+    transverse pole far from the whole route (:meth:`EarthField.heading_axis`), so that the
+    level, the headings and their rates stay defined and smooth through the pole.
+
     * heading ``Psi(s)``: the direction of the horizontal velocity (local level) at distance
       nodes ``ds = max(0.1 / max_curvature, 0.1 m)`` apart, unwrapped, slope-limited to
       ``|dPsi/ds| <= max_curvature`` (forward: no anticipation of a turn), Gaussian-smoothed (sigma
@@ -420,6 +515,11 @@ class GroundAttitude:
         if ns > 2_000_000:
             ns = 2_000_000
         self.report = {"length_m": L, "max_curvature_1pm": k}
+        # headings from geographic North, or from a transverse pole on a route near a pole
+        self.axis = E.heading_axis(motion.position(tg))
+        self.report["heading_reference"] = (
+            "geographic North" if self.axis is None else f"transverse pole {self.axis.tolist()}"
+        )
         if ns < 4:  # does not move: level, facing East of the local level
             self.ds = max(L, 1.0)
             self.Psi = _node_spline(np.zeros(2), self.ds)
@@ -434,7 +534,7 @@ class GroundAttitude:
         up = np.r_[True, np.diff(sg) > 0]
         tn = np.interp(sn[:-1] + 0.5 * ds, sg[up], tg[up])
         p_n, v_n, a_n, _ = motion.eval(tn)
-        C_ln, v_l, w_nl = E.local(p_n, v_n)
+        C_ln, v_l, w_nl = E.local(p_n, v_n, self.axis)
         ok = np.hypot(v_l[:, 0], v_l[:, 1]) > 1e-6
         if not ok.any():
             ok[:] = True
@@ -512,9 +612,9 @@ class GroundAttitude:
         """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,
         velocity and acceleration in n (m,3)."""
         vp = self.vp
-        C_ln, v_l, w_nl = self.E.local(p, v)
+        C_ln, v_l, w_nl = self.E.local(p, v, self.axis)
         # ds/dt: the horizontal speed whose integral is the distance s
-        vh, vh_d = self.E.horizontal_speed(p, v, a)
+        vh, vh_d = self.E.horizontal_speed(p, v, a, self.axis)
         s = np.clip(s, 0.0, self.length_m)
         k1 = self.Psi(s, 1)
         # spline attitude blended with the velocity direction by W(s), Wp(s):

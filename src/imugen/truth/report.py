@@ -1,9 +1,10 @@
 """Plausibility report of a truth: is it a motion the vehicle makes?
 
 Figures from the truth table itself (so any truth, old or new, can be checked) and the input
-points: largest |pitch|, |roll| (relative to the local level), yaw rate, |acceleration| and
-|jerk| (finite differences of the velocity), the yaw rate beyond ``speed x max curvature``
-(turning on the spot), rate-versus-increment consistency (``dtheta_k`` against a
+points: largest |pitch|, |roll| (relative to the local level), yaw rate (the body's turn rate
+about the local vertical, :func:`turn_rate`), |acceleration| and |jerk| (finite differences of
+the velocity), the yaw rate beyond ``horizontal speed x max curvature`` (turning on the spot),
+rate-versus-increment consistency (``dtheta_k`` against a
 4th-order integral of the gyro columns, beyond that rule's own error estimate), attitude
 steps beyond what the rates allow (``(max |w| + |dw|) dt`` per interval), truth
 length against the input path length, fit residuals, the time stopped, moving and
@@ -18,6 +19,7 @@ import math
 
 import numpy as np
 
+from imugen import earth as ea
 from imugen import rotations as rot
 from imugen.tables import truth as col
 
@@ -70,6 +72,22 @@ def local_velocity(p_n, v_n, frame):
     return np.einsum("kij,kj->ki", frame.C_ln(p_n), v_n)
 
 
+def turn_rate(p_n, w_ib_b, C_nb, frame=None):
+    """Turn rate of the body: its rate relative to the Earth about the local vertical,
+    ``u_n . (C_nb omega_ib_b - Omega_n)``, shape (K,) [rad/s].
+
+    The yaw rate relative to a level that does not turn about the vertical (wander azimuth):
+    defined at the poles, where the yaw from geographic North turns by 180 deg as the
+    vehicle passes. ``p_n`` (K, 3), ``w_ib_b`` (K, 3) [rad/s], ``C_nb`` (K, 3, 3);
+    ``frame`` None or ``flat``: n's Up and no Earth rate.
+    """
+    w_n = np.einsum("kij,kj->ki", C_nb, w_ib_b)
+    if frame is None or frame.model == "flat":
+        return w_n[:, 2]
+    up_n = frame.C_ln(p_n)[:, 2, :]  # the local Up resolved in n
+    return np.einsum("ki,ki->k", up_n, w_n - ea.earth_rate_n(frame))
+
+
 def _rms(x, dts, mask):
     w = dts * mask
     return float(np.sqrt(np.sum(w * x * x) / np.sum(w))) if np.sum(w) > 0 else 0.0
@@ -112,7 +130,7 @@ def plausibility(
     dt = np.diff(t)
     v = df[list(col.VEL)].to_numpy()
     p = df[list(col.POS)].to_numpy()
-    roll, pitch, yaw = (df[c].to_numpy() for c in col.EULER)
+    roll, pitch = (df[c].to_numpy() for c in col.EULER[:2])
     w = df[list(col.GYRO)].to_numpy()
     dth = df[list(col.DTHETA)].to_numpy()[1:]
     air = np.zeros(K, bool) if airborne is None else np.asarray(airborne, bool)
@@ -122,10 +140,9 @@ def plausibility(
     speed = np.linalg.norm(v, axis=1)
     acc = np.diff(v, axis=0) / dt[:, None]
     jerk = np.diff(acc, axis=0) / (0.5 * (dt[1:] + dt[:-1]))[:, None] if K > 2 else acc[:0]
-    yaw_rate = np.diff(np.unwrap(yaw)) / dt
-    gi = gnd[1:] & gnd[:-1]  # intervals on the ground
-    vh_i = np.maximum(vh[1:], vh[:-1])
-    yaw_excess = np.abs(yaw_rate) - vp.max_curvature_1pm * vh_i
+    C_nb = rot.quat_to_dcm(df[list(col.QUAT)].to_numpy())
+    yaw_rate = turn_rate(p, w, C_nb, frame)
+    yaw_excess = np.abs(yaw_rate) - vp.max_curvature_1pm * vh
     wn = np.linalg.norm(w, axis=1)
     i4, itrap = _integral(w, dt)
     # beyond the quadrature's own error (4th-order rule against the trapezoid) ...
@@ -141,7 +158,7 @@ def plausibility(
     stopped = speed < vp.stop_speed_mps
     dts = np.r_[dt, 0.0] if K > 1 else np.zeros(1)
     # body-frame velocity on the ground: a car's (non-holonomic) has no y and z components
-    v_b = np.einsum("kji,kj->ki", rot.quat_to_dcm(df[list(col.QUAT)].to_numpy()), v)
+    v_b = np.einsum("kji,kj->ki", C_nb, v)
     mov = ~stopped & gnd
     slip = np.arctan2(np.abs(v_b[:, 1:]), np.maximum(np.abs(v_b[:, :1]), 1e-12))  # (K, 2)
     t_mov = float(np.sum(dts[mov]))
@@ -153,8 +170,10 @@ def plausibility(
         "max_abs_pitch_airborne_deg": math.degrees(mx(pitch, air)),
         "max_abs_roll_airborne_deg": math.degrees(mx(roll, air)),
         "max_yaw_rate_dps": math.degrees(mx(yaw_rate)),
-        "max_yaw_rate_airborne_dps": math.degrees(mx(yaw_rate, air[1:] & air[:-1])),
-        "max_yaw_rate_excess_dps": math.degrees(max(0.0, float(np.max(yaw_excess[gi], initial=0)))),
+        "max_yaw_rate_airborne_dps": math.degrees(mx(yaw_rate, air)),
+        "max_yaw_rate_excess_dps": math.degrees(
+            max(0.0, float(np.max(yaw_excess[gnd], initial=0)))
+        ),
         "max_speed_mps": float(speed.max()),
         "max_accel_mps2": mx(np.linalg.norm(acc, axis=1)),
         "max_jerk_mps3": mx(np.linalg.norm(jerk, axis=1)),
