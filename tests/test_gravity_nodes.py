@@ -95,12 +95,12 @@ def test_node_spacing_meets_the_tolerance_for_its_design_snap():
     snap_design = 24.0 * tol / (M.GAMMA_MAX * T**4)
     assert 3.05e-6 < M.GAMMA_MAX < 3.15e-6
     assert snap_design >= 1.97
-    for dt, m in ((0.05, 5), (0.02, 12), (0.01, 25), (0.001, 250)):
+    for dt, m in ((0.05, 5), (0.02, 12), (0.01, 25), (0.001, 250), (1.0, 1)):
         assert int(M.kernel_params(WGS, dt)[M.K_MB]) == m
     assert M.kernel_params(WGS, 0.01)[M.K_D4] == 24.0 * tol / M.GRAVITY_CHECK_MARGIN
 
 
-@pytest.mark.parametrize("amp, period_s, axis", [(20.0, 10.0, 1), (2.0, 2.5, 2), (1.0, 1.0, 1)])
+@pytest.mark.parametrize("amp, period_s, axis", [(20.0, 10.0, 1), (2.0, 2.5, 2), (1.0, 2.0, 1)])
 def test_cubic_interpolation_error_bound(amp, period_s, axis):
     """Airliner-speed weaves: cubic error <= T^4/24 Gamma_max snap (+ rounding), and tight."""
     path = Weave(amp, period_s, axis)
@@ -127,8 +127,8 @@ def test_straight_flight_interpolates_to_rounding():
         (20.0, 10.0, 2),
         (5.0, 4.0, 1),
         (2.0, 2.5, 2),
-        (1.0, 1.5, 1),
-        (1.0, 1.0, 2),
+        (0.5, 3.0, 2),
+        (1.0, 2.0, 1),
     ],
 )
 def test_check_accepts_only_blocks_within_tolerance(amp, period_s, axis):
@@ -142,18 +142,19 @@ def test_check_accepts_only_blocks_within_tolerance(amp, period_s, axis):
           f"max error / estimate {np.max(err / est):.2f}")  # fmt: skip
     assert np.all(err[accepted] <= M.GRAVITY_TOL_MPS2)
     assert np.all(err <= 1.05 * est + 3e-14)
-    if path.snap > 100.0:
+    if path.snap > 50.0:
         assert not accepted.any()  # violent weave: every block falls back
     if path.snap < 1.0:
         assert accepted.all()  # gentle manoeuvre: every block interpolates
 
 
-@pytest.mark.parametrize("period_s", [0.8, 0.6])
-def test_check_near_the_nodes_nyquist(period_s):
+@pytest.mark.parametrize("periods_of_T", [3.2, 2.4])
+def test_check_near_the_nodes_nyquist(periods_of_T):
     """Faster than 4 T: the estimate may fall below the error (aliasing); the margin of 2 still
-    holds down to periods of pi T (0.79 s). Below that (vibration) the error is bounded by the
-    motion's amplitude instead: <= 4 Gamma_max A (cubic's Lebesgue constant + 1 < 4)."""
+    holds down to periods of pi T (0.79 s). Below that the error is bounded by the motion's
+    amplitude instead: <= 4 Gamma_max A (cubic's Lebesgue constant + 1 < 4)."""
     amp = 0.01
+    period_s = periods_of_T * M.GRAVITY_NODE_S
     path = Weave(amp, period_s, 2)
     err, est = block_errors(path, M.GRAVITY_NODE_S)
     accepted = est <= M.GRAVITY_TOL_MPS2 / M.GRAVITY_CHECK_MARGIN
@@ -183,7 +184,7 @@ def run_kernel(path, dt, span, node_s, every):
 @pytest.mark.parametrize("amp", [2.0, 20.0])
 def test_kernel_within_the_bound_of_exact_gravity_every_step(rate_hz, amp):
     """Height weaves of 10 s at 214 m/s over 120 s, snap 0.31 m/s^4 (every block interpolated)
-    and 3.1 m/s^4 (beyond the design snap: some blocks fall back): positions vs the exact
+    and 3.1 m/s^4 (beyond the design snap: most blocks fall back): positions vs the exact
     gravitation every step within tol tau^2 (cosh(t/tau) - 1) (+ rounding of ~3e4 m),
     velocities within tol t (the closure error itself is the 3-point rule's, ``O(dt^3)``)."""
     path = Weave(amp, 10.0, 2)
@@ -203,9 +204,9 @@ def test_kernel_within_the_bound_of_exact_gravity_every_step(rate_hz, amp):
 
 
 def test_failed_blocks_are_the_every_step_rule():
-    """Violent weave (1 m at 1 Hz, snap 1,560 m/s^4): every block fails the check and the run is
-    the exact-gravitation-every-step run bit for bit, stored samples inside blocks included."""
-    path = Weave(1.0, 1.0, 1)
+    """Violent weave (1 m, period 2 s, snap 97 m/s^4): every block fails the check and the run
+    is the exact-gravitation-every-step run bit for bit, stored samples inside blocks included."""
+    path = Weave(1.0, 2.0, 1)
     dt, span = 0.01, 20.0
     p, v, nfb = run_kernel(path, dt, span, M.GRAVITY_NODE_S, 7)
     p1, v1, _ = run_kernel(path, dt, span, 0.0, 7)

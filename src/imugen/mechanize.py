@@ -21,6 +21,20 @@ position
     interval uses the same quadratic with one sample of look-ahead,
     ``dt/12 (5 v_0 + 8 v_1 - v_2)``, applied once ``v_2`` is known.
 
+Gravitation nodes: the exact gravitation is evaluated once per block of ``m = round(T / dt)``
+steps (``T = GRAVITY_NODE_S``), at the block's predicted end; in between, the cubic in time
+through it and the three previous nodes (``tau = -2, -1, 0, 1`` in units of ``T``). Its error
+is ``T^4/24 |w(tau)| |G^(4)|``, ``|w| = |(tau+2)(tau+1)tau(tau-1)| <= 0.98`` on the block,
+``G^(4) = d^4 G / dt^4 ~ Gamma snap`` (``|Gamma| <= GAMMA_MAX = 3.1e-6 s^-2``; the field's own
+curvature adds ``~ 120 g v^4 / R^4``, 1e-13 m/s^6 at 700 m/s). A block is accepted only when the
+estimate ``max(|D_j|, |D_j-1|, |2.5 D_j - 1.5 D_j-1|) / 24`` is within ``GRAVITY_TOL_MPS2 /
+GRAVITY_CHECK_MARGIN``, ``D_j`` the 4th difference of the five newest nodes (``T^4 G^(4)`` at
+the middle one; ``D_j-1`` the previous, the extrapolation reaches the block): the estimate is
+within 2 % above the error for motion of periods >= 4 T, within the margin down to ``pi T``.
+Otherwise the block takes the exact gravitation every step (bit for bit the per-step rule).
+Motion faster than ``pi T`` (vibration) is invisible to nodes: its error is at most
+``4 Gamma A`` (Lebesgue constant of the cubic + 1 < 4), ``A`` its position amplitude.
+
 Outputs are converted back to n at the stored samples only (``p_n = A^T r_I - r0_n``,
 ``v_n = A^T v_I - W r_n``, ``q_nb = q(A^T) q_Ib``, with ``A(t_k)`` from ``Omega k dt``), so
 the Earth's rotation costs nothing per step. The kernel state holds ``r_I - r0_n`` (the
@@ -78,16 +92,16 @@ K_D4 = K_MB + 1  # limit on |4th difference of the nodes| (24 x the error allowe
 N_KPARAMS = K_D4 + 1
 
 GRAVITY_TOL_MPS2 = 1e-9
-"""Allowed error of the interpolated gravitation [m/s^2] (0.1 ng: 2.5e5 times below a
-navigation-grade accelerometer bias of 25 ug; module docstring)."""
+"""Allowed error of the interpolated gravitation [m/s^2]: 0.1 ng, 1/150,000 of the smallest
+accelerometer bias the grades model (``navigation_calibrated``, 15 ug); module docstring."""
 GRAVITY_NODE_S = 0.25
 """Spacing of the exact gravitation evaluations in the rotating-Earth kernels [s]: the cubic's
 error ``T^4/24 |Gamma| snap`` stays within :data:`GRAVITY_TOL_MPS2` up to a snap of
-``24 tol / (|Gamma| T^4)`` = 2.0 m/s^4 (``|Gamma| <= 3.1e-6 s^-2``); blocks beyond it fall back
-to the exact gravitation every step (:func:`kernel_params`)."""
+``24 tol / (GAMMA_MAX T^4)`` = 2.0 m/s^4; blocks beyond the check's limit take the exact
+gravitation every step (module docstring)."""
 GRAVITY_CHECK_MARGIN = 2.0
 """Safety factor of the a-posteriori check: a block is accepted when its estimated error
-``|Delta^4 G| / 24`` is below ``GRAVITY_TOL_MPS2 / GRAVITY_CHECK_MARGIN``."""
+is within ``GRAVITY_TOL_MPS2 / GRAVITY_CHECK_MARGIN``."""
 GAMMA_MAX = 2.0 * earth.GM_WGS84 / (earth.B_WGS84 - 1000.0) ** 3
 """Largest gravity-gradient eigenvalue anywhere on the routes (2 GM / r^3, r >= b - 1 km)
 [1/s^2], 3.1e-6."""
