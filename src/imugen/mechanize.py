@@ -91,13 +91,13 @@ K_MB = K_DT + 1  # steps per gravitation node interval m (1: exact gravitation e
 K_D4 = K_MB + 1  # limit on |4th difference of the nodes| (24 x the error allowed, / margin)
 N_KPARAMS = K_D4 + 1
 
-GRAVITY_TOL_MPS2 = 1e-9
-"""Allowed error of the interpolated gravitation [m/s^2]: 0.1 ng, 1/150,000 of the smallest
+GRAVITY_TOL_MPS2 = 1e-8
+"""Allowed error of the interpolated gravitation [m/s^2]: 1 ng, 1/15,000 of the smallest
 accelerometer bias the grades model (``navigation_calibrated``, 15 ug); module docstring."""
-GRAVITY_NODE_S = 0.25
+GRAVITY_NODE_S = 0.4
 """Spacing of the exact gravitation evaluations in the rotating-Earth kernels [s]: the cubic's
 error ``T^4/24 |Gamma| snap`` stays within :data:`GRAVITY_TOL_MPS2` up to a snap of
-``24 tol / (GAMMA_MAX T^4)`` = 2.0 m/s^4; blocks beyond the check's limit take the exact
+``24 tol / (GAMMA_MAX T^4)`` = 3.0 m/s^4; blocks beyond the check's limit take the exact
 gravitation every step (module docstring)."""
 GRAVITY_CHECK_MARGIN = 2.0
 """Safety factor of the a-posteriori check: a block is accepted when its estimated error
@@ -169,15 +169,16 @@ def nav_from_state(st: np.ndarray, prm: np.ndarray):
     zax = prm[earth.P_OMEGA : earth.P_OMEGA + 3] / earth.OMEGA_IE
     r0 = prm[earth.P_R0N : earth.P_R0N + 3]
     th = -earth.OMEGA_IE * prm[K_DT] * st[:, S_K]  # rotation by A^T
-    c, s = np.cos(th), np.sin(th)
-    omc = 2.0 * np.sin(0.5 * th) ** 2
+    h, ch = np.sin(0.5 * th), np.cos(0.5 * th)  # half angle (the kernel's _write alike)
+    omc = 2.0 * h * h
+    c, s = 1.0 - omc, 2.0 * h * ch
     # p_n = A^T d + (A^T - I) r0_n
     r0 = np.broadcast_to(r0, p.shape)
     p_n = _rot_about_axis(p, zax, c, s, omc) + (
         _rot_about_axis(r0, zax, 0.0 * c, s, omc) - r0 * omc[:, None]
     )
     v_n = _rot_about_axis(v, zax, c, s, omc) - np.cross(earth.OMEGA_IE * zax, r0 + p_n)
-    qa = np.concatenate([np.cos(0.5 * th)[:, None], np.sin(0.5 * th)[:, None] * zax], axis=1)
+    qa = np.concatenate([ch[:, None], h[:, None] * zax], axis=1)
     return p_n, v_n, quat_mul(qa, q)
 
 
@@ -322,11 +323,12 @@ def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1,
         zx = prm[earth.P_OMEGA] * iw
         zy = prm[earth.P_OMEGA + 1] * iw
         zz = prm[earth.P_OMEGA + 2] * iw
-        th = -earth.OMEGA_IE * prm[K_DT] * k  # A(t_k)^T
-        c = math.cos(th)
-        sn = math.sin(th)
+        th = -earth.OMEGA_IE * prm[K_DT] * k  # A(t_k)^T, from its half angle
         h = math.sin(0.5 * th)
+        ch = math.cos(0.5 * th)
         omc = 2.0 * h * h
+        c = 1.0 - omc
+        sn = 2.0 * h * ch
         r0x = prm[earth.P_R0N]
         r0y = prm[earth.P_R0N + 1]
         r0z = prm[earth.P_R0N + 2]
@@ -346,7 +348,6 @@ def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1,
         vy = ay - w * (zz * rx - zx * rz)
         vz = az - w * (zx * ry - zy * rx)
         if wq:
-            ch = math.cos(0.5 * th)
             q0, q1, q2, q3 = _qmul(ch, h * zx, h * zy, h * zz, q0, q1, q2, q3)
     if 0 <= slot < out_p.shape[1]:
         out_p[s, slot, 0] = px
@@ -377,6 +378,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     dt = prm[K_DT]
     m = int(prm[K_MB]) if rot else 1
     d4lim = prm[K_D4]
+    wq = out_q.shape[1] > 0  # attitude stored (else not converted)
     c12 = dt / 12.0
     hdt = 0.5 * dt
     iw = 1.0 / earth.OMEGA_IE
@@ -441,7 +443,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                         q0, q1, q2, q3, qc0, qc1, qc2, qc3,
                         dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
                     )  # fmt: skip
-                    if inner:
+                    if inner and wq:
                         qbuf[j + 1, 0] = q0 - qc0
                         qbuf[j + 1, 1] = q1 - qc1
                         qbuf[j + 1, 2] = q2 - qc2
@@ -546,7 +548,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                                 w0, w1, w2, w3 = q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3
                             _write(out_p, out_v, out_q, s, (k + j + 1) // every - out_start, prm,
                                    k + j + 1, px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy,
-                                   vz - vcz, w0, w1, w2, w3, True)  # fmt: skip
+                                   vz - vcz, w0, w1, w2, w3, wq)  # fmt: skip
                     k += m
                     i += m
                     n3x, n3y, n3z = n2x, n2y, n2z
@@ -587,7 +589,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                                                         + WC[jw, 2] * c2y + WC[jw, 3] * c3y)),
                            (vz - vcz) + (abuf[jw, 2] + (WC[jw, 0] * n0z + WC[jw, 1] * c1z
                                                         + WC[jw, 2] * c2z + WC[jw, 3] * c3z)),
-                           qbuf[jw, 0], qbuf[jw, 1], qbuf[jw, 2], qbuf[jw, 3], True)  # fmt: skip
+                           qbuf[jw, 0], qbuf[jw, 1], qbuf[jw, 2], qbuf[jw, 3], wq)  # fmt: skip
                     jw += every
                 kw += m
                 while kw >= every:
@@ -636,7 +638,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 if kw == 0:
                     _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                            px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
-                           q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
+                           q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, wq)  # fmt: skip
                 # node at the actual end: point-mass gradient across the prediction error
                 dx = (px - pcx) - ppx
                 dy = (py - pcy) - ppy
@@ -755,7 +757,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             if kw == 0:
                 _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                        px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
-                       q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
+                       q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, wq)  # fmt: skip
         # fmt: off
         st[s, :25] = (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
                       q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz)
