@@ -23,6 +23,11 @@ Usage::
 
     python benchmarks/bench_mechanize.py [--scene FILE] [--sequences 1000] [--numpy-steps all]
         [--repeat 3] [--no-compile] [--pyins-python /work/pyinsvenv/bin/python] [--json out.json]
+        [--rate-hz 100] [--every RATE]
+
+``--rate-hz`` sets the IMU rate of the truth (the rotating kernels' cost depends on it through
+the gravitation node block ``m = round(GRAVITY_NODE_S / dt)``); positions are stored at 1 Hz
+unless ``--every`` says otherwise.
 
 ``--numpy-steps 0`` skips the NumPy rows; the kernel rates are the best of ``--repeat`` passes
 (CPU seconds of the process, ``time.process_time``: the machine is shared), and the load
