@@ -208,7 +208,9 @@ def test_navigator_geodetic_equals_wgs84(truths):
     b = NV.navigate_arrays(geo, (dth, dv), eval_rate_hz=2.0)
     cols = [*tnav.ERR_POS, *tnav.ERR_TRACK]
     assert np.abs(a[cols].to_numpy()).max() > 10.0
-    np.testing.assert_allclose(b[cols].to_numpy(), a[cols].to_numpy(), rtol=0, atol=1e-8)
+    # 2e-7 m: a gravitation block at the check's limit may fall back in one frame only
+    # (mechanize.GRAVITY_TOL_MPS2; one fallback moves positions by ~1e-7 m over minutes)
+    np.testing.assert_allclose(b[cols].to_numpy(), a[cols].to_numpy(), rtol=0, atol=2e-7)
 
 
 def test_sequence_metrics_track_columns():

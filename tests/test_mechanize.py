@@ -262,7 +262,8 @@ def test_batch_equals_one_at_a_time(frame):
     # the NumPy twin (no compensated sums) agrees to rounding
     P, V, Q = M.mechanize_numpy(dth, dv, dt, p0, v0, q0, frame)
     np.testing.assert_allclose(P, nav.p_n, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(V, nav.v_n, rtol=0, atol=1e-11)
+    # 1e-10: a block at the gravitation check's limit may fall back in one of the two only
+    np.testing.assert_allclose(V, nav.v_n, rtol=0, atol=1e-10)
     np.testing.assert_allclose(Q, nav.q_nb, rtol=0, atol=1e-13)
 
 

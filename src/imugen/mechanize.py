@@ -21,6 +21,20 @@ position
     interval uses the same quadratic with one sample of look-ahead,
     ``dt/12 (5 v_0 + 8 v_1 - v_2)``, applied once ``v_2`` is known.
 
+Gravitation nodes: the exact gravitation is evaluated once per block of ``m = round(T / dt)``
+steps (``T = GRAVITY_NODE_S``), at the block's predicted end; in between, the cubic in time
+through it and the three previous nodes (``tau = -2, -1, 0, 1`` in units of ``T``). Its error
+is ``T^4/24 |w(tau)| |G^(4)|``, ``|w| = |(tau+2)(tau+1)tau(tau-1)| <= 0.98`` on the block,
+``G^(4) = d^4 G / dt^4 ~ Gamma snap`` (``|Gamma| <= GAMMA_MAX = 3.1e-6 s^-2``; the field's own
+curvature adds ``~ 120 g v^4 / R^4``, 1e-13 m/s^6 at 700 m/s). A block is accepted only when the
+estimate ``max(|D_j|, |D_j-1|, |2.5 D_j - 1.5 D_j-1|) / 24`` is within ``GRAVITY_TOL_MPS2 /
+GRAVITY_CHECK_MARGIN``, ``D_j`` the 4th difference of the five newest nodes (``T^4 G^(4)`` at
+the middle one; ``D_j-1`` the previous, the extrapolation reaches the block): the estimate is
+within 2 % above the error for motion of periods >= 4 T, within the margin down to ``pi T``.
+Otherwise the block takes the exact gravitation every step (bit for bit the per-step rule).
+Motion faster than ``pi T`` (vibration) is invisible to nodes: its error is at most
+``4 Gamma A`` (Lebesgue constant of the cubic + 1 < 4), ``A`` its position amplitude.
+
 Outputs are converted back to n at the stored samples only (``p_n = A^T r_I - r0_n``,
 ``v_n = A^T v_I - W r_n``, ``q_nb = q(A^T) q_Ib``, with ``A(t_k)`` from ``Omega k dt``), so
 the Earth's rotation costs nothing per step. The kernel state holds ``r_I - r0_n`` (the
@@ -66,35 +80,58 @@ S_G = 19  # gravitation at sample k (3)
 S_GP = 22  # gravitation at sample k-1 (3)
 S_K = 25  # steps done
 S_QC = 26  # Kahan compensation of q (4)
-S_N = 30  # gravitation at the last three nodes k = j m, (j-2) m .. j m (9), newest first
-N_STATE = 39
+S_N = 30  # gravitation at the last four nodes k = j m, (j-1) m .. (j-3) m (12), newest first
+S_FB = 42  # blocks integrated with the exact gravitation every step (error check failed)
+S_D4 = 43  # 4th difference of the nodes at the previous node (3; inf until 5 nodes exist)
+N_STATE = 46
 
 # --- kernel parameter vector: frame params (earth.N_PARAMS) then these ------------------------
 K_DT = earth.N_PARAMS  # dt
 K_MB = K_DT + 1  # steps per gravitation node interval m (1: exact gravitation every step)
-N_KPARAMS = K_MB + 1
+K_D4 = K_MB + 1  # limit on |4th difference of the nodes| (24 x the error allowed, / margin)
+N_KPARAMS = K_D4 + 1
 
-GRAVITY_NODE_S = 0.05
+GRAVITY_TOL_MPS2 = 1e-8
+"""Allowed error of the interpolated gravitation [m/s^2]: 1 ng, 1/15,000 of the smallest
+accelerometer bias the grades model (``navigation_calibrated``, 15 ug); module docstring."""
+GRAVITY_NODE_S = 0.4
+"""Spacing of the exact gravitation evaluations in the rotating-Earth kernels [s]: the cubic's
+error ``T^4/24 |Gamma| snap`` stays within :data:`GRAVITY_TOL_MPS2` up to a snap of
+``24 tol / (GAMMA_MAX T^4)`` = 3.0 m/s^4; blocks beyond the check's limit take the exact
+gravitation every step (module docstring)."""
+GRAVITY_CHECK_MARGIN = 2.0
+"""Safety factor of the a-posteriori check: a block is accepted when its estimated error
+is within ``GRAVITY_TOL_MPS2 / GRAVITY_CHECK_MARGIN``."""
+GAMMA_MAX = 2.0 * earth.GM_WGS84 / (earth.B_WGS84 - 1000.0) ** 3
+"""Largest gravity-gradient eigenvalue anywhere on the routes (2 GM / r^3, r >= b - 1 km)
+[1/s^2], 3.1e-6."""
 _K3 = earth.GM_WGS84 / earth.R_MEAN**3  # point-mass gravity gradient scale [1/s^2]
 _IG2 = (earth.R_MEAN**2 / earth.GM_WGS84) ** 2  # 1 / |G|^2 at the mean radius
-"""Spacing of the exact gravitation evaluations in the rotating-Earth kernels [s] (see
-:func:`kernel_params`)."""
 
 
 def _skew(w):
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def kernel_params(frame: OriginFrame, dt: float, node_s: float = GRAVITY_NODE_S) -> np.ndarray:
-    """Parameter vector of the kernel: earth parameters, dt, gravitation node interval.
+def kernel_params(
+    frame: OriginFrame,
+    dt: float,
+    node_s: float = GRAVITY_NODE_S,
+    tol_mps2: float = GRAVITY_TOL_MPS2,
+) -> np.ndarray:
+    """Parameter vector of the kernel: earth parameters, dt, gravitation node interval, check.
 
     The exact gravitation is evaluated every ``m = round(node_s / dt)`` steps (``m >= 1``)
-    and interpolated in between (module docstring); ``node_s = 0`` gives ``m = 1``.
+    and interpolated in between (module docstring); ``node_s = 0`` gives ``m = 1``. A block
+    whose estimated interpolation error ``|Delta^4 G| / 24`` exceeds
+    ``tol_mps2 / GRAVITY_CHECK_MARGIN`` is integrated with the exact gravitation every step;
+    ``tol_mps2 = inf`` turns the check off.
     """
     prm = np.zeros(N_KPARAMS)
     prm[: earth.N_PARAMS] = frame.params()
     prm[K_DT] = dt
     prm[K_MB] = max(1, round(node_s / dt))
+    prm[K_D4] = 24.0 * tol_mps2 / GRAVITY_CHECK_MARGIN
     return prm
 
 
@@ -132,15 +169,16 @@ def nav_from_state(st: np.ndarray, prm: np.ndarray):
     zax = prm[earth.P_OMEGA : earth.P_OMEGA + 3] / earth.OMEGA_IE
     r0 = prm[earth.P_R0N : earth.P_R0N + 3]
     th = -earth.OMEGA_IE * prm[K_DT] * st[:, S_K]  # rotation by A^T
-    c, s = np.cos(th), np.sin(th)
-    omc = 2.0 * np.sin(0.5 * th) ** 2
+    h, ch = np.sin(0.5 * th), np.cos(0.5 * th)  # half angle (the kernel's _write alike)
+    omc = 2.0 * h * h
+    c, s = 1.0 - omc, 2.0 * h * ch
     # p_n = A^T d + (A^T - I) r0_n
     r0 = np.broadcast_to(r0, p.shape)
     p_n = _rot_about_axis(p, zax, c, s, omc) + (
         _rot_about_axis(r0, zax, 0.0 * c, s, omc) - r0 * omc[:, None]
     )
     v_n = _rot_about_axis(v, zax, c, s, omc) - np.cross(earth.OMEGA_IE * zax, r0 + p_n)
-    qa = np.concatenate([np.cos(0.5 * th)[:, None], np.sin(0.5 * th)[:, None] * zax], axis=1)
+    qa = np.concatenate([ch[:, None], h[:, None] * zax], axis=1)
     return p_n, v_n, quat_mul(qa, q)
 
 
@@ -172,8 +210,9 @@ def initial_state(p0_n, v0_n, q0_nb, frame: OriginFrame, S: int | None = None) -
     G = earth.gravitation_n(p0, frame)
     st[:, S_G : S_G + 3] = G
     st[:, S_GP : S_GP + 3] = G
-    for j in range(3):
+    for j in range(4):
         st[:, S_N + 3 * j : S_N + 3 * j + 3] = G
+    st[:, S_D4 : S_D4 + 3] = np.inf
     return st
 
 
@@ -284,11 +323,12 @@ def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1,
         zx = prm[earth.P_OMEGA] * iw
         zy = prm[earth.P_OMEGA + 1] * iw
         zz = prm[earth.P_OMEGA + 2] * iw
-        th = -earth.OMEGA_IE * prm[K_DT] * k  # A(t_k)^T
-        c = math.cos(th)
-        sn = math.sin(th)
+        th = -earth.OMEGA_IE * prm[K_DT] * k  # A(t_k)^T, from its half angle
         h = math.sin(0.5 * th)
+        ch = math.cos(0.5 * th)
         omc = 2.0 * h * h
+        c = 1.0 - omc
+        sn = 2.0 * h * ch
         r0x = prm[earth.P_R0N]
         r0y = prm[earth.P_R0N + 1]
         r0z = prm[earth.P_R0N + 2]
@@ -308,7 +348,6 @@ def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1,
         vy = ay - w * (zz * rx - zx * rz)
         vz = az - w * (zx * ry - zy * rx)
         if wq:
-            ch = math.cos(0.5 * th)
             q0, q1, q2, q3 = _qmul(ch, h * zx, h * zy, h * zz, q0, q1, q2, q3)
     if 0 <= slot < out_p.shape[1]:
         out_p[s, slot, 0] = px
@@ -338,6 +377,8 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     rot = prm[earth.P_MODEL] != 0.0
     dt = prm[K_DT]
     m = int(prm[K_MB]) if rot else 1
+    d4lim = prm[K_D4]
+    wq = out_q.shape[1] > 0  # attitude stored (else not converted)
     c12 = dt / 12.0
     hdt = 0.5 * dt
     iw = 1.0 / earth.OMEGA_IE
@@ -370,15 +411,18 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
         # fmt: off
         (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
          q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz) = st[s, :25]
-        (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z) = st[s, S_N:S_N + 9]
+        (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z,
+         n3x, n3y, n3z) = st[s, S_N:S_N + 12]
         # fmt: on
+        nfb = st[s, S_FB]
+        dpx, dpy, dpz = st[s, S_D4], st[s, S_D4 + 1], st[s, S_D4 + 2]
         qc0, qc1, qc2, qc3 = st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3]
         k = int(st[s, S_K])
         km = k % m  # phases of k (no integer division per step)
         kw = k % every
         i = 0
         while i < N:
-            if km == 0 and m > 1 and k >= 3 * m and i + m <= N:
+            if km == 0 and m > 1 and k >= 4 * m and i + m <= N:
                 # ---- a block of m steps: attitude first (it does not depend on gravity),
                 # then the exact gravitation once at the block's predicted end, a cubic in
                 # time through it and the three previous nodes, and velocity/position
@@ -399,7 +443,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                         q0, q1, q2, q3, qc0, qc1, qc2, qc3,
                         dth[s, i + j, 0], dth[s, i + j, 1], dth[s, i + j, 2],
                     )  # fmt: skip
-                    if inner:
+                    if inner and wq:
                         qbuf[j + 1, 0] = q0 - qc0
                         qbuf[j + 1, 1] = q1 - qc1
                         qbuf[j + 1, 2] = q2 - qc2
@@ -443,6 +487,75 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 ppy = py + T * vy + Py + e0 * n0y - e1 * n1y
                 ppz = pz + T * vz + Pz + e0 * n0z - e1 * n1z
                 gex, gey, gez = earth._gravitation_nb(r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz)
+                # error check (module docstring): 4th differences of the nodes, this one and
+                # the previous one, and their extrapolation to the block; beyond the limit the
+                # block takes the exact gravitation every step (the per-step rule, bit for bit)
+                d4x = gex - 4.0 * n0x + 6.0 * n1x - 4.0 * n2x + n3x
+                d4y = gey - 4.0 * n0y + 6.0 * n1y - 4.0 * n2y + n3y
+                d4z = gez - 4.0 * n0z + 6.0 * n1z - 4.0 * n2z + n3z
+                est = max(
+                    max(abs(d4x), abs(d4y), abs(d4z)),
+                    max(abs(dpx), abs(dpy), abs(dpz)),
+                    max(abs(2.5 * d4x - 1.5 * dpx), abs(2.5 * d4y - 1.5 * dpy),
+                        abs(2.5 * d4z - 1.5 * dpz)),
+                )  # fmt: skip
+                dpx = d4x
+                dpy = d4y
+                dpz = d4z
+                if not est <= d4lim:
+                    nfb += 1.0
+                    for j in range(m):
+                        ax = fbuf[j, 0]
+                        ay = fbuf[j, 1]
+                        az = fbuf[j, 2]
+                        sx = vx + ax + dt * Gx
+                        sy = vy + ay + dt * Gy
+                        sz = vz + az + dt * Gz
+                        ppx = px + c12 * (5.0 * sx + 8.0 * vx - vpx)
+                        ppy = py + c12 * (5.0 * sy + 8.0 * vy - vpy)
+                        ppz = pz + c12 * (5.0 * sz + 8.0 * vz - vpz)
+                        Gnx, Gny, Gnz = earth._gravitation_nb(
+                            r0x + ppx, r0y + ppy, r0z + ppz, zx, zy, zz
+                        )
+                        dvx = ax + c12 * (5.0 * Gnx + 8.0 * Gx - Gpx)
+                        dvy = ay + c12 * (5.0 * Gny + 8.0 * Gy - Gpy)
+                        dvz = az + c12 * (5.0 * Gnz + 8.0 * Gz - Gpz)
+                        Gpx = Gx
+                        Gpy = Gy
+                        Gpz = Gz
+                        Gx = Gnx
+                        Gy = Gny
+                        Gz = Gnz
+                        ovx = vx
+                        ovy = vy
+                        ovz = vz
+                        vx, vcx = _kahan(vx, vcx, dvx)
+                        vy, vcy = _kahan(vy, vcy, dvy)
+                        vz, vcz = _kahan(vz, vcz, dvz)
+                        px, pcx = _kahan(px, pcx, c12 * _fma(5.0, vx, _fma(8.0, ovx, -vpx)))
+                        py, pcy = _kahan(py, pcy, c12 * _fma(5.0, vy, _fma(8.0, ovy, -vpy)))
+                        pz, pcz = _kahan(pz, pcz, c12 * _fma(5.0, vz, _fma(8.0, ovz, -vpz)))
+                        vpx = ovx
+                        vpy = ovy
+                        vpz = ovz
+                        kw += 1
+                        if kw == every:
+                            kw = 0
+                            if j + 1 < m:
+                                w0, w1 = qbuf[j + 1, 0], qbuf[j + 1, 1]
+                                w2, w3 = qbuf[j + 1, 2], qbuf[j + 1, 3]
+                            else:
+                                w0, w1, w2, w3 = q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3
+                            _write(out_p, out_v, out_q, s, (k + j + 1) // every - out_start, prm,
+                                   k + j + 1, px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy,
+                                   vz - vcz, w0, w1, w2, w3, wq)  # fmt: skip
+                    k += m
+                    i += m
+                    n3x, n3y, n3z = n2x, n2y, n2z
+                    n2x, n2y, n2z = n1x, n1y, n1z
+                    n1x, n1y, n1z = n0x, n0y, n0z
+                    n0x, n0y, n0z = Gx, Gy, Gz
+                    continue
                 # cubic g(tau) = n0 + c1 tau + c2 tau^2 + c3 tau^3 through tau = -2, -1, 0, 1
                 c2x = 0.5 * (gex + n1x) - n0x
                 c2y = 0.5 * (gey + n1y) - n0y
@@ -476,7 +589,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                                                         + WC[jw, 2] * c2y + WC[jw, 3] * c3y)),
                            (vz - vcz) + (abuf[jw, 2] + (WC[jw, 0] * n0z + WC[jw, 1] * c1z
                                                         + WC[jw, 2] * c2z + WC[jw, 3] * c3z)),
-                           qbuf[jw, 0], qbuf[jw, 1], qbuf[jw, 2], qbuf[jw, 3], True)  # fmt: skip
+                           qbuf[jw, 0], qbuf[jw, 1], qbuf[jw, 2], qbuf[jw, 3], wq)  # fmt: skip
                     jw += every
                 kw += m
                 while kw >= every:
@@ -525,7 +638,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 if kw == 0:
                     _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                            px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
-                           q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
+                           q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, wq)  # fmt: skip
                 # node at the actual end: point-mass gradient across the prediction error
                 dx = (px - pcx) - ppx
                 dy = (py - pcy) - ppy
@@ -544,6 +657,7 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
                 Gx = gex
                 Gy = gey
                 Gz = gez
+                n3x, n3y, n3z = n2x, n2y, n2z
                 n2x, n2y, n2z = n1x, n1y, n1z
                 n1x, n1y, n1z = n0x, n0y, n0z
                 n0x, n0y, n0z = gex, gey, gez
@@ -632,18 +746,26 @@ def _kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
             if kw == every:
                 kw = 0
             if rot and km == 0:
+                if k >= 4 * m:  # five real nodes: k, k - m, .., k - 4m
+                    dpx = Gx - 4.0 * n0x + 6.0 * n1x - 4.0 * n2x + n3x
+                    dpy = Gy - 4.0 * n0y + 6.0 * n1y - 4.0 * n2y + n3y
+                    dpz = Gz - 4.0 * n0z + 6.0 * n1z - 4.0 * n2z + n3z
+                n3x, n3y, n3z = n2x, n2y, n2z
                 n2x, n2y, n2z = n1x, n1y, n1z
                 n1x, n1y, n1z = n0x, n0y, n0z
                 n0x, n0y, n0z = Gx, Gy, Gz
             if kw == 0:
                 _write(out_p, out_v, out_q, s, k // every - out_start, prm, k,
                        px - pcx, py - pcy, pz - pcz, vx - vcx, vy - vcy, vz - vcz,
-                       q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, True)  # fmt: skip
+                       q0 - qc0, q1 - qc1, q2 - qc2, q3 - qc3, wq)  # fmt: skip
         # fmt: off
         st[s, :25] = (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
                       q0, q1, q2, q3, vpx, vpy, vpz, Gx, Gy, Gz, Gpx, Gpy, Gpz)
-        st[s, S_N:S_N + 9] = (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z)
+        st[s, S_N:S_N + 12] = (n0x, n0y, n0z, n1x, n1y, n1z, n2x, n2y, n2z,
+                               n3x, n3y, n3z)
         # fmt: on
+        st[s, S_FB] = nfb
+        st[s, S_D4], st[s, S_D4 + 1], st[s, S_D4 + 2] = dpx, dpy, dpz
         st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3] = qc0, qc1, qc2, qc3
         st[s, S_K] = k
 
@@ -1091,6 +1213,7 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     prm = kernel_params(frame, dt)
     rot = frame.model != "flat"
     m = int(prm[K_MB]) if rot else 1
+    d4lim = prm[K_D4]
     T = m * dt
     tau = np.arange(m + 1) / m
     W = np.stack([T * np.diff(tau**n) / n for n in (1, 2, 3, 4)], axis=1)  # (m, 4)
@@ -1102,19 +1225,21 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     q = st[:, S_Q : S_Q + 4].copy()
     G = st[:, S_G : S_G + 3].copy()
     Gp = G.copy()
-    nodes = [G.copy(), G.copy(), G.copy()]  # newest first
+    nodes = [G.copy(), G.copy(), G.copy(), G.copy()]  # newest first
+    d4p = np.full((S, 3), np.inf)  # 4th difference at the previous node
     M_out = N // every + 1
     P = np.empty((S, M_out, 3))
     V = np.empty((S, M_out, 3))
     Q = np.empty((S, M_out, 4))
     out = np.zeros((S, N_STATE))
 
-    def store(j, k, p_, v_, q_):
-        out[:, S_P : S_P + 3] = p_
-        out[:, S_V : S_V + 3] = v_
-        out[:, S_Q : S_Q + 4] = q_
-        out[:, S_K] = k
-        P[:, j], V[:, j], Q[:, j] = nav_from_state(out, prm)
+    def store(j, k, p_, v_, q_, rows=slice(None)):
+        o = out[rows]
+        o[:, S_P : S_P + 3] = p_
+        o[:, S_V : S_V + 3] = v_
+        o[:, S_Q : S_Q + 4] = q_
+        o[:, S_K] = k
+        P[rows, j], V[rows, j], Q[rows, j] = nav_from_state(o, prm)
 
     def resolve(q, dv):
         qv = q[:, 1:]
@@ -1133,8 +1258,9 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
     store(0, 0, p, v, q)
     k = 0
     while k < N:
-        if m > 1 and k >= 3 * m and k % m == 0 and k + m <= N:
-            n0, n1, n2 = nodes
+        if m > 1 and k >= 4 * m and k % m == 0 and k + m <= N:
+            n0, n1, n2, n3 = nodes
+            p_b, v_b, vp_b, G_b, Gp_b = p, v, vp, G, Gp
             a = np.empty((m, S, 3))
             qs = [q]
             for j in range(m):
@@ -1162,7 +1288,26 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
             x = 1.0 - 1.0 / m
             Gp = n0 + x * (c1 + x * (c2 + x * c3))
             G = ge
-            nodes = [ge, n0, n1]
+            d4 = ge - 4.0 * n0 + 6.0 * n1 - 4.0 * n2 + n3
+            est = np.max(np.abs(np.stack([d4, d4p, 2.5 * d4 - 1.5 * d4p])), axis=(0, 2))
+            bad = ~(est <= d4lim)
+            d4p = d4
+            if bad.any():  # the failed sequences' block again, exact gravitation every step
+                p_b, v_b, vp_b, G_b, Gp_b = (x[bad] for x in (p_b, v_b, vp_b, G_b, Gp_b))
+                for j in range(m):
+                    a_j = a[j][bad]
+                    s_pred = v_b + a_j + dt * G_b
+                    Gn = earth.gravitation_n(p_b + c12 * (5.0 * s_pred + 8.0 * v_b - vp_b), frame)
+                    vk = v_b
+                    v_b = v_b + (a_j + c12 * (5.0 * Gn + 8.0 * G_b - Gp_b))
+                    p_b = p_b + c12 * (5.0 * v_b + 8.0 * vk - vp_b)
+                    vp_b = vk
+                    Gp_b, G_b = G_b, Gn
+                    if (k + j + 1) % every == 0:
+                        store((k + j + 1) // every, k + j + 1, p_b, v_b, qs[j + 1][bad], bad)
+                p, v, vp, G, Gp = (x.copy() for x in (p, v, vp, G, Gp))
+                p[bad], v[bad], vp[bad], G[bad], Gp[bad] = p_b, v_b, vp_b, G_b, Gp_b
+            nodes = [G, n0, n1, n2]
             k += m
             continue
         first = k == 0
@@ -1190,7 +1335,9 @@ def mechanize_numpy(dtheta_b, dv_b, dt, p0_n, v0_n, q0_nb, frame: OriginFrame, e
         q = att(q, dth[:, k])
         k += 1
         if rot and k % m == 0:
-            nodes = [G, nodes[0], nodes[1]]
+            if k >= 4 * m:
+                d4p = G - 4.0 * nodes[0] + 6.0 * nodes[1] - 4.0 * nodes[2] + nodes[3]
+            nodes = [G, nodes[0], nodes[1], nodes[2]]
         if k % every == 0:
             store(k // every, k, p, v, q)
     return P, V, Q
