@@ -8,12 +8,14 @@ space of the working directory plus what ``results/`` already holds).
 
 Estimates (measured, README "Security and limits")
     truth job memory: 300 MB + 700 bytes per IMU sample (``bench``: 268 MB at 31,207 samples,
-    414 MB at 249,649) + 1,400 bytes per metre of an untimed path for a vehicle of
+    414 MB at 249,649) + 1,600 bytes per metre of an untimed path for a vehicle of
     ``corner_m = 10`` (scaled by ``10 / corner_m``: the path is fitted on a grid of
-    ``corner_m / 16``); ``benchmarks/bench_truth_memory.py``, the 7,602 km Pacific route driven
-    as a car, ``geodetic``: peak RSS 10.57 GB at 2 Hz (1,093,818 samples, at the fit of the
-    path), 12.87 GB at 20 Hz (10.9 M samples, ``/usr/bin/time``): 10.3 GB of the path
-    (1,355 bytes per metre) + ~234 bytes per sample. Disk: 32.4 bytes per sample-sequence of IMU shard, 24 more for the MAT
+    ``corner_m / 16``); ``benchmarks/bench_truth_memory.py``, car: the 7,602 km Pacific route,
+    ``geodetic``, peaks at 10.57 GB at 2 Hz (1,093,818 samples, at the fit of the path) and
+    12.87 GB at 20 Hz (10.9 M samples, ``/usr/bin/time``): ~1,355 bytes per metre + ~234 per
+    sample; a synthetic 500 km road at 2 / 20 Hz (71,974 / 719,737 samples) peaks at 948 /
+    1,236 MB (``flat``: 916 MB + 445 B per sample) and 1,075 / 1,285 MB (``geodetic``:
+    1,051 MB + 325 B per sample). Disk: 32.4 bytes per sample-sequence of IMU shard, 24 more for the MAT
     export, 200 per truth sample. The duration of a route is that of its truth when already
     computed, else the time span of the file, else its length at 80 % of the vehicle's cruise
     speed (untimed paths; the speed profile slows in corners).
@@ -30,7 +32,7 @@ from imugen.errors import InputError
 
 TRUTH_BASE_B = 300e6
 TRUTH_PER_SAMPLE_B = 700.0
-TRUTH_PATH_PER_M_B = 1400.0  # untimed path of a vehicle of corner_m = TRUTH_PATH_CORNER_M
+TRUTH_PATH_PER_M_B = 1600.0  # untimed path of a vehicle of corner_m = TRUTH_PATH_CORNER_M
 TRUTH_PATH_CORNER_M = 10.0
 SHARD_PER_SAMPLE_SEQUENCE_B = 32.4
 MAT_PER_SAMPLE_SEQUENCE_B = 24.0
