@@ -146,3 +146,22 @@ def test_more_than_1000_shards(tmp_path):
     write_config(tmp_path, cfg)
     jobs = planned_jobs(tmp_path)  # ran into MissingInputException on shard-1000
     assert jobs["simulate"] == 1001  # one job per shard: synthesis and navigation
+
+
+def test_untimed_path_memory_term(tmp_path):
+    """An untimed path adds its fitting memory: 1,600 B per metre at corner_m 10 m, scaled by
+    10 / corner_m (the fit grid is corner_m / 16), on top of the per-sample term."""
+    from imugen.ingest import ingest
+    from imugen.truth import VEHICLES
+
+    kml = REPO / "resources" / "example_route.kml"
+    length = ingest(str(kml)).meta["length_3d_m"]
+    for vehicle in ("car", "pedestrian"):
+        cfg = config()
+        cfg["routes"] = {"ex": {"file": str(kml), "vehicle": vehicle}}
+        est = preflight.estimate(cfg, tmp_path / "results")
+        vp = VEHICLES[vehicle]
+        dur = length / (0.8 * vp.cruise_mps)
+        path_b = 1600.0 * 10.0 / vp.corner_m * length
+        assert est["route_durations_s"]["ex"] == pytest.approx(dur)
+        assert est["memory_b"] == pytest.approx(300e6 + 700 * (dur * 10 + 1) + path_b)

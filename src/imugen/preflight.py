@@ -8,7 +8,14 @@ space of the working directory plus what ``results/`` already holds).
 
 Estimates (measured, README "Security and limits")
     truth job memory: 300 MB + 700 bytes per IMU sample (``bench``: 268 MB at 31,207 samples,
-    414 MB at 249,649); disk: 32.4 bytes per sample-sequence of IMU shard, 24 more for the MAT
+    414 MB at 249,649) + 1,600 bytes per metre of an untimed path for a vehicle of
+    ``corner_m = 10`` (scaled by ``10 / corner_m``: the path is fitted on a grid of
+    ``corner_m / 16``); ``benchmarks/bench_truth_memory.py``, car: the 7,602 km Pacific route,
+    ``geodetic``, peaks at 10.57 GB at 2 Hz (1,093,818 samples, at the fit of the path) and
+    12.87 GB at 20 Hz (10.9 M samples, ``/usr/bin/time``): ~1,355 bytes per metre + ~234 per
+    sample; a synthetic 500 km road at 2 / 20 Hz (71,974 / 719,737 samples) peaks at 948 /
+    1,236 MB (``flat``: 916 MB + 445 B per sample) and 1,075 / 1,285 MB (``geodetic``:
+    1,051 MB + 325 B per sample). Disk: 32.4 bytes per sample-sequence of IMU shard, 24 more for the MAT
     export, 200 per truth sample. The duration of a route is that of its truth when already
     computed, else the time span of the file, else its length at 80 % of the vehicle's cruise
     speed (untimed paths; the speed profile slows in corners).
@@ -25,6 +32,8 @@ from imugen.errors import InputError
 
 TRUTH_BASE_B = 300e6
 TRUTH_PER_SAMPLE_B = 700.0
+TRUTH_PATH_PER_M_B = 1600.0  # untimed path of a vehicle of corner_m = TRUTH_PATH_CORNER_M
+TRUTH_PATH_CORNER_M = 10.0
 SHARD_PER_SAMPLE_SEQUENCE_B = 32.4
 MAT_PER_SAMPLE_SEQUENCE_B = 24.0
 TRUTH_FILE_PER_SAMPLE_B = 200.0
@@ -66,6 +75,13 @@ def check_values(config: dict) -> None:
 
 def route_duration_s(name: str, route: dict, results: Path) -> float | None:
     """Best estimate of a route's duration (s); None when the file cannot be read."""
+    return route_figures(name, route, results)[0]
+
+
+def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, float]:
+    """A route's duration (s, :func:`route_duration_s`; None when the file cannot be read)
+    and the truth memory of fitting its path (bytes; 0 for timed routes and computed
+    truths)."""
     import pyarrow.parquet as pq
 
     from imugen.ingest import ingest
@@ -77,7 +93,7 @@ def route_duration_s(name: str, route: dict, results: Path) -> float | None:
             md = pq.ParquetFile(truth).metadata
             rate = route.get("_rate_hz")
             if rate:
-                return md.num_rows / rate
+                return md.num_rows / rate, 0.0
         except (OSError, ValueError):
             pass
     try:
@@ -88,11 +104,13 @@ def route_duration_s(name: str, route: dict, results: Path) -> float | None:
             dt=route.get("dt_s"),
         )
     except InputError:
-        return None  # the ingest job reports it in one line
+        return None, 0.0  # the ingest job reports it in one line
     if ing.meta["timed"]:
-        return float(ing.meta["duration_s"])
-    cruise = VEHICLES[route.get("vehicle", "car")].cruise_mps
-    return ing.meta["length_3d_m"] / (0.8 * cruise)
+        return float(ing.meta["duration_s"]), 0.0
+    vp = VEHICLES[route.get("vehicle", "car")]
+    length = ing.meta["length_3d_m"]
+    path_b = TRUTH_PATH_PER_M_B * TRUTH_PATH_CORNER_M / vp.corner_m * length
+    return length / (0.8 * vp.cruise_mps), path_b
 
 
 def _tree_bytes(root: Path) -> int:
@@ -118,12 +136,12 @@ def estimate(config: dict, results: Path = Path("results")) -> dict:
     disk = 0.0
     routes = {}
     for name, route in config["routes"].items():
-        dur = route_duration_s(name, {**route, "_rate_hz": rate}, results)
+        dur, path_b = route_figures(name, {**route, "_rate_hz": rate}, results)
         if dur is None:
             continue
         samples = dur * rate + 1
         routes[name] = dur
-        memory = max(memory, TRUTH_BASE_B + TRUTH_PER_SAMPLE_B * samples)
+        memory = max(memory, TRUTH_BASE_B + TRUTH_PER_SAMPLE_B * samples + path_b)
         disk += samples * (n_seq * n_grades * per_ss + TRUTH_FILE_PER_SAMPLE_B)
     allan = config["allan"]
     allan_samples = allan["static_s"] * allan["rate_hz"] + 1
