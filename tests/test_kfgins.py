@@ -214,6 +214,26 @@ def test_warnings_once_per_export_and_no_config_without_gnss(route, tmp_path):
     assert len(_folders(tmp_path / "out")) == 3
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")  # an empty gnss.pos read back
+def test_no_config_without_a_fix_after_starttime(route, tmp_path):
+    """KF-GINS skips GNSS epochs up to starttime and never ends without a later one: such a
+    sequence gets its data files and gnss.pos, no kf-gins.yaml, and a warning."""
+    from imugen.formats import kfgins
+    from imugen.formats.source import gnss_of
+
+    truth, shard, g, _ = route
+    tr = read_truth(truth)
+    seq = next(iter_sequences([shard], tr.K, gnss_paths=[g]))
+    seq.gnss = gnss_of([g], seq.id)
+    seq.gnss.loc[seq.gnss["time_s"] > 0.0, "fix"] = 0
+    msgs = []
+    files = kfgins.write(seq, tr, tmp_path / "s", warn=msgs.append)
+    assert [f.name for f in files] == ["imu.txt", "truth.nav", "gnss.pos"]
+    assert np.all(np.loadtxt(tmp_path / "s" / "gnss.pos", ndmin=2)[:, 0] <= tr.time_s[1])
+    assert not (tmp_path / "s" / "kf-gins.yaml").exists()
+    assert len(msgs) == 1 and "no GNSS fix after" in msgs[0]
+
+
 def _kfgins_binary():
     exe = os.environ.get("IMUGEN_KFGINS") or shutil.which("KF-GINS")
     if not exe or not os.access(exe, os.X_OK):
