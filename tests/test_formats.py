@@ -242,10 +242,7 @@ def test_kfgins_files_in_ned_frd(route, exported):
     # NED velocity: vD = -vU (local level at the vehicle, within the 40 s scene's tilt)
     assert np.allclose(nav[:, 7], -tdf["v_u_mps"], atol=1e-3)
     assert abs(nav[0, 2] - 45.2) < 1e-7 and abs(nav[0, 3] - 7.6) < 1e-7  # spline fit: < 1 cm
-    import yaml
-
-    cfg = yaml.safe_load((folder / "kf-gins.yaml").read_text())
-    assert cfg["imudatalen"] == 7 and cfg["imudatarate"] == RATE and cfg["imunoise"]["arw"] > 0
+    assert not (folder / "kf-gins.yaml").exists()  # no GNSS: no runnable config (test_kfgins)
 
 
 def test_ros2_bag_read_by_rosbags(route, exported):

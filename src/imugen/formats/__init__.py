@@ -151,6 +151,8 @@ def export(
     if not (nav_rate_hz > 0 and np.isfinite(nav_rate_hz)):
         raise InputError("--nav-rate-hz", f"must be a positive number, got {nav_rate_hz!r}")
     truth = read_truth(truth_path)
+    if "kfgins" in formats:  # refusals and once-per-export warnings before anything is written
+        kfgins.check(truth, shard_paths, gnss_paths, warn=lambda m: log(f"imugen: warning: {m}"))
     route = route or Path(truth_path).resolve().parent.name
     grade = grade or (tshard.read_meta(shard_paths[0]).get("grade") or {}).get("name", "imu")
     nav, every = _navigator(truth, nav_rate_hz)
