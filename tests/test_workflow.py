@@ -333,3 +333,15 @@ def test_export_formats_planned_per_route_and_grade(tmp_path):
     write_config(tmp_path, {**cfg, "exports": {"mat": False, "formats": ["kitti"]}})
     proc = snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "kitti" in proc.stdout + proc.stderr
+
+
+def test_export_formats_without_imu_shards_are_not_scheduled(tmp_path):
+    """``exports.formats`` with ``simulate.write_imu: false``: the dry run succeeds and plans no
+    export (nothing to export: the shards are not stored), as for ``exports.mat``."""
+    cfg = copy.deepcopy(TINY)
+    cfg["simulate"]["write_imu"] = False
+    cfg["exports"] = {"mat": True, "formats": ["tum", "ros2"]}
+    write_config(tmp_path, cfg)
+    jobs = planned_jobs(tmp_path)
+    assert "export_formats" not in jobs and "export_mat" not in jobs, jobs
+    assert "evaluate" in jobs, jobs
