@@ -322,6 +322,7 @@ def _cmd_export(a) -> int:
         overwrite=a.overwrite,
         gnss_paths=a.gnss,
         aided_paths=a.aided,
+        companion_paths=a.companions,
     )
     return 0
 
@@ -726,6 +727,13 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="+",
         metavar="AIDED.parquet",
         help="aided navigation tables of `imugen aid` for these shards (TUM <seq>.aided.tum)",
+    )
+    p.add_argument(
+        "--companions",
+        nargs="+",
+        metavar="COMPANIONS.parquet",
+        help="companion-sensor tables of `imugen aid` for these shards "
+        "(ROS /wheel/odometry, /baro/pressure)",
     )
     p.set_defaults(func=_cmd_export)
 

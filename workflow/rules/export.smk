@@ -16,12 +16,21 @@ rule export_mat:
         "--grade {wildcards.grade} --route {wildcards.route} -o {output:q} > {log:q} 2>&1"
 
 
+# the companion sensors (aid stage, config `companions`) go to the ROS 2 bags
+COMPANION_EXPORT = (
+    AID_ON
+    and "ros2" in config["exports"]["formats"]
+    and (COMP["odometer"] is not None or COMP["barometer"] is not None)
+)
+
+
 rule export_formats:
     input:
         truth="results/{route}/truth.parquet",
         shards=shard_paths("imu"),
         gnss=shard_paths("gnss") if AID_ON else [],
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
+        companions=shard_paths("companions") if COMPANION_EXPORT else [],
         code=stage_code(
             "formats/__init__", "formats/source", "formats/common", "formats/convert",
             *(f"formats/{f}" for f in config["exports"]["formats"]),
@@ -33,9 +42,12 @@ rule export_formats:
         nav_rate_hz=config["exports"]["nav_rate_hz"],
         gnss=lambda wc, input: ("--gnss " + " ".join(map(shlex.quote, input.gnss))) if input.gnss else "",
         aided=lambda wc, input: ("--aided " + " ".join(map(shlex.quote, input.aided))) if input.aided else "",
+        companions=lambda wc, input: (
+            ("--companions " + " ".join(map(shlex.quote, input.companions))) if input.companions else ""
+        ),
     log:
         "logs/{route}/export_formats/{grade}.log",
     shell:
         "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
         "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
-        "--overwrite {params.gnss} {params.aided} > {log:q} 2>&1"
+        "--overwrite {params.gnss} {params.aided} {params.companions} > {log:q} 2>&1"

@@ -128,14 +128,17 @@ def export(
     overwrite: bool = False,
     gnss_paths=None,
     aided_paths=None,
+    companion_paths=None,
     log=None,
 ) -> dict:
     """Write the sequences of ``shard_paths`` in each of ``formats`` under ``out_dir``.
 
     ``gnss_paths``: the GNSS epoch tables of ``imugen aid`` for these shards (optional): KF-GINS
     then gets ``gnss.pos`` and ROS 2 bags a ``/gnss/fix`` topic. ``aided_paths``: the aided
-    navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``. Returns ``{format: number of
-    files written}`` and prints one line per format to ``log``.
+    navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``.
+    ``companion_paths``: the companion-sensor tables of ``imugen aid`` (optional): ROS 2 bags
+    then get ``/wheel/odometry`` and ``/baro/pressure`` for the sensors they hold. Returns
+    ``{format: number of files written}`` and prints one line per format to ``log``.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
     formats = parse_formats(formats)
@@ -162,7 +165,8 @@ def export(
             tum.write_truth(truth, tmp / "tum" / "truth.tum", every)
             counts["tum"] += 1
         aided = aided_paths if "tum" in formats else None
-        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths, aided):
+        comp = companion_paths if "ros2" in formats else None
+        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths, aided, comp):
             name = f"{route}_{grade}_{seq.id:06d}"
             keys.append((route, seq.id, name))
             seq_truth = imu_truth(truth, seq.labels)  # the IMU's, for a mounted sequence
