@@ -456,4 +456,3 @@ def test_ros2_companions_tf_and_gnss_of_a_mounted_imu(route, tmp_path, cli):
     from imugen.tables import gnss as tgnss
 
     assert len(bag["/gnss/fix"]) == len(tgnss.read(g))
-
