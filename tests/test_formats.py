@@ -456,3 +456,43 @@ def test_ros2_companions_tf_and_gnss_of_a_mounted_imu(route, tmp_path, cli):
     from imugen.tables import gnss as tgnss
 
     assert len(bag["/gnss/fix"]) == len(tgnss.read(g))
+
+
+def _lists(folder):
+    return {p: (folder / f"{p}_list.txt").read_text().split() for p in ("train", "val", "test")}
+
+
+def test_split_lists_hold_a_route_out_in_every_export(route, tmp_path, cli):
+    """Per-route exports with ``--holdout-routes``: the held-out route's sequences are in its
+    test list and nowhere else, the other route's never in test; with ``--split-by route`` a
+    route's sequences share one part, the part a whole-dataset split of many routes gives it."""
+    from imugen.dataset import split
+
+    truth, shard, _ = route
+    _, seqs = _seqs(route)
+    for name in ("city", "drive"):
+        r = cli("export", truth, shard, "-o", tmp_path / name, "--format", "tlio", "--route",
+                name, "--holdout-routes", "city,nowhere", "--val-fraction", "0.5")  # fmt: skip
+        assert r.returncode == 0, r.stderr
+    city, drive = _lists(tmp_path / "city" / "tlio"), _lists(tmp_path / "drive" / "tlio")
+    assert sorted(city["test"]) == [f"city_consumer_{s:06d}" for s, _, _ in seqs]
+    assert city["train"] == city["val"] == [] and drive["test"] == []
+    assert sorted(drive["train"] + drive["val"]) == [f"drive_consumer_{s:06d}" for s, _, _ in seqs]
+    assert drive["train"] and drive["val"]  # two sequences, train and val 0.5 each
+    # by route: one export per route, each route whole in the part of the global split
+    names = [f"r{i}" for i in range(12)]
+    keys = [(n, 1000 * i + j) for i, n in enumerate(names) for j in range(2)]
+    whole = split(keys, {"train": 0.6, "val": 0.2, "test": 0.2}, seed=3, by="route")
+    assert all(whole.values())  # no repair needed: the global cut is the hash cut
+    part_of = {r: p for p, ks in whole.items() for r, _ in ks}
+    for name in names[:2]:
+        export(["tlio"], truth, [shard], tmp_path / f"x{name}", route=name, split_by="route",
+               split_seed=3, val_fraction=0.2, test_fraction=0.2, log=lambda m: None)  # fmt: skip
+        got = _lists(tmp_path / f"x{name}" / "tlio")
+        assert len(got[part_of[name]]) == len(seqs) and sum(map(len, got.values())) == len(seqs)
+    with pytest.raises(InputError, match="leave some for train"):
+        export(["tlio"], truth, [shard], tmp_path / "bad", val_fraction=0.5, test_fraction=0.5)
+    r = cli(
+        "export", truth, shard, "-o", tmp_path / "bad", "--format", "tlio", "--val-fraction", "-1"
+    )
+    assert r.returncode == 2 and "--val-fraction" in r.stderr and not (tmp_path / "bad").exists()

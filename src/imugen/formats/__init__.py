@@ -35,6 +35,7 @@ import numpy as np
 
 from imugen.errors import InputError
 from imugen.formats import euroc, kfgins, ronin, ros2, tlio, tum
+from imugen.formats.common import split_parts, write_split_lists
 from imugen.formats.source import (
     INCREMENT_COLUMNS,
     RATE_COLUMNS,
@@ -123,6 +124,10 @@ def export(
     grade: str | None = None,
     nav_rate_hz: float = 10.0,
     split_seed: int = 0,
+    split_by: str = "sequence",
+    holdout_routes=None,
+    val_fraction: float = 0.1,
+    test_fraction: float = 0.1,
     sequences=None,
     storage: str = "sqlite3",
     overwrite: bool = False,
@@ -138,7 +143,10 @@ def export(
     navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``.
     ``companion_paths``: the companion-sensor tables of ``imugen aid`` (optional): ROS 2 bags
     then get ``/wheel/odometry`` and ``/baro/pressure`` for the sensors they hold. Returns
-    ``{format: number of files written}`` and prints one line per format to ``log``.
+    ``split_*``, ``holdout_routes``, ``val_fraction``, ``test_fraction``: the train/val/test
+    lists (:func:`imugen.formats.common.split_parts`; consistent across the exports of the
+    routes of a dataset). Returns ``{format: number of files written}`` and prints one line per
+    format to ``log``.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
     formats = parse_formats(formats)
@@ -149,6 +157,7 @@ def export(
         raise InputError(out_dir, "exists; remove it, choose another folder or pass --overwrite")
     if not (nav_rate_hz > 0 and np.isfinite(nav_rate_hz)):
         raise InputError("--nav-rate-hz", f"must be a positive number, got {nav_rate_hz!r}")
+    split_parts([], by=split_by, val_fraction=val_fraction, test_fraction=test_fraction)  # checks
     truth = read_truth(truth_path)
     route = route or Path(truth_path).resolve().parent.name
     grade = grade or (tshard.read_meta(shard_paths[0]).get("grade") or {}).get("name", "imu")
@@ -185,17 +194,17 @@ def export(
         if not keys:
             raise InputError(shard_paths[0], "no sequences to export")
         if "tlio" in formats:
-            from imugen.dataset import split
-
-            try:
-                parts = split([(r, s) for r, s, _ in keys], seed=split_seed, by="sequence")
-            except InputError:  # too few sequences for three non-empty parts
-                log(f"imugen: warning: {len(keys)} sequences: every one in TLIO's train list")
-                parts = {"train": [(r, s) for r, s, _ in keys], "val": [], "test": []}
+            parts = split_parts(
+                [(r, s) for r, s, _ in keys],
+                seed=split_seed,
+                by=split_by,
+                holdout_routes=holdout_routes,
+                val_fraction=val_fraction,
+                test_fraction=test_fraction,
+                warn=lambda m: log(f"imugen: warning: {m}"),
+            )
             names = {(r, s): n for r, s, n in keys}
-            for part, ks in parts.items():
-                (tmp / "tlio" / f"{part}_list.txt").write_text("".join(f"{names[k]}\n" for k in ks))
-                counts["tlio"] += 1
+            counts["tlio"] += len(write_split_lists(tmp / "tlio", parts, names))
         if out_dir.exists():
             shutil.rmtree(out_dir)
         os.replace(tmp, out_dir)
