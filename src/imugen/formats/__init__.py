@@ -7,15 +7,16 @@ number), one folder per format under ``DIR/<format>/`` named ``<route>_<grade>_<
 ========  ==========================================  =========================================
 format    files                                       read by
 ========  ==========================================  =========================================
-euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), OpenVINS,
-          ``mav0/state_groundtruth_estimate0/...``    ORB-SLAM3, AirIMU
+euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), AirIMU
+          ``mav0/state_groundtruth_estimate0/...``
 tum       ``truth.tum``, ``<seq>.tum`` (free-inertial) evo (``evo_ape tum``), navlie
           ``<seq>.aided.tum`` (with ``--aided``)
 tlio      ``<seq>/imu0_resampled.npy`` + description,  TLIO's ``SequencesDataset`` and forks
           ``train/val/test_list.txt``
 ronin     ``<seq>/data.hdf5`` + ``info.json``          RoNIN, RNIN, CTIN loaders (h5py)
 kfgins    ``imu.txt``, ``truth.nav``, ``kf-gins.yaml``  KF-GINS, OB_GINS (i2Nav), NED/FRD
-ros2      rosbag2 folder (sqlite3 or MCAP)            ros2 bag, rosbags, evo (``evo_traj bag2``)
+ros2      rosbag2 folder (sqlite3 or MCAP)            ros2 bag, robot_localization, rosbags,
+                                                      evo (``evo_traj bag2``)
 ========  ==========================================  =========================================
 
 Conversions (ENU/FLU to NED/FRD, scalar-last quaternions, integer clocks) are in
