@@ -75,5 +75,5 @@ rule all:
         expand(
             "results/{route}/datasets/{grade}",
             route=ROUTES,
-            grade=GRADES if config["exports"]["formats"] else [],
+            grade=GRADES if config["exports"]["formats"] and WRITE_IMU else [],
         ),

@@ -245,26 +245,64 @@ def test_kfgins_files_in_ned_frd(route, exported):
     assert not (folder / "kf-gins.yaml").exists()  # no GNSS: no runnable config (test_kfgins)
 
 
-def test_ros2_bag_read_by_rosbags(route, exported):
-    pytest.importorskip("rosbags")
+def _bag(folder, topics=None):
+    """``{topic: [(t_ns, message), ...]}`` of a bag, read with rosbags (any storage)."""
     from rosbags.highlevel import AnyReader
 
-    tr, seqs = _seqs(route)
-    sid, data, _ = seqs[0]
-    folder = exported / "ros2" / f"drive_consumer_{sid:06d}"
-    counts, first = {}, {}
+    out = {}
     with AnyReader([folder]) as reader:
-        for conn, ts, raw in reader.messages():
-            counts[conn.topic] = counts.get(conn.topic, 0) + 1
-            if conn.topic not in first:
-                first[conn.topic] = (ts, reader.deserialize(raw, conn.msgtype))
-    assert counts["/imu/data"] == tr.K and counts["/ground_truth/odom"] == tr.K
-    ts, imu = first["/imu/data"]
-    assert ts == 0 and imu.orientation_covariance[0] == -1.0
-    assert np.isclose(imu.angular_velocity.x, data["gyro_x_radps"][0])
-    _, od = first["/ground_truth/odom"]
-    q = od.pose.pose.orientation
-    assert np.allclose([q.w, q.x, q.y, q.z], tr.q_nb[0])
+        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        for conn, ts, raw in reader.messages(connections=conns):
+            out.setdefault(conn.topic, []).append((ts, reader.deserialize(raw, conn.msgtype)))
+    return out
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_ros2_bag_read_by_rosbags(route, exported, tmp_path, storage):
+    """Both storages read back by rosbags: message counts, first and last values equal to the
+    shard and the truth; no GNSS or companion topic without their tables; a static identity
+    transform base_link -> imu_link (no mounting) with the static broadcaster's QoS."""
+    pytest.importorskip("rosbags")
+    truth, shard, _ = route
+    tr, seqs = _seqs(route)
+    if storage == "mcap":
+        out = tmp_path / "bags"
+        export(["ros2"], truth, [shard], out, storage="mcap", log=lambda m: None)
+    else:
+        out = exported
+    for sid, data, _ in seqs:
+        folder = out / "ros2" / f"drive_consumer_{sid:06d}"
+        meta = (folder / "metadata.yaml").read_text()
+        assert f"storage_identifier: {storage}" in meta
+        assert list(folder.glob("*.mcap" if storage == "mcap" else "*.db3"))
+        bag = _bag(folder)
+        assert set(bag) == {"/tf_static", "/imu/data", "/ground_truth/odom", "/ground_truth/fix"}
+        assert len(bag["/imu/data"]) == tr.K and len(bag["/ground_truth/odom"]) == tr.K
+        assert len(bag["/ground_truth/fix"]) == len(range(0, tr.K, round(RATE / 10.0)))
+        w = np.column_stack([data[f"gyro_{a}_radps"] for a in "xyz"])
+        f = np.column_stack([data[f"accel_{a}_mps2"] for a in "xyz"])
+        for i in (0, -1):
+            ts, imu = bag["/imu/data"][i]
+            assert ts == round(tr.time_s[i] * 1e9) and imu.orientation_covariance[0] == -1.0
+            av, la = imu.angular_velocity, imu.linear_acceleration
+            assert np.array_equal([av.x, av.y, av.z], w[i])
+            assert np.array_equal([la.x, la.y, la.z], f[i])
+            ts, od = bag["/ground_truth/odom"][i]
+            q, p = od.pose.pose.orientation, od.pose.pose.position
+            assert ts == round(tr.time_s[i] * 1e9) and od.child_frame_id == "base_link"
+            assert np.array_equal([q.w, q.x, q.y, q.z], tr.q_nb[i])
+            assert np.array_equal([p.x, p.y, p.z], tr.p_n[i])
+        ((ts, tf),) = bag["/tf_static"]
+        (x,) = tf.transforms
+        assert (x.header.frame_id, x.child_frame_id) == ("base_link", "imu_link")
+        r, d = x.transform.rotation, x.transform.translation
+        assert [r.w, r.x, r.y, r.z, d.x, d.y, d.z] == [1.0, 0, 0, 0, 0, 0, 0]
+    from rosbags.rosbag2 import Reader
+
+    with Reader(folder) as reader:
+        (c,) = [c for c in reader.connections if c.topic == "/tf_static"]
+        (qos,) = c.ext.offered_qos_profiles
+        assert qos.durability.name == "TRANSIENT_LOCAL" and qos.depth == 1
 
 
 def test_ros2_truth_read_by_evo(route, exported):
@@ -663,3 +701,122 @@ def test_export_streams_and_says_what_it_wrote(route):
         files = [p for p in (tmp / "n8" / fmt).rglob("*") if p.is_file()]
         assert int(m[4]) == len(files) and len(files) >= 8 * 2
         assert float(m[5]) == round(sum(p.stat().st_size for p in files) / 1e6, 1) > 0
+def test_ros2_companions_tf_and_gnss_of_a_mounted_imu(route, tmp_path, cli):
+    """A mounted IMU with an odometer, a barometer and GNSS (``imugen aid``): the static
+    transforms close the truth (vehicle pose composed with base_link -> imu_link is the IMU's
+    true pose in the bag); the wheel speeds are the table's, and their variance's white and
+    tick terms match the scale-corrected errors (chi-square band over ~400 epochs); the
+    pressures give the measured altitudes back through the inverse standard atmosphere, whose
+    tabulated 11 km value they meet."""
+    pytest.importorskip("rosbags")
+    from imugen import aid
+    from imugen.formats.ros2 import isa_pressure_pa
+    from imugen.tables import companions as tcomp
+
+    truth, _, _ = route
+    shard = tmp_path / "drive" / "imu" / "consumer" / "shard-000.parquet"
+    mount = {"enabled": True, "lever_arm_m": [0.8, -0.3, 0.4], "misalignment_sd_deg": [2, 2, 5]}
+    simulate.run(truth, shard, "consumer", sequences=1, seed=9, outputs="both", mounting=mount)
+    g, a, c = (tmp_path / f"{n}.parquet" for n in ("g", "a", "c"))
+    params = aid.AidParams(
+        eval_rate_hz=10.0, odometer="abs", barometer="bmp388", lever_arm_b_m=(0.1, 0.2, 1.5)
+    )
+    aid.run(truth, shard, g, a, params, out_companions=c)
+    r = cli("export", truth, shard, "-o", tmp_path / "x", "--format", "ros2", "--gnss", g,
+            "--companions", c)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    tr = read_truth(truth)
+    (seq,) = iter_sequences([shard], tr.K)
+    (folder,) = (tmp_path / "x" / "ros2").iterdir()
+    bag = _bag(folder)
+    assert set(bag) == {"/tf_static", "/imu/data", "/ground_truth/odom", "/ground_truth/fix",
+                        "/gnss/fix", "/wheel/odometry", "/baro/pressure"}  # fmt: skip
+    # transforms: base_link -> imu_link closes vehicle truth onto the IMU truth in the bag
+    ((_, tf),) = bag["/tf_static"]
+    links = {x.child_frame_id: x.transform for x in tf.transforms}
+    assert set(links) == {"imu_link", "gnss_antenna"}
+    d, r_ = links["imu_link"].translation, links["imu_link"].rotation
+    lever = np.array([d.x, d.y, d.z])
+    assert np.allclose(lever, [seq.labels[f"lever_arm_{a}_m"] for a in "xyz"])
+    q_vb = np.array([r_.w, r_.x, r_.y, r_.z])
+    od = [m for _, m in bag["/ground_truth/odom"]]
+    assert od[0].child_frame_id == "imu_link"
+    q_imu = np.array([[m.pose.pose.orientation.w, m.pose.pose.orientation.x,
+                       m.pose.pose.orientation.y, m.pose.pose.orientation.z] for m in od])  # fmt: skip
+    p_imu = np.array([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z]
+                      for m in od])  # fmt: skip
+    q_pred = rot.quat_mul(tr.q_nb, np.broadcast_to(q_vb, tr.q_nb.shape))
+    assert np.allclose(np.abs(np.sum(q_pred * q_imu, axis=1)), 1.0, atol=1e-12)
+    p_pred = tr.p_n + np.einsum("kij,j->ki", rot.quat_to_dcm(tr.q_nb), lever)
+    assert np.allclose(p_pred, p_imu, atol=1e-9)
+    ga = links["gnss_antenna"].translation
+    assert np.allclose([ga.x, ga.y, ga.z], [0.1, 0.2, 1.5])
+    # wheel odometry: the table's speeds; variance terms against the errors
+    odo = tcomp.read_odometer(c)
+    lab = tcomp.read_labels(c).iloc[0]
+    wheel = bag["/wheel/odometry"]
+    assert len(wheel) == len(odo) > 300
+    u = np.array([m.twist.twist.linear.x for _, m in wheel])
+    assert np.array_equal(u, odo["odo_speed_mps"].to_numpy())
+    assert [t for t, _ in wheel] == list(np.rint(odo["time_s"].to_numpy() * 1e9).astype(int))
+    var = np.array([m.twist.covariance[0] for _, m in wheel])
+    sk_u2 = (lab["odo_scale_factor_sd"] * u) ** 2
+    white_tick = var - sk_u2
+    e = odo["odo_error_mps"].to_numpy() - lab["odo_scale_factor"] * odo["odo_true_speed_mps"]
+    ratio = np.mean(e**2 / white_tick)
+    assert 0.75 < ratio < 1.3, ratio
+    assert wheel[0][1].child_frame_id == "base_link" and wheel[0][1].pose.covariance[0] == 1e6
+    # barometer: inverse ISA gives the altitudes back; the 11 km tabulated pressure
+    baro = tcomp.read_barometer(c)
+    pres = bag["/baro/pressure"]
+    p = np.array([m.fluid_pressure for _, m in pres])
+    n = 5.25588
+    h = 288.15 / 0.0065 * (1.0 - (p / 101325.0) ** (1.0 / n))
+    assert np.allclose(h, baro["baro_altitude_m"], atol=1e-4)  # n to 6 digits: 0.1 mm
+    assert abs(isa_pressure_pa(11000.0) - 22632.1) < 0.5 and isa_pressure_pa(0.0) == 101325.0
+    dp = isa_pressure_pa(h + 0.5) - isa_pressure_pa(h - 0.5)
+    var_h = lab["baro_white_m"] ** 2 + lab["baro_bias_sd_m"] ** 2
+    assert np.allclose([m.variance for _, m in pres], dp**2 * var_h, rtol=1e-5)
+    from imugen.tables import gnss as tgnss
+
+    assert len(bag["/gnss/fix"]) == len(tgnss.read(g))
+
+
+def _lists(folder):
+    return {p: (folder / f"{p}_list.txt").read_text().split() for p in ("train", "val", "test")}
+
+
+def test_split_lists_hold_a_route_out_in_every_export(route, tmp_path, cli):
+    """Per-route exports with ``--holdout-routes``: the held-out route's sequences are in its
+    test list and nowhere else, the other route's never in test; with ``--split-by route`` a
+    route's sequences share one part, the part a whole-dataset split of many routes gives it."""
+    from imugen.dataset import split
+
+    truth, shard, _ = route
+    _, seqs = _seqs(route)
+    for name in ("city", "drive"):
+        r = cli("export", truth, shard, "-o", tmp_path / name, "--format", "tlio", "--route",
+                name, "--holdout-routes", "city,nowhere", "--val-fraction", "0.5")  # fmt: skip
+        assert r.returncode == 0, r.stderr
+    city, drive = _lists(tmp_path / "city" / "tlio"), _lists(tmp_path / "drive" / "tlio")
+    assert sorted(city["test"]) == [f"city_consumer_{s:06d}" for s, _, _ in seqs]
+    assert city["train"] == city["val"] == [] and drive["test"] == []
+    assert sorted(drive["train"] + drive["val"]) == [f"drive_consumer_{s:06d}" for s, _, _ in seqs]
+    assert drive["train"] and drive["val"]  # two sequences, train and val 0.5 each
+    # by route: one export per route, each route whole in the part of the global split
+    names = [f"r{i}" for i in range(12)]
+    keys = [(n, 1000 * i + j) for i, n in enumerate(names) for j in range(2)]
+    whole = split(keys, {"train": 0.6, "val": 0.2, "test": 0.2}, seed=3, by="route")
+    assert all(whole.values())  # no repair needed: the global cut is the hash cut
+    part_of = {r: p for p, ks in whole.items() for r, _ in ks}
+    for name in names[:2]:
+        export(["tlio"], truth, [shard], tmp_path / f"x{name}", route=name, split_by="route",
+               split_seed=3, val_fraction=0.2, test_fraction=0.2, log=lambda m: None)  # fmt: skip
+        got = _lists(tmp_path / f"x{name}" / "tlio")
+        assert len(got[part_of[name]]) == len(seqs) and sum(map(len, got.values())) == len(seqs)
+    with pytest.raises(InputError, match="leave some for train"):
+        export(["tlio"], truth, [shard], tmp_path / "bad", val_fraction=0.5, test_fraction=0.5)
+    r = cli(
+        "export", truth, shard, "-o", tmp_path / "bad", "--format", "tlio", "--val-fraction", "-1"
+    )
+    assert r.returncode == 2 and "--val-fraction" in r.stderr and not (tmp_path / "bad").exists()

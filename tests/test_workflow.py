@@ -333,3 +333,42 @@ def test_export_formats_planned_per_route_and_grade(tmp_path):
     write_config(tmp_path, {**cfg, "exports": {"mat": False, "formats": ["kitti"]}})
     proc = snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "kitti" in proc.stdout + proc.stderr
+
+
+def test_export_formats_without_imu_shards_are_not_scheduled(tmp_path):
+    """``exports.formats`` with ``simulate.write_imu: false``: the dry run succeeds and plans no
+    export (nothing to export: the shards are not stored), as for ``exports.mat``."""
+    cfg = copy.deepcopy(TINY)
+    cfg["simulate"]["write_imu"] = False
+    cfg["exports"] = {"mat": True, "formats": ["tum", "ros2"]}
+    write_config(tmp_path, cfg)
+    jobs = planned_jobs(tmp_path)
+    assert "export_formats" not in jobs and "export_mat" not in jobs, jobs
+    assert "evaluate" in jobs, jobs
+
+
+def test_export_formats_pass_the_split_and_the_companions(tmp_path):
+    """``exports.split`` reaches every export as the same options; with the aid stage and an
+    odometer the ROS 2 export gets the companion tables of its route and grade; a held-out
+    route that is not a route is refused before any job."""
+    cfg = copy.deepcopy(TINY)
+    cfg["exports"] = {
+        "mat": False,
+        "formats": ["tlio", "ros2"],
+        "split": {"by": "route", "holdout_routes": ["paper"], "val_fraction": 0.2},
+    }
+    cfg["gnss"] = {"enabled": True}
+    cfg["companions"] = {"odometer": "abs"}
+    write_config(tmp_path, cfg)
+    proc = snakemake(tmp_path, "-n", "-j1", "-p", "results/example/datasets/consumer")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = (proc.stdout + proc.stderr).splitlines()
+    (cmd,) = [ln for ln in out if ln.startswith("Shell command: imugen export ")]
+    assert "--split-by route --split-seed 0 --val-fraction 0.2 --test-fraction 0.1" in cmd
+    assert "--holdout-routes paper" in cmd
+    shards = [f"results/example/companions/consumer/shard-{k:03d}.parquet" for k in (0, 1)]
+    assert "--companions " + " ".join(shards) in cmd
+    cfg["exports"]["split"]["holdout_routes"] = ["nowhere"]
+    write_config(tmp_path, cfg)
+    proc = snakemake(tmp_path, "-n", "-j1")
+    assert proc.returncode != 0 and "nowhere not among the routes" in proc.stdout + proc.stderr

@@ -321,11 +321,16 @@ def _cmd_export(a) -> int:
         grade=a.grade,
         nav_rate_hz=a.nav_rate_hz,
         split_seed=a.split_seed,
+        split_by=a.split_by,
+        holdout_routes=[r.strip() for r in (a.holdout_routes or "").split(",") if r.strip()],
+        val_fraction=a.val_fraction,
+        test_fraction=a.test_fraction,
         sequences=a.sequences,
         storage=a.storage,
         overwrite=a.overwrite,
         gnss_paths=a.gnss,
         aided_paths=a.aided,
+        companion_paths=a.companions,
     )
     return 0
 
@@ -720,6 +725,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--nav-rate-hz", type=float, default=10.0, help="rate of TUM trajectories (Hz)")
     p.add_argument("--split-seed", type=int, default=0, help="seed of the TLIO split lists")
     p.add_argument(
+        "--split-by",
+        choices=["sequence", "route"],
+        default="sequence",
+        help="split unit of the lists: each sequence, or each route whole (default sequence)",
+    )
+    p.add_argument(
+        "--holdout-routes",
+        metavar="A,B",
+        help="routes whose sequences form the test list, whole, in every export",
+    )
+    p.add_argument(
+        "--val-fraction", type=float, default=0.1, help="share of the val list (default 0.1)"
+    )
+    p.add_argument(
+        "--test-fraction",
+        type=float,
+        default=0.1,
+        help="share of the test list without --holdout-routes (default 0.1)",
+    )
+    p.add_argument(
         "--sequences", type=int, nargs="+", metavar="ID", help="export only these sequence ids"
     )
     p.add_argument(
@@ -737,6 +762,13 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="+",
         metavar="AIDED.parquet",
         help="aided navigation tables of `imugen aid` for these shards (TUM <seq>.aided.tum)",
+    )
+    p.add_argument(
+        "--companions",
+        nargs="+",
+        metavar="COMPANIONS.parquet",
+        help="companion-sensor tables of `imugen aid` for these shards "
+        "(ROS /wheel/odometry, /baro/pressure)",
     )
     p.set_defaults(func=_cmd_export)
 

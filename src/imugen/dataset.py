@@ -227,11 +227,33 @@ def _check_fractions(fractions) -> dict[str, float]:
     return fr
 
 
+def _edges(fr: dict[str, float]) -> np.ndarray:
+    """Upper ends of the parts' intervals of [0, 1) (fractions renormalized)."""
+    total = sum(fr.values())
+    return np.cumsum([fr[n] / total for n in fr]) if total > 0 else np.zeros(len(fr))
+
+
+def _hash_part(u: float, names: list, edges: np.ndarray, fr: dict[str, float]) -> str:
+    """The part whose interval holds the hash ``u``."""
+    i = min(int(np.searchsorted(edges, u, "right")), len(names) - 1)
+    while fr[names[i]] == 0:  # u on an edge of an empty interval (rounding)
+        i -= 1
+    return names[i]
+
+
+def hashed_part(unit, fractions: Mapping[str, float] | None = None, *, seed=0) -> str:
+    """The part the hash cut of :func:`split` gives ``unit`` (a route name with
+    ``by="route"``, a sequence id with ``by="sequence"``) on its own: the part every
+    :func:`split` of the same seed and fractions assigns it, unless a repair borrows it. For
+    splits made piecewise (one route at a time) that must agree with each other."""
+    fr = _check_fractions(fractions)
+    return _hash_part(_unit_hash(seed, unit), list(fr), _edges(fr), fr)
+
+
 def _cut(units: list, fr: dict[str, float], seed, what: str) -> dict:
     """Unit -> part: hash cut of [0, 1), then the repair that leaves no wanted part empty."""
     names = list(fr)
-    total = sum(fr.values())
-    edges = np.cumsum([fr[n] / total for n in names]) if total > 0 else np.zeros(len(names))
+    edges = _edges(fr)
     lo = np.concatenate([[0.0], edges[:-1]])
     wanted = [n for n in names if fr[n] > 0]
     if units and len(units) < len(wanted):
@@ -242,12 +264,7 @@ def _cut(units: list, fr: dict[str, float], seed, what: str) -> dict:
             "(holdout_routes, val_routes) or give the parts fewer non-zero fractions",
         )
     u = {x: _unit_hash(seed, x) for x in units}
-    part = {}
-    for x, ux in u.items():
-        i = min(int(np.searchsorted(edges, ux, "right")), len(names) - 1)
-        while fr[names[i]] == 0:  # u on an edge of an empty interval (rounding)
-            i -= 1
-        part[x] = names[i]
+    part = {x: _hash_part(ux, names, edges, fr) for x, ux in u.items()}
     if not units:
         return part
     count = {n: 0 for n in names}

@@ -16,14 +16,42 @@ rule export_mat:
         "--grade {wildcards.grade} --route {wildcards.route} -o {output:q} > {log:q} 2>&1"
 
 
+# the companion sensors (aid stage, config `companions`) go to the ROS 2 bags
+COMPANION_EXPORT = (
+    AID_ON
+    and "ros2" in config["exports"]["formats"]
+    and (COMP["odometer"] is not None or COMP["barometer"] is not None)
+)
+
+# the split lists (config `exports.split`), the same in every route's and grade's export
+SPLIT = config["exports"]["split"]
+_unknown = sorted(set(SPLIT["holdout_routes"]) - set(ROUTES))
+if _unknown:
+    raise WorkflowError(
+        f"imugen: error: exports.split.holdout_routes: {', '.join(_unknown)} not among the routes"
+    )
+if SPLIT["val_fraction"] + SPLIT["test_fraction"] >= 1:
+    raise WorkflowError(
+        "imugen: error: exports.split: val_fraction + test_fraction must leave some for train"
+    )
+SPLIT_OPTS = (
+    f"--split-by {SPLIT['by']} --split-seed {int(SPLIT['seed'])} "
+    f"--val-fraction {float(SPLIT['val_fraction'])!r} "
+    f"--test-fraction {float(SPLIT['test_fraction'])!r}"
+    + (f" --holdout-routes {shlex.quote(','.join(SPLIT['holdout_routes']))}" if SPLIT["holdout_routes"] else "")
+)
+"""`imugen export` options of the split lists (config `exports.split`)."""
+
+
 rule export_formats:
     input:
         truth="results/{route}/truth.parquet",
         shards=shard_paths("imu"),
         gnss=shard_paths("gnss") if AID_ON else [],
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
+        companions=shard_paths("companions") if COMPANION_EXPORT else [],
         code=stage_code(
-            "formats/__init__", "formats/source", "formats/common", "formats/convert",
+            "formats/__init__", "formats/source", "formats/common", "formats/convert", "dataset",
             *(f"formats/{f}" for f in config["exports"]["formats"]),
         ),
     output:
@@ -31,11 +59,16 @@ rule export_formats:
     params:
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],
+        split=SPLIT_OPTS,
         gnss=lambda wc, input: ("--gnss " + " ".join(map(shlex.quote, input.gnss))) if input.gnss else "",
         aided=lambda wc, input: ("--aided " + " ".join(map(shlex.quote, input.aided))) if input.aided else "",
+        companions=lambda wc, input: (
+            ("--companions " + " ".join(map(shlex.quote, input.companions))) if input.companions else ""
+        ),
     log:
         "logs/{route}/export_formats/{grade}.log",
     shell:
         "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
         "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
-        "--overwrite {params.gnss} {params.aided} > {log:q} 2>&1"
+        "{params.split} "
+        "--overwrite {params.gnss} {params.aided} {params.companions} > {log:q} 2>&1"

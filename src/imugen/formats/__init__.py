@@ -7,8 +7,8 @@ number), one folder per format under ``DIR/<format>/`` named ``<route>_<grade>_<
 ========  ==========================================  =========================================
 format    files                                       read by
 ========  ==========================================  =========================================
-euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), OpenVINS,
-          ``mav0/state_groundtruth_estimate0/...``    ORB-SLAM3, AirIMU
+euroc     ``mav0/imu0/data.csv``, ``sensor.yaml``,    evo (``evo_traj euroc``), AirIMU
+          ``mav0/state_groundtruth_estimate0/...``
 tum       ``truth.tum``, ``<seq>.tum`` (free-inertial) evo (``evo_ape tum``), navlie
           ``<seq>.aided.tum`` (with ``--aided``),
           ``<seq>.truth.tum`` (a mounted IMU's truth)
@@ -17,7 +17,8 @@ tlio      ``<seq>/imu0_resampled.npy`` + description,  TLIO's ``SequencesDataset
 ronin     ``<seq>/data.hdf5`` + ``info.json``,         RoNIN, RNIN, CTIN loaders (h5py)
           ``list_train/val/test.txt``
 kfgins    ``imu.txt``, ``truth.nav``, ``kf-gins.yaml``  KF-GINS, OB_GINS (i2Nav), NED/FRD
-ros2      rosbag2 folder (sqlite3 or MCAP)            ros2 bag, rosbags, evo (``evo_traj bag2``)
+ros2      rosbag2 folder (sqlite3 or MCAP)            ros2 bag, robot_localization, rosbags,
+                                                      evo (``evo_traj bag2``)
 ========  ==========================================  =========================================
 
 Conversions (ENU/FLU to NED/FRD, scalar-last quaternions, integer clocks) are in
@@ -37,6 +38,7 @@ import numpy as np
 
 from imugen.errors import InputError
 from imugen.formats import euroc, kfgins, ronin, ros2, tlio, tum
+from imugen.formats.common import split_parts, write_split_lists
 from imugen.formats.source import (
     INCREMENT_COLUMNS,
     RATE_COLUMNS,
@@ -127,19 +129,29 @@ def export(
     grade: str | None = None,
     nav_rate_hz: float = 10.0,
     split_seed: int = 0,
+    split_by: str = "sequence",
+    holdout_routes=None,
+    val_fraction: float = 0.1,
+    test_fraction: float = 0.1,
     sequences=None,
     storage: str = "sqlite3",
     overwrite: bool = False,
     gnss_paths=None,
     aided_paths=None,
+    companion_paths=None,
     log=None,
 ) -> dict:
     """Write the sequences of ``shard_paths`` in each of ``formats`` under ``out_dir``.
 
     ``gnss_paths``: the GNSS epoch tables of ``imugen aid`` for these shards (optional): KF-GINS
     then gets ``gnss.pos`` and ROS 2 bags a ``/gnss/fix`` topic. ``aided_paths``: the aided
-    navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``. Returns ``{format: number of
-    files written}`` and prints one line per format to ``log``.
+    navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``.
+    ``companion_paths``: the companion-sensor tables of ``imugen aid`` (optional): ROS 2 bags
+    then get ``/wheel/odometry`` and ``/baro/pressure`` for the sensors they hold. Returns
+    ``split_*``, ``holdout_routes``, ``val_fraction``, ``test_fraction``: the train/val/test
+    lists (:func:`imugen.formats.common.split_parts`; consistent across the exports of the
+    routes of a dataset). Returns ``{format: number of files written}`` and prints one line per
+    format to ``log``.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
     formats = parse_formats(formats)
@@ -150,6 +162,7 @@ def export(
         raise InputError(out_dir, "exists; remove it, choose another folder or pass --overwrite")
     if not (nav_rate_hz > 0 and np.isfinite(nav_rate_hz)):
         raise InputError("--nav-rate-hz", f"must be a positive number, got {nav_rate_hz!r}")
+    split_parts([], by=split_by, val_fraction=val_fraction, test_fraction=test_fraction)  # checks
     truth = read_truth(truth_path)
     if "kfgins" in formats:  # refusals and once-per-export warnings before anything is written
         kfgins.check(truth, shard_paths, gnss_paths, warn=lambda m: log(f"imugen: warning: {m}"))
@@ -175,7 +188,8 @@ def export(
             tum.write_truth(truth, tmp / "tum" / "truth.tum", every)
             counts["tum"] += 1
         aided = aided_paths if "tum" in formats else None
-        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths, aided):
+        comp = companion_paths if "ros2" in formats else None
+        for seq in iter_sequences(shard_paths, truth.K, only, gnss_paths, aided, comp):
             name = f"{route}_{grade}_{seq.id:06d}"
             keys.append((route, seq.id, name))
             seq_truth = imu_truth(truth, seq.labels)  # the IMU's, for a mounted sequence
@@ -195,19 +209,18 @@ def export(
             raise InputError(shard_paths[0], "no sequences to export")
         lists = {f: n for f, n in SPLIT_LISTS.items() if f in formats}
         if lists:
-            from imugen.dataset import split
-
-            try:
-                parts = split([(r, s) for r, s, _ in keys], seed=split_seed, by="sequence")
-            except InputError:  # too few sequences for three non-empty parts
-                log(f"imugen: warning: {len(keys)} sequences: every one in the train list")
-                parts = {"train": [(r, s) for r, s, _ in keys], "val": [], "test": []}
+            parts = split_parts(
+                [(r, s) for r, s, _ in keys],
+                seed=split_seed,
+                by=split_by,
+                holdout_routes=holdout_routes,
+                val_fraction=val_fraction,
+                test_fraction=test_fraction,
+                warn=warn,
+            )
             names = {(r, s): n for r, s, n in keys}
             for fmt, pattern in lists.items():
-                for part, ks in parts.items():
-                    text = "".join(f"{names[k]}\n" for k in ks)
-                    (tmp / fmt / pattern.format(part=part)).write_text(text)
-                    counts[fmt] += 1
+                counts[fmt] += len(write_split_lists(tmp / fmt, parts, names, pattern))
         if out_dir.exists():
             shutil.rmtree(out_dir)
         os.replace(tmp, out_dir)

@@ -1,11 +1,14 @@
-"""Helpers shared by the format writers: measured rates of a sequence, noise figures, text."""
+"""Helpers shared by the format writers: measured rates of a sequence, noise figures, text,
+the train/val/test split lists."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
+from imugen.errors import InputError
 from imugen.formats.source import INCREMENT_COLUMNS, RATE_COLUMNS, Sequence, TruthArrays
 
 
@@ -59,3 +62,76 @@ def write_rows(fh, array: np.ndarray, fmt: str) -> None:
     """Write a 2-D array as text rows with numpy's formatter (streams in blocks)."""
     for i in range(0, len(array), 65536):
         np.savetxt(fh, array[i : i + 65536], fmt=fmt)
+
+
+SPLIT_BY = ("sequence", "route")
+
+
+def split_parts(
+    keys,
+    *,
+    seed=0,
+    by: str = "sequence",
+    holdout_routes=None,
+    val_fraction: float = 0.1,
+    test_fraction: float = 0.1,
+    warn=None,
+) -> dict[str, list[tuple[str, int]]]:
+    """Train/val/test parts of one export's ``(route, sequence)`` keys, consistent across the
+    exports of a dataset (one per route and grade).
+
+    The sequences of ``holdout_routes`` form the test part, whole, in every export; the other
+    routes' then go to train and val only (fractions renormalized), as in
+    :func:`imugen.dataset.split`. ``by="sequence"``: each sequence id hashed with ``seed``
+    (:func:`imugen.dataset.split`; ids are unique across routes and grades, so a draw is in one
+    part in every export); too few sequences for the non-empty parts put all in train (with a
+    warning). ``by="route"``: every sequence of a route in the part the route's hash gives it
+    (:func:`imugen.dataset.hashed_part`), the same in every export, whatever other routes
+    exist (an export holds one route, so parts may be empty).
+
+    Returns ``{"train": [...], "val": [...], "test": [...]}`` (keys in input order).
+    """
+    from imugen.dataset import hashed_part, split
+
+    if by not in SPLIT_BY:
+        raise InputError("--split-by", f"must be one of {', '.join(SPLIT_BY)}, got {by!r}")
+    fr = {"val": float(val_fraction), "test": float(test_fraction)}
+    for name, f in fr.items():
+        if not (0.0 <= f < 1.0):
+            raise InputError(f"--{name}-fraction", f"must be in [0, 1), got {f!r}")
+    if fr["val"] + fr["test"] >= 1.0:
+        raise InputError("--val-fraction", "val and test fractions must leave some for train")
+    hold = {str(r) for r in (holdout_routes or ())}
+    if hold:
+        fr["test"] = 0.0
+    fractions = {"train": 1.0 - fr["val"] - fr["test"], **fr}
+    total = sum(fractions.values())  # below 1 with holdout routes: renormalized
+    fractions = {n: f / total for n, f in fractions.items()}
+    keys = [(str(r), int(s)) for r, s in keys]
+    parts = {"train": [], "val": [], "test": []}
+    rest = [k for k in keys if k[0] not in hold]
+    if by == "route":
+        for r in dict.fromkeys(r for r, _ in rest):
+            parts[hashed_part(r, fractions, seed=seed)].extend(k for k in rest if k[0] == r)
+    elif rest:
+        try:
+            for name, ks in split(rest, fractions, seed=seed, by="sequence").items():
+                parts[name].extend(ks)
+        except InputError:  # too few sequences for the non-empty parts
+            if warn is not None:
+                warn(f"{len(rest)} sequences: every one in the train list")
+            parts["train"].extend(rest)
+    parts["test"].extend(k for k in keys if k[0] in hold)
+    order = {k: i for i, k in enumerate(keys)}
+    return {name: sorted(ks, key=order.__getitem__) for name, ks in parts.items()}
+
+
+def write_split_lists(folder, parts: dict, names: dict, pattern: str = "{part}_list.txt"):
+    """Write one list file per part (``pattern`` formatted with ``part``) in ``folder``: the
+    folder names ``names[key]`` of its keys, one a line. Returns the paths written."""
+    out = []
+    for part, ks in parts.items():
+        path = Path(folder) / pattern.format(part=part)
+        path.write_text("".join(f"{names[k]}\n" for k in ks))
+        out.append(path)
+    return out

@@ -94,6 +94,7 @@ class Sequence:
     meta: dict = field(repr=False)
     gnss: object = None  # the sequence's GNSS epochs (DataFrame, imugen.tables.gnss), if given
     aided: object = None  # its aided navigation (DataFrame, imugen.tables.aided), if given
+    companions: object = None  # its companion epochs (DataFrame, imugen.tables.companions)
 
     def has(self, names) -> bool:
         return all(n in self.data for n in names)
@@ -136,14 +137,31 @@ def aided_of(aided_paths, sid: int):
     return None
 
 
+def companions_of(companion_paths, sid: int):
+    """The companion-sensor epochs of sequence ``sid`` (DataFrame of
+    :mod:`imugen.tables.companions`, sorted by sensor then time, its drawn parameters in
+    ``attrs["labels"]``) from whichever table holds it, or None; reads only that sequence's rows."""
+    from imugen.tables import companions as tcomp
+
+    for c in companion_paths or ():
+        df = tcomp.read(c, filters=[(SEQUENCE, "==", int(sid))])
+        if len(df):
+            lab = tcomp.read_labels(c)
+            row = lab[lab[SEQUENCE] == sid]
+            df.attrs["labels"] = row.iloc[0].to_dict() if len(row) else {}
+            return df.sort_values([tcomp.SENSOR, ttruth.TIME], kind="stable", ignore_index=True)
+    return None
+
+
 def iter_sequences(
-    shard_paths, K: int, only=None, gnss_paths=None, aided_paths=None
+    shard_paths, K: int, only=None, gnss_paths=None, aided_paths=None, companion_paths=None
 ) -> Iterator[Sequence]:
     """Yield every sequence of the shards (file order), one at a time.
 
     ``only``: optional set of sequence ids to keep; ``gnss_paths``: GNSS epoch tables
     (``imugen aid``) whose epochs of each sequence ride along as ``Sequence.gnss``;
-    ``aided_paths``: aided navigation tables (``imugen aid``), as ``Sequence.aided``.
+    ``aided_paths``: aided navigation tables (``imugen aid``), as ``Sequence.aided``;
+    ``companion_paths``: companion-sensor tables (``imugen aid``), as ``Sequence.companions``.
     """
     for p in map(Path, shard_paths):
         meta = tshard.read_meta(p)
@@ -161,4 +179,5 @@ def iter_sequences(
                 meta,
                 gnss_of(gnss_paths, sid),
                 aided_of(aided_paths, sid),
+                companions_of(companion_paths, sid),
             )
