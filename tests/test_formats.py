@@ -701,6 +701,8 @@ def test_export_streams_and_says_what_it_wrote(route):
         files = [p for p in (tmp / "n8" / fmt).rglob("*") if p.is_file()]
         assert int(m[4]) == len(files) and len(files) >= 8 * 2
         assert float(m[5]) == round(sum(p.stat().st_size for p in files) / 1e6, 1) > 0
+
+
 def test_ros2_companions_tf_and_gnss_of_a_mounted_imu(route, tmp_path, cli):
     """A mounted IMU with an odometer, a barometer and GNSS (``imugen aid``): the static
     transforms close the truth (vehicle pose composed with base_link -> imu_link is the IMU's
