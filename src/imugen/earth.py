@@ -38,7 +38,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pyproj import Geod
 
 from imugen.jit import njit
 
@@ -599,7 +598,6 @@ def _gravity_batch_nb(prm, p_n, out, gravitation):
 # --- earth model budget (--earth auto) ---------------------------------------------------------
 DEG_PER_H = math.pi / 180.0 / 3600.0
 MICRO_G = 9.80665e-6
-_GEOD = Geod(ellps="WGS84")
 GEODETIC_TILT_RAD = 0.01
 """``auto`` picks ``geodetic`` when the local vertical at the scene's farthest point tilts by
 more than this from the origin's (``D / R``: 64 km). Beyond it errors and attitudes resolved
@@ -667,11 +665,13 @@ def distance_from_origin_m(p_n, lat0_rad) -> np.ndarray:
     -------
     ndarray, shape (N,)
     """
+    from pyproj import Geod  # imported here: a simulate job loads this module without pyproj
+
     p = np.asarray(p_n, dtype=float).reshape(-1, 3)
     r_e = ecef_from_geodetic(lat0_rad, 0.0, 0.0) + p @ C_en_from_geodetic(lat0_rad, 0.0)
     lat, lon, _ = geodetic_from_ecef(r_e)
     lat0 = np.full(len(p), math.degrees(lat0_rad))
-    _, _, d = _GEOD.inv(np.zeros(len(p)), lat0, np.degrees(lon), np.degrees(lat))
+    _, _, d = Geod(ellps="WGS84").inv(np.zeros(len(p)), lat0, np.degrees(lon), np.degrees(lat))
     return np.asarray(d, dtype=float)
 
 
