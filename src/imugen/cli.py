@@ -723,7 +723,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--route", help="route name in folder names (default: the truth's folder)")
     p.add_argument("--grade", help="grade name in folder names (default: from the shards)")
     p.add_argument("--nav-rate-hz", type=float, default=10.0, help="rate of TUM trajectories (Hz)")
-    p.add_argument("--split-seed", type=int, default=0, help="seed of the TLIO split lists")
+    p.add_argument(
+        "--split-seed", type=int, default=0, help="seed of the TLIO and RoNIN split lists"
+    )
     p.add_argument(
         "--split-by",
         choices=["sequence", "route"],

@@ -107,40 +107,24 @@ CAVEAT = (
     "rate-sample noise sigma = N / sqrt(dt), bias walk per sample = K sqrt(dt) (assumes ideal "
     "anti-alias filtering)"
 )
+_DATASHEET_COMMON = {
+    "noise_density": "white_noise",
+    "bias_instability": "bias_instability",
+    "in_run_bias_stability": "bias_instability",
+    "turn_on_bias": "turn_on_bias",
+    "bias_repeatability": "turn_on_bias",
+    "rate_random_walk": "rate_random_walk",
+    "scale_factor": "scale_factor",
+    "misalignment": "cross_coupling",
+    "cross_axis": "cross_coupling",
+    "quantization": "quantization",
+    "range": "range",
+    "temperature_bias": "temperature_bias",
+    "temperature_scale_factor": "temperature_scale_factor",
+}
 DATASHEET_FIGURES: dict[str, dict[str, str]] = {
-    "gyro": {
-        "arw": "white_noise",
-        "noise_density": "white_noise",
-        "bias_instability": "bias_instability",
-        "in_run_bias_stability": "bias_instability",
-        "turn_on_bias": "turn_on_bias",
-        "bias_repeatability": "turn_on_bias",
-        "rate_random_walk": "rate_random_walk",
-        "scale_factor": "scale_factor",
-        "misalignment": "cross_coupling",
-        "cross_axis": "cross_coupling",
-        "g_sensitivity": "g_sensitivity",
-        "quantization": "quantization",
-        "range": "range",
-        "temperature_bias": "temperature_bias",
-        "temperature_scale_factor": "temperature_scale_factor",
-    },
-    "accel": {
-        "vrw": "white_noise",
-        "noise_density": "white_noise",
-        "bias_instability": "bias_instability",
-        "in_run_bias_stability": "bias_instability",
-        "turn_on_bias": "turn_on_bias",
-        "bias_repeatability": "turn_on_bias",
-        "rate_random_walk": "rate_random_walk",
-        "scale_factor": "scale_factor",
-        "misalignment": "cross_coupling",
-        "cross_axis": "cross_coupling",
-        "quantization": "quantization",
-        "range": "range",
-        "temperature_bias": "temperature_bias",
-        "temperature_scale_factor": "temperature_scale_factor",
-    },
+    "gyro": {"arw": "white_noise", **_DATASHEET_COMMON, "g_sensitivity": "g_sensitivity"},
+    "accel": {"vrw": "white_noise", **_DATASHEET_COMMON},
 }
 """Datasheet figure names per sensor -> imugen term (a key is ``<figure>_<unit name>``)."""
 DATASHEET_KEYS = {"part", "source", "rate_hz", "bandwidth_hz", "density_sides", "spread"}
