@@ -5,7 +5,7 @@ Scene: the paper's reference trajectory (shared/data/trajectories/seed_reference
 increments plus a small per-sequence constant gyro/accelerometer bias, so no two are alike).
 
 Measured, single thread (the numbers are per core):
-* numba kernel (``imugen.mechanize``), sequences in chunks, positions only at every 100th sample
+* numba kernel (``imugen.navigate.mechanize``), sequences in chunks, positions only at every 100th sample
   (1 Hz) into one preallocated output, reused input buffers;
 * the same recursion in pure NumPy (vectorized across the 1 000 sequences, Python loop over
   time) on the same batch (identical sequences as broadcast views: same arithmetic, no copies);
@@ -53,9 +53,9 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from imugen import earth as E  # noqa: E402
-from imugen import mechanize as M  # noqa: E402
-from imugen import rotations as rot  # noqa: E402
+from imugen.core import earth as E  # noqa: E402
+from imugen.core import rotations as rot  # noqa: E402
+from imugen.navigate import mechanize as M  # noqa: E402
 from imugen.tables import truth as col  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,7 +73,8 @@ def compile_times() -> dict:
         import json, time
         t0 = time.perf_counter()
         import numpy as np
-        from imugen import earth as E, mechanize as M
+        from imugen.core import earth as E
+        from imugen.navigate import mechanize as M
         t1 = time.perf_counter()
         fr = E.OriginFrame.from_deg(31.6, -8.0, 0.0)
         z = np.zeros((3, 3))
@@ -97,7 +98,7 @@ def build_scene(scene: Path, rate_hz: float, model: str):
     """Truth table and frame; ``geodetic`` is the ``wgs84`` truth expressed in ECEF (the body
     increments are the same)."""
     from imugen import truth
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
 
     ing = ingest(scene, dt=1.0, origin=ORIGIN)
     tm = "wgs84" if model == "geodetic" else model

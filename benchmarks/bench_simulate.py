@@ -28,7 +28,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen import simulate as S
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 
 

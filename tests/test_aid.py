@@ -12,14 +12,14 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from imugen import aid as AID
-from imugen import aided as A
-from imugen import evaluate as EV
-from imugen import gnss as G
-from imugen import scenarios as SC
-from imugen import simulate as S
 from imugen import truth as T
-from imugen.errors import InputError
+from imugen.aid import gnss as G
+from imugen.aid import scenarios as SC
+from imugen.aid import stage as AID
+from imugen.aid.filter import ekf as A
+from imugen.core.errors import InputError
+from imugen.evaluate import stage as EV
+from imugen.simulate import stage as S
 from imugen.tables import aided as taided
 from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
@@ -109,7 +109,7 @@ def test_outage_end_equals_filter_in_memory(scene):
         g = G.simulate_gnss(truth.time_s, truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b,
                             "standalone", 1, ent, 0)  # fmt: skip
         gs.append(SC.apply(g, [OUTAGE], ent, 0))
-    from imugen.aid import _stack
+    from imugen.aid.stage import _stack
 
     scen = _stack(gs)
     tun = A.Tuning.from_grade("consumer", "upper")

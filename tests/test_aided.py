@@ -18,13 +18,13 @@ import pandas as pd
 import pytest
 from scipy.stats import chi2
 
-from imugen import aided as A
-from imugen import gnss as G
-from imugen import simulate as SIM
 from imugen import truth as T
-from imugen.aid import truth_slip_sd
-from imugen.earth import OriginFrame, earth_rate_n
-from imugen.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
+from imugen.aid import gnss as G
+from imugen.aid.filter import ekf as A
+from imugen.aid.stage import truth_slip_sd
+from imugen.core.earth import OriginFrame, earth_rate_n
+from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
+from imugen.simulate import stage as SIM
 
 ORIGIN = (45.0, 7.0, 200.0)
 TERMS = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -194,7 +194,7 @@ def test_ideal_inputs_with_nhc_through_an_outage_on_the_paper_scene():
     but where its path is implausible (slip bursts, the truth's report), which the NHC noise
     covers, so the filter stays on the truth (the trapezoid's own error).
     Before the ground attitude followed the velocity: 26.8 m at the end of this outage."""
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
 
     ing = ingest(PAPER, origin="31.63,-7.99,480.6", dt=1.0, vehicle="car")
     df, tm = T.build_truth(ing.table, ing.meta, rate_hz=100.0, earth="flat", verbose=False)
@@ -208,7 +208,7 @@ def test_ideal_inputs_with_nhc_through_an_outage_on_the_paper_scene():
     gq = replace(gn, sigma_p_n=gn.sigma_p_n + 0.01, sigma_v_n=gn.sigma_v_n + 0.01, fix=fix)
     tun = A.Tuning.from_grade("industrial")
     # the truth slips in bursts (0.33 m/s lateral at most, 1 % of the moving time): NHC
-    # covers them as the aid stage does (imugen.aid.truth_slip_sd)
+    # covers them as the aid stage does (imugen.aid.stage.truth_slip_sd)
     opts = A.Options(gnss_bias=False, nhc=True, nhc_sd_mps=truth_slip_sd(tm["plausibility"]))
     init = A.initial_state(0, p[0], v[0], q[0], A.initial_covariance(tun, opts, 1e-3, 1e-3, 1e-5))
     r = A.run(dth, dv, 0.01, frame, gq, tun, opts, init)
@@ -327,7 +327,7 @@ def car_shard(df, grade, M, seed, terms=TERMS, receiver="standalone"):
 
 
 def test_zupt_fires_only_at_stops_and_nhc_bounds_outage_drift(flat_car):
-    from imugen import scenarios as SC
+    from imugen.aid import scenarios as SC
 
     M = 20
     _, p, v, _, _ = arrays(flat_car)
@@ -376,7 +376,7 @@ def test_scale_factors_converge_to_labels(flat_car):
 
 
 def test_innovation_gate_rejects_a_spoofed_jump(flat_car):
-    from imugen import scenarios as SC
+    from imugen.aid import scenarios as SC
 
     M = 6
     _, p, _, _, _ = arrays(flat_car)

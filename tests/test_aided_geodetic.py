@@ -28,15 +28,15 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from imugen import aided as A
-from imugen import companions as CP
-from imugen import earth as E
-from imugen import gnss as G
-from imugen import rotations as R
-from imugen import scenarios as SC
-from imugen import simulate as SIM
 from imugen import truth
-from imugen.rotations import quat_to_dcm
+from imugen.aid import companions as CP
+from imugen.aid import gnss as G
+from imugen.aid import scenarios as SC
+from imugen.aid.filter import ekf as A
+from imugen.core import earth as E
+from imugen.core import rotations as R
+from imugen.core.rotations import quat_to_dcm
+from imugen.simulate import stage as SIM
 from imugen.tables import truth as col
 
 
@@ -332,7 +332,7 @@ def test_aid_stage_on_a_geodetic_truth(tmp_path):
     the truth) stay within 4 of their local sigmas at >= 99 % of the epochs once aligned and
     the GNSS table's offsets, rotated to the local level, have a vertical spread above the
     horizontal (the standalone preset's 3.2 m against 2.0 m)."""
-    from imugen import aid as AID
+    from imugen.aid import stage as AID
     from imugen.tables import aided as taided
     from imugen.tables import gnss as tgnss
 

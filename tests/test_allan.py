@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from imugen import allan
-from imugen import simulate as S
-from imugen.grades import grade_from_config
+from imugen.allan import stage as allan
+from imugen.sensors.grades import grade_from_config
+from imugen.simulate import stage as S
 
 DEG_H = math.pi / 180 / 3600
 GYRO = {

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imugen.clean import (
+from imugen.core.errors import InputError
+from imugen.core.frames import LocalFrame, Origin
+from imugen.ingest.clean import (
     VEHICLE_LIMITS,
     chord_deviation,
     find_outliers,
     noise_sigma,
 )
-from imugen.errors import InputError
-from imugen.frames import LocalFrame, Origin
-from imugen.ingest import ingest, write
+from imugen.ingest.stage import ingest, write
 
 ORIGIN = Origin(40.0, -105.0, 1600.0)
 T0 = np.datetime64("2024-01-01T00:00:00")

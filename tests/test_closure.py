@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from imugen.closure import attitude_angle, closure
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 ORIGIN = "45.0,7.0,300"
 TARGET_M = 1e-6

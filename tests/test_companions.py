@@ -20,14 +20,14 @@ import pandas as pd
 import pytest
 from scipy.stats import chi2
 
-from imugen import aided as A
-from imugen import companions as CP
-from imugen import gnss as G
-from imugen import scenarios as SC
-from imugen import simulate as SIM
 from imugen import truth as TR
-from imugen.earth import OriginFrame
-from imugen.rotations import quat_to_dcm
+from imugen.aid import companions as CP
+from imugen.aid import gnss as G
+from imugen.aid import scenarios as SC
+from imugen.aid.filter import ekf as A
+from imugen.core.earth import OriginFrame
+from imugen.core.rotations import quat_to_dcm
+from imugen.simulate import stage as SIM
 
 ORIGIN = (45.0, 7.0, 200.0)
 TERMS = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -210,7 +210,7 @@ def test_nees_with_odometer_and_barometer(rect):
     Monte-Carlo mean: the NHC noise is the truth's slip (none) plus the constraint's
     second-order error, the odometer's tick quantization two residual states (a constant NHC
     sigma of 0.1 m/s and white quantization of c^2 / 6 per window gave NEES 6.4-7.0 at 5 of 25
-    epochs below the band; imugen.aided module docstring)."""
+    epochs below the band; imugen.aid.filter.ekf module docstring)."""
     df, (res, _, _, ba) = rect
     _, p, v, q, _ = arrays(df)
     M = res.p_n.shape[0]
@@ -326,7 +326,7 @@ def test_zero_error_companions_stay_on_truth(flat_car, earth, odo_hz):
 def stage(tmp_path_factory):
     """The aid stage on a 3-sequence consumer shard with odometer and barometer, and the same
     with one sequence per batch."""
-    from imugen import aid as AID
+    from imugen.aid import stage as AID
     from imugen.tables import truth as ttruth
 
     d = tmp_path_factory.mktemp("companions")
@@ -394,8 +394,8 @@ def test_stage_writes_the_companion_table(stage):
 
 
 def test_companion_options_are_checked(stage, tmp_path, cli):
-    from imugen import aid as AID
-    from imugen.errors import InputError
+    from imugen.aid import stage as AID
+    from imugen.core.errors import InputError
 
     d, _ = stage
     with pytest.raises(InputError, match="unknown preset"):

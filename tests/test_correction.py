@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 
 import imugen
-from imugen import evaluate, navigate
+from imugen.evaluate import stage as evaluate
+from imugen.navigate import stage as navigate
 from imugen.tables import shard as tshard
 
 REPO = __import__("pathlib").Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""Oracles for imugen.earth: published WGS-84 values, pyproj, geometry of the ellipsoid."""
+"""Oracles for imugen.core.earth: published WGS-84 values, pyproj, geometry of the ellipsoid."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imugen import earth as E
+from imugen.core import earth as E
 
 ORIGIN = E.OriginFrame.from_deg(40.78, -73.97, 30.0, model="wgs84")
 
@@ -311,7 +311,7 @@ def test_distance_from_origin_is_the_geodesic():
     10 km height, given in the origin's ENU by PROJ: their distance comes back to 1 mm."""
     from pyproj import Geod
 
-    from imugen.frames import LocalFrame, Origin
+    from imugen.core.frames import LocalFrame, Origin
 
     lat0, lon0 = 35.55, 139.78
     d = np.array([0.0, 1e3, 64e3, 1e6, 5e6, 1e7, 1.5e7])
@@ -340,7 +340,7 @@ def test_auto_budget_grade_effect_closed_forms():
 
 
 def test_auto_budget_from_presets():
-    from imugen.grades import budget_figures
+    from imugen.sensors.grades import budget_figures
 
     t, p = _line(600.0, 6000.0)
     lat = math.radians(31.6)
@@ -358,7 +358,7 @@ def test_auto_keeps_the_paper_scene_flat(shared_file, config):
     below 10 % of the deciding grade's effect."""
     import yaml
 
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
     from imugen.truth import build_truth
 
     repo = Path(__file__).resolve().parents[1]

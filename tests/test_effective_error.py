@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from imugen import simulate as S
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 
 RATE = 100.0

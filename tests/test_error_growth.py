@@ -1,5 +1,5 @@
 """Each error source alone, 1,000+ sequences on a still, level IMU (flat Earth), mechanized with
-imugen.mechanize: position-error statistics against closed forms, within 5 %.
+imugen.navigate.mechanize: position-error statistics against closed forms, within 5 %.
 
 Deterministic sources (biases) are compared per sequence with the drawn labels; random ones
 (VRW, ARW) through the RMS over sequences and axes: with n pooled samples the standard error of
@@ -11,11 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from imugen import simulate as S
-from imugen.earth import OriginFrame
-from imugen.grades import grade_from_config
+from imugen.core.earth import OriginFrame
+from imugen.sensors.grades import grade_from_config
+from imugen.simulate import stage as S
 
-mechanize = pytest.importorskip("imugen.mechanize").mechanize
+mechanize = pytest.importorskip("imugen.navigate.mechanize").mechanize
 
 RATE = 20.0
 T = 50.0

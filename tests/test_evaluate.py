@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen.evaluate import (
+from imugen.evaluate.stage import (
     grade_row,
     grade_table,
     segment_drift,
@@ -94,8 +94,8 @@ BIASES = {0: (0.0, 0.0, 0.0), 1: (3e-3, -2e-3, 1e-3), 2: (6e-3, -4e-3, 2e-3), 3:
 
 def static_scene(tmp_path):
     """A level IMU at rest (flat Earth, 10 Hz, 300 s); sequence s has accel bias BIASES[s]."""
-    from imugen.earth import OriginFrame
-    from imugen.io import write_parquet
+    from imugen.core.earth import OriginFrame
+    from imugen.core.io import write_parquet
 
     origin = {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 200.0}
     g0 = OriginFrame.from_deg(*origin.values(), model="flat").g0
@@ -140,7 +140,7 @@ def test_evaluate_segments_command_and_tables(tmp_path):
     import subprocess
     import sys
 
-    from imugen.navigate import run as navigate
+    from imugen.navigate.stage import run as navigate
 
     truth, shard = static_scene(tmp_path)
     nav = navigate(truth, shard, tmp_path / "nav.parquet")

@@ -9,9 +9,9 @@ import pandas as pd
 import pytest
 import scipy.io
 
-from imugen import export
-from imugen.errors import InputError
-from imugen.io import write_parquet
+from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
+from imugen.export import mat as export
 from imugen.tables import truth as col
 from imugen.tables.shard import labels_path
 

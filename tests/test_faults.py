@@ -22,9 +22,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from imugen import cli
-from imugen import simulate as S
-from imugen.ingest import run as ingest_run
-from imugen.navigate import run as navigate_run
+from imugen.ingest.stage import run as ingest_run
+from imugen.navigate.stage import run as navigate_run
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.truth import run as truth_run
@@ -261,9 +261,9 @@ def _nav_table(ids, epochs=5, offset=0.0):
 def test_evaluate_streams_files_and_refuses_repeated_ids(route, tmp_path):
     import pandas as pd
 
-    from imugen.evaluate import horizontal_distance_m, sequence_metrics
-    from imugen.evaluate import run as evaluate_run
-    from imugen.io import write_parquet
+    from imugen.core.io import write_parquet
+    from imugen.evaluate.stage import horizontal_distance_m, sequence_metrics
+    from imugen.evaluate.stage import run as evaluate_run
 
     frames = [_nav_table([4, 5, 6]), _nav_table([0, 1], offset=1.0), _nav_table([2, 3])]
     paths = [write_parquet(f, {"stage": "navigate"}, tmp_path / f"n{i}.parquet") for i, f in
@@ -283,9 +283,9 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
     and identical to mechanizing the float32 shard data held in memory."""
     import numpy as np
 
-    from imugen import navigate as N
-    from imugen.io import read_meta
-    from imugen.mechanize import mechanize
+    from imugen.core.io import read_meta
+    from imugen.navigate import stage as N
+    from imugen.navigate.mechanize import mechanize
 
     shard = tmp_path / "shard-000.parquet"
     S.run(route["truth"], shard, "consumer", sequences=5, seed=3)

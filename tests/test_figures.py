@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import figures as fg
-from imugen.errors import InputError
-from imugen.evaluate import sequence_metrics
-from imugen.io import write_parquet
+from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
+from imugen.evaluate.stage import sequence_metrics
+from imugen.figures import stage as fg
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imugen.figures_outage import outage_curves, outage_growth, outage_growth_figure
-from imugen.plotting import style
+from imugen.core.plotting import style
+from imugen.figures.outage import outage_curves, outage_growth, outage_growth_figure
 from imugen.tables import aided as taided
 from imugen.tables import nav as tnav
 

@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 from pyproj import Geod
 
-from imugen import earth as ea
-from imugen.frames import LocalFrame, Origin
-from imugen.geodesic import densify
+from imugen.core import earth as ea
+from imugen.core.frames import LocalFrame, Origin
+from imugen.core.geodesic import densify
 from imugen.tables import truth as col
 from imugen.truth import build_truth
 from imugen.truth.flight import FlightPlan

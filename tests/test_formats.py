@@ -9,12 +9,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import rotations as rot
-from imugen import simulate
-from imugen.errors import InputError
-from imugen.formats import convert, export, parse_formats
-from imugen.formats.source import iter_sequences, mounting_of, read_truth
-from imugen.io import write_parquet
+from imugen.core import rotations as rot
+from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
+from imugen.export import convert
+from imugen.export.source import iter_sequences, mounting_of, read_truth
+from imugen.export.stage import export, parse_formats
+from imugen.simulate import stage as simulate
 from imugen.tables import truth as ttruth
 from imugen.truth import build_truth, enu_table
 
@@ -121,7 +122,7 @@ def test_euroc_read_by_evo_and_equal_to_the_shard(route, exported):
 
 def test_tum_navigation_matches_the_navigation_stage(route, exported):
     evo_fi = pytest.importorskip("evo.tools.file_interface")
-    from imugen.navigate import navigate
+    from imugen.navigate.stage import navigate
 
     truth, shard, _ = route
     tr, seqs = _seqs(route)
@@ -147,7 +148,7 @@ def test_tum_aided_read_by_evo_and_equal_to_the_aided_table(route, tmp_path, cli
     evo_fi = pytest.importorskip("evo.tools.file_interface")
     from evo.core import metrics, sync
 
-    from imugen import aid
+    from imugen.aid import stage as aid
     from imugen.tables import aided as taided
     from imugen.tables import truth as ttruth
 
@@ -379,7 +380,7 @@ def test_gnss_epochs_go_to_kfgins_and_ros2(route, tmp_path):
 # 805b7f0f28bb164ce89ada9ac05a9470dbe3d715: source/data_utils.py (select_orientation_source),
 # source/math_util.py (gyro_integration), source/data_glob_speed.py (GlobSpeedSequence.load)
 # and source/data_glob_heading.py (HeadingSequence.load). numpy-quaternion's operations are
-# replaced by imugen.rotations' (the same Hamilton product, scalar first); file reads unchanged.
+# replaced by imugen.core.rotations' (the same Hamilton product, scalar first); file reads unchanged.
 def _ronin_gyro_integration(ts, gyro, init_q):
     output_q = np.zeros((gyro.shape[0], 4))
     output_q[0] = init_q
@@ -711,8 +712,8 @@ def test_ros2_companions_tf_and_gnss_of_a_mounted_imu(route, tmp_path, cli):
     pressures give the measured altitudes back through the inverse standard atmosphere, whose
     tabulated 11 km value they meet."""
     pytest.importorskip("rosbags")
-    from imugen import aid
-    from imugen.formats.ros2 import isa_pressure_pa
+    from imugen.aid import stage as aid
+    from imugen.export.ros2 import isa_pressure_pa
     from imugen.tables import companions as tcomp
 
     truth, _, _ = route

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from imugen.frames import LocalFrame, Origin, to_utm, utm_crs
+from imugen.core.frames import LocalFrame, Origin, to_utm, utm_crs
 
 A = 6378137.0
 F = 1 / 298.257223563

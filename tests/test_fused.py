@@ -6,10 +6,10 @@ import hashlib
 import numpy as np
 import pytest
 
-from imugen import navigate as nv
-from imugen import simulate as S
 from imugen import truth as T
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+from imugen.navigate import stage as nv
+from imugen.simulate import stage as S
 from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
 

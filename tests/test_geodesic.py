@@ -1,4 +1,4 @@
-"""Geodesic densification of untimed routes (imugen.geodesic and its use in ingestion)."""
+"""Geodesic densification of untimed routes (imugen.core.geodesic and its use in ingestion)."""
 
 import itertools
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from pyproj import Geod, Transformer
 
-from imugen.geodesic import GEODESIC_STEP_M, densify, sagitta_m
-from imugen.ingest import ingest
+from imugen.core.geodesic import GEODESIC_STEP_M, densify, sagitta_m
+from imugen.ingest.stage import ingest
 
 GEOD = Geod(ellps="WGS84")
 ECEF = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from imugen import gnss
-from imugen.errors import InputError
-from imugen.rotations import dcm_to_quat, euler_to_dcm
+from imugen.aid import gnss
+from imugen.core.errors import InputError
+from imugen.core.rotations import dcm_to_quat, euler_to_dcm
 
 R, W, RATE = 50.0, 0.2, 100.0  # circle radius [m], turn rate [rad/s], IMU rate [Hz]
 

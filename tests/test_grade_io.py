@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
-from imugen import grade_io
-from imugen.errors import InputError
-from imugen.grades import get_grade, grade_from_config, load_grades
+from imugen.core.errors import InputError
+from imugen.sensors import grade_io
+from imugen.sensors.grades import get_grade, grade_from_config, load_grades
 
 EUROC = """%YAML:1.0
 sensor_type: imu
@@ -70,7 +70,7 @@ def test_i2nav_imunoise_block_becomes_one_gauss_markov_state(tmp_path):
 
 
 def test_imported_grade_runs_through_simulate(tmp_path):
-    from imugen.simulate import simulate
+    from imugen.simulate.stage import simulate
 
     p = tmp_path / "kf.yaml"
     p.write_text(I2NAV)
@@ -220,8 +220,8 @@ def test_datasheet_densities_and_floor_against_allan_deviation(tmp_path):
     # read from an Allan floor B peaks at B (tau = 1.89 T)
     from scipy.signal import welch
 
-    from imugen import allan
-    from imugen.simulate import simulate
+    from imugen.allan import stage as allan
+    from imugen.simulate.stage import simulate
 
     nd = 0.005  # deg/s/sqrt(Hz), stated as a one-sided ASD
     g = _white_and_gm(
@@ -371,6 +371,6 @@ def test_cli_prints_import_warnings_in_one_line_each(tmp_path, capsys):
 
 
 def load_grades_text(text):
-    from imugen.grades import grades_from_document
+    from imugen.sensors.grades import grades_from_document
 
     return grades_from_document(yaml.safe_load(text), "<stdout>")

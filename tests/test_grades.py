@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from imugen import grades
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+from imugen.sensors import grades
 
 EXPECTED_IDS = {
     "consumer": 1,
@@ -261,7 +261,7 @@ def test_preset_ranges_are_centred_on_the_part():
 @functools.cache
 def _start_bias(name, M=1000):
     """Slow bias at t = 0 and at the last sample, and the turn-on labels, of M sequences."""
-    from imugen import simulate as S
+    from imugen.simulate import stage as S
 
     sh = S.simulate(
         None,
@@ -316,7 +316,7 @@ def test_calibrated_in_run_wander_grows_as_the_gm_law():
 
 
 def test_calibration_at_rest_removes_the_static_g_sensitivity():
-    from imugen import simulate as S
+    from imugen.simulate import stage as S
 
     kw = {"sequences": 3, "seed": 2, "static_s": 1.0, "rate_hz": 10.0, "outputs": "rates"}
     for name, removed in (("consumer", False), ("consumer_calibrated", True)):

@@ -20,9 +20,9 @@ import math
 import numpy as np
 import pytest
 
-from imugen import earth as E
-from imugen import mechanize as M
-from imugen.rotations import exp_dcm
+from imugen.core import earth as E
+from imugen.core.rotations import exp_dcm
+from imugen.navigate import mechanize as M
 
 WGS = E.OriginFrame.from_deg(45.0, 7.0, 10_000.0, model="wgs84")
 V_AIRLINER = 214.0  # m/s (770 km/h)

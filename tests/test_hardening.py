@@ -2,7 +2,7 @@
 
 Oracles: the growth of reading time with the size of adversarial inputs (a linear reader
 takes about 8x longer for 8x the input, a quadratic one 64x), the bounds of
-:mod:`imugen.limits` named in the message, exit status 2 with exactly one stderr line and no
+:mod:`imugen.ingest.limits` named in the message, exit status 2 with exactly one stderr line and no
 file written, and the regression files of ``tests/data/hostile/``.
 """
 
@@ -19,9 +19,10 @@ from pathlib import Path
 
 import pytest
 
-from imugen import cli, limits
-from imugen.errors import InputError
-from imugen.readers import read_route_file
+from imugen import cli
+from imugen.core.errors import InputError
+from imugen.ingest import limits
+from imugen.ingest.readers import read_route_file
 
 HOSTILE = Path(__file__).parent / "data" / "hostile"
 KML_HEAD = '<kml xmlns="http://www.opengis.net/kml/2.2"><Placemark><name>P</name>'
@@ -304,7 +305,7 @@ def test_numba_cache_write_failure_does_not_fail(tmp_path):
 
     mod = tmp_path / "kernel.py"
     mod.write_text(
-        "from imugen.jit import njit\n\n@njit(cache=True)\ndef f(n):\n"
+        "from imugen.core.jit import njit\n\n@njit(cache=True)\ndef f(n):\n"
         "    s = 0.0\n    for i in range(n):\n        s += i\n    return s\n\nprint(f(10))\n"
     )
 

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import imugen
-from imugen import simulate as S
 from imugen import truth as T
-from imugen.errors import InputError
-from imugen.mechanize import interval_integrals
-from imugen.navigate import navigate, navigate_arrays
+from imugen.core.errors import InputError
+from imugen.navigate.mechanize import interval_integrals
+from imugen.navigate.stage import navigate, navigate_arrays
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 

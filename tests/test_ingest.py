@@ -9,9 +9,9 @@ import pyarrow.parquet as pq
 import pytest
 from pyproj import Geod
 
-from imugen.errors import InputError
-from imugen.ingest import ingest, run
-from imugen.io import read_meta
+from imugen.core.errors import InputError
+from imugen.core.io import read_meta
+from imugen.ingest.stage import ingest, run
 
 GEOD = Geod(ellps="WGS84")
 
@@ -177,7 +177,7 @@ def test_long_route_across_antimeridian(tmp_path):
     assert np.hypot(ing.table.e_m, ing.table.n_m).max() < 6.5e6
     assert ing.meta["length_horizontal_m"] == pytest.approx(7.6e6, rel=1e-6)
     enu = ing.table[["e_m", "n_m", "u_m"]].to_numpy()
-    from imugen.earth import ecef_from_geodetic
+    from imugen.core.earth import ecef_from_geodetic
 
     r = ecef_from_geodetic(
         *np.radians(ing.table[["lat_deg", "lon_deg"]].to_numpy().T), ing.table["alt_m"].to_numpy()
@@ -349,7 +349,7 @@ def test_real_paper_trajectory(shared_file):
 
 
 def test_long_candidate_lists_are_cut_with_a_count_and_a_hint(tmp_path):
-    from imugen import ingest as ing
+    from imugen.ingest import stage as ing
 
     segs = "".join(
         f"<trkseg><trkpt lat='40' lon='{-105 + k * 1e-3}'/><trkpt lat='40.{k + 1:03d}' "

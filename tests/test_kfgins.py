@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 import yaml
 
-from imugen import aid, simulate
-from imugen.errors import InputError
-from imugen.formats import export
-from imugen.formats.source import iter_sequences, read_truth
-from imugen.grades import get_grade
-from imugen.io import write_parquet
+from imugen.aid import stage as aid
+from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
+from imugen.export.source import iter_sequences, read_truth
+from imugen.export.stage import export
+from imugen.sensors.grades import get_grade
+from imugen.simulate import stage as simulate
 from imugen.tables.truth import origin_frame
 from imugen.truth import build_truth, enu_table
 
@@ -148,7 +149,7 @@ def test_imunoise_is_the_sequences_figures(route):
     axis, the Gauss-Markov driving noise ``2 gbstd^2 / corrtime`` equal to the labels' in-run
     ``2 sigma^2 / tau + K^2``, and the grade's scale-factor sigma; ``imugen grade import`` reads
     the block back."""
-    from imugen.grade_io import import_grade
+    from imugen.sensors.grade_io import import_grade
 
     truth, shard, _, out = route
     tr = read_truth(truth)
@@ -218,8 +219,8 @@ def test_warnings_once_per_export_and_no_config_without_gnss(route, tmp_path):
 def test_no_config_without_a_fix_after_starttime(route, tmp_path):
     """KF-GINS skips GNSS epochs up to starttime and never ends without a later one: such a
     sequence gets its data files and gnss.pos, no kf-gins.yaml, and a warning."""
-    from imugen.formats import kfgins
-    from imugen.formats.source import gnss_of
+    from imugen.export import kfgins
+    from imugen.export.source import gnss_of
 
     truth, shard, g, _ = route
     tr = read_truth(truth)

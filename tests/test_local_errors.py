@@ -1,4 +1,4 @@
-"""Errors in the local level at the true position, along/cross track (imugen.local_errors).
+"""Errors in the local level at the true position, along/cross track (imugen.navigate.local_errors).
 
 Oracles: an error injected in ECEF along a known local direction comes out in that East/North/Up
 component and in the along/cross component its angle to the velocity gives; a displacement
@@ -15,11 +15,11 @@ import pandas as pd
 import pytest
 from pyproj import Geod
 
-from imugen import earth as E
-from imugen import evaluate as EV
-from imugen import local_errors as L
-from imugen import navigate as NV
 from imugen import truth as T
+from imugen.core import earth as E
+from imugen.evaluate import stage as EV
+from imugen.navigate import local_errors as L
+from imugen.navigate import stage as NV
 from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
 
@@ -145,7 +145,7 @@ def _biased(truth, bias_mps2=(0.02, -0.01, 0.005)):
 def test_navigator_flat_errors_are_todays(truths):
     """flat: err_e/n/u are navigation minus truth in n, bit for bit (the table before the
     local-level errors), and along/cross split their horizontal part."""
-    from imugen.mechanize import mechanize
+    from imugen.navigate.mechanize import mechanize
 
     tr = truths["flat"]
     dth, dv = _biased(tr)
@@ -164,7 +164,7 @@ def test_navigator_flat_errors_are_todays(truths):
 def test_navigator_wgs84_local_level(truths):
     """wgs84: the table equals the ECEF form (earth.errors_local_level) applied to the
     mechanized positions, and differs from the origin-ENU difference."""
-    from imugen.mechanize import mechanize
+    from imugen.navigate.mechanize import mechanize
 
     tr = truths["wgs84"]
     dth, dv = _biased(tr)
@@ -190,7 +190,7 @@ def test_navigator_wgs84_local_level(truths):
 def test_navigator_geodetic_equals_wgs84(truths):
     """The same drive re-expressed in ECEF (geodetic: p, v, attitude turned by C_ne), the same
     increments: the same local-level errors, to 1e-8 m (the formulation does not show)."""
-    from imugen import rotations as R
+    from imugen.core import rotations as R
 
     tr = truths["wgs84"]
     f = tr.origin_frame()
@@ -377,9 +377,9 @@ def test_other_warning_categories_stay_one_line(capsys):
 def test_error_vs_time_track_panels(tmp_path):
     """With the track columns: four panels; the along panel's line is the median over
     sequences of |along| at each epoch; without them: the two panels of before."""
-    from imugen import figures as fg
-    from imugen.io import write_parquet
-    from imugen.plotting import style
+    from imugen.core.io import write_parquet
+    from imugen.core.plotting import style
+    from imugen.figures import stage as fg
 
     t = np.arange(1.0, 11.0)
     parts = []

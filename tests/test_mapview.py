@@ -1,4 +1,4 @@
-"""Map figures of long routes (imugen.mapview): projection choice, scale bar, antimeridian.
+"""Map figures of long routes (imugen.figures.mapview): projection choice, scale bar, antimeridian.
 
 Oracles: pyproj.Geod distances (the scale bar's endpoints, inverse-projected, are as far apart
 as its label says, to 1 %; distances from the centre are true in the azimuthal equidistant
@@ -14,12 +14,12 @@ import pandas as pd
 import pytest
 from pyproj import Geod
 
-from imugen import earth as E
-from imugen import figures as fg
-from imugen import local_errors as L
-from imugen import mapview as MV
-from imugen.evaluate import sequence_metrics
-from imugen.io import write_parquet
+from imugen.core import earth as E
+from imugen.core.io import write_parquet
+from imugen.evaluate.stage import sequence_metrics
+from imugen.figures import mapview as MV
+from imugen.figures import stage as fg
+from imugen.navigate import local_errors as L
 from imugen.tables import truth as ttruth
 
 GEOD = Geod(ellps="WGS84")

@@ -1,4 +1,4 @@
-"""Oracles for imugen.mechanize: analytic motions with closed-form increments (no truth.py)."""
+"""Oracles for imugen.navigate.mechanize: analytic motions with closed-form increments (no truth.py)."""
 
 from __future__ import annotations
 
@@ -7,16 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from imugen import earth as E
-from imugen import mechanize as M
-from imugen.rotations import relative_rotation_vector
+from imugen.core import earth as E
+from imugen.core.rotations import relative_rotation_vector
+from imugen.navigate import mechanize as M
 
 FLAT = E.OriginFrame.from_deg(40.78, -73.97, 30.0, model="flat")
 WGS = FLAT.with_model("wgs84")
 Q_ID = np.array([1.0, 0.0, 0.0, 0.0])
 
 
-# --- small independent SO(3) helpers (not imugen.rotations) -----------------------------------
+# --- small independent SO(3) helpers (not imugen.core.rotations) -----------------------------------
 def skew(w):
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
@@ -418,7 +418,7 @@ def test_fused_multiply_add_rounds_once():
     """``_fma(a, b, c)`` is ``a b + c`` rounded once: the exact rational result, rounded."""
     from fractions import Fraction
 
-    from imugen.jit import njit
+    from imugen.core.jit import njit
 
     fma = njit(lambda a, b, c: M._fma(a, b, c))
     a, b = 1.0 + 2.0**-30, 1.0 - 2.0**-30

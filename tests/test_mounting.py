@@ -1,7 +1,7 @@
 """IMU mounting (misalignment + lever arm): oracles.
 
 * the mounted increments equal the exact increments of the IMU point's own motion
-  (:func:`imugen.mechanize.exact_increments` on ``p + C l``, ``C C_vb``), flat and wgs84,
+  (:func:`imugen.navigate.mechanize.exact_increments` on ``p + C l``, ``C C_vb``), flat and wgs84,
   compensated and raw; the rates equal ``C_bv (f + alpha x l + omega x (omega x l))`` re-derived
   from the IMU point's acceleration;
 * zero-error closure: a perfect IMU mounted with a drawn misalignment and lever arm navigates
@@ -15,13 +15,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import mounting as MT
-from imugen import simulate as SIM
-from imugen.earth import OriginFrame, earth_rate_n, gravity_n
-from imugen.errors import InputError
-from imugen.mechanize import exact_increments
-from imugen.navigate import navigate_arrays
-from imugen.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
+from imugen.core.earth import OriginFrame, earth_rate_n, gravity_n
+from imugen.core.errors import InputError
+from imugen.core.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
+from imugen.navigate.mechanize import exact_increments
+from imugen.navigate.stage import navigate_arrays
+from imugen.sensors import mounting as MT
+from imugen.simulate import stage as SIM
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 
@@ -288,8 +288,8 @@ def test_wgs84_shard_file_closes_on_the_imu_truth(tmp_path):
     """Files end to end (wgs84: the gravitation-gradient term from the truth file): the shard
     navigated in the simulating pass and by ``navigate.run`` on the written shard close on the
     IMU's truth as an unmounted IMU closes on the vehicle's."""
-    from imugen import navigate as NV
-    from imugen.evaluate import segment_drift
+    from imugen.evaluate.stage import segment_drift
+    from imugen.navigate import stage as NV
     from imugen.tables import nav as tnav
 
     frame = OriginFrame.from_deg(*ORIGIN, model="wgs84")
@@ -340,16 +340,16 @@ def aided_run(
     car, M, seed, spec, opts, terms, receiver, white_gnss=False, perturb=True, odometer=None
 ):  # fmt: skip
     """Simulate M mounted sequences, their GNSS on the IMU's truth (the aid stage's
-    :func:`imugen.aid.gnss_for`), run the filter from the IMU's truth perturbed by P0 at
+    :func:`imugen.aid.stage.gnss_for`), run the filter from the IMU's truth perturbed by P0 at
     sample 500 (``perturb=False``: exactly, small P0); return the result, the IMU truth arrays
     and the labels' mounting. ``odometer``: a preset whose wheel rolls with the vehicle (its
     reference point), drawn figures given to the filter."""
     from dataclasses import replace
 
-    from imugen import aid as AID
-    from imugen import aided as A
-    from imugen import companions as CP
-    from imugen.rotations import exp_dcm
+    from imugen.aid import companions as CP
+    from imugen.aid import stage as AID
+    from imugen.aid.filter import ekf as A
+    from imugen.core.rotations import exp_dcm
 
     df, truth = car
     frame = OriginFrame.from_deg(*ORIGIN, model="flat")
@@ -390,7 +390,7 @@ def test_nhc_sees_the_misalignment_closed_form(car):
     velocity in the NOMINAL frame, at the nominal lever arm), evaluated on the filter's state
     (perfect IMU, noiseless GNSS, NHC off), is ``u C_bv (1, 0, 0)``: ``-u yaw``, ``-u pitch``
     to first order."""
-    from imugen import aided as A
+    from imugen.aid.filter import ekf as A
 
     truth = car[1]
     opts = A.Options(gnss_bias=False, nhc=False)
@@ -428,7 +428,7 @@ def test_filter_estimates_the_mounting_and_stays_consistent(car):
 
     from scipy.stats import chi2
 
-    from imugen import aided as A
+    from imugen.aid.filter import ekf as A
 
     M = 30
     terms = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -486,7 +486,7 @@ def test_odometer_is_mounting_aware(car):
     NHC rotating the reference point's lateral velocity and not its forward part)."""
     from scipy.stats import chi2
 
-    from imugen import aided as A
+    from imugen.aid.filter import ekf as A
 
     M = 30
     spec = {"misalignment_sd_deg": [3.0, 3.0, 5.0], "lever_arm_m": [1.0, 0.5, 0.5],
@@ -548,7 +548,7 @@ def test_workflow_passes_the_config_mounting(tmp_path):
 def test_exports_carry_the_imu_truth(tmp_path):
     """EuRoC ground truth of a mounted sequence is the IMU's point and axes; the TUM export's
     free-inertial trajectory of a perfect mounted IMU lies on it."""
-    from imugen.formats import export
+    from imugen.export.stage import export
 
     frame = OriginFrame.from_deg(*ORIGIN, model="flat")
     df, meta = truth_frame(frame, T=20.0)
@@ -579,7 +579,7 @@ def test_aid_stage_on_a_mounted_shard(car, tmp_path):
     """The aid stage end to end on a mounted shard (perfect IMU, RTK fixes, NHC for the car):
     the filter carries the mounting states and its errors against the IMU's truth stay at the
     RTK level (a comparison with the vehicle's truth would show the 1.1 m lever arm)."""
-    from imugen import aid as AID
+    from imugen.aid import stage as AID
     from imugen.tables import aided as taided
 
     df, truth = car

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from imugen.progress import CONSOLE_FD, Progress
+from imugen.core.progress import CONSOLE_FD, Progress
 
 
 def test_short_jobs_print_nothing(capsys):

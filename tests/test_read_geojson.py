@@ -8,9 +8,9 @@ from datetime import UTC, datetime
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.ingest import ingest
-from imugen.readers import read_route_file
+from imugen.core.errors import InputError
+from imugen.ingest.readers import read_route_file
+from imugen.ingest.stage import ingest
 
 
 def _w(tmp_path, obj, name="t.geojson"):

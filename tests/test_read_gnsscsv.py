@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.ingest import ingest
-from imugen.readers import read_route_file
-from imugen.readers.gnsscsv import parse_degrees
+from imugen.core.errors import InputError
+from imugen.ingest.readers import read_route_file
+from imugen.ingest.readers.gnsscsv import parse_degrees
+from imugen.ingest.stage import ingest
 
 ROS_HEADER = (
     "%time,field.header.seq,field.header.stamp,field.header.frame_id,field.status.status,"

@@ -10,9 +10,9 @@ import sys
 
 import pytest
 
-from imugen.errors import InputError
-from imugen.ingest import ingest
-from imugen.readers import babel, read_route_file
+from imugen.core.errors import InputError
+from imugen.ingest.readers import babel, read_route_file
+from imugen.ingest.stage import ingest
 
 GPX = (
     '<gpx version="1.1"><trk><name>ride</name><trkseg>'

@@ -4,8 +4,8 @@ from datetime import datetime
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.readers.gpx import read_gpx
+from imugen.core.errors import InputError
+from imugen.ingest.readers.gpx import read_gpx
 
 GPX11 = """<?xml version="1.0" encoding="UTF-8"?>
 <gpx version="1.1" creator="test" xmlns="http://www.topografix.com/GPX/1/1">

@@ -8,10 +8,10 @@ from datetime import UTC, datetime
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.ingest import ingest
-from imugen.readers import read_route_file
-from imugen.readers.igc import read_igc
+from imugen.core.errors import InputError
+from imugen.ingest.readers import read_route_file
+from imugen.ingest.readers.igc import read_igc
+from imugen.ingest.stage import ingest
 
 
 def _b(hms, lat, lon, valid="A", p=100, g=120):

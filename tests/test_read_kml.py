@@ -1,4 +1,4 @@
-"""Tests of the KML/KMZ reader (imugen.readers.kml).
+"""Tests of the KML/KMZ reader (imugen.ingest.readers.kml).
 
 Expected values are computed here independently of the reader: literal numbers of
 small crafted files, and regular expressions / ``datetime.strptime`` over the raw text
@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.readers import kml as kml_mod
-from imugen.readers.kml import read_kml, read_kmz
+from imugen.core.errors import InputError
+from imugen.ingest.readers import kml as kml_mod
+from imugen.ingest.readers.kml import read_kml, read_kmz
 
 DATA = Path(__file__).resolve().parent / "data" / "kml"
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories"

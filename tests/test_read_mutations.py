@@ -7,8 +7,8 @@ import random
 
 import pytest
 
-from imugen.errors import InputError
-from imugen.ingest import ingest
+from imugen.core.errors import InputError
+from imugen.ingest.stage import ingest
 
 SEEDS = {
     "log.nmea": (

@@ -9,10 +9,10 @@ from functools import reduce
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.ingest import ingest
-from imugen.readers import read_route_file
-from imugen.readers.nmea import read_nmea
+from imugen.core.errors import InputError
+from imugen.ingest.readers import read_route_file
+from imugen.ingest.readers.nmea import read_nmea
+from imugen.ingest.stage import ingest
 
 
 def _sentence(body: str, good: bool = True) -> str:

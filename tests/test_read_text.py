@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from imugen.errors import InputError
-from imugen.readers import read_route_file
-from imugen.readers.text import read_text
+from imugen.core.errors import InputError
+from imugen.ingest.readers import read_route_file
+from imugen.ingest.readers.text import read_text
 
 
 def _w(tmp_path, text, name="r.csv", encoding="utf-8"):
@@ -107,7 +107,7 @@ def test_real_paper_file(shared_file):
 
 
 def test_strict_numbers():
-    from imugen.route import parse_number
+    from imugen.ingest.route import parse_number
 
     assert parse_number("+008.5") == 8.5 and parse_number(" -1e-3 ") == -1e-3
     assert parse_number(".5") == 0.5 and parse_number("7.") == 7.0

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from imugen import rotations as r
+from imugen.core import rotations as r
 
 finite = st.floats(-1.0, 1.0, allow_nan=False)
 unit_axis = st.tuples(finite, finite, finite).filter(lambda v: np.linalg.norm(v) > 1e-3)

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import simulate as S
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 
 KW = {"static_s": 1.0, "rate_hz": 50.0}
@@ -76,8 +76,8 @@ def test_spawn_key_names_route_grade_shard_sequence_stream():
         3, spawn_key=(rid, sh.meta["grade"]["id"], 5, 0, S.STREAMS["params"])
     )
     rng = np.random.Generator(np.random.PCG64(ss))
-    from imugen.grades import get_grade
-    from imugen.sensors import draw_sensor
+    from imugen.sensors.grades import get_grade
+    from imugen.sensors.model import draw_sensor
 
     grade = get_grade("consumer")
     enabled = S.enabled_terms(grade)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from imugen import gnss as G
-from imugen import scenarios as SC
-from imugen.errors import InputError
-from imugen.rotations import dcm_to_quat, euler_to_dcm
+from imugen.aid import gnss as G
+from imugen.aid import scenarios as SC
+from imugen.core.errors import InputError
+from imugen.core.rotations import dcm_to_quat, euler_to_dcm
 
 R, W, RATE = 50.0, 0.2, 100.0
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from pyproj import Geod
 
-from imugen.errors import InputError
-from imugen.ingest import ingest, write
-from imugen.route import RoutePath
-from imugen.segments import split_at_gaps
+from imugen.core.errors import InputError
+from imugen.ingest.route import RoutePath
+from imugen.ingest.segments import split_at_gaps
+from imugen.ingest.stage import ingest, write
 
 GEOD = Geod(ellps="WGS84")
 

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from imugen import sensors
-from imugen import simulate as S
-from imugen.grades import grade_from_config
+from imugen.sensors import model as sensors
+from imugen.sensors.grades import grade_from_config
+from imugen.simulate import stage as S
 
 DT = 0.01
 

@@ -5,8 +5,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from imugen import simulate as S
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as col
 
@@ -91,7 +91,7 @@ def test_old_shards_with_a_time_column_still_read(tmp_path):
     del meta["clock"]
     meta["format_version"] = 2
     old = tmp_path / "old.parquet"
-    from imugen.io import write_parquet
+    from imugen.core.io import write_parquet
 
     write_parquet(tbl.to_pandas(), meta, old)
     assert np.array_equal(tshard.times(old), t)
@@ -122,7 +122,7 @@ def test_a_shard_without_time_or_clock_is_refused(tmp_path):
     S.run(truth, out, "consumer", sequences=1, seed=5)
     meta = tshard.read_meta(out)
     meta["clock"] = None
-    from imugen.io import write_parquet
+    from imugen.core.io import write_parquet
 
     write_parquet(pq.read_table(out).to_pandas(), meta, out)
     with pytest.raises(InputError, match="neither a time_s column nor"):

@@ -7,9 +7,9 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from imugen import simulate as S
-from imugen.errors import InputError
-from imugen.io import METADATA_KEY
+from imugen.core.errors import InputError
+from imugen.core.io import METADATA_KEY
+from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as col
 
@@ -198,7 +198,7 @@ def test_input_errors(tmp_path, kw, match):
 
 def test_in_memory_and_written_metadata_agree(tmp_path):
     """simulate() and run() describe a shard identically (preset checksum included)."""
-    from imugen.io import read_meta
+    from imugen.core.io import read_meta
 
     mem = S.simulate(None, "consumer", sequences=2, seed=3, shard=1, static_s=2.0, rate_hz=10.0)
     S.run(None, tmp_path / "s.parquet", "consumer", 2, 3, 1, static_s=2.0, rate_hz=10.0)

@@ -5,9 +5,9 @@ import sys
 
 CODE = """
 import sys
-from imugen import simulate as S
+from imugen.simulate import stage as S
 S.run(None, sys.argv[1], "industrial", sequences=1, seed=1, static_s=2.0)
-from imugen.navigate import mechanize  # noqa: F401
+from imugen.navigate.stage import mechanize  # noqa: F401
 names = ("pandas", "scipy.linalg", "pyproj", "matplotlib", "jsonschema")
 heavy = [m for m in names if m in sys.modules]
 print(",".join(heavy))

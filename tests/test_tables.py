@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.tables import SEQUENCE, TIME, enu, metrics, nav, shard, truth
 
 

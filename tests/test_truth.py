@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imugen import earth as ea
-from imugen import rotations as rot
 from imugen import truth
-from imugen.errors import InputError
-from imugen.io import METADATA_KEY
+from imugen.core import earth as ea
+from imugen.core import rotations as rot
+from imugen.core.errors import InputError
+from imugen.core.io import METADATA_KEY
 from imugen.tables import truth as col
 
 ORIGIN = (45.0, 7.0, 300.0)
@@ -486,8 +486,8 @@ def test_run_writes_parquet_atomically(tmp_path):
 def test_auto_budget_takes_custom_grades(tmp_path):
     """A custom grade (FILE.yaml:NAME, Grade or figures) decides `--earth auto` like a preset:
     a navigation-grade custom part needs wgs84 on a route where consumer is flat."""
-    from imugen import grades
-    from imugen.earth import GradeFigures
+    from imugen.core.earth import GradeFigures
+    from imugen.sensors import grades
 
     f = tmp_path / "g.yaml"
     f.write_text(

@@ -1,4 +1,4 @@
-"""The road profile of timed ground routes (:mod:`imugen.truth.grade`): the truth's vertical is
+"""The road profile of timed ground routes (:mod:`imugen.truth.road`): the truth's vertical is
 the height profile against distance, exact at stops, in flat and ellipsoidal heights."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
-from imugen import earth as ea
-from imugen import rotations as rot
 from imugen import truth
+from imugen.core import earth as ea
+from imugen.core import rotations as rot
 from imugen.tables import truth as col
 
 ORIGIN = (45.0, 7.0, 300.0)

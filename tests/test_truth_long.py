@@ -16,10 +16,10 @@ import math
 import numpy as np
 import pytest
 
-from imugen import earth as E
-from imugen import mechanize as M
 from imugen import truth
 from imugen.closure import closure_of_truth
+from imugen.core import earth as E
+from imugen.navigate import mechanize as M
 from imugen.tables import truth as col
 
 
@@ -331,7 +331,7 @@ def test_geodetic_and_wgs84_truths_are_one_motion_near_the_origin():
     travelled, measured in the origin's level (wgs84) or the local one (geodetic): they differ by
     ``v_up d / R`` (0.35 m/s x 4.7e-4 over 120 s: 2 cm), turning heading and grade by at most
     2 cm x (1/150 km) ~ 1.3e-7 rad."""
-    from imugen.rotations import quat_to_dcm
+    from imugen.core.rotations import quat_to_dcm
 
     rt = road()
     enu, meta = enu_input(rt, np.arange(0.0, 120.0 + 1e-9, 1.0))

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imugen import rotations as rot
 from imugen import truth
+from imugen.core import rotations as rot
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
 
@@ -142,7 +142,7 @@ def test_paper_trajectory_nhc():
     path = SHARED / "seed_reference_trajectory_enu.txt"
     if not path.exists():
         pytest.skip("paper trajectory absent")
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
 
     ing = ingest(path, origin="31.63,-7.99,480.6", dt=1.0, vehicle="car")
     df, meta = ing.table, ing.meta

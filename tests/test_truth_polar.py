@@ -20,13 +20,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imugen import earth as E
-from imugen import local_errors as L
-from imugen import mechanize as M
 from imugen import truth
 from imugen.closure import closure_of_truth
-from imugen.errors import InputError
-from imugen.rotations import quat_to_dcm
+from imugen.core import earth as E
+from imugen.core.errors import InputError
+from imugen.core.rotations import quat_to_dcm
+from imugen.navigate import local_errors as L
+from imugen.navigate import mechanize as M
 from imugen.tables import truth as col
 from imugen.truth.attitude import POLE_MARGIN_RAD, EarthField, _sphere_directions
 from imugen.truth.report import turn_rate
@@ -261,9 +261,9 @@ def test_map_figure_of_a_polar_flight(airliner, tmp_path):
     bar, the truth drawn without a step beyond its own, the navigated track finite."""
     from pyproj import Geod
 
-    from imugen import figures as fg
-    from imugen.evaluate import sequence_metrics
-    from imugen.io import write_parquet
+    from imugen.core.io import write_parquet
+    from imugen.evaluate.stage import sequence_metrics
+    from imugen.figures import stage as fg
 
     df, tm = airliner
     err = _nav_errors(df, tm, 1e-3)

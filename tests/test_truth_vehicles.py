@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from imugen import truth
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
@@ -241,7 +241,7 @@ def test_report_flags_an_attitude_jump_and_turning_on_the_spot():
 
 
 def test_cli_prints_the_report_after_writing_and_stores_it(tmp_path, cli):
-    from imugen.io import read_meta
+    from imugen.core.io import read_meta
 
     t, enu = _reversal_route(90.0)
     df, meta = truth.enu_table(enu, t, ORIGIN)
@@ -290,8 +290,8 @@ def _real_tracks():
 
 def _ingested_paths(path):
     """(index, ingestion, vehicle, its params) of every path of a shared file that ingests."""
-    from imugen.ingest import ingest
-    from imugen.readers import read_route_file
+    from imugen.ingest.readers import read_route_file
+    from imugen.ingest.stage import ingest
 
     try:
         cands = read_route_file(path)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from imugen import units
+from imugen.core import units
 
 
 def test_angular_rate_units():

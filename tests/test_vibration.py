@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from imugen import simulate as S
-from imugen import vibration as V
-from imugen.earth import OriginFrame
-from imugen.grades import grade_from_config
-from imugen.mechanize import mechanize
-from imugen.rotations import exp_quat, quat_conj, quat_mul
+from imugen.core.earth import OriginFrame
+from imugen.core.rotations import exp_quat, quat_conj, quat_mul
+from imugen.navigate.mechanize import mechanize
+from imugen.sensors import vibration as V
+from imugen.sensors.grades import grade_from_config
+from imugen.simulate import stage as S
 
 CAR = V.PROFILES["car"]
 G = V.G0

@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from imugen.io import read_meta
+from imugen.core.io import read_meta
 from imugen.tables.shard import route_id
 
 REPO = Path(__file__).resolve().parents[1]

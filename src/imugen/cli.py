@@ -17,8 +17,8 @@ import sys
 import warnings
 
 from imugen import __version__
-from imugen.clean import VEHICLE_LIMITS
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+from imugen.ingest.clean import VEHICLE_LIMITS
 
 
 def _printable(text: str) -> str:
@@ -37,7 +37,7 @@ def _add_ingest_options(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_ingest(a) -> int:
-    from imugen.ingest import run
+    from imugen.ingest.stage import run
 
     ing = run(
         a.src,
@@ -87,7 +87,7 @@ def _cmd_truth(a) -> int:
 
 
 def _cmd_simulate(a) -> int:
-    from imugen.simulate import run
+    from imugen.simulate.stage import run
 
     if a.truth is None and a.static is None:
         raise InputError("imugen simulate", "give a TRUTH.parquet or --static SECONDS")
@@ -142,21 +142,21 @@ def _cmd_simulate(a) -> int:
 
 
 def _cmd_allan(a) -> int:
-    from imugen.allan import run
+    from imugen.allan.stage import run
 
     print(json.dumps(run(a.shard, plot=a.plot, max_sequences=a.max_sequences)))
     return 0
 
 
 def _cmd_navigate(a) -> int:
-    from imugen.navigate import run
+    from imugen.navigate.stage import run
 
     run(a.truth, a.shard, a.output, eval_rate_hz=a.eval_rate_hz)
     return 0
 
 
 def _cmd_aid(a) -> int:
-    from imugen.aid import AidParams, parse_scenarios, run
+    from imugen.aid.stage import AidParams, parse_scenarios, run
 
     try:
         lever = [float(x) for x in a.lever_arm.split(",")]
@@ -217,7 +217,7 @@ def _seconds_list(text: str) -> list[float]:
 
 
 def _cmd_evaluate(a) -> int:
-    from imugen.evaluate import run
+    from imugen.evaluate.stage import run
 
     run(
         a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu,
@@ -227,7 +227,7 @@ def _cmd_evaluate(a) -> int:
 
 
 def _cmd_tables(a) -> int:
-    from imugen.evaluate import run_tables
+    from imugen.evaluate.stage import run_tables
 
     paths = run_tables(a.metrics, a.output)
     print(paths["md"].read_text(), file=sys.stderr)
@@ -246,7 +246,7 @@ def _pairs(items, option):
 
 
 def _cmd_outage_figure(a) -> int:
-    from imugen.figures_outage import outage_growth
+    from imugen.figures.outage import outage_growth
 
     outage_growth(
         _pairs(a.aided, "--aided"),
@@ -261,7 +261,7 @@ def _cmd_outage_figure(a) -> int:
 def _cmd_figures(a) -> int:
     from pathlib import Path
 
-    from imugen import figures as fg
+    from imugen.figures import stage as fg
 
     nav = _pairs(a.nav, "--nav")
     metrics = {g: p[0] for g, p in _pairs(a.metrics, "--metrics").items()}
@@ -287,7 +287,7 @@ def _cmd_figures(a) -> int:
 
 
 def _cmd_export_mat(a) -> int:
-    from imugen.export import export_mat
+    from imugen.export.mat import export_mat
 
     export_mat(
         a.truth,
@@ -310,7 +310,7 @@ def _cmd_serve(a) -> int:
 
 
 def _cmd_export(a) -> int:
-    from imugen.formats import export
+    from imugen.export.stage import export
 
     export(
         a.format,
@@ -338,7 +338,7 @@ def _cmd_export(a) -> int:
 def _cmd_grade_import(a) -> int:
     import warnings
 
-    from imugen.grade_io import grades_document, import_grade, write_text
+    from imugen.sensors.grade_io import grades_document, import_grade, write_text
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -355,8 +355,8 @@ def _cmd_grade_import(a) -> int:
 
 
 def _cmd_grade_export(a) -> int:
-    from imugen.grade_io import to_kalibr, write_text
-    from imugen.grades import get_grade
+    from imugen.sensors.grade_io import to_kalibr, write_text
+    from imugen.sensors.grades import get_grade
 
     text = to_kalibr(get_grade(a.grade, a.grades_file), rate_hz=a.rate_hz, topic=a.topic)
     if a.output:

@@ -28,7 +28,7 @@ import os
 import shutil
 from pathlib import Path
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 TRUTH_BASE_B = 300e6
 TRUTH_PER_SAMPLE_B = 700.0
@@ -58,7 +58,7 @@ def _non_finite(node, where: str = "config"):
 
 def check_values(config: dict) -> None:
     """Refuse NaN/inf anywhere and invalid custom grades (InputError naming the key)."""
-    from imugen.grades import grade_from_config, presets
+    from imugen.sensors.grades import grade_from_config, presets
 
     hit = _non_finite(config)
     if hit:
@@ -84,7 +84,7 @@ def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, 
     truths)."""
     import pyarrow.parquet as pq
 
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
     from imugen.truth import VEHICLES
 
     truth = results / name / "truth.parquet"

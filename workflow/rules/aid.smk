@@ -10,8 +10,8 @@ rule aid:
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
         grade=grade_files,
         code=stage_code(
-            "aid", "aided", "gnss", "scenarios", "companions", "mechanize", "earth", "mounting",
-            "local_errors",
+            "aid/stage", "aid/filter/ekf", "aid/gnss", "aid/scenarios", "aid/companions", "navigate/mechanize", "core/earth", "sensors/mounting",
+            "navigate/local_errors",
         ),
     output:
         gnss="results/{route}/gnss/{grade}/shard-{shard}.parquet",
@@ -40,7 +40,7 @@ rule outage_figure:
         nav=lambda wc: [
             f"results/{wc.route}/nav/{g}/shard-{s}.parquet" for g in GRADES for s in SHARDS
         ],
-        code=stage_code("figures_outage", "figures", "plotting"),
+        code=stage_code("figures/outage", "figures/stage", "core/plotting"),
     output:
         report(
             expand("results/{{route}}/figures/outage_growth.{ext}", ext=FIG["formats"]),

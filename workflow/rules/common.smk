@@ -11,7 +11,7 @@ from snakemake.utils import validate
 # the checks below use this checkout's package (the jobs call the installed `imugen`)
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 from imugen import preflight
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 
 validate(config, "../schemas/config.schema.yaml")
@@ -163,7 +163,7 @@ def grade_pairs(kind):
 
 def run_summary():
     """Where the results are and, per route, the Earth model the truth used and why."""
-    from imugen.io import read_meta
+    from imugen.core.io import read_meta
 
     print("imugen: results in " + str(Path("results").resolve()))
     for r in ROUTES:

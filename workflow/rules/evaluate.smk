@@ -12,7 +12,7 @@ rule evaluate:
         nav=shard_paths("nav"),
         imu=shard_paths("imu") if SEGMENTS else [],
         aided=shard_paths("aided") if AID_ON else [],
-        code=stage_code("evaluate", "navigate", "mechanize", "earth", "rotations"),
+        code=stage_code("evaluate/stage", "navigate/stage", "navigate/mechanize", "core/earth", "core/rotations"),
     output:
         "results/{route}/metrics/{grade}.parquet",
     params:
@@ -30,7 +30,7 @@ rule evaluate:
 rule tables:
     input:
         metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
-        code=stage_code("evaluate"),
+        code=stage_code("evaluate/stage"),
     output:
         csv=report(
             "results/{route}/rmse.csv",

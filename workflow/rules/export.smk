@@ -6,7 +6,7 @@ rule export_mat:
         truth="results/{route}/truth.parquet",
         shards=shard_paths("imu"),
         nav=shard_paths("nav"),
-        code=stage_code("export"),
+        code=stage_code("export/mat"),
     output:
         "results/{route}/datasets/{grade}.mat",
     log:
@@ -51,8 +51,8 @@ rule export_formats:
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
         companions=shard_paths("companions") if COMPANION_EXPORT else [],
         code=stage_code(
-            "formats/__init__", "formats/source", "formats/common", "formats/convert", "dataset",
-            *(f"formats/{f}" for f in config["exports"]["formats"]),
+            "export/stage", "export/source", "export/common", "export/convert", "dataset",
+            *(f"export/{f}" for f in config["exports"]["formats"]),
         ),
     output:
         directory("results/{route}/datasets/{grade}"),

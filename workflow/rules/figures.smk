@@ -8,7 +8,7 @@ rule figures:
         ],
         metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
         imu=expand("results/{{route}}/imu/{grade}/shard-000.parquet", grade=IMU_GRADES),
-        code=stage_code("figures", "mapview"),
+        code=stage_code("figures/stage", "figures/mapview"),
     output:
         report(
             expand("results/{{route}}/figures/figure8.{ext}", ext=FIG["formats"]),

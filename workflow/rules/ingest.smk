@@ -7,9 +7,9 @@ rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
         code=stage_code(
-            "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
-            "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
-            "readers/gnsscsv", "readers/babel", "clean", "segments", "limits",
+            "ingest/stage", "core/frames", "ingest/route", "ingest/xmlsafe", "ingest/readers/__init__", "ingest/readers/kml",
+            "ingest/readers/gpx", "ingest/readers/text", "ingest/readers/nmea", "ingest/readers/igc", "ingest/readers/geojson",
+            "ingest/readers/gnsscsv", "ingest/readers/babel", "ingest/clean", "ingest/segments", "ingest/limits",
         ),
     output:
         "results/{route}/route.csv",
@@ -24,7 +24,7 @@ rule ingest_csv:
 rule ingest_enu:
     input:
         csv="results/{route}/route.csv",
-        code=stage_code("ingest", "frames", "readers/text", "clean", "segments"),
+        code=stage_code("ingest/stage", "core/frames", "ingest/readers/text", "ingest/clean", "ingest/segments"),
     output:
         "results/{route}/enu.parquet",
     log:

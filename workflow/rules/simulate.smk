@@ -19,8 +19,8 @@ rule simulate:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
         code=stage_code(
-            "simulate", "sensors", "grades", "units", "vibration", "mounting", "navigate",
-            "mechanize", "earth", "rotations", "local_errors",
+            "simulate/stage", "sensors/model", "sensors/grades", "core/units", "sensors/vibration", "sensors/mounting", "navigate/stage",
+            "navigate/mechanize", "core/earth", "core/rotations", "navigate/local_errors",
         ),
         presets=PRESETS,
     output:
@@ -57,7 +57,7 @@ rule simulate:
 rule allan_static:
     input:
         grade=grade_files,
-        code=stage_code("simulate", "sensors", "grades", "units"),
+        code=stage_code("simulate/stage", "sensors/model", "sensors/grades", "core/units"),
         presets=PRESETS,
     output:
         "results/allan/{grade}/static.parquet",
@@ -79,7 +79,7 @@ rule allan_static:
 rule allan:
     input:
         static="results/allan/{grade}/static.parquet",
-        code=stage_code("allan"),
+        code=stage_code("allan/stage"),
     output:
         json="results/allan/{grade}/allan.json",
         plot=report(

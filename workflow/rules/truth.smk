@@ -15,13 +15,13 @@ rule truth:
             "truth/report",
             "truth/stage",
             "truth/vehicles",
-            "earth",
-            "rotations",
+            "core/earth",
+            "core/rotations",
             "tables/__init__",
             "tables/_parquet",
             "tables/enu",
             "tables/truth",
-            "grades",
+            "sensors/grades",
         ),
         # the grades feed only the `earth: auto` budget: with an explicit Earth model the truth
         # does not depend on them (editing a grade then reruns only that grade's jobs)

@@ -1,7 +1,7 @@
 """The contract layer: one module per file that passes between stages.
 
 Each module owns its table's column names, units, metadata block, reader and writer (built
-on the atomic writes of :mod:`imugen.io`); no stage parses another's file by hand.
+on the atomic writes of :mod:`imugen.core.io`); no stage parses another's file by hand.
 
 - :mod:`~imugen.tables.enu`: ingestion output (route points in local ENU);
 - :mod:`~imugen.tables.truth`: truth motion and ideal IMU at the IMU rate;

@@ -15,8 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imugen.io import read_meta as read_meta
-from imugen.io import write_parquet
+from imugen.core.io import read_meta as read_meta
+from imugen.core.io import write_parquet
 from imugen.tables._parquet import TIME, read_table
 
 LAT = "lat_deg"

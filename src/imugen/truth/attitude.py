@@ -9,12 +9,12 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
-from imugen import earth as ea
-from imugen import rotations as rot
-from imugen.errors import InputError
-from imugen.jit import njit
+from imugen.core import earth as ea
+from imugen.core import rotations as rot
+from imugen.core.errors import InputError
+from imugen.core.jit import njit
 from imugen.truth.fit import fit_height_profile
-from imugen.truth.grade import distance_steps
+from imugen.truth.road import distance_steps
 
 
 def _smoothstep(x, lo, hi):
@@ -77,7 +77,7 @@ def _sphere_directions(n):
 
 
 class EarthField:
-    """Gravity/up helpers on top of :mod:`imugen.earth` for one origin frame."""
+    """Gravity/up helpers on top of :mod:`imugen.core.earth` for one origin frame."""
 
     def __init__(self, frame: ea.OriginFrame):
         self.frame = frame
@@ -496,7 +496,7 @@ class GroundAttitude:
         Noise of those heights [m].
     profile : (BSpline, dict) or None
         A height profile ``H(s)`` already fitted and its report (a graded motion's or path's,
-        :func:`imugen.truth.grade.graded_motion`, :func:`imugen.truth.grade.graded_path`):
+        :func:`imugen.truth.road.graded_motion`, :func:`imugen.truth.road.graded_path`):
         used instead of fitting one.
     grid_dt : float
         Step of the internal time grid of the distance [s].

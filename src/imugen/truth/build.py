@@ -10,18 +10,18 @@ import numpy as np
 import pandas as pd
 
 from imugen import __version__
-from imugen import earth as ea
-from imugen.errors import InputError
+from imugen.core import earth as ea
+from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.flight import flight_geometry
-from imugen.truth.grade import graded_motion, graded_path
 from imugen.truth.increments import imu_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
+from imugen.truth.road import graded_motion, graded_path
 from imugen.truth.vehicles import VehicleParams, vehicle_params
 
 CHUNK = 1 << 16  # samples per evaluation chunk
@@ -134,7 +134,7 @@ class EcefMotion:
     ----------
     motion : TimedMotion or PathMotion
         Positions in the ENU of ``origin`` [m].
-    origin : imugen.earth.OriginFrame
+    origin : imugen.core.earth.OriginFrame
         The route origin (any model: only its ``r0_e`` and ``C_en`` of the ENU axes are used).
     """
 
@@ -181,7 +181,7 @@ def _enu_field(E):
 
 def _graded_path(G, L, E, vp, enu, fit, s_v):
     """An untimed ground path with the vertical of its road profile
-    (:func:`imugen.truth.grade.graded_path`, in the origin's ENU; sampled at the fine grid of
+    (:func:`imugen.truth.road.graded_path`, in the origin's ENU; sampled at the fine grid of
     :func:`fit_path`, ``densify_step_m / 4``), its length and ``(H, grade report)`` (None when
     too short for a profile); the fit report gets the profile's report and the distances of
     the graded path to the input."""
@@ -201,7 +201,7 @@ def _graded_path(G, L, E, vp, enu, fit, s_v):
 
 def _graded(motion, E, vp, enu, fit):
     """A timed ground route's motion with the vertical of its road profile
-    (:func:`imugen.truth.grade.graded_motion`, in the origin's ENU) and that profile; the fit
+    (:func:`imugen.truth.road.graded_motion`, in the origin's ENU) and that profile; the fit
     report gets the profile's report and the distances of the graded motion to the input."""
     E_enu = _enu_field(E)
     t_in, h = _input_heights(E, enu)

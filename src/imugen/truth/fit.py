@@ -12,7 +12,7 @@ from scipy.ndimage import binary_dilation, maximum_filter1d, minimum_filter1d
 from scipy.optimize import brentq
 from scipy.sparse.linalg import splu
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.truth.vehicles import VehicleParams
 
 K_SPLINE = 5  # quintic
@@ -186,7 +186,7 @@ class _PenalizedSpline:
 class TimedMotion:
     """Position spline p(t) (vector-valued quintic BSpline) and its derivatives; with
     ``vertical``, a scalar spline replacing the third coordinate (a road profile,
-    :func:`imugen.truth.grade.graded_motion`)."""
+    :func:`imugen.truth.road.graded_motion`)."""
 
     kind = "timed"
 

@@ -13,7 +13,7 @@ import numpy as np
 from flask import Flask, abort, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.exceptions import RequestEntityTooLarge
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.web import form as fm
 from imugen.web.runs import Run, Runs, safe_name
 
@@ -31,12 +31,12 @@ def find_repo() -> Path:
 
 
 def _grades(form, files, runs_dir: Path) -> dict:
-    from imugen.grades import presets
+    from imugen.sensors.grades import presets
 
     grades = {g: {} for g in form.getlist("grades") if g in presets()}
     up = files.get("kalibr")
     if up and up.filename:
-        from imugen.grade_io import import_grade
+        from imugen.sensors.grade_io import import_grade
 
         with tempfile.TemporaryDirectory(dir=runs_dir) as d:
             p = Path(d) / safe_name(up.filename, "imu.yaml")
@@ -79,7 +79,7 @@ def plan(run: Run) -> dict | None:
         return None
     import pandas as pd
 
-    from imugen.io import read_meta
+    from imugen.core.io import read_meta
 
     meta = read_meta(out)
     df = pd.read_parquet(out, columns=["e_m", "n_m"])
@@ -111,7 +111,7 @@ def results(run: Run) -> dict:
     out = {"tables": [], "figures": [], "allan": [], "files": [], "truth": []}
     if not res.is_dir():
         return out
-    from imugen.io import read_meta
+    from imugen.core.io import read_meta
 
     for t in sorted(res.glob("*/rmse.html")):
         out["tables"].append((t.parent.name, t.read_text()))
@@ -139,7 +139,7 @@ def create_app(workdir, repo: Path | None = None) -> Flask:
     app.config["MAX_CONTENT_LENGTH"] = MAX_UPLOAD
 
     def page(template, status=200, **kw):
-        from imugen.grades import presets
+        from imugen.sensors.grades import presets
 
         kw.setdefault("error", None)
         return (

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import yaml
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 RUN_ID = re.compile(r"^[0-9a-f]{12}$")
 PROGRESS = re.compile(r"^(\d+) of (\d+) steps \((\d+(?:\.\d+)?)%\) done", re.M)

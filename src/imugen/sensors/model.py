@@ -1,0 +1,812 @@
+"""Sensor error model: ideal rates/increments -> what a gyro or accelerometer triad outputs.
+
+One model, applied consistently to instantaneous rate samples and to increments (``dtheta``,
+``dv``). For one sensor triad (``u`` the true rate -- ``omega_ib_b`` or ``f_b`` --, ``du`` its
+increment over the interval ``[t_{k-1}, t_k]``, ``a``/``da`` the specific force and its
+increment for the gyro g-sensitivity, ``dT`` the temperature offset):
+
+slow bias (state at sample ``t_k``)
+    ``s_k = b_on + sum_c x_c(t_k) + r(t_k) + k_b dT(t_k)``
+    * ``b_on`` turn-on bias, constant over the run;
+    * ``x_c`` first-order Gauss-Markov (bias instability), exact discretization
+      ``x_k = phi x_{k-1} + sigma sqrt(1 - phi^2) xi``, ``phi = exp(-dt/T)``, started from
+      its stationary law ``x_0 ~ N(0, sigma^2)`` when it is the whole slow bias, or from
+      ``x_0 = 0`` when it is the in-run wander beside a turn-on bias (grade key ``start``);
+      a sum of several (log-spaced ``T``)
+      approximates flicker (1/f) noise;
+    * ``r`` rate random walk, ``r_k = r_{k-1} + K sqrt(dt) xi``, ``r_0 = 0`` (the turn-on bias
+      is the initial value);
+    * ``k_b dT`` temperature-driven bias.
+rate output (sample at ``t_k``)
+    ``y_k = u_k + E_k u_k + G a_k + s_k + (N / sqrt(dt)) w_k``
+    with ``E_k = diag(s_f + k_s dT_k) + C`` (scale-factor errors and the off-diagonal
+    misalignment / cross-coupling ``C``), ``G`` the g-sensitivity matrix (gyro only) and ``N``
+    the white-noise density (ARW/VRW). The white term is the mean of white noise of density
+    ``N`` over one sample interval (variance ``N^2 / dt``), i.e. the averaged-rate output of a
+    real sensor; the same normal ``w_k`` drives the increment below, so ``increment / dt`` and
+    the rate output carry the same white noise.
+increment output (interval ending at ``t_k``, ``k >= 1``; row 0 is zero as in the truth)
+    ``dy_k = du_k + E_bar du_k + G da_k + dt (s_{k-1} + s_k) / 2 + N sqrt(dt) w_k``
+    * white noise of density ``N`` integrated over ``dt`` has standard deviation
+      ``N sqrt(dt)`` (exact);
+    * a constant bias contributes ``b dt`` (exact);
+    * GM and random-walk biases contribute their integral over the interval, taken as the
+      trapezoid of the end states. This is the conditional mean of the integral given both
+      ends (exact for the random walk's Brownian bridge, to ``O(dt/T)`` for GM); the omitted
+      conditional variance ``q dt^3 / 12`` (``q = K^2`` or ``2 sigma^2 / T``) is white and
+      below ``dt sqrt(dt / (6T))`` of the bias itself, e.g. 4e-3 at 100 Hz, ``T = 100 s``;
+    * ``E_bar`` uses the mean temperature of the interval; scale factor and cross-coupling are
+      linear, so applying them to the exact increment is exact for constant ``E``;
+    * g-sensitivity uses the true ``dv`` (``int G f dt`` up to the body rotation within
+      the interval, an ``O(|omega| dt)`` relative effect on an already small term).
+saturation and quantization (last)
+    The output is clipped to ``+-range`` (increments: ``+-range dt``), then quantized to the
+    LSB ``q`` (increments: ``q dt``) with residual carry (``r += y; out = q round(r / q);
+    r -= out``), so the quantization error does not accumulate in integrated outputs.
+effective error (optional output)
+    Everything above except the white term and quantization: ``E u + G a + s`` (rates) or
+    ``E_bar du + G da + dt (s_{k-1} + s_k) / 2`` (increments), plus the saturation excess
+    (clipped minus unclipped output), so that ``output = true + effective error + white +
+    quantization error`` holds exactly.
+
+Everything is vectorized over a batch of sequences (leading axis ``S``) in a numba kernel
+that resumes from a state array, so time can be processed in chunks (increments alone, without
+series or temperature: a one-pass kernel giving the same bits as the general one). The random
+normals are drawn outside (NumPy ``Generator``) so reproducibility is NumPy's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from imugen.core import units
+from imugen.core.jit import njit
+from imugen.sensors.grades import TERMS, SensorSpec
+
+# Layout of one sequence's parameter draw for one sensor (always drawn in full, whatever is
+# configured or enabled, so that each term's draw never depends on another term).
+N_UNIFORM = len(TERMS) + 1  # one level per term + the GM correlation time
+N_NORMAL = (
+    3 + 3 + 6 + 9 + 3 + 3
+)  # turn-on, scale factor, cross-coupling, g-sens, temp bias, temp SF
+_OFFDIAG = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+AXES = "xyz"
+
+
+@dataclass
+class SensorParams:
+    """Drawn error parameters of one sensor triad for a batch of ``S`` sequences (SI).
+
+    Attributes
+    ----------
+    b_on : (S, 3)      turn-on bias [rad/s | m/s^2] (for a grade calibrated at rest, minus the
+                       static error on gravity the calibration removed: ``G (0, 0, g0)`` for
+                       a gyro, ``E (0, 0, g0)`` for an accelerometer)
+    bi_level : (S, 3)  drawn bias-instability level in the configured kind (Allan floor or
+                       GM sigma) [rad/s | m/s^2]
+    bi_floor : (S, 3)  Allan-deviation floor (peak for one GM) of the in-run bias
+    bi_sigma : (S, 3, C) GM sigma of each component
+    bi_tau : (S, C)    GM correlation times [s]
+    white : (S, 3)     white-noise density [rad/s/sqrt(Hz) | m/s^2/sqrt(Hz)]
+    rrw : (S, 3)       rate-random-walk density [rad/s/sqrt(s) | m/s^2/sqrt(s)]
+    sf : (S, 3)        scale-factor error (dimensionless)
+    cc : (S, 3, 3)     cross-coupling (zero diagonal)
+    gs : (S, 3, 3)     g-sensitivity [rad/s per m/s^2] (zeros for accelerometers)
+    tb : (S, 3)        bias temperature coefficient [.../K]
+    ts : (S, 3)        scale-factor temperature coefficient [1/K]
+    lsb : float        quantization step of the rate output (0: off)
+    full_scale : float measurement range (inf: off)
+    bi_x0 : (S, 3, C)  standard deviation of each GM component's initial state: ``bi_sigma``
+                       (start from the stationary law) or 0 (in-run wander from the turn-on
+                       value); None means ``bi_sigma``
+    """
+
+    b_on: np.ndarray
+    bi_level: np.ndarray
+    bi_floor: np.ndarray
+    bi_sigma: np.ndarray
+    bi_tau: np.ndarray
+    white: np.ndarray
+    rrw: np.ndarray
+    sf: np.ndarray
+    cc: np.ndarray
+    gs: np.ndarray
+    tb: np.ndarray
+    ts: np.ndarray
+    lsb: float
+    full_scale: float
+    bi_x0: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.bi_x0 is None:
+            self.bi_x0 = self.bi_sigma
+
+    @property
+    def components(self) -> int:
+        return self.bi_sigma.shape[2]
+
+    @staticmethod
+    def stack(items: list[SensorParams]) -> SensorParams:
+        """Concatenate per-sequence parameter sets along the sequence axis."""
+        f = items[0]
+        kw = {}
+        for name in (
+            "b_on",
+            "bi_level",
+            "bi_floor",
+            "bi_sigma",
+            "bi_tau",
+            "white",
+            "rrw",
+            "sf",
+            "cc",
+            "gs",
+            "tb",
+            "ts",
+            "bi_x0",
+        ):
+            kw[name] = np.concatenate([getattr(p, name) for p in items])
+        return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale)
+
+    def labels(self, prefix: str, unit: str) -> dict[str, np.ndarray]:
+        """Flat label columns ``{name: (S,) array}`` with the SI unit in each name."""
+        out = {}
+        rate = unit  # "radps" or "mps2"
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_turn_on_bias_{a}_{rate}"] = self.b_on[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_bias_instability_level_{a}_{rate}"] = self.bi_level[:, i]
+            out[f"{prefix}_bias_instability_floor_{a}_{rate}"] = self.bi_floor[:, i]
+            for c in range(self.components):
+                out[f"{prefix}_bias_instability_sigma{c}_{a}_{rate}"] = self.bi_sigma[:, i, c]
+        for c in range(self.components):
+            out[f"{prefix}_bias_instability_tau{c}_s"] = self.bi_tau[:, c]
+        dens = "rad_per_sqrt_s" if unit == "radps" else "m_per_s_per_sqrt_s"
+        rw = "radps_per_sqrt_s" if unit == "radps" else "mps2_per_sqrt_s"
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_white_noise_{a}_{dens}"] = self.white[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_rate_random_walk_{a}_{rw}"] = self.rrw[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_scale_factor_{a}"] = self.sf[:, i]
+        for i, j in _OFFDIAG:
+            out[f"{prefix}_cross_coupling_{AXES[i]}{AXES[j]}"] = self.cc[:, i, j]
+        if prefix == "gyro":
+            for i in range(3):
+                for j in range(3):
+                    out[f"gyro_g_sensitivity_{AXES[i]}{AXES[j]}_radps_per_mps2"] = self.gs[:, i, j]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_temperature_bias_{a}_{rate}_per_K"] = self.tb[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_temperature_scale_factor_{a}_per_K"] = self.ts[:, i]
+        n = len(self.b_on)
+        out[f"{prefix}_quantization_{rate}"] = np.full(n, self.lsb)
+        out[f"{prefix}_range_{rate}"] = np.full(n, self.full_scale)
+        return out
+
+
+def _level(p, u: float, nominal: bool) -> np.ndarray:
+    """Per-axis level: nominal, or log-uniform in [lo, hi] with one uniform shared by the axes."""
+    v = np.asarray(p.value)
+    if nominal or p.lo is None:
+        return v.copy()
+    lo = np.asarray(p.lo)
+    hi = np.asarray(p.hi)
+    return lo * (hi / lo) ** u
+
+
+def draw_sensor(
+    spec: SensorSpec, rng: np.random.Generator, enabled: frozenset, nominal: bool = False
+) -> SensorParams:
+    """Draw one sequence's parameters for one sensor triad.
+
+    Distributions: each configured level (1-sigma, density, Allan floor, correlation time) is
+    log-uniform in its ``range`` (one uniform per term shared by the three axes; the nominal
+    value when there is no range or ``nominal``); realizations are Gaussian with that level:
+    turn-on bias, scale factor, temperature coefficients ``N(0, level^2)`` per axis,
+    cross-coupling and g-sensitivity ``N(0, level^2)`` per matrix element. The draw consumes a
+    fixed number of variates (:data:`N_UNIFORM` uniforms, :data:`N_NORMAL` normals) whatever is
+    configured or ``enabled``, so a term's draw never depends on the others.
+
+    Parameters
+    ----------
+    spec : SensorSpec
+    rng : numpy.random.Generator
+        The sequence's parameter stream.
+    enabled : frozenset of str
+        Term names to apply (others are zero in the result).
+    nominal : bool
+        Use nominal levels instead of drawing them in the ranges.
+    """
+    u = rng.random(N_UNIFORM)
+    z = rng.standard_normal(N_NORMAL)
+    ti = {t: i for i, t in enumerate(TERMS)}
+
+    def lvl(term):
+        p = getattr(spec, term)
+        if p is None or term not in enabled:
+            return None
+        if term == "bias_instability":
+            p = p.level
+        return _level(p, u[ti[term]], nominal)
+
+    zero3 = np.zeros(3)
+    b = lvl("turn_on_bias")
+    b_on = zero3 if b is None else b * z[0:3]
+    bi = spec.bias_instability
+    C = 1 if bi is None else bi.components
+    bi_level = np.zeros(3)
+    bi_floor = np.zeros(3)
+    bi_sigma = np.zeros((3, C))
+    bi_x0 = bi_sigma
+    bi_tau = np.ones(C)
+    lv = lvl("bias_instability")
+    if lv is not None:
+        bi_level = lv
+        if bi.model == "gauss_markov":
+            bi_tau = _level(bi.correlation_time, u[-1], nominal)[:1]
+        else:
+            from imugen.sensors.grades import flicker_taus
+
+            bi_tau = flicker_taus(bi.flicker_band, C)
+        bi_sigma = np.array([[bi.sigma_from_level(x)] * C for x in lv])
+        bi_x0 = bi_sigma if bi.start == "stationary" else np.zeros_like(bi_sigma)
+        bi_floor = np.array([bi.allan_floor_from_level(x) for x in lv])
+    w = lvl("white_noise")
+    r = lvl("rate_random_walk")
+    s = lvl("scale_factor")
+    sf = zero3 if s is None else s * z[3:6]
+    c = lvl("cross_coupling")
+    cc = np.zeros((3, 3))
+    if c is not None:
+        for k, (i, j) in enumerate(_OFFDIAG):
+            cc[i, j] = c[i] * z[6 + k]
+    g = lvl("g_sensitivity")
+    gs = np.zeros((3, 3)) if g is None else g[:, None] * z[12:21].reshape(3, 3)
+    if spec.static_g_removed:
+        # calibrated at rest and level: the bias estimate absorbed the static error on gravity,
+        # (E + G) (0, 0, g0) with E = diag(sf) + cross-coupling, G the g-sensitivity
+        E = cc + np.diag(sf)
+        if spec.sensor == "accel":
+            b_on = b_on - E[:, 2] * units.G0
+        b_on = b_on - gs[:, 2] * units.G0
+    tbl = lvl("temperature_bias")
+    tb = zero3 if tbl is None else tbl * z[21:24]
+    tsl = lvl("temperature_scale_factor")
+    ts = zero3 if tsl is None else tsl * z[24:27]
+    q = spec.quantization
+    lsb = q.value[0] if q is not None and "quantization" in enabled else 0.0
+    fr = spec.range
+    full_scale = fr.value[0] if fr is not None and "range" in enabled else math.inf
+    return SensorParams(
+        b_on=b_on[None],
+        bi_level=bi_level[None],
+        bi_floor=bi_floor[None],
+        bi_sigma=bi_sigma[None],
+        bi_tau=np.asarray(bi_tau, float)[None],
+        white=(zero3 if w is None else w)[None],
+        rrw=(zero3 if r is None else r)[None],
+        sf=sf[None],
+        cc=cc[None],
+        gs=gs[None],
+        tb=tb[None],
+        ts=ts[None],
+        lsb=float(lsb),
+        full_scale=float(full_scale),
+        bi_x0=bi_x0[None],
+    )
+
+
+class SensorState:
+    """Resumable state of one sensor triad for ``S`` sequences (time-chunked processing).
+
+    Attributes
+    ----------
+    x : (S, 3, C)  Gauss-Markov states
+    r : (S, 3)     rate-random-walk state
+    s_prev : (S, 3) slow bias at the previous sample (trapezoid of increments)
+    q_rate, q_inc : (S, 3) quantization residuals of the rate and increment outputs
+    """
+
+    def __init__(self, S: int, C: int):
+        self.x = np.zeros((S, 3, C))
+        self.r = np.zeros((S, 3))
+        self.s_prev = np.zeros((S, 3))
+        self.q_rate = np.zeros((S, 3))
+        self.q_inc = np.zeros((S, 3))
+
+
+@njit(cache=True, inline="always")
+def _quantize(res, y, q):
+    """Quantize ``y`` to the step ``q`` with residual carry: ``(res + y - out, out)``."""
+    res = res + y
+    out = q * math.floor(res / q + 0.5)
+    return res - out, out
+
+
+@njit(cache=True)
+def _kernel(
+    k0,
+    dt,
+    u,
+    du,
+    a,
+    da,
+    dT,
+    use_t,
+    zw,
+    zr,
+    zb,
+    use_w,
+    use_r,
+    use_b,
+    b_on,
+    bi_sig,
+    bi_phi,
+    bi_drv,
+    white,
+    rrw,
+    sf,
+    cc,
+    gs,
+    use_g,
+    tb,
+    ts,
+    lsb,
+    full_scale,
+    x,
+    r,
+    s_prev,
+    q_rate,
+    q_inc,
+    slow,
+    out_rate,
+    out_inc,
+    out_bias,
+    out_sf,
+    out_err_rate,
+    out_err_inc,
+):
+    """Errors of one triad over samples ``k0 .. k0+L-1`` of ``S`` sequences (see
+    :meth:`SensorModel.step`). Two passes per sequence: the slow bias of every sample, the
+    three axes' recursions side by side with their states in registers (``slow``: an
+    ``(L, 3)`` float64 scratch), then the measurements sample by sample with the sequence's error matrix in locals; the
+    outputs are written once, in their storage dtype."""
+    S = b_on.shape[0]
+    L = u.shape[0]
+    C = bi_sig.shape[2]
+    sqdt = math.sqrt(dt)
+    do_rate = out_rate.shape[0] > 0
+    do_inc = out_inc.shape[0] > 0
+    do_bias = out_bias.shape[0] > 0
+    do_sf = out_sf.shape[0] > 0
+    do_er = out_err_rate.shape[0] > 0
+    do_ei = out_err_inc.shape[0] > 0
+    lsb_i = lsb * dt
+    fs_i = full_scale * dt
+    for s in range(S):
+        # pass 1: slow bias = turn-on + Gauss-Markov components + rate random walk + temperature
+        # (the three axes side by side: three independent recursions in flight per sample)
+        b0, b1, b2 = b_on[s, 0], b_on[s, 1], b_on[s, 2]
+        for j in range(L):
+            slow[j, 0] = b0
+            slow[j, 1] = b1
+            slow[j, 2] = b2
+        if use_b:
+            for c in range(C):
+                phi = bi_phi[s, c]
+                d0, d1, d2 = bi_drv[s, 0, c], bi_drv[s, 1, c], bi_drv[s, 2, c]
+                x0, x1, x2 = x[s, 0, c], x[s, 1, c], x[s, 2, c]
+                j0 = 0
+                if k0 == 0 and L > 0:  # the process starts from its stationary law
+                    x0 = bi_sig[s, 0, c] * zb[s, 0, c]
+                    x1 = bi_sig[s, 1, c] * zb[s, 0, C + c]
+                    x2 = bi_sig[s, 2, c] * zb[s, 0, 2 * C + c]
+                    slow[0, 0] += x0
+                    slow[0, 1] += x1
+                    slow[0, 2] += x2
+                    j0 = 1
+                for j in range(j0, L):
+                    x0 = phi * x0 + d0 * zb[s, j, c]
+                    x1 = phi * x1 + d1 * zb[s, j, C + c]
+                    x2 = phi * x2 + d2 * zb[s, j, 2 * C + c]
+                    slow[j, 0] += x0
+                    slow[j, 1] += x1
+                    slow[j, 2] += x2
+                x[s, 0, c], x[s, 1, c], x[s, 2, c] = x0, x1, x2
+        if use_r:
+            r0, r1, r2 = r[s, 0], r[s, 1], r[s, 2]
+            k0r, k1r, k2r = rrw[s, 0] * sqdt, rrw[s, 1] * sqdt, rrw[s, 2] * sqdt
+            for j in range(L):
+                if k0 + j > 0:
+                    r0 += k0r * zr[s, j, 0]
+                    r1 += k1r * zr[s, j, 1]
+                    r2 += k2r * zr[s, j, 2]
+                slow[j, 0] += r0
+                slow[j, 1] += r1
+                slow[j, 2] += r2
+            r[s, 0], r[s, 1], r[s, 2] = r0, r1, r2
+        if use_t:
+            t0, t1, t2 = tb[s, 0], tb[s, 1], tb[s, 2]
+            for j in range(L):
+                slow[j, 0] += t0 * dT[j + 1]
+                slow[j, 1] += t1 * dT[j + 1]
+                slow[j, 2] += t2 * dT[j + 1]
+        # pass 2: measurements. Error matrix E = diag(sf) + cross-coupling, g-sensitivity G
+        sf0, sf1, sf2 = sf[s, 0], sf[s, 1], sf[s, 2]
+        ts0, ts1, ts2 = ts[s, 0], ts[s, 1], ts[s, 2]
+        c01, c02, c10 = cc[s, 0, 1], cc[s, 0, 2], cc[s, 1, 0]
+        c12, c20, c21 = cc[s, 1, 2], cc[s, 2, 0], cc[s, 2, 1]
+        g00, g01, g02 = gs[s, 0, 0], gs[s, 0, 1], gs[s, 0, 2]
+        g10, g11, g12 = gs[s, 1, 0], gs[s, 1, 1], gs[s, 1, 2]
+        g20, g21, g22 = gs[s, 2, 0], gs[s, 2, 1], gs[s, 2, 2]
+        wr0, wr1, wr2 = white[s, 0] / sqdt, white[s, 1] / sqdt, white[s, 2] / sqdt
+        wi0, wi1, wi2 = white[s, 0] * sqdt, white[s, 1] * sqdt, white[s, 2] * sqdt
+        p0, p1, p2 = s_prev[s, 0], s_prev[s, 1], s_prev[s, 2]
+        qr0, qr1, qr2 = q_rate[s, 0], q_rate[s, 1], q_rate[s, 2]
+        qi0, qi1, qi2 = q_inc[s, 0], q_inc[s, 1], q_inc[s, 2]
+        for j in range(L):
+            Tn = dT[j + 1] if use_t else 0.0
+            sl0, sl1, sl2 = slow[j, 0], slow[j, 1], slow[j, 2]
+            if do_bias:
+                out_bias[s, j, 0] = sl0
+                out_bias[s, j, 1] = sl1
+                out_bias[s, j, 2] = sl2
+            if do_sf:
+                out_sf[s, j, 0] = sf0 + ts0 * Tn
+                out_sf[s, j, 1] = sf1 + ts1 * Tn
+                out_sf[s, j, 2] = sf2 + ts2 * Tn
+            if do_rate:
+                u0, u1, u2 = u[j, 0], u[j, 1], u[j, 2]
+                e0 = (sf0 + ts0 * Tn) * u0 + c01 * u1 + c02 * u2
+                e1 = (sf1 + ts1 * Tn) * u1 + c10 * u0 + c12 * u2
+                e2 = (sf2 + ts2 * Tn) * u2 + c20 * u0 + c21 * u1
+                if use_g:
+                    a0, a1, a2 = a[j, 0], a[j, 1], a[j, 2]
+                    e0 = e0 + g00 * a0 + g01 * a1 + g02 * a2
+                    e1 = e1 + g10 * a0 + g11 * a1 + g12 * a2
+                    e2 = e2 + g20 * a0 + g21 * a1 + g22 * a2
+                y0 = u0 + e0 + sl0
+                y1 = u1 + e1 + sl1
+                y2 = u2 + e2 + sl2
+                if use_w:
+                    y0 += wr0 * zw[s, j, 0]
+                    y1 += wr1 * zw[s, j, 1]
+                    y2 += wr2 * zw[s, j, 2]
+                c0 = min(max(y0, -full_scale), full_scale)
+                c1 = min(max(y1, -full_scale), full_scale)
+                c2 = min(max(y2, -full_scale), full_scale)
+                if do_er:
+                    out_err_rate[s, j, 0] = (e0 + sl0) + (c0 - y0)
+                    out_err_rate[s, j, 1] = (e1 + sl1) + (c1 - y1)
+                    out_err_rate[s, j, 2] = (e2 + sl2) + (c2 - y2)
+                if lsb > 0.0:
+                    qr0, c0 = _quantize(qr0, c0, lsb)
+                    qr1, c1 = _quantize(qr1, c1, lsb)
+                    qr2, c2 = _quantize(qr2, c2, lsb)
+                out_rate[s, j, 0] = c0
+                out_rate[s, j, 1] = c1
+                out_rate[s, j, 2] = c2
+            if do_inc:
+                if k0 + j == 0:
+                    for i in range(3):
+                        out_inc[s, j, i] = 0.0
+                        if do_ei:
+                            out_err_inc[s, j, i] = 0.0
+                else:
+                    Tm = 0.5 * (dT[j] + dT[j + 1]) if use_t else 0.0
+                    v0, v1, v2 = du[j, 0], du[j, 1], du[j, 2]
+                    e0 = (sf0 + ts0 * Tm) * v0 + c01 * v1 + c02 * v2
+                    e1 = (sf1 + ts1 * Tm) * v1 + c10 * v0 + c12 * v2
+                    e2 = (sf2 + ts2 * Tm) * v2 + c20 * v0 + c21 * v1
+                    if use_g:
+                        a0, a1, a2 = da[j, 0], da[j, 1], da[j, 2]
+                        e0 = e0 + g00 * a0 + g01 * a1 + g02 * a2
+                        e1 = e1 + g10 * a0 + g11 * a1 + g12 * a2
+                        e2 = e2 + g20 * a0 + g21 * a1 + g22 * a2
+                    e0 = e0 + 0.5 * (p0 + sl0) * dt
+                    e1 = e1 + 0.5 * (p1 + sl1) * dt
+                    e2 = e2 + 0.5 * (p2 + sl2) * dt
+                    y0 = v0 + e0
+                    y1 = v1 + e1
+                    y2 = v2 + e2
+                    if use_w:
+                        y0 += wi0 * zw[s, j, 0]
+                        y1 += wi1 * zw[s, j, 1]
+                        y2 += wi2 * zw[s, j, 2]
+                    c0 = min(max(y0, -fs_i), fs_i)
+                    c1 = min(max(y1, -fs_i), fs_i)
+                    c2 = min(max(y2, -fs_i), fs_i)
+                    if do_ei:
+                        out_err_inc[s, j, 0] = e0 + (c0 - y0)
+                        out_err_inc[s, j, 1] = e1 + (c1 - y1)
+                        out_err_inc[s, j, 2] = e2 + (c2 - y2)
+                    if lsb_i > 0.0:
+                        qi0, c0 = _quantize(qi0, c0, lsb_i)
+                        qi1, c1 = _quantize(qi1, c1, lsb_i)
+                        qi2, c2 = _quantize(qi2, c2, lsb_i)
+                    out_inc[s, j, 0] = c0
+                    out_inc[s, j, 1] = c1
+                    out_inc[s, j, 2] = c2
+            p0, p1, p2 = sl0, sl1, sl2
+        q_rate[s, 0], q_rate[s, 1], q_rate[s, 2] = qr0, qr1, qr2
+        q_inc[s, 0], q_inc[s, 1], q_inc[s, 2] = qi0, qi1, qi2
+        s_prev[s, 0], s_prev[s, 1], s_prev[s, 2] = p0, p1, p2
+
+
+@njit(cache=True)
+def _kernel_inc(k0, dt, du, da, zw, zr, zb, use_w, use_r, use_b, b_on, bi_sig, bi_phi, bi_drv,
+                white, rrw, sf, cc, gs, use_g, ts, lsb, full_scale, x, r, s_prev, q_inc,
+                out_inc):  # fmt: skip
+    """:func:`_kernel` for the common case, increments only: no rate, series or temperature
+    outputs, at most one Gauss-Markov component. One pass per sequence with the slow bias's
+    recursions, the error matrix and the quantization residuals in registers; the same
+    operations in the same order, hence the same bits as :func:`_kernel`."""
+    S = b_on.shape[0]
+    L = du.shape[0]
+    sqdt = math.sqrt(dt)
+    lsb_i = lsb * dt
+    fs_i = full_scale * dt
+    for s in range(S):
+        b0, b1, b2 = b_on[s, 0], b_on[s, 1], b_on[s, 2]
+        phi, d0, d1, d2 = 0.0, 0.0, 0.0, 0.0
+        x0, x1, x2 = 0.0, 0.0, 0.0
+        if use_b:
+            phi = bi_phi[s, 0]
+            d0, d1, d2 = bi_drv[s, 0, 0], bi_drv[s, 1, 0], bi_drv[s, 2, 0]
+            x0, x1, x2 = x[s, 0, 0], x[s, 1, 0], x[s, 2, 0]
+        r0, r1, r2 = r[s, 0], r[s, 1], r[s, 2]
+        k0r, k1r, k2r = rrw[s, 0] * sqdt, rrw[s, 1] * sqdt, rrw[s, 2] * sqdt
+        # the general kernel's scale factor at zero temperature offset, signed zeros included
+        sf0, sf1, sf2 = (
+            sf[s, 0] + ts[s, 0] * 0.0,
+            sf[s, 1] + ts[s, 1] * 0.0,
+            sf[s, 2] + ts[s, 2] * 0.0,
+        )
+        c01, c02, c10 = cc[s, 0, 1], cc[s, 0, 2], cc[s, 1, 0]
+        c12, c20, c21 = cc[s, 1, 2], cc[s, 2, 0], cc[s, 2, 1]
+        g00, g01, g02 = gs[s, 0, 0], gs[s, 0, 1], gs[s, 0, 2]
+        g10, g11, g12 = gs[s, 1, 0], gs[s, 1, 1], gs[s, 1, 2]
+        g20, g21, g22 = gs[s, 2, 0], gs[s, 2, 1], gs[s, 2, 2]
+        wi0, wi1, wi2 = white[s, 0] * sqdt, white[s, 1] * sqdt, white[s, 2] * sqdt
+        p0, p1, p2 = s_prev[s, 0], s_prev[s, 1], s_prev[s, 2]
+        qi0, qi1, qi2 = q_inc[s, 0], q_inc[s, 1], q_inc[s, 2]
+        j0 = 0
+        if k0 == 0 and L > 0:  # sample 0: the processes start, the increment row is zero
+            p0, p1, p2 = b0, b1, b2
+            if use_b:  # from the stationary law (bi_sig: its standard deviation)
+                x0 = bi_sig[s, 0, 0] * zb[s, 0, 0]
+                x1 = bi_sig[s, 1, 0] * zb[s, 0, 1]
+                x2 = bi_sig[s, 2, 0] * zb[s, 0, 2]
+                p0, p1, p2 = p0 + x0, p1 + x1, p2 + x2
+            if use_r:
+                p0, p1, p2 = p0 + r0, p1 + r1, p2 + r2
+            out_inc[s, 0, 0] = 0.0
+            out_inc[s, 0, 1] = 0.0
+            out_inc[s, 0, 2] = 0.0
+            j0 = 1
+        for j in range(j0, L):
+            sl0, sl1, sl2 = b0, b1, b2
+            if use_b:
+                x0 = phi * x0 + d0 * zb[s, j, 0]
+                x1 = phi * x1 + d1 * zb[s, j, 1]
+                x2 = phi * x2 + d2 * zb[s, j, 2]
+                sl0, sl1, sl2 = sl0 + x0, sl1 + x1, sl2 + x2
+            if use_r:
+                r0 += k0r * zr[s, j, 0]
+                r1 += k1r * zr[s, j, 1]
+                r2 += k2r * zr[s, j, 2]
+                sl0, sl1, sl2 = sl0 + r0, sl1 + r1, sl2 + r2
+            v0, v1, v2 = du[j, 0], du[j, 1], du[j, 2]
+            e0 = sf0 * v0 + c01 * v1 + c02 * v2
+            e1 = sf1 * v1 + c10 * v0 + c12 * v2
+            e2 = sf2 * v2 + c20 * v0 + c21 * v1
+            if use_g:
+                a0, a1, a2 = da[j, 0], da[j, 1], da[j, 2]
+                e0 = e0 + g00 * a0 + g01 * a1 + g02 * a2
+                e1 = e1 + g10 * a0 + g11 * a1 + g12 * a2
+                e2 = e2 + g20 * a0 + g21 * a1 + g22 * a2
+            e0 = e0 + 0.5 * (p0 + sl0) * dt
+            e1 = e1 + 0.5 * (p1 + sl1) * dt
+            e2 = e2 + 0.5 * (p2 + sl2) * dt
+            y0 = v0 + e0
+            y1 = v1 + e1
+            y2 = v2 + e2
+            if use_w:
+                y0 += wi0 * zw[s, j, 0]
+                y1 += wi1 * zw[s, j, 1]
+                y2 += wi2 * zw[s, j, 2]
+            c0 = min(max(y0, -fs_i), fs_i)
+            c1 = min(max(y1, -fs_i), fs_i)
+            c2 = min(max(y2, -fs_i), fs_i)
+            if lsb_i > 0.0:
+                qi0, c0 = _quantize(qi0, c0, lsb_i)
+                qi1, c1 = _quantize(qi1, c1, lsb_i)
+                qi2, c2 = _quantize(qi2, c2, lsb_i)
+            out_inc[s, j, 0] = c0
+            out_inc[s, j, 1] = c1
+            out_inc[s, j, 2] = c2
+            p0, p1, p2 = sl0, sl1, sl2
+        if use_b:
+            x[s, 0, 0], x[s, 1, 0], x[s, 2, 0] = x0, x1, x2
+        r[s, 0], r[s, 1], r[s, 2] = r0, r1, r2
+        s_prev[s, 0], s_prev[s, 1], s_prev[s, 2] = p0, p1, p2
+        q_inc[s, 0], q_inc[s, 1], q_inc[s, 2] = qi0, qi1, qi2
+
+
+_EMPTY3 = np.zeros((0, 0, 3))
+_EMPTY2 = np.zeros((0, 3))
+_EMPTY1 = np.zeros(1)
+
+
+class SensorModel:
+    """Apply one sensor triad's errors to time chunks of truth, for ``S`` sequences.
+
+    Parameters
+    ----------
+    params : SensorParams
+        Drawn parameters (leading axis ``S``).
+    dt : float
+        Sample interval [s].
+    """
+
+    def __init__(self, params: SensorParams, dt: float):
+        self.p = params
+        self.dt = float(dt)
+        phi = np.exp(-self.dt / params.bi_tau)  # (S, C)
+        self.phi = phi
+        self.drv = params.bi_sigma * np.sqrt(-np.expm1(-2.0 * self.dt / params.bi_tau))[:, None, :]
+        self.use_w = bool(np.any(params.white > 0))
+        self.use_r = bool(np.any(params.rrw > 0))
+        self.use_b = bool(np.any(params.bi_sigma > 0))
+        self.use_g = bool(np.any(params.gs != 0))
+        self.use_t = bool(np.any(params.tb != 0) or np.any(params.ts != 0))
+        self.state = SensorState(len(params.b_on), params.components)
+        self._slow = np.empty((0, 3))  # scratch of the kernel's slow-bias pass, reused
+
+    @property
+    def normals_per_sample(self) -> int:
+        """Gaussian variates this sensor consumes per sample and sequence."""
+        return 3 * (self.use_w + self.use_r) + (3 * self.p.components if self.use_b else 0)
+
+    def step(
+        self,
+        k0,
+        u,
+        du,
+        a,
+        da,
+        dT,
+        zw,
+        zr,
+        zb,
+        out_rate=None,
+        out_inc=None,
+        out_bias=None,
+        out_sf=None,
+        out_err_rate=None,
+        out_err_inc=None,
+    ):
+        """Process samples ``k0 .. k0 + L - 1`` (call with consecutive chunks).
+
+        Parameters
+        ----------
+        k0 : int
+            Global index of the first sample of the chunk (0 starts the processes).
+        u, du : ndarray, shape (L, 3)
+            True rate at each sample and true increment of the interval ending at it.
+        a, da : ndarray, shape (L, 3) or None
+            Specific force and its increment (gyro g-sensitivity only).
+        dT : ndarray, shape (L + 1,) or None
+            Temperature offset [K] at the sample before the chunk and at each sample.
+        zw, zr : ndarray, shape (S, L, 3) or None
+            Standard normals of the white noise and of the rate random walk.
+        zb : ndarray, shape (S, L, 3 C) or None
+            Standard normals of the Gauss-Markov components (axis-major, component minor).
+        out_rate, out_inc, out_bias, out_sf : ndarray, shape (S, L, 3) or None
+            Outputs: rate samples, increments, slow bias and scale-factor error labels.
+        out_err_rate, out_err_inc : ndarray, shape (S, L, 3) or None
+            Effective error of the rate and increment outputs: everything added except
+            white noise and quantization (slow bias, scale factor, cross-coupling,
+            g-sensitivity, temperature, saturation excess), so that output = true + error +
+            white noise + quantization error.
+        """
+        p = self.p
+        st = self.state
+        if len(self._slow) < len(u):
+            self._slow = np.empty((len(u), 3))
+        use_g = self.use_g and a is not None and da is not None
+        use_t = self.use_t and dT is not None
+        if (
+            out_inc is not None
+            and out_rate is None
+            and out_bias is None
+            and out_sf is None
+            and out_err_inc is None
+            and not use_t
+            and (p.components == 1 or not (self.use_b and zb is not None))
+        ):
+            _kernel_inc(int(k0), self.dt, du, da if use_g else _EMPTY2,
+                        _EMPTY3 if zw is None else zw, _EMPTY3 if zr is None else zr,
+                        _EMPTY3 if zb is None else zb, self.use_w and zw is not None,
+                        self.use_r and zr is not None, self.use_b and zb is not None, p.b_on,
+                        p.bi_x0, self.phi, self.drv, p.white, p.rrw, p.sf, p.cc, p.gs, use_g,
+                        p.ts, p.lsb, p.full_scale, st.x, st.r, st.s_prev, st.q_inc,
+                        out_inc)  # fmt: skip
+            return
+        _kernel(
+            int(k0),
+            self.dt,
+            u,
+            du,
+            a if use_g else _EMPTY2,
+            da if use_g else _EMPTY2,
+            dT if use_t else _EMPTY1,
+            use_t,
+            _EMPTY3 if zw is None else zw,
+            _EMPTY3 if zr is None else zr,
+            _EMPTY3 if zb is None else zb,
+            self.use_w and zw is not None,
+            self.use_r and zr is not None,
+            self.use_b and zb is not None,
+            p.b_on,
+            p.bi_x0,
+            self.phi,
+            self.drv,
+            p.white,
+            p.rrw,
+            p.sf,
+            p.cc,
+            p.gs,
+            use_g,
+            p.tb,
+            p.ts,
+            p.lsb,
+            p.full_scale,
+            st.x,
+            st.r,
+            st.s_prev,
+            st.q_rate,
+            st.q_inc,
+            self._slow,
+            _EMPTY3 if out_rate is None else out_rate,
+            _EMPTY3 if out_inc is None else out_inc,
+            _EMPTY3 if out_bias is None else out_bias,
+            _EMPTY3 if out_sf is None else out_sf,
+            _EMPTY3 if out_err_rate is None else out_err_rate,
+            _EMPTY3 if out_err_inc is None else out_err_inc,
+        )
+
+
+# --- analytic Allan variances of the terms (used by the verification and the Allan report) -----
+def avar_white(tau, N):
+    """Allan variance of white rate noise of density ``N``: ``N^2 / tau``."""
+    return N**2 / np.asarray(tau, float)
+
+
+def avar_rrw(tau, K):
+    """Allan variance of a rate random walk of density ``K``: ``K^2 tau / 3``."""
+    return K**2 * np.asarray(tau, float) / 3.0
+
+
+def avar_quantization(tau, lsb, dt):
+    """Allan variance of rate quantization with residual carry (angle LSB ``q = lsb dt``).
+
+    ``3 q^2 / tau^2`` (IEEE Std 952-1997 C.1, quantization noise ``Q = q / sqrt(12)``).
+    """
+    q = lsb * dt
+    return 3.0 * (q / math.sqrt(12.0)) ** 2 / np.asarray(tau, float) ** 2
+
+
+def avar_bias_instability(tau, sigma, taus):
+    """Allan variance of a sum of GM components with sigmas ``sigma`` (C,) and ``taus`` (C,)."""
+    from imugen.sensors.grades import gm_avar
+
+    tau = np.asarray(tau, float)
+    out = np.zeros_like(tau)
+    for sg, T in zip(np.atleast_1d(sigma), np.atleast_1d(taus), strict=True):
+        out += gm_avar(tau, sg, T)
+    return out
