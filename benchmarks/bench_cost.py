@@ -45,6 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
+from imugen.simulate.plan import plan_shard
+from imugen.simulate.sinks import WriterSink
+
 ROOT = Path(__file__).resolve().parents[1]
 ROUTE = ROOT / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
 ORIGIN = "31.63,-7.99,480.6"
@@ -163,8 +166,8 @@ def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
     from imugen.simulate import stage as S
     from imugen.tables import shard as tshard
 
-    S._loop(S._plan(str(truth_path), grade, 1, 1, 0), _Null())  # kernels loaded
-    plan = S._plan(str(truth_path), grade, M, 1, 0)
+    S._loop(plan_shard(str(truth_path), grade, 1, 1, 0), _Null())  # kernels loaded
+    plan = plan_shard(str(truth_path), grade, M, 1, 0)
     out = truth_path.parent / "inj.parquet"
 
     def null():
@@ -174,7 +177,7 @@ def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
         times = plan.truth.times()
         dt = S._nominal_dt(plan.truth)
         with tshard.writer(out, plan.meta, plan.names, "float32", time_s=times, dt=dt) as w:
-            S._loop(plan, S._WriterSink(w, plan.ids))
+            S._loop(plan, WriterSink(w, plan.ids))
             w.labels = plan.label_columns()
 
     nps = null()

@@ -56,7 +56,12 @@ import numpy as np  # noqa: E402
 from imugen.core import earth as E  # noqa: E402
 from imugen.core import rotations as rot  # noqa: E402
 from imugen.navigate import mechanize as M  # noqa: E402
+from imugen.navigate._kernel import S_FB  # noqa: E402
 from imugen.tables import truth as col  # noqa: E402
+
+# the pure NumPy twin of the kernel is a test oracle (tests/oracles/strapdown.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from oracles.strapdown import mechanize_numpy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT.parent / "shared" / "data" / "trajectories" / "seed_reference_trajectory_enu.txt"
@@ -157,7 +162,7 @@ def run_numba(df, frame, S, chunk, every, rng, repeat=1):
             c_kernel += time.process_time() - c1
             if a == 0:
                 q_end = mech.q_nb[0]
-            fallback += mech.state[:, M.S_FB].sum()
+            fallback += mech.state[:, S_FB].sum()
         passes.append((t_kernel, c_kernel))
     t_kernel = min(p[0] for p in passes)
     c_kernel = min(p[1] for p in passes)
@@ -202,7 +207,7 @@ def run_numpy(df, frame, S, steps, every):
     dv = np.broadcast_to(dv0[:N], (S, N, 3))
     t0 = time.perf_counter()
     c0 = time.process_time()
-    Pn, _, _ = M.mechanize_numpy(dth, dv, dt, P[0], V[0], Q[0], frame, every=every)
+    Pn, _, _ = mechanize_numpy(dth, dv, dt, P[0], V[0], Q[0], frame, every=every)
     el = time.perf_counter() - t0
     cpu = time.process_time() - c0
     idx = np.arange(0, N + 1, every)

@@ -57,6 +57,9 @@ from pathlib import Path
 
 import numpy as np
 
+from imugen.sensors.ideal import ArrayTruth
+from imugen.simulate.plan import plan_shard
+
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "Snakefile"
 ROUTE = ROOT / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
@@ -193,9 +196,9 @@ def normals_per_sample(truth_path: Path, grade: str) -> float:
         def put(self, *a):
             pass
 
-    tr = S.ArrayTruth.read(truth_path)
+    tr = ArrayTruth.read(truth_path)
     tr.K = min(tr.K, 2 * S.CHUNK)
-    return float(S._loop(S._plan(tr, grade, 1, 1, 0), Null()))
+    return float(S._loop(plan_shard(tr, grade, 1, 1, 0), Null()))
 
 
 def mech_rate(truth_path: Path, batch: int = 16, repeats: int = 3) -> float:

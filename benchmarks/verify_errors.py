@@ -31,6 +31,7 @@ from imugen.core.earth import OriginFrame
 from imugen.navigate.mechanize import mechanize
 from imugen.sensors.grades import grade_from_config, presets
 from imugen.simulate import stage as S
+from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import shard as tshard
 
 TEST_GRADE = {
@@ -93,7 +94,7 @@ def allan_part(out: Path, quick: bool) -> dict:
 def growth_part(out: Path, quick: bool) -> dict:
     rate, T = 20.0, 120.0
     dt = 1.0 / rate
-    frame = OriginFrame.from_deg(*S.DEFAULT_STATIC_ORIGIN, model="flat")
+    frame = OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="flat")
     g0 = frame.g0
     cases = {
         "accel_bias": (

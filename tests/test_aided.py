@@ -25,6 +25,7 @@ from imugen.aid.stage import truth_slip_sd
 from imugen.core.earth import OriginFrame, earth_rate_n
 from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
 from imugen.simulate import stage as SIM
+from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 
 ORIGIN = (45.0, 7.0, 200.0)
 TERMS = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -234,7 +235,7 @@ def test_outage_drift_matches_closed_form(grade, outage):
     must match the Monte-Carlo spread (chi-square, M runs) and the filter's own sigma."""
     M, t0 = 150, 45.0
     Ttot = t0 + outage
-    frame = OriginFrame.from_deg(*SIM.DEFAULT_STATIC_ORIGIN, model="flat")
+    frame = OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="flat")
     sh = SIM.simulate(
         None, grade, sequences=M, seed=3, draw="nominal", terms=TERMS, series=True, static_s=Ttot
     )
@@ -402,7 +403,7 @@ def test_innovation_gate_rejects_a_spoofed_jump(flat_car):
 def test_static_gyrocompass_alignment_within_its_covariance():
     """Still, level IMU in wgs84 (body axes = ENU): navigation-grade gyros find north."""
     M, Ts = 40, 60.0
-    frame = OriginFrame.from_deg(*SIM.DEFAULT_STATIC_ORIGIN, model="wgs84")
+    frame = OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="wgs84")
     sh = SIM.simulate(
         None, "navigation", M, seed=6, draw="nominal", terms=TERMS, static_s=Ts + 5.0,
         static_earth="wgs84",

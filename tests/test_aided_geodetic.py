@@ -37,6 +37,7 @@ from imugen.core import earth as E
 from imugen.core import rotations as R
 from imugen.core.rotations import quat_to_dcm
 from imugen.simulate import stage as SIM
+from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import truth as col
 
 
@@ -300,7 +301,7 @@ def test_static_gyrocompass_alignment_in_ecef():
     truth expressed in ECEF: gyrocompassing finds north; the attitude error, resolved in the
     local level, is within the alignment covariance rotated back to the local level."""
     M, Ts = 40, 60.0
-    fw = E.OriginFrame.from_deg(*SIM.DEFAULT_STATIC_ORIGIN, model="wgs84")
+    fw = E.OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="wgs84")
     fg = fw.with_model("geodetic")
     sh = SIM.simulate(None, "navigation", M, seed=6, draw="nominal", terms=TA.TERMS,
                       static_s=Ts + 5.0, static_earth="wgs84")  # fmt: skip

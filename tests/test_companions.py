@@ -24,6 +24,7 @@ from imugen import truth as TR
 from imugen.aid import companions as CP
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
+from imugen.aid.companions import C_BARO_VAR, C_ODO_VAR
 from imugen.aid.filter import ekf as A
 from imugen.core.earth import OriginFrame
 from imugen.core.rotations import quat_to_dcm
@@ -179,7 +180,7 @@ def car_run(df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="sta
     opts = A.Options(
         nhc=True, odometer=odo, baro=baro, odo_scale_state=sf_state, gyro_cross_coupling=False
     )  # cross-coupling not injected (TERMS)
-    T = ce.tune(A.tuning_matrix(tun, M, gnss_params=gn.params))
+    T = A.companion_tuning(A.tuning_matrix(tun, M, gnss_params=gn.params), ce)
     res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, gn, tun, opts, tuning_T=T,
                 companions=ce, store_P=True)  # fmt: skip
     return res, gn, od, ba
@@ -304,8 +305,8 @@ def test_zero_error_companions_stay_on_truth(flat_car, earth, odo_hz):
     od = CP.simulate_odometer(t, v, q, w, odo_s, 1, 0)
     ba = CP.simulate_barometer(t, p, frame, baro_s, 1, 0)
     ce = CP.filter_input(gn.index, 1, od, ba, h0_m=frame.h0_m, oracle=True)
-    ce.z[..., A.C_ODO_VAR] += 1e-6  # 1 mm per window
-    ce.z[..., A.C_BARO_VAR] += 1e-4
+    ce.z[..., C_ODO_VAR] += 1e-6  # 1 mm per window
+    ce.z[..., C_BARO_VAR] += 1e-4
     ce = replace(ce, odo_sf_sd=np.array([1e-3]), baro_sd_m=np.array([0.01]))
     tun = A.Tuning.from_grade("industrial")
     opts = A.Options(gnss_bias=False, nhc=False, odometer=True, baro=True)

@@ -6,6 +6,8 @@ import math
 import numpy as np
 import pytest
 
+from imugen.core.seeding import sensor_rng
+from imugen.sensors.grades import TERMS
 from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 
@@ -27,7 +29,7 @@ def moving_truth(K=1500, spin=0.0):
 def white(sh, j, sensor, K):
     """The white-noise term of sequence j, regenerated from its spawn key (rate, increment)."""
     rid = tshard.route_id(ROUTE)
-    rng = S._rng(SEED, rid, sh.meta["grade"]["id"], SHARD, j, f"{sensor}_white")
+    rng = sensor_rng(SEED, rid, sh.meta["grade"]["id"], SHARD, j, f"{sensor}_white")
     z = rng.standard_normal((K, 3))
     N = getattr(sh, sensor).white[j]
     inc = N * math.sqrt(DT) * z
@@ -45,7 +47,7 @@ def simulate(truth, terms=None):
 @pytest.mark.parametrize("spin", [0.0, 50.0])  # 50 rad/s exceeds the 2000 deg/s gyro range
 def test_residual_is_exactly_the_white_noise(spin):
     tr = moving_truth(spin=spin)
-    terms = [t for t in S.TERMS if t != "quantization"]  # every term but quantization
+    terms = [t for t in TERMS if t != "quantization"]  # every term but quantization
     sh = simulate(tr, terms)
     K = len(tr["time_s"])
     if spin:

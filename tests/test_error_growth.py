@@ -14,13 +14,14 @@ import pytest
 from imugen.core.earth import OriginFrame
 from imugen.sensors.grades import grade_from_config
 from imugen.simulate import stage as S
+from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 
 mechanize = pytest.importorskip("imugen.navigate.mechanize").mechanize
 
 RATE = 20.0
 T = 50.0
 DT = 1.0 / RATE
-FRAME = OriginFrame.from_deg(*S.DEFAULT_STATIC_ORIGIN, model="flat")
+FRAME = OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="flat")
 G0 = FRAME.g0
 
 

@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from imugen import cli
+from imugen.core.errors import InputError
 from imugen.ingest.stage import run as ingest_run
 from imugen.navigate.stage import run as navigate_run
 from imugen.simulate import stage as S
@@ -222,7 +223,7 @@ def test_short_last_shard_keeps_global_ids_unique():
     assert (alone.labels["sequence"] - base).tolist() == [2, 3]  # default: this shard's size
     for name in last.data:
         assert (last.data[name] == alone.data[name]).all()
-    with pytest.raises(S.InputError, match="fewer than"):
+    with pytest.raises(InputError, match="fewer than"):
         S.simulate(None, "consumer", sequences=4, shard=1, shard_size=3, **kw)
 
 
@@ -273,7 +274,7 @@ def test_evaluate_streams_files_and_refuses_repeated_ids(route, tmp_path):
     want = sequence_metrics(pd.concat(frames), horizontal_distance_m(route["truth"]))
     pd.testing.assert_frame_equal(got, want, check_index_type=False)
     dup = write_parquet(_nav_table([6, 7]), {"stage": "navigate"}, tmp_path / "dup.parquet")
-    with pytest.raises(S.InputError, match="sequence 6 appears in more than one"):
+    with pytest.raises(InputError, match="sequence 6 appears in more than one"):
         evaluate_run(route["truth"], [*paths, dup], tmp_path / "m2.parquet", grade="g")
     assert not (tmp_path / "m2.parquet").exists()
 
@@ -286,6 +287,7 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
     from imugen.core.io import read_meta
     from imugen.navigate import stage as N
     from imugen.navigate.mechanize import mechanize
+    from imugen.navigate.navigator import BATCH_BYTES, batch_size
 
     shard = tmp_path / "shard-000.parquet"
     S.run(route["truth"], shard, "consumer", sequences=5, seed=3)
@@ -315,7 +317,7 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
     err = nav.p_n - tr[list(col.POS)].to_numpy()[nav.index][None]
     assert np.array_equal(ref["err_e_m"].to_numpy(), err[..., 0].ravel())
     assert np.array_equal(ref["err_u_m"].to_numpy(), err[..., 2].ravel())
-    assert N.batch_size(620_001) * 2 * 3 * 8 * 620_001 <= N.BATCH_BYTES  # bounded at 1 kHz
+    assert batch_size(620_001) * 2 * 3 * 8 * 620_001 <= BATCH_BYTES  # bounded at 1 kHz
 
 
 def test_navigate_refuses_stray_rows(route, tmp_path):

@@ -10,6 +10,7 @@ from imugen.core.errors import InputError
 from imugen.core.io import write_parquet
 from imugen.evaluate.stage import sequence_metrics
 from imugen.figures import stage as fg
+from imugen.figures.common import epoch_matrix, error_bands, grade_colours, grade_styles
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 
@@ -156,7 +157,7 @@ def test_error_bands_known_order_statistics():
     rng = np.random.default_rng(3)
     # 101 values 0..100 per epoch (scaled by epoch), shuffled: p05, p50, p95 = 5, 50, 95 exactly
     v = np.stack([rng.permutation(101) * (j + 1.0) for j in range(4)], axis=1)
-    p05, p50, p95 = fg.error_bands(v)
+    p05, p50, p95 = error_bands(v)
     scale = np.arange(1, 5)
     np.testing.assert_array_equal(p05, 5 * scale)
     np.testing.assert_array_equal(p50, 50 * scale)
@@ -164,17 +165,17 @@ def test_error_bands_known_order_statistics():
     # 21 sequences: ranks 0.05*20 = 1, 10, 19 fall on order statistics
     w = rng.lognormal(size=(21, 6))
     s = np.sort(w, axis=0)
-    np.testing.assert_array_equal(np.stack(fg.error_bands(w)), s[[1, 10, 19]])
+    np.testing.assert_array_equal(np.stack(error_bands(w)), s[[1, 10, 19]])
     # NaN (a failed sequence) is ignored
     w2 = np.vstack([w, np.full((1, 6), np.nan)])
-    np.testing.assert_array_equal(np.stack(fg.error_bands(w2)), s[[1, 10, 19]])
+    np.testing.assert_array_equal(np.stack(error_bands(w2)), s[[1, 10, 19]])
     with pytest.raises(ValueError):
-        fg.error_bands(np.ones(5))
+        error_bands(np.ones(5))
 
 
 def test_epoch_matrix_from_shuffled_long_table():
     nav = _nav_df(2.0, 5, 3).sample(frac=1.0, random_state=0)
-    ids, t, err = fg.epoch_matrix(nav)
+    ids, t, err = epoch_matrix(nav)
     assert ids.tolist() == [5, 6, 7]
     np.testing.assert_array_equal(t, np.arange(0.0, DUR + 0.5))
     ref = _nav_df(2.0, 5, 3)
@@ -183,7 +184,7 @@ def test_epoch_matrix_from_shuffled_long_table():
     np.testing.assert_allclose(err["horizontal"], np.sqrt(e**2 + n**2), rtol=1e-15)
     np.testing.assert_array_equal(err["up"], np.abs(ref.err_u_m.to_numpy().reshape(3, -1)))
     with pytest.raises(InputError):
-        fg.epoch_matrix(nav.iloc[1:])  # one sequence short of an epoch
+        epoch_matrix(nav.iloc[1:])  # one sequence short of an epoch
 
 
 def test_interval_rates_constant_rate():
@@ -196,15 +197,13 @@ def test_interval_rates_constant_rate():
 
 
 def test_grade_colours_fixed_distinct_stable():
-    c = fg.grade_colours(
-        ["consumer", "paper_low_cost", "industrial", "paper_tactical", "navigation"]
-    )
+    c = grade_colours(["consumer", "paper_low_cost", "industrial", "paper_tactical", "navigation"])
     assert len(set(c.values())) == 5
-    assert c["consumer"] == fg.grade_colours(["consumer"])["consumer"]
-    a = fg.grade_colours(["foo", "bar", "tactical"])
-    b = fg.grade_colours(["tactical", "bar", "foo"])
+    assert c["consumer"] == grade_colours(["consumer"])["consumer"]
+    a = grade_colours(["foo", "bar", "tactical"])
+    b = grade_colours(["tactical", "bar", "foo"])
     assert a == b and len(set(a.values())) == 3
-    assert fg.grade_colours(["my_tactical"])["my_tactical"] == a["tactical"]
+    assert grade_colours(["my_tactical"])["my_tactical"] == a["tactical"]
 
 
 # ---------------------------------------------------------------------------------------
@@ -331,7 +330,7 @@ def test_figure8_properties(drifting):
 
 
 def test_grade_styles_and_lengths():
-    st = fg.grade_styles(["tactical", "paper_tactical", "tactical_calibrated", "consumer"])
+    st = grade_styles(["tactical", "paper_tactical", "tactical_calibrated", "consumer"])
     assert len({(v["color"], v["ls"]) for v in st.values()}) == 4
     assert st["paper_tactical"]["ls"] == "--" and st["tactical"]["ls"] == "-"
     assert [fg.format_length(x) for x in (0.4412, 7.4, 172.3, 1726.0, 13439248.0)] == [

@@ -9,6 +9,7 @@ import pytest
 
 from imugen.core.errors import InputError
 from imugen.sensors import grades
+from imugen.simulate.sources import StaticTruth
 
 EXPECTED_IDS = {
     "consumer": 1,
@@ -325,7 +326,7 @@ def test_calibration_at_rest_removes_the_static_g_sensitivity():
         G = sh.gyro.gs
         # still and level: f = (0, 0, g), so the gyro reads G (0, 0, g), less G (0, 0, g0)
         # (standard gravity) when calibrated at rest: what is left is G (0, 0, g - g0)
-        g = S.StaticTruth(1.0, 10.0).f_b[2]
+        g = StaticTruth(1.0, 10.0).f_b[2]
         expect = G[:, :, 2] * (g - (9.80665 if removed else 0.0))
         np.testing.assert_allclose(sh.data["gyro"][:, -1], expect, rtol=1e-9, atol=1e-20)
         if removed:
@@ -336,7 +337,7 @@ def test_calibration_at_rest_removes_the_static_g_sensitivity():
         sh = S.simulate(None, name, terms=["accel.scale_factor", "accel.cross_coupling"], **kw)
         p = sh.accel
         E = p.cc + p.sf[:, :, None] * np.eye(3)[None]
-        g = S.StaticTruth(1.0, 10.0).f_b[2]
+        g = StaticTruth(1.0, 10.0).f_b[2]
         expect = E[:, :, 2] * (g - (9.80665 if removed else 0.0))
         expect[:, 2] += g
         np.testing.assert_allclose(sh.data["accel"][:, -1], expect, rtol=1e-9, atol=1e-20)

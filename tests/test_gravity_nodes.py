@@ -19,10 +19,12 @@ import math
 
 import numpy as np
 import pytest
+from oracles.strapdown import exact_increments
 
 from imugen.core import earth as E
 from imugen.core.rotations import exp_dcm
 from imugen.navigate import mechanize as M
+from imugen.navigate._kernel import S_FB
 
 WGS = E.OriginFrame.from_deg(45.0, 7.0, 10_000.0, model="wgs84")
 V_AIRLINER = 214.0  # m/s (770 km/h)
@@ -168,7 +170,7 @@ def test_check_near_the_nodes_nyquist(periods_of_T):
 
 def run_kernel(path, dt, span, node_s, every):
     t = np.arange(0.0, span + 1e-9, dt)
-    dth, dv = M.exact_increments(t, path.position, path.velocity, path.attitude, WGS)
+    dth, dv = exact_increments(t, path.position, path.velocity, path.attitude, WGS)
     p0, v0, q0 = path.position(t[:1])[0], path.velocity(t[:1])[0], path.attitude(t[:1])[0]
     mech = M.Mechanizer(WGS, dt, p0, v0, q0)
     mech.prm = M.kernel_params(WGS, dt, node_s)
@@ -177,7 +179,7 @@ def run_kernel(path, dt, span, node_s, every):
     p[:, 0] = p0
     v[:, 0] = v0
     mech.run(dth[None], dv[None], out_p=p, out_v=v, every=every)
-    return p[0], v[0], mech.state[0, M.S_FB]
+    return p[0], v[0], mech.state[0, S_FB]
 
 
 @pytest.mark.parametrize("rate_hz", [20.0, 100.0])

@@ -9,8 +9,10 @@ import pytest
 import imugen
 from imugen import truth as T
 from imugen.core.errors import InputError
-from imugen.navigate.mechanize import interval_integrals
+from imugen.core.seeding import sensor_rng
 from imugen.navigate.stage import navigate, navigate_arrays
+from imugen.sensors.grades import TERMS
+from imugen.sensors.ideal import interval_integrals
 from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
@@ -88,13 +90,15 @@ def test_raw_effective_error_oracle_and_metadata(truths):
     """Raw semantics change only what the sensor integrates: measured - raw truth - effective
     error is still exactly the white noise of the sequence's stream."""
     tr = truths[50.0]
-    terms = [t for t in S.TERMS if t != "quantization"]
+    terms = [t for t in TERMS if t != "quantization"]
     sh = S.simulate(tr.frame, "industrial", sequences=2, seed=4, terms=terms, series=True,
                     increments="raw", route="r")  # fmt: skip
     raw_dth = interval_integrals(tr.omega_ib_b, tr.dt)
     rid = tshard.route_id("r")
     for j in range(2):
-        z = S._rng(4, rid, sh.meta["grade"]["id"], 0, j, "gyro_white").standard_normal((tr.K, 3))
+        z = sensor_rng(4, rid, sh.meta["grade"]["id"], 0, j, "gyro_white").standard_normal(
+            (tr.K, 3)
+        )
         w = sh.gyro.white[j] * math.sqrt(tr.dt) * z
         w[0] = 0.0
         r = sh.data["dtheta"][j] - raw_dth - sh.data["err_dtheta"][j]
@@ -106,7 +110,7 @@ def test_files_navigate_and_write_shard_round_trip(truths, tmp_path):
     truth_path = tmp_path / "route" / "truth.parquet"
     ttruth.write(tr.frame, tr.meta, truth_path)
     shard = tmp_path / "imu" / "shard-000.parquet"
-    terms = [t for t in S.TERMS if t != "quantization"]
+    terms = [t for t in TERMS if t != "quantization"]
     S.run(truth_path, shard, "consumer", sequences=3, seed=2, terms=terms, series=True,
           dtype="float64", increments="raw")  # fmt: skip
     meta = tshard.read_meta(shard)

@@ -20,6 +20,7 @@ from imugen.core import earth as E
 from imugen.evaluate import stage as EV
 from imugen.navigate import local_errors as L
 from imugen.navigate import stage as NV
+from imugen.navigate.navigator import Navigator
 from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
 
@@ -151,7 +152,7 @@ def test_navigator_flat_errors_are_todays(truths):
     dth, dv = _biased(tr)
     tab = NV.navigate_arrays(tr, (dth, dv), eval_rate_hz=2.0)
     assert list(tab.columns) == list(tnav.COLUMNS)
-    nav = NV.Navigator(tr, 2.0)
+    nav = Navigator(tr, 2.0)
     m = mechanize(dth, dv, tr.dt, *nav.x0, tr.origin_frame(), every=nav.every, outputs=("p",))
     err = m.p_n - tr.p_n[m.index][None]
     for i, c in enumerate(tnav.ERR_POS):
@@ -170,7 +171,7 @@ def test_navigator_wgs84_local_level(truths):
     dth, dv = _biased(tr)
     tab = NV.navigate_arrays(tr, (dth, dv), eval_rate_hz=2.0)
     frame = tr.origin_frame()
-    nav = NV.Navigator(tr, 2.0)
+    nav = Navigator(tr, 2.0)
     m = mechanize(dth, dv, tr.dt, *nav.x0, frame, every=nav.every, outputs=("p",))
     p_true = tr.p_n[m.index]
     ref = E.errors_local_level(

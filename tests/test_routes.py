@@ -7,7 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from imugen.core.errors import InputError
+from imugen.core.seeding import SENSOR_STREAMS
 from imugen.simulate import stage as S
+from imugen.simulate.plan import enabled_terms
 from imugen.tables import shard as tshard
 
 KW = {"static_s": 1.0, "rate_hz": 50.0}
@@ -73,14 +76,14 @@ def test_spawn_key_names_route_grade_shard_sequence_stream():
     assert sh.meta["spawn_key"] == [rid, sh.meta["grade"]["id"], 5]
     # the parameter draw is exactly the documented child seed sequence
     ss = np.random.SeedSequence(
-        3, spawn_key=(rid, sh.meta["grade"]["id"], 5, 0, S.STREAMS["params"])
+        3, spawn_key=(rid, sh.meta["grade"]["id"], 5, 0, SENSOR_STREAMS["params"])
     )
     rng = np.random.Generator(np.random.PCG64(ss))
     from imugen.sensors.grades import get_grade
     from imugen.sensors.model import draw_sensor
 
     grade = get_grade("consumer")
-    enabled = S.enabled_terms(grade)
+    enabled = enabled_terms(grade)
     p = draw_sensor(grade.gyro, rng, enabled["gyro"])
     np.testing.assert_array_equal(p.b_on[0], sh.gyro.b_on[0])
 
@@ -127,5 +130,5 @@ def test_route_option_and_errors(tmp_path):
     _truth_file(truth)
     m = S.run(truth, tmp_path / "s.parquet", "consumer", sequences=1, seed=1, route="other")
     assert m["route"] == "other" and m["route_id"] == tshard.route_id("other")
-    with pytest.raises(S.InputError, match="--route"):
+    with pytest.raises(InputError, match="--route"):
         S.simulate(None, "consumer", route=3, **KW)

@@ -8,7 +8,9 @@ import pytest
 
 from imugen.sensors import model as sensors
 from imugen.sensors.grades import grade_from_config
+from imugen.sensors.ideal import ArrayTruth
 from imugen.simulate import stage as S
+from imugen.simulate.sources import StaticTruth
 
 DT = 0.01
 
@@ -23,7 +25,7 @@ def moving_truth(K=500, dt=DT):
     f = np.tile([0.5, -1.0, 9.8], (K, 1))
     dth, dv = w * dt, f * dt
     dth[0] = dv[0] = 0.0
-    return S.ArrayTruth(t, w, f, dth, dv)
+    return ArrayTruth(t, w, f, dth, dv)
 
 
 TB = {"value": 100, "unit": "deg_per_h", "kind": "one_sigma"}
@@ -105,7 +107,7 @@ def test_gauss_markov_stationary_and_correlation():
         }
     )
     M, K = 3000, 301
-    sh = S.simulate(S.StaticTruth((K - 1) * DT, 1 / DT), g, sequences=M, seed=6, series=True)
+    sh = S.simulate(StaticTruth((K - 1) * DT, 1 / DT), g, sequences=M, seed=6, series=True)
     x = sh.data["gyro_bias"] / (math.pi / 180 / 3600)  # deg/h, (M, K, 3)
     # stationary from the start: variance at k = 0 and k = K-1 equals sigma^2
     # (9000 samples each -> standard error of a variance 1.5 %; tolerance 6 %)
@@ -128,7 +130,7 @@ def test_rate_random_walk_variance_grows_linearly():
         gyro={"rate_random_walk": {"value": K_rrw, "unit": "deg_per_h_per_sqrt_h"}},
     )
     M, K = 2000, 1001
-    sh = S.simulate(S.StaticTruth((K - 1) * DT, 1 / DT), g, sequences=M, seed=7, series=True)
+    sh = S.simulate(StaticTruth((K - 1) * DT, 1 / DT), g, sequences=M, seed=7, series=True)
     Ks = K_rrw * math.pi / 180 / 3600 / 60
     t = (K - 1) * DT
     # 6000 samples -> standard error 1.8 %; tolerance 7 %
@@ -218,7 +220,7 @@ def test_time_chunking_does_not_change_results(monkeypatch):
 
 @pytest.mark.parametrize("start", ["stationary", "zero"])
 def test_increment_kernel_matches_the_general_kernel(monkeypatch, start):
-    """Increments alone go through a one-pass kernel (``_kernel_inc``); with ``series`` the
+    """Increments alone go through a one-pass kernel (``kernel_increments``); with ``series`` the
     general two-pass kernel computes the same increments: every term on, chunked in two ways,
     the two must agree bit for bit (saturation and quantization included)."""
     gm = {
@@ -248,13 +250,13 @@ def test_increment_kernel_matches_the_general_kernel(monkeypatch, start):
     g = grade(gyro=full, accel=acc)
     tr = moving_truth(K=2500)
     calls = {"inc": 0}
-    real = sensors._kernel_inc
+    real = sensors.kernel_increments
 
     def counted(*a):
         calls["inc"] += 1
         return real(*a)
 
-    monkeypatch.setattr(sensors, "_kernel_inc", counted)
+    monkeypatch.setattr(sensors, "kernel_increments", counted)
     for chunk in (S.CHUNK, 333):
         monkeypatch.setattr(S, "CHUNK", chunk)
         fast = S.simulate(tr, g, sequences=3, seed=12)
@@ -282,6 +284,6 @@ def test_flicker_bias_instability_draws_components():
             }
         }
     )
-    sh = S.simulate(S.StaticTruth(1.0, 100.0), g, sequences=2, seed=1)
+    sh = S.simulate(StaticTruth(1.0, 100.0), g, sequences=2, seed=1)
     assert sh.gyro.bi_sigma.shape == (2, 3, 7)
     np.testing.assert_allclose(sh.gyro.bi_tau[0], np.geomspace(1, 1000, 7))

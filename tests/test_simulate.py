@@ -10,6 +10,8 @@ import pytest
 from imugen.core.errors import InputError
 from imugen.core.io import METADATA_KEY
 from imugen.simulate import stage as S
+from imugen.simulate.sources import StaticTruth
+from imugen.tables import SEQUENCE
 from imugen.tables import shard as tshard
 from imugen.tables import truth as col
 
@@ -83,7 +85,7 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     assert pf.metadata.num_row_groups == 5  # written as it goes, in bounded row groups
     tbl = pf.read()
     sch = tbl.schema
-    assert str(sch.field(S.SEQUENCE).type) == "int64"
+    assert str(sch.field(SEQUENCE).type) == "int64"
     assert col.TIME not in sch.names  # the uniform clock is in the metadata (test_shard_clock)
     assert str(tshard.read(out, [col.TIME]).schema.field(col.TIME).type) == "double"
     for c in (
@@ -101,9 +103,9 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     # sorted by sequence then time; global ids route_id << 31 | (shard * M + j); the route of
     # a static IMU is "static"
     rid = tshard.route_id("static")
-    assert list(df[S.SEQUENCE].unique()) == [(rid << 31) + i for i in (3, 4, 5)]
-    assert df.groupby(S.SEQUENCE)[col.TIME].apply(lambda t: bool(np.all(np.diff(t) > 0))).all()
-    assert np.all(df.groupby(S.SEQUENCE)[col.DTHETA[0]].first() == 0)
+    assert list(df[SEQUENCE].unique()) == [(rid << 31) + i for i in (3, 4, 5)]
+    assert df.groupby(SEQUENCE)[col.TIME].apply(lambda t: bool(np.all(np.diff(t) > 0))).all()
+    assert np.all(df.groupby(SEQUENCE)[col.DTHETA[0]].first() == 0)
     meta = json.loads(sch.metadata[METADATA_KEY])
     for k in ("units", "grade", "preset_source", "seed", "shard", "spawn_key", "code_version"):
         assert k in meta
@@ -116,7 +118,7 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     assert meta["grade"]["config"]["gyro"]["white_noise"]["unit"] == "deg_per_sqrt_h"
     # labels sidecar: one row per sequence, every drawn parameter
     lab = pq.read_table(tshard.labels_path(out)).to_pandas()
-    assert list(lab[S.SEQUENCE]) == [(rid << 31) + i for i in (3, 4, 5)]
+    assert list(lab[SEQUENCE]) == [(rid << 31) + i for i in (3, 4, 5)]
     assert {
         "gyro_turn_on_bias_x_radps",
         "accel_scale_factor_z",
@@ -142,7 +144,7 @@ def test_float64_option(tmp_path):
 
 
 def test_static_wgs84_truth():
-    tr = S.StaticTruth(1.0, 100.0, earth="wgs84", origin=(30.0, 0.0, 0.0))
+    tr = StaticTruth(1.0, 100.0, earth="wgs84", origin=(30.0, 0.0, 0.0))
     _, w, f, dth, dv = tr.chunk(0, 5)
     om = 7.292115e-5
     np.testing.assert_allclose(

@@ -12,6 +12,7 @@ from imugen.navigate.mechanize import mechanize
 from imugen.sensors import vibration as V
 from imugen.sensors.grades import grade_from_config
 from imugen.simulate import stage as S
+from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN, StaticTruth
 
 CAR = V.PROFILES["car"]
 G = V.G0
@@ -212,7 +213,7 @@ def _navigate(vibration, grade=NO_ERRORS, seconds=60.0, rate=100.0, seed=3):
     sh = S.simulate(
         None, grade, sequences=2, seed=seed, static_s=seconds, rate_hz=rate, vibration=vibration
     )
-    frame = OriginFrame.from_deg(*S.DEFAULT_STATIC_ORIGIN, model="flat")
+    frame = OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="flat")
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
     nav = mechanize(
         sh.data["dtheta"][:, 1:],
@@ -274,7 +275,7 @@ def test_seeded_streams_and_labels(tmp_path):
 
 
 def test_vehicle_option_follows_the_truth():
-    tr = S.StaticTruth(1.0, 100.0)
+    tr = StaticTruth(1.0, 100.0)
     tr.meta["vehicle"] = "pedestrian"
     assert V.setup_vibration(tr, "vehicle") is None
     tr.meta["vehicle"] = "aircraft"

@@ -137,7 +137,7 @@ def test_edit_one_grade_reruns_only_that_grade(done, tmp_path):
         "custom_grade": 1,
         "simulate": 4,
         "evaluate": 2,
-        "tables": 2,
+        "rmse_table": 2,
         "allan_static": 1,
         "allan": 1,
         "figures": 2,
@@ -167,7 +167,7 @@ def test_raising_n_runs_only_new_shards_and_gathers(done, tmp_path):
     assert jobs == {
         "simulate": 6,
         "evaluate": 6,
-        "tables": 2,
+        "rmse_table": 2,
         "figures": 2,
         "export_mat": 6,
         "all": 1,

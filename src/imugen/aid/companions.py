@@ -23,7 +23,7 @@ Barometer (rate ``f_b``)
 Randomness
 ----------
 Sequence ``j`` draws from ``SeedSequence(seed, spawn_key=(COMPANION_KEY, kind, sensor_id,
-shard, j, stream))`` (:data:`KINDS`, :data:`STREAMS`); the aid stage passes ``seed = [root
+shard, j, stream))`` (:data:`KINDS`, :func:`imugen.core.seeding.companion_rng`); the aid stage passes ``seed = [root
 seed, route id, index of the sequence in the route]`` and ``shard = j = 0``, as for the GNSS
 receiver. So a draw depends on neither the grade (common random numbers across grades), nor
 the shard size, nor the other sequences, nor the other companion sensor. Parameters: each
@@ -44,17 +44,14 @@ import pandas as pd
 import yaml
 from scipy.signal import lfilter
 
-from imugen.aid.gnss import _figure, epoch_step
+from imugen.aid.gnss import epoch_step, parse_figure
 from imugen.core.errors import InputError
 from imugen.core.rotations import quat_to_dcm
+from imugen.core.seeding import companion_rng
 
 PRESET_FILE = "companions.yaml"
-COMPANION_KEY = 0x434F4D50
-"""First element of every companion spawn key ("COMP")."""
 KINDS = {"odometer": 1, "barometer": 2}
 """Sensor kinds and their codes (spawn keys, the ``sensor`` column of the table)."""
-STREAMS = {"params": 0, "white": 1, "bias": 2}
-"""Per-sequence random streams (last element of the spawn key)."""
 ODO_FIGURES = ("scale_factor_sd", "white_mps")
 BARO_FIGURES = ("white_m", "bias_sd_m", "bias_tau_s")
 
@@ -90,7 +87,7 @@ def sensor_from_config(kind: str, name: str, cfg: dict, origin: str = "<config>"
     miss = [k for k in ("id", "rate_hz", *figs, *extra) if k not in cfg]
     if miss:
         raise InputError(where, f"missing {', '.join(miss)}")
-    f = {k: _figure(cfg[k], f"{where}.{k}") for k in figs}
+    f = {k: parse_figure(cfg[k], f"{where}.{k}") for k in figs}
     rate = float(cfg["rate_hz"])
     if not (0.0 < rate <= 1000.0):
         raise InputError(where, f"rate_hz must be in (0, 1000], got {rate}")
@@ -139,8 +136,7 @@ def get_sensor(kind: str, spec) -> Sensor:
 
 
 def _rng(seed, sensor: Sensor, shard, j, stream):
-    key = (COMPANION_KEY, KINDS[sensor.kind], sensor.id, shard, j, STREAMS[stream])
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))
+    return companion_rng(seed, KINDS[sensor.kind], sensor.id, shard, j, stream)
 
 
 def draw_params(sensor: Sensor, seed, shard, ids, *, nominal=False) -> dict[str, np.ndarray]:
@@ -321,6 +317,41 @@ def _figure_value(f, level: str) -> float:
     return f.hi if (level == "upper" and f.hi is not None) else f.value
 
 
+# --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
+C_ODO, C_ODO_VAR, C_BARO, C_BARO_VAR = 0, 1, 2, 3
+
+
+@dataclass
+class CompanionEpochs:
+    """Companion measurements on the aided filter's GNSS epoch grid (:func:`filter_input`;
+    the filter, :mod:`imugen.aid.filter`, reads them).
+
+    Attributes
+    ----------
+    z : (S, J, 4)       per epoch ``C_ODO`` odometer distance [m] over the window ending at the
+                        epoch (from the previous marked epoch), ``C_ODO_VAR`` the variance of
+                        its white part [m^2] (the tick quantization is modelled by states,
+                        ``odo_tick_m``),
+                        ``C_BARO`` barometric height above the origin's [m], ``C_BARO_VAR`` its
+                        variance [m^2]; NaN where absent
+    mark : (J,) int8    1 where the epoch is an odometer epoch (a window boundary)
+    lever_b_m : (S, 3)  odometer point from the vehicle reference point, vehicle axes [m] (the
+                        IMU's own lever arm, ``Options.nhc_lever_arm_m``, is taken off)
+    odo_sf_sd : (S,)    prior 1-sigma of the odometer scale factor
+    baro_sd_m, baro_tau_s : (S,)  barometer drift model (stationary sigma [m], tau [s])
+    odo_tick_m : (S,)   odometer tick length ``c`` [m]: the count's residual at a window end is
+                        a state of prior ``c^2 / 12`` (module docstring, "Measurements")
+    """
+
+    z: np.ndarray
+    mark: np.ndarray
+    lever_b_m: np.ndarray
+    odo_sf_sd: np.ndarray
+    baro_sd_m: np.ndarray
+    baro_tau_s: np.ndarray
+    odo_tick_m: np.ndarray | None = None
+
+
 def filter_input(
     gnss_index, sequences, odometer: CompanionData | None = None,
     barometer: CompanionData | None = None, *, h0_m=0.0, level="upper", oracle=False,
@@ -338,10 +369,8 @@ def filter_input(
     scale-factor priors are the preset's top of range (``level="upper"``) or nominal
     (``"nominal"``), or the drawn values of each sequence (``oracle=True``).
 
-    Returns an :class:`imugen.aid.filter.ekf.CompanionEpochs`.
+    Returns a :class:`CompanionEpochs`.
     """
-    from imugen.aid.filter.ekf import C_BARO, C_BARO_VAR, C_ODO, C_ODO_VAR, CompanionEpochs
-
     idx = np.asarray(gnss_index, np.int64)
     S, J = int(sequences), len(idx)
     z = np.full((S, J, 4), np.nan)

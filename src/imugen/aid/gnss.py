@@ -29,7 +29,7 @@ figures, Up the vertical ones)
 Randomness
 ----------
 Sequence ``j`` of a shard draws from ``SeedSequence(seed, spawn_key=(GNSS_KEY, receiver_id,
-shard, j, stream))`` (:data:`STREAMS`): its parameters and, separately, each noise. So the
+shard, j, stream))`` (:func:`imugen.core.seeding.gnss_rng`): its parameters and, separately, each noise. So the
 GNSS of a sequence does not depend on the IMU grade, on the number of shards or on the other
 sequences, and the same seed gives every grade the same GNSS errors (common random numbers
 when grades are compared). Parameters: each figure log-uniform in its preset range (one
@@ -50,12 +50,9 @@ import yaml
 from scipy.signal import lfilter
 
 from imugen.core.errors import InputError
+from imugen.core.seeding import gnss_rng
 
 PRESET_FILE = "gnss.yaml"
-GNSS_KEY = 0x474E5353
-"""First element of every GNSS spawn key ("GNSS"), apart from the IMU's ``grade_id``."""
-STREAMS = {"params": 0, "position_white": 1, "position_bias": 2, "velocity_white": 3}
-"""Per-sequence random streams (last element of the spawn key)."""
 FIX_NONE = 0
 """GGA quality of an epoch without a fix."""
 FIGURES = (
@@ -101,7 +98,9 @@ class Receiver:
     figures: MappingProxyType
 
 
-def _figure(entry, where) -> Figure:
+def parse_figure(entry, where) -> Figure:
+    """A preset figure: a number, or ``{value: x, range: [lo, hi]}`` (``where`` names it in
+    errors); receivers and companion sensors share the form."""
     if isinstance(entry, int | float) and not isinstance(entry, bool):
         entry = {"value": entry}
     if not isinstance(entry, dict) or "value" not in entry:
@@ -127,7 +126,7 @@ def receiver_from_config(name: str, cfg: dict, origin: str = "<config>") -> Rece
     miss = [k for k in ("id", *FIGURES) if k not in cfg]
     if miss:
         raise InputError(where, f"missing {', '.join(miss)}")
-    figs = {k: _figure(cfg[k], f"{where}.{k}") for k in FIGURES}
+    figs = {k: parse_figure(cfg[k], f"{where}.{k}") for k in FIGURES}
     if figs["position_bias_tau_s"].value <= 0 or (figs["position_bias_tau_s"].lo or 1) <= 0:
         raise InputError(where, "position_bias_tau_s must be > 0")
     rate = float(cfg.get("rate_hz", 10.0))
@@ -200,11 +199,6 @@ class ReceiverParams:
         return out
 
 
-def _rng(seed, rid, shard, j, stream):
-    ss = np.random.SeedSequence(seed, spawn_key=(GNSS_KEY, rid, shard, j, STREAMS[stream]))
-    return np.random.Generator(np.random.PCG64(ss))
-
-
 def draw_params(
     rec: Receiver, seed, shard, ids, *, nominal=False, lever_arm_b_m=(0.0, 0.0, 0.0), lever_sd_m=0.0
 ) -> ReceiverParams:
@@ -217,7 +211,7 @@ def draw_params(
     lever = []
     la = np.asarray(lever_arm_b_m, float).reshape(3)
     for j in ids:
-        rng = _rng(seed, rec.id, shard, int(j), "params")
+        rng = gnss_rng(seed, rec.id, shard, int(j), "params")
         u = rng.random(len(FIGURES))
         z = rng.standard_normal(3)
         for i, k in enumerate(FIGURES):
@@ -400,12 +394,12 @@ def simulate_gnss(
         s_b = par.axis("position_bias_h_m", "position_bias_v_m")[j]
         s_u = par.axis("velocity_white_h_mps", "velocity_white_v_mps")[j]
         phi = math.exp(-T / par.position_bias_tau_s[j])
-        zb = _rng(seed, rec.id, shard, j, "position_bias").standard_normal((J, 3))
+        zb = gnss_rng(seed, rec.id, shard, j, "position_bias").standard_normal((J, 3))
         x = s_b * math.sqrt(1.0 - phi * phi) * zb
         x[0] = s_b * zb[0]
         b = lfilter([1.0], [1.0, -phi], x, axis=0)
-        w = s_w * _rng(seed, rec.id, shard, j, "position_white").standard_normal((J, 3))
-        u = s_u * _rng(seed, rec.id, shard, j, "velocity_white").standard_normal((J, 3))
+        w = s_w * gnss_rng(seed, rec.id, shard, j, "position_white").standard_normal((J, 3))
+        u = s_u * gnss_rng(seed, rec.id, shard, j, "velocity_white").standard_normal((J, 3))
         if geo:  # drawn in the local level at the antenna: e_n = C_ln^T e_l
             C_ln = frame.C_ln(p_ant)
             b, w, u = (np.einsum("jki,jk->ji", C_ln, e) for e in (b, w, u))

@@ -59,10 +59,8 @@ import pandas as pd
 
 from imugen.aid.gnss import FIX_NONE, GnssData
 from imugen.core.errors import InputError
+from imugen.core.seeding import scenario_rng
 
-SCENARIO_KEY = 0x5343454E
-"""First element of every scenario spawn key ("SCEN")."""
-STREAMS = {"draw": 0, "noise": 1}
 KINDS = {
     "outage": 1,
     "jamming": 2,
@@ -132,11 +130,6 @@ class Interval:
         return cls(kind, start, dur, prm)
 
 
-def _rng(seed, shard, j, stream):
-    ss = np.random.SeedSequence(seed, spawn_key=(SCENARIO_KEY, shard, j, STREAMS[stream]))
-    return np.random.Generator(np.random.PCG64(ss))
-
-
 def _logu(u, lo, hi):
     return lo * (hi / lo) ** u
 
@@ -159,7 +152,7 @@ def draw(kinds, duration_s, seed=0, shard=0, sequences=1, *, settle_s=60.0, dura
     T = float(duration_s)
     out = []
     for j in range(int(sequences)):
-        u = _rng(seed, shard, j, "draw").random((len(KINDS), 6))
+        u = scenario_rng(seed, shard, j, "draw").random((len(KINDS), 6))
         ivs = []
         for k in kinds:
             r = u[list(KINDS).index(k)]
@@ -276,7 +269,7 @@ def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None, frame=None) ->
                 fix[j, m] = FIX_NONE
             elif iv.kind == "jamming":
                 if noise is None:
-                    noise = _rng(seed, shard, j, "noise").standard_normal((J, 6))
+                    noise = scenario_rng(seed, shard, j, "noise").standard_normal((J, 6))
                 deg = tau < c["degrade_s"]
                 kf = 1.0 + (c["sigma_factor"] - 1.0) * np.clip(
                     tau / max(c["degrade_s"], 1e-9), 0, 1

@@ -24,7 +24,7 @@ spawn_key=(KEY, ...))`` with the receiver's and the scenarios' own keys and stre
 (``shard = j = 0`` inside those keys: the identity is in the entropy). The draw therefore
 depends on neither the IMU grade (grades are compared on the same GNSS, common random
 numbers), nor the shard size, nor the other sequences. The companions draw likewise from the
-same entropy with their own key (:data:`imugen.aid.companions.COMPANION_KEY`), sensor kind and id.
+same entropy with their own key, sensor kind and id (the tree: :mod:`imugen.core.seeding`).
 """
 
 from __future__ import annotations
@@ -45,15 +45,16 @@ from imugen.aid.filter import ekf as A
 from imugen.core.earth import earth_rate_n
 from imugen.core.errors import InputError
 from imugen.core.rotations import quat_to_dcm
+from imugen.core.seeding import sequence_entropy
 from imugen.navigate import local_errors as lerr
 from imugen.navigate.mechanize import compensate_raw, increments_from_rates
-from imugen.navigate.stage import batch_size
+from imugen.navigate.navigator import batch_size
+from imugen.tables import SEQUENCE, TIME
 from imugen.tables import aided as taided
 from imugen.tables import companions as tcomp
 from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
-from imugen.tables._parquet import SEQUENCE, TIME
 from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 
 AID_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
@@ -231,10 +232,10 @@ def parse_scenarios(specs) -> dict:
     return out
 
 
-def sequence_entropy(seed: int, sequence_id: int) -> list[int]:
-    """``[seed, route_id, index]`` of a global sequence id: the entropy of its GNSS draws."""
+def entropy_of(seed: int, sequence_id: int) -> list[int]:
+    """:func:`imugen.core.seeding.sequence_entropy` of a global sequence id."""
     rid, idx = tshard.split_ids([sequence_id])
-    return [int(seed), int(rid[0]), int(idx[0])]
+    return sequence_entropy(seed, rid[0], idx[0])
 
 
 _PER_SEQUENCE = (
@@ -277,7 +278,7 @@ def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None)
     parts = []
     states = (truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b)
     for i, sid in enumerate(np.asarray(ids, np.int64)):
-        ent = sequence_entropy(seed, int(sid))
+        ent = entropy_of(seed, int(sid))
         if mount is not None:
             states = _imu_truth(truth, frame, mount[0][i], mount[1][i])
         g = G.simulate_gnss(
@@ -322,7 +323,7 @@ def companions_for(truth: ttruth.Truth, ids, params: AidParams, seed: int):
             continue
         parts = []
         for sid in np.asarray(ids, np.int64):
-            ent = sequence_entropy(seed, int(sid))
+            ent = entropy_of(seed, int(sid))
             if kind == "odometer":
                 d = CP.simulate_odometer(
                     t, truth.v_n, truth.q_nb, w_eb, preset, 1, ent, 0,
@@ -496,7 +497,7 @@ def aid(
             scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,
             lever_arm_b_m=params.odometer_lever_b_m,
         )  # fmt: skip
-        T = ce.tune(A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver))
+        T = A.companion_tuning(A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver), ce)
         init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
                        speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
         never += int(np.sum(init.k0 >= K))

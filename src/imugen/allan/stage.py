@@ -20,6 +20,7 @@ appear in an Allan deviation.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import allantools
@@ -30,7 +31,6 @@ from scipy.optimize import nnls
 from imugen.core import units
 from imugen.core.errors import InputError
 from imugen.sensors.model import avar_bias_instability, avar_quantization, avar_rrw, avar_white
-from imugen.simulate.stage import Shard
 from imugen.tables import shard as tshard
 from imugen.tables.shard import SEQUENCE
 
@@ -165,8 +165,8 @@ def allan_curves(source, max_sequences: int = 16, taus=None, sensors=("gyro", "a
     Parameters
     ----------
     source : path or Shard
-        A static shard written by :func:`imugen.simulate.stage.run`, or an in-memory
-        :class:`~imugen.simulate.stage.Shard`.
+        A static shard written by :func:`imugen.simulate.stage.run`, or an in-memory shard
+        (:class:`imugen.simulate.Shard`: ``meta``, ``labels`` and ``data``).
     max_sequences : int
         Use at most this many sequences (the first ones).
 
@@ -175,7 +175,7 @@ def allan_curves(source, max_sequences: int = 16, taus=None, sensors=("gyro", "a
     dict
         ``{"meta", "labels", "taus", "dt", "T", "gyro": avar (n_tau,), "accel": avar}``.
     """
-    if isinstance(source, Shard):
+    if not isinstance(source, str | os.PathLike):  # an in-memory shard
         meta = source.meta
         n = min(len(source.labels), int(max_sequences))
         labels = source.labels.iloc[:n].reset_index(drop=True)
@@ -295,10 +295,18 @@ def plot_allan(curves: dict, out, report: dict | None = None, dpi: float = 150) 
         return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
 
 
-def run(shard, plot=None, max_sequences: int = 16) -> dict:
-    """CLI entry: report (and optionally plot) the Allan check of a static shard."""
+def run(shard, plot=None, max_sequences: int = 16, out=None) -> dict:
+    """CLI entry: report (and optionally plot) the Allan check of a static shard; ``out``: also
+    write the report as one line of JSON, atomically (:func:`imugen.core.io.atomic_output`)."""
     cv = allan_curves(shard, max_sequences)
     rep = allan_report(shard, max_sequences, curves=cv)
     if plot:
         plot_allan(cv, plot, rep)
+    if out is not None:
+        import json
+
+        from imugen.core.io import atomic_output
+
+        with atomic_output(out) as tmp:
+            tmp.write_text(json.dumps(rep) + "\n")
     return rep

@@ -20,7 +20,7 @@ attitude in the East-North-Up frame at the vehicle.
     function of position in any frame sharing that axis (the inertial frame of the
     mechanization included).
 
-The scalar numba field (``_gravitation_nb``, used inside kernels) is also what the array
+The scalar numba field (``gravitation_at_nb``, used inside kernels) is also what the array
 functions (``gravity_n``, ``gravitation_n``, ``gravity_e``) evaluate, so truth generation and
 mechanization see the same field bit for bit.
 
@@ -115,7 +115,7 @@ _E2L = E_LIN * E_LIN
 
 
 @njit(cache=True, inline="always")
-def _gravitation_nb(rx, ry, rz, zx, zy, zz):
+def gravitation_at_nb(rx, ry, rz, zx, zy, zz):
     """Gravitation (mass attraction only) of the WGS-84 level ellipsoid, exact.
 
     The gradient of the normal gravitational potential in ellipsoidal harmonic coordinates
@@ -173,7 +173,7 @@ def _gravity_e_batch_nb(r_e, out, centrifugal):
     for i in range(r_e.shape[0]):
         x = r_e[i, 0]
         y = r_e[i, 1]
-        gx, gy, gz = _gravitation_nb(x, y, r_e[i, 2], 0.0, 0.0, 1.0)
+        gx, gy, gz = gravitation_at_nb(x, y, r_e[i, 2], 0.0, 0.0, 1.0)
         out[i, 0] = gx + w2 * x
         out[i, 1] = gy + w2 * y
         out[i, 2] = gz
@@ -265,7 +265,7 @@ def ecef_from_geodetic(lat_rad, lon_rad, h_m):
     return np.stack(np.broadcast_arrays(x, y, z), axis=-1)
 
 
-def _geodetic_parts(x, y, z):
+def geodetic_parts(x, y, z):
     """ECEF -> (sin lat, cos lat, cos lon, sin lon, h), Bowring's method (one iteration).
 
     Latitude within 3e-5 m and height within 1e-8 m for -1 km < h < 50 km (tested against
@@ -305,7 +305,7 @@ def geodetic_from_ecef(r_e):
     lat_rad, lon_rad, h_m : ndarray, shape (...)
     """
     r_e = np.asarray(r_e, dtype=float)
-    sl, cl, _, _, h = _geodetic_parts(r_e[..., 0], r_e[..., 1], r_e[..., 2])
+    sl, cl, _, _, h = geodetic_parts(r_e[..., 0], r_e[..., 1], r_e[..., 2])
     return np.arctan2(sl, cl), np.arctan2(r_e[..., 1], r_e[..., 0]), h
 
 
@@ -555,7 +555,7 @@ def gravitation_nb(prm, px, py, pz):
     if prm[P_MODEL] == 0.0:
         return 0.0, 0.0, -prm[P_G0]
     iw = 1.0 / OMEGA_IE
-    return _gravitation_nb(
+    return gravitation_at_nb(
         prm[P_R0N] + px,
         prm[P_R0N + 1] + py,
         prm[P_R0N + 2] + pz,

@@ -224,7 +224,7 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     """
     from imugen.core.earth import earth_rate_n
     from imugen.navigate.mechanize import compensate_raw, increments_from_rates, mechanize
-    from imugen.navigate.stage import batch_size
+    from imugen.navigate.navigator import batch_size
     from imugen.sensors.mounting import imu_states
     from imugen.tables import shard as tshard
 

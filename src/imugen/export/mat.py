@@ -94,10 +94,10 @@ import pandas as pd
 from imugen import __version__
 from imugen.core.errors import InputError
 from imugen.core.io import atomic_output, read_meta
+from imugen.tables import SEQUENCE
 from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
 from imugen.tables import truth as col
-from imugen.tables._parquet import SEQUENCE
 
 V5_MAX_BYTES = 2**31
 """MATLAB's per-variable limit of MAT v5/v7 files (bytes); larger variables need v7.3."""

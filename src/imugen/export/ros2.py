@@ -43,8 +43,8 @@ from imugen.core import rotations as rot
 from imugen.core.errors import InputError
 from imugen.export.common import measured_rates, noise_figures
 from imugen.export.convert import clock
-from imugen.export.kfgins import _frame
 from imugen.export.source import Sequence, TruthArrays, mounting_of
+from imugen.tables import truth as ttruth
 
 TOPICS = {
     "tf": ("/tf_static", "tf2_msgs/msg/TFMessage"),
@@ -137,7 +137,7 @@ def write(
     C_bn = np.swapaxes(rot.quat_to_dcm(truth.q_nb), 1, 2)
     v_b = np.einsum("kij,kj->ki", C_bn, truth.v_n)
     zero36 = np.zeros(36)
-    frame = _frame(truth)
+    frame = ttruth.origin_frame(truth.meta)
     sl = slice(None, None, max(1, int(every)))
     lat, lon, h = frame.geodetic_from_n(truth.p_n[sl])
     mount = mounting_of(seq.labels)

@@ -72,8 +72,8 @@ def imu_truth(truth: TruthArrays, labels: dict) -> TruthArrays:
     if mount is None:
         return truth
     from imugen.core.earth import earth_rate_n
+    from imugen.sensors.ideal import ArrayTruth
     from imugen.sensors.mounting import Mounting, imu_states
-    from imugen.simulate.stage import ArrayTruth
 
     angles, lever = mount
     Om = earth_rate_n(ttruth.origin_frame(truth.meta))

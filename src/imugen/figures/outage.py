@@ -24,9 +24,9 @@ from imugen.core.errors import InputError
 from imugen.core.plotting import figure as _figure
 from imugen.core.plotting import save as _save
 from imugen.core.plotting import style as _style
-from imugen.figures.stage import _grade_errors, error_bands, grade_styles
+from imugen.figures.common import error_bands, grade_errors, grade_styles
+from imugen.tables import SEQUENCE, TIME
 from imugen.tables import aided as taided
-from imugen.tables._parquet import SEQUENCE, TIME
 
 OUTAGE_COLUMNS = [SEQUENCE, TIME, *taided.ERR_POS[:2], taided.SINCE_FIX]
 
@@ -106,7 +106,7 @@ def outage_growth_figure(
     span = max(v[0][-1] for v in aided.values())
     free = {}
     for g, paths in nav_paths_by_grade.items():
-        time, err = _grade_errors(list(paths), g)
+        time, err = grade_errors(list(paths), g)
         keep = time - time[0] <= span + 1e-9
         free[g] = (time[keep] - time[0], err["horizontal"].shape[0],
                    error_bands(err["horizontal"][:, keep]))  # fmt: skip

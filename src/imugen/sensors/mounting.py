@@ -254,7 +254,7 @@ class Mounting:
 
     Parameters
     ----------
-    truth : imugen.simulate.stage.Truth
+    truth : imugen.sensors.ideal.TruthSource
         Serves the vehicle's ideal IMU in chunks.
     q_nb : (K, 4) ndarray, optional
         The truth's attitude ``C_nv``, for the gravitation-gradient term.

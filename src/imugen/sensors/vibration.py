@@ -676,7 +676,7 @@ class SequenceVibration:
 
 
 def truth_speed(truth) -> np.ndarray:
-    """Speed [m/s] at each sample of a :class:`imugen.simulate.stage.Truth` (zeros if unknown).
+    """Speed [m/s] at each sample of a :class:`imugen.sensors.ideal.TruthSource` (zeros if unknown).
 
     Uses the truth's ``speed_mps`` attribute when it has one (tables with velocity columns);
     a still IMU has none and stands still.

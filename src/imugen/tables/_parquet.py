@@ -14,11 +14,6 @@ import pyarrow.parquet as pq
 
 from imugen.core.errors import InputError
 
-SEQUENCE = "sequence"
-"""Sequence id column of shards, navigation and metrics tables (int32 or int64)."""
-TIME = "time_s"
-"""Time column, seconds from the first sample of the route."""
-
 
 def to_numpy(col) -> np.ndarray:
     """A numeric Arrow column (Array or ChunkedArray) as a NumPy array (read-only view of its

@@ -56,7 +56,8 @@ import pyarrow.parquet as pq
 
 from imugen.core.io import METADATA_KEY, atomic_output
 from imugen.core.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import from_numpy, names, read_table
 from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 from imugen.tables.truth import POS, QUAT, VEL
 

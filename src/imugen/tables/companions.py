@@ -31,7 +31,8 @@ import pandas as pd
 from imugen.core.errors import InputError
 from imugen.core.io import read_meta as read_meta
 from imugen.core.io import write_parquet
-from imugen.tables._parquet import SEQUENCE, TIME, read_table
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import read_table
 
 SENSOR = "sensor"
 ODOMETER, BAROMETER = 1, 2

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 
 from imugen.core.io import read_meta as read_meta
 from imugen.core.io import write_parquet
-from imugen.tables._parquet import TIME, read_table
+from imugen.tables import TIME
+from imugen.tables._parquet import read_table
 
 LAT = "lat_deg"
 LON = "lon_deg"

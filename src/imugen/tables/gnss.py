@@ -40,7 +40,8 @@ import pyarrow.parquet as pq
 from imugen.core.errors import InputError
 from imugen.core.io import atomic_output, with_meta, write_parquet
 from imugen.core.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, read_table
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import read_table
 
 ENU = "enu"
 P = tuple(f"p_{a}_m" for a in ENU)

@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 from imugen.core.errors import InputError
 from imugen.core.io import read_meta as read_meta
 from imugen.core.io import write_parquet
-from imugen.tables._parquet import SEQUENCE, read_table
+from imugen.tables import SEQUENCE
+from imugen.tables._parquet import read_table
 
 AXES = ("east", "north", "up")
 RMSE = tuple(f"rmse_{a}_m" for a in AXES)

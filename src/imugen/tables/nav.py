@@ -25,7 +25,8 @@ import pyarrow.parquet as pq
 
 from imugen.core.io import METADATA_KEY, atomic_output
 from imugen.core.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import from_numpy, names, read_table
 
 ERR_POS = ("err_e_m", "err_n_m", "err_u_m")
 """Position error columns, metres, ENU at the true position."""

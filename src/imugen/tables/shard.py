@@ -60,9 +60,8 @@ import pyarrow.parquet as pq
 from imugen.core.errors import InputError
 from imugen.core.io import METADATA_KEY, atomic_output, with_meta
 from imugen.core.io import read_meta as read_meta
+from imugen.tables import SEQUENCE, TIME
 from imugen.tables._parquet import (
-    SEQUENCE,
-    TIME,
     from_numpy,
     names,
     num_rows,

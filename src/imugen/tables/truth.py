@@ -32,7 +32,8 @@ import numpy as np
 
 from imugen.core.io import METADATA_KEY, write_parquet
 from imugen.core.io import read_meta as read_meta
-from imugen.tables._parquet import TIME, num_rows, open_file, read_table, require, to_numpy
+from imugen.tables import TIME
+from imugen.tables._parquet import num_rows, open_file, read_table, require, to_numpy
 from imugen.tables.enu import ALT, LAT, LON, E, N, U
 
 if TYPE_CHECKING:

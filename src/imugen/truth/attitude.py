@@ -96,7 +96,7 @@ class EarthField:
         (``a_l = C_ln a - omega_nl_l x v_l``, that level's North towards ``axis``:
         :meth:`local`)."""
         if self.ecef and a is None:  # |v - (v . up) up| with the geodetic up at p
-            sl, cl, co, so, _ = ea._geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
+            sl, cl, co, so, _ = ea.geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
             vu = cl * (co * v[:, 0] + so * v[:, 1]) + sl * v[:, 2]
             return np.sqrt(np.maximum(np.einsum("mi,mi->m", v, v) - vu * vu, 0.0)), None
         if self.ecef:
@@ -156,7 +156,7 @@ class EarthField:
         p = np.asarray(p, float)
         p = p[:: max(1, len(p) // 20_000)]
         r = self.frame.ecef_from_n(p)
-        sl, cl, co, so, _ = ea._geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
+        sl, cl, co, so, _ = ea.geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
         if np.max(np.abs(sl)) <= math.cos(POLE_MARGIN_RAD):
             return None
         u = np.column_stack([cl * co, cl * so, sl])
@@ -185,7 +185,7 @@ class EarthField:
         C_en = self.frame.C_en
         r = self.frame.ecef_from_n(p)
         v_e = v @ C_en  # C_ne v per row
-        sl, cl, co, so, h = ea._geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
+        sl, cl, co, so, h = ea.geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
         u = np.column_stack([cl * co, cl * so, sl])
         ku = u @ k
         m = k[None, :] - ku[:, None] * u

@@ -20,9 +20,9 @@ from scipy.interpolate import BSpline, make_interp_spline
 
 from imugen.truth.fit import (
     K_SPLINE,
+    PenalizedSpline,
     TimedMotion,
-    _distance_to_curve,
-    _PenalizedSpline,
+    distance_to_curve,
     fit_height_profile,
     noise_estimate,
 )
@@ -132,7 +132,7 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
         (int(idx[np.searchsorted(t_in, a)]), int(idx[np.searchsorted(t_in, b)]) + K_SPLINE - 1)
         for a, b in stops
     ]
-    ps = _PenalizedSpline(x, ties)
+    ps = PenalizedSpline(x, ties)
     u0 = float(np.mean(u_x))
     V = ps.bspline(ps.solve(_LAM, u_x - u0))
     V = BSpline(V.t, V.c + u0, V.k, extrapolate=True)  # the B-splines sum to 1
@@ -211,7 +211,7 @@ def graded_path(G, L, E, vp, vertices, y, spacing_m):
     G21 = G2.derivative(1)
     shm = np.cumsum(_integrals(lambda q: E.horizontal_speed(None, G21(q))[0], np.r_[0.0, xm]))
     dh = E.height(G2(np.interp(sig_v, x, lam))) - h_v
-    d = _distance_to_curve(G2, L2, y, spacing_m / 2.0)
+    d = distance_to_curve(G2, L2, y, spacing_m / 2.0)
     report = {
         "method": "road profile H(s_h): input heights against horizontal distance (grade), "
         "the path's East/North with the Up of H, quintic against its new arc length",

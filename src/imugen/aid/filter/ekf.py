@@ -148,12 +148,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from imugen.aid.companions import C_BARO, C_BARO_VAR, C_ODO, C_ODO_VAR, CompanionEpochs
 from imugen.core import earth, units
 from imugen.core.earth import OriginFrame
 from imugen.core.errors import InputError
 from imugen.core.jit import njit
 from imugen.core.rotations import dcm_to_quat, euler_to_dcm, quat_to_dcm
-from imugen.navigate import mechanize as mech
+from imugen.core.rotations_nb import qexpm1, qmul
 from imugen.sensors.grades import TERMS, Grade, get_grade
 
 # --- nominal state layout (one row per sequence) ------------------------------------------------
@@ -195,8 +196,6 @@ O_NHC_SD_V, O_LA, O_CG = 19, 20, 21  # vertical NHC sigma (O_NHC_SD: lateral), l
 N_OPT = 22
 _CC_PAIRS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 """Off-diagonal (row, column) of the gyro cross-coupling states, as :mod:`imugen.sensors.model`."""
-# --- companion measurements at the GNSS epochs (last axis of CompanionEpochs.z) ------------------
-C_ODO, C_ODO_VAR, C_BARO, C_BARO_VAR = 0, 1, 2, 3
 # --- flags per epoch ----------------------------------------------------------------------------
 F_GNSS_P, F_GNSS_V, F_ZUPT, F_NHC, F_REJECT, F_ALIGNED, F_ODO, F_BARO = 1, 2, 4, 8, 16, 32, 64, 128
 LEVEL_SD_RAD = math.radians(1.0)
@@ -485,45 +484,16 @@ class Options:
         return o
 
 
-@dataclass
-class CompanionEpochs:
-    """Companion measurements on the filter's GNSS epoch grid (see
-    :func:`imugen.aid.companions.filter_input`).
-
-    Attributes
-    ----------
-    z : (S, J, 4)       per epoch ``C_ODO`` odometer distance [m] over the window ending at the
-                        epoch (from the previous marked epoch), ``C_ODO_VAR`` the variance of
-                        its white part [m^2] (the tick quantization is modelled by states,
-                        ``odo_tick_m``),
-                        ``C_BARO`` barometric height above the origin's [m], ``C_BARO_VAR`` its
-                        variance [m^2]; NaN where absent
-    mark : (J,) int8    1 where the epoch is an odometer epoch (a window boundary)
-    lever_b_m : (S, 3)  odometer point from the vehicle reference point, vehicle axes [m] (the
-                        IMU's own lever arm, ``Options.nhc_lever_arm_m``, is taken off)
-    odo_sf_sd : (S,)    prior 1-sigma of the odometer scale factor
-    baro_sd_m, baro_tau_s : (S,)  barometer drift model (stationary sigma [m], tau [s])
-    odo_tick_m : (S,)   odometer tick length ``c`` [m]: the count's residual at a window end is
-                        a state of prior ``c^2 / 12`` (module docstring, "Measurements")
-    """
-
-    z: np.ndarray
-    mark: np.ndarray
-    lever_b_m: np.ndarray
-    odo_sf_sd: np.ndarray
-    baro_sd_m: np.ndarray
-    baro_tau_s: np.ndarray
-    odo_tick_m: np.ndarray | None = None
-
-    def tune(self, T: np.ndarray) -> np.ndarray:
-        """A copy of the tuning matrix ``T`` (S, N_TUNE) with the companion columns set."""
-        T = np.array(T, float)
-        T[:, T_OSF_SD] = self.odo_sf_sd
-        T[:, T_BB_SD] = self.baro_sd_m
-        T[:, T_BB_TAU] = self.baro_tau_s
-        if self.odo_tick_m is not None:
-            T[:, T_OQ_SD] = np.asarray(self.odo_tick_m, float) / math.sqrt(12.0)
-        return T
+def companion_tuning(T: np.ndarray, companions: CompanionEpochs) -> np.ndarray:
+    """A copy of the tuning matrix ``T`` (S, N_TUNE) with the companion columns set from
+    ``companions`` (:class:`imugen.aid.companions.CompanionEpochs`)."""
+    T = np.array(T, float)
+    T[:, T_OSF_SD] = companions.odo_sf_sd
+    T[:, T_BB_SD] = companions.baro_sd_m
+    T[:, T_BB_TAU] = companions.baro_tau_s
+    if companions.odo_tick_m is not None:
+        T[:, T_OQ_SD] = np.asarray(companions.odo_tick_m, float) / math.sqrt(12.0)
+    return T
 
 
 def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> np.ndarray:
@@ -605,7 +575,7 @@ def step_params(frame, dt: float) -> np.ndarray:
 @njit(cache=True, inline="always")
 def _level_nb(x, y, z):
     """ECEF -> ``(sin lat, cos lat, cos lon, sin lon, h)``: the numba twin of
-    :func:`imugen.core.earth._geodetic_parts` (same operations, same order)."""
+    :func:`imugen.core.earth.geodetic_parts` (same operations, same order)."""
     p = math.sqrt(x * x + y * y)
     su = z * earth.A_WGS84
     cu = p * earth.B_WGS84
@@ -1286,11 +1256,11 @@ def _kernel(
                 px += 0.5 * dt * (vx + ovx)
                 py += 0.5 * dt * (vy + ovy)
                 pz += 0.5 * dt * (vz + ovz)
-                e0, e1, e2, e3 = mech._qexpm1(tx, ty, tz)
+                e0, e1, e2, e3 = qexpm1(tx, ty, tz)
                 e0 += 1.0
-                q0, q1, q2, q3 = mech._qmul(q0, q1, q2, q3, e0, e1, e2, e3)
+                q0, q1, q2, q3 = qmul(q0, q1, q2, q3, e0, e1, e2, e3)
                 if wgs:
-                    q0, q1, q2, q3 = mech._qmul(
+                    q0, q1, q2, q3 = qmul(
                         1.0 + prm[A_QW], prm[A_QW + 1], prm[A_QW + 2],
                         prm[A_QW + 3], q0, q1, q2, q3,
                     )  # fmt: skip
@@ -1705,8 +1675,8 @@ def _kernel(
             vx -= dx[3]
             vy -= dx[4]
             vz -= dx[5]
-            e0, e1, e2, e3 = mech._qexpm1(-dx[6], -dx[7], -dx[8])
-            q0, q1, q2, q3 = mech._qmul(e0 + 1.0, e1, e2, e3, q0, q1, q2, q3)
+            e0, e1, e2, e3 = qexpm1(-dx[6], -dx[7], -dx[8])
+            q0, q1, q2, q3 = qmul(e0 + 1.0, e1, e2, e3, q0, q1, q2, q3)
             nq = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
             q0 *= nq
             q1 *= nq
@@ -2104,7 +2074,7 @@ def run(
             np.full((S, J, 4), np.nan), np.zeros(J, np.int8), np.zeros((S, 3)), *np.zeros((3, S))
         )
     else:
-        tuning_T = companions.tune(tuning_T)
+        tuning_T = companion_tuning(tuning_T, companions)
     if companions.z.shape != (S, J, 4):
         raise InputError("aided", f"companion epochs {companions.z.shape}, expected {(S, J, 4)}")
     if init is None:
