@@ -39,7 +39,7 @@ localrules:
     ingest_csv,
     ingest_enu,
     custom_grade,
-    tables,
+    rmse_table,
 
 
 include: "workflow/rules/common.smk"
@@ -50,6 +50,7 @@ include: "workflow/rules/aid.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
+include: "workflow/rules/allan.smk"
 
 
 onsuccess:
@@ -59,21 +60,17 @@ onsuccess:
 rule all:
     default_target: True
     input:
-        expand("results/{route}/rmse.csv", route=ROUTES),
-        expand("results/{route}/figures/figure8.{ext}", route=ROUTES, ext=FIG["formats"]),
+        expand(rules.rmse_table.output.csv, route=ROUTES),
+        expand(layout.figure("figure8"), route=ROUTES, ext=FIG["formats"]),
+        expand(layout.figure("outage_growth"), route=ROUTES if AID_ON else [], ext=FIG["formats"]),
+        expand(rules.allan.output.json, grade=GRADES),
         expand(
-            "results/{route}/figures/outage_growth.{ext}",
-            route=ROUTES if AID_ON else [],
-            ext=FIG["formats"],
-        ),
-        expand("results/allan/{grade}/allan.json", grade=GRADES),
-        expand(
-            "results/{route}/datasets/{grade}.mat",
+            rules.export_mat.output[0],
             route=ROUTES,
             grade=GRADES if config["exports"]["mat"] and WRITE_IMU else [],
         ),
         expand(
-            "results/{route}/datasets/{grade}",
+            layout.datasets_dir(),
             route=ROUTES,
             grade=GRADES if config["exports"]["formats"] and WRITE_IMU else [],
         ),

@@ -18,7 +18,11 @@ import warnings
 
 from imugen import __version__
 from imugen.core.errors import InputError
-from imugen.ingest.clean import VEHICLE_LIMITS
+
+VEHICLES = ("car", "bicycle", "pedestrian", "aircraft", "airliner")
+"""Vehicle classes of ``--vehicle``: the cleaning limits of ``ingest`` and the motion models of
+``truth`` (listed here so that the parser imports no stage; tests/system/test_cli.py checks
+both stages define exactly these)."""
 
 
 def _printable(text: str) -> str:
@@ -144,7 +148,9 @@ def _cmd_simulate(a) -> int:
 def _cmd_allan(a) -> int:
     from imugen.allan.stage import run
 
-    print(json.dumps(run(a.shard, plot=a.plot, max_sequences=a.max_sequences)))
+    rep = run(a.shard, plot=a.plot, max_sequences=a.max_sequences, out=a.output)
+    if a.output is None:
+        print(json.dumps(rep))
     return 0
 
 
@@ -415,7 +421,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
     p.add_argument(
         "--vehicle",
-        choices=list(VEHICLE_LIMITS),
+        choices=list(VEHICLES),
         default="car",
         help="vehicle class whose limits decide what is an outlier",
     )
@@ -804,6 +810,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")
     p.add_argument("--plot", help="also draw the Allan plot to this PNG/SVG")
     p.add_argument("--max-sequences", type=int, default=16, help="sequences to analyse")
+    p.add_argument("-o", "--output", help="write the report (JSON) here instead of printing it")
     p.set_defaults(func=_cmd_allan)
     return parser
 
@@ -820,7 +827,7 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--vehicle",
-        choices=["car", "bicycle", "pedestrian", "aircraft", "airliner"],
+        choices=list(VEHICLES),
         default="car",
         help="vehicle model of the truth motion",
     )

@@ -120,6 +120,7 @@ from imugen.core.jit import njit
 from imugen.tables import aided as taided
 from imugen.tables import companions as tcomp
 from imugen.tables import gnss as tgnss
+from imugen.tables import layout
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.shard import BIAS, EFFECTIVE_ERROR, SEQUENCE
@@ -165,9 +166,9 @@ EXTRA_ALIGN = ("hold", "event")
 
 
 def extra_path(shard, folder: str) -> Path:
-    """The table of ``folder`` beside IMU shard ``<route>/imu/<grade>/<name>``."""
-    shard = Path(shard)
-    return shard.parents[2] / folder / shard.parent.name / shard.name
+    """The table of ``folder`` beside IMU shard ``<route>/imu/<grade>/<name>``
+    (:func:`imugen.tables.layout.beside`)."""
+    return layout.beside(Path(shard), folder)
 
 
 @dataclass(frozen=True)
@@ -200,13 +201,9 @@ def find_routes(results_dir, grade: str | Iterable[str]) -> list[RouteFiles]:
     """
     grades = [grade] if isinstance(grade, str) else list(grade)
     out = []
-    for truth in sorted(Path(results_dir).glob("*/truth.parquet")):
+    for truth in layout.find_truths(results_dir):
         for g in grades:
-            shards = tuple(
-                p
-                for p in sorted((truth.parent / "imu" / g).glob("shard-*.parquet"))
-                if not p.name.endswith(".labels.parquet")
-            )
+            shards = tuple(layout.find_shards(truth.parent, g))
             if shards:
                 out.append(RouteFiles(truth.parent.name, truth, shards, g))
     return out

@@ -1,4 +1,6 @@
 # Helpers for every stage: config validation, routes/grades/shards, code tracking.
+import ast
+import functools
 import json
 import math
 import shlex
@@ -12,6 +14,7 @@ from snakemake.utils import validate
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 from imugen import preflight
 from imugen.core.errors import InputError
+from imugen.tables import layout
 
 
 validate(config, "../schemas/config.schema.yaml")
@@ -30,9 +33,8 @@ GRADES = list(config["grades"])
 SIM = config["simulate"]
 N_SEQ = SIM["sequences"]
 PER_SHARD = SIM["sequences_per_shard"]
-# shard-000 ... shard-999, then shard-1000, ...: at least three digits, no other leading
-# zeros, so adding shards never renames existing ones
-SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
+# shard-000 ... shard-999, then shard-1000, ...: adding shards never renames existing ones
+SHARDS = [layout.shard_label(k) for k in range(math.ceil(N_SEQ / PER_SHARD))]
 WRITE_IMU = SIM["write_imu"]
 MOUNTING = config.get("mounting", {})
 MOUNTING_ARG = (
@@ -42,12 +44,7 @@ MOUNTING_ARG = (
 # the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
 # read shards (export_mat, the figures' IMU panels) are not scheduled
 IMU_OUTPUTS = (
-    [
-        "results/{route}/imu/{grade}/shard-{shard}.parquet",
-        "results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
-    ]
-    if WRITE_IMU
-    else []
+    [layout.shard("imu"), layout.sidecar(layout.shard("imu"), "labels")] if WRITE_IMU else []
 )
 IMU_GRADES = GRADES if WRITE_IMU else []
 FIG = config["figures"]
@@ -59,13 +56,86 @@ wildcard_constraints:
     shard=r"\d\d\d|[1-9]\d\d\d+",
 
 
-def stage_code(*modules):
-    """Source files of the stage modules, as inputs: editing one reruns the stage.
+SRC = Path(workflow.basedir) / "src"
+"""The package source the jobs run (``imugen`` installed from this checkout)."""
 
-    Snakemake does not track imported code; these files are small, so their checksums are
-    recorded and a mere timestamp change (git checkout) does not rerun anything.
+
+@functools.cache
+def _module_file(name):
+    """Source file of mod ``name`` (``imugen.a.b``) under ``SRC``, or None (not imugen's)."""
+    base = SRC.joinpath(*name.split("."))
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+@functools.cache
+def _imports(name, top_level_only=False):
+    """The imugen modules mod ``name`` imports (``top_level_only``: only the imports run
+    when it is imported, not those inside its functions), with their parent packages."""
+    path = _module_file(name)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+
+    def add(mod):
+        if _module_file(mod) is None:
+            return
+        parts = mod.split(".")
+        found.update(".".join(parts[:i]) for i in range(1, len(parts) + 1))
+
+    def visit(node):
+        for child in ast.iter_child_nodes(node):
+            if top_level_only and isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            if isinstance(child, ast.Import):
+                for alias in child.names:
+                    add(alias.name)
+            elif isinstance(child, ast.ImportFrom):
+                base = child.module or ""
+                if child.level:
+                    parent = package.split(".")[: len(package.split(".")) - child.level + 1]
+                    base = ".".join([*parent, base] if base else parent)
+                add(base)
+                for alias in child.names:  # `from package import mod`
+                    add(f"{base}.{alias.name}")
+            visit(child)
+
+    visit(ast.parse(path.read_text(), str(path)))
+    found.discard(name)
+    return frozenset(m for m in found if m == "imugen" or m.startswith("imugen."))
+
+
+@functools.cache
+def _closure(name):
+    """Every imugen mod that importing and running mod ``name`` may execute."""
+    parts = name.split(".")
+    seen, todo = set(), [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
+    while todo:
+        mod = todo.pop()
+        if mod not in seen:
+            seen.add(mod)
+            todo.extend(_imports(mod))
+    return frozenset(seen)
+
+
+def code_inputs(*modules):
+    """Source files of the code a rule's command runs, as its inputs: editing one reruns it.
+
+    The transitive closure, computed from the code with ``ast``, of the imugen modules the
+    command's modules import (``modules``: the stage's ``stage.py`` face, or whichever module
+    the command dispatches to), anywhere in them, function-level imports included, plus what
+    ``imugen.cli`` imports when it starts (it imports each command's module inside its
+    dispatch, so one stage's closure holds no other stage). Computed once per rule when the
+    workflow is parsed (cached per module). Snakemake does not track imported code itself;
+    these files are small, so their checksums are recorded and a mere timestamp change (a git
+    checkout) reruns nothing. tests/system/test_code_inputs.py edits a module of each stage
+    and checks the jobs a dry run schedules.
     """
-    return [str(Path(workflow.basedir) / "src" / "imugen" / f"{m}.py") for m in modules]
+    names = {"imugen.cli"}
+    for m in (*_imports("imugen.cli", top_level_only=True), *modules):
+        names |= _closure(m)
+    return sorted(str(_module_file(m)) for m in names)
 
 
 PRESETS = str(Path(workflow.basedir) / "src" / "imugen" / "data" / "grades.yaml")
@@ -79,13 +149,13 @@ def is_custom(grade):
 def grade_files(wildcards):
     """The custom grade's YAML file, when the grade is custom."""
     g = wildcards.grade
-    return [f"results/grades/{g}.yaml"] if is_custom(g) else []
+    return [layout.grade_file(g)] if is_custom(g) else []
 
 
 def grade_arg(wildcards):
     """`--grade` value: the preset name, or FILE.yaml:NAME for a custom grade."""
     g = wildcards.grade
-    return f"results/grades/{g}.yaml:{g}" if is_custom(g) else g
+    return f"{layout.grade_file(g)}:{g}" if is_custom(g) else g
 
 
 def shard_sequences(wildcards):
@@ -123,7 +193,7 @@ def auto_grades():
     """`--grade` options of the truth: every configured grade (presets by name, custom grades
     as FILE.yaml:NAME) takes part in the `--earth auto` budget."""
     return " ".join(
-        f"--grade {shlex.quote(f'results/grades/{g}.yaml:{g}' if is_custom(g) else g)}"
+        f"--grade {shlex.quote(f'{layout.grade_file(g)}:{g}' if is_custom(g) else g)}"
         for g in GRADES
     )
 
@@ -133,17 +203,17 @@ AUTO_EARTH = config["truth"]["earth"] == "auto"
 
 def custom_grade_files():
     """YAML files of all custom grades (inputs of the truth's `--earth auto` budget)."""
-    return [f"results/grades/{g}.yaml" for g in GRADES if is_custom(g)]
+    return [layout.grade_file(g) for g in GRADES if is_custom(g)]
 
 
 def shard_paths(kind):
-    """Per-grade list of all shard files of one kind (imu or nav) for a route."""
-    return lambda wc: expand(
-        f"results/{{route}}/{kind}/{{grade}}/shard-{{shard}}.parquet",
-        route=wc.route,
-        grade=wc.grade,
-        shard=SHARDS,
-    )
+    """All shard tables of one kind (imu, nav, gnss, ...) of a route and grade."""
+    return lambda wc: [layout.shard(kind, wc.route, wc.grade, s) for s in SHARDS]
+
+
+def route_shards(kind):
+    """All shard tables of one kind of a route, grade by grade (``GRADES`` order)."""
+    return lambda wc: [layout.shard(kind, wc.route, g, s) for g in GRADES for s in SHARDS]
 
 
 def grade_pairs(kind):
@@ -165,9 +235,9 @@ def run_summary():
     """Where the results are and, per route, the Earth model the truth used and why."""
     from imugen.core.io import read_meta
 
-    print("imugen: results in " + str(Path("results").resolve()))
+    print("imugen: results in " + str(Path(layout.RESULTS).resolve()))
     for r in ROUTES:
-        truth = Path("results") / r / "truth.parquet"
+        truth = Path(layout.truth(r))
         if not truth.exists():
             continue
         m = read_meta(truth)
@@ -180,7 +250,7 @@ def run_summary():
                 f"{val / b['grade_effect_m']:.1%} of the {b.get('grade')} grade's error effect "
                 f"(limit {b.get('fraction', 0.1):.0%})"
             )
-        print(f"  {r}: results/{r}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
+        print(f"  {r}: {layout.route_dir(r)}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
 
 
 # --- aid stage (GNSS-denied scenarios, aided baseline): workflow/rules/aid.smk ---

@@ -3,12 +3,12 @@
 
 rule export_mat:
     input:
-        truth="results/{route}/truth.parquet",
+        truth=rules.truth.output[0],
         shards=shard_paths("imu"),
         nav=shard_paths("nav"),
-        code=stage_code("export/mat"),
+        code=code_inputs("imugen.export.mat"),
     output:
-        "results/{route}/datasets/{grade}.mat",
+        layout.dataset_mat(),
     log:
         "logs/{route}/export_mat/{grade}.log",
     shell:
@@ -45,17 +45,14 @@ SPLIT_OPTS = (
 
 rule export_formats:
     input:
-        truth="results/{route}/truth.parquet",
+        truth=rules.truth.output[0],
         shards=shard_paths("imu"),
         gnss=shard_paths("gnss") if AID_ON else [],
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
         companions=shard_paths("companions") if COMPANION_EXPORT else [],
-        code=stage_code(
-            "export/stage", "export/source", "export/common", "export/convert", "dataset",
-            *(f"export/{f}" for f in config["exports"]["formats"]),
-        ),
+        code=code_inputs("imugen.export.stage"),
     output:
-        directory("results/{route}/datasets/{grade}"),
+        directory(layout.datasets_dir()),
     params:
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],

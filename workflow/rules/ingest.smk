@@ -6,13 +6,9 @@
 rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
-        code=stage_code(
-            "ingest/stage", "core/frames", "ingest/route", "ingest/xmlsafe", "ingest/readers/__init__", "ingest/readers/kml",
-            "ingest/readers/gpx", "ingest/readers/text", "ingest/readers/nmea", "ingest/readers/igc", "ingest/readers/geojson",
-            "ingest/readers/gnsscsv", "ingest/readers/babel", "ingest/clean", "ingest/segments", "ingest/limits",
-        ),
+        code=code_inputs("imugen.ingest.stage"),
     output:
-        "results/{route}/route.csv",
+        layout.route_csv(),
     params:
         opts=lambda wc: f"{ingest_opts(wc)} {ingest_clean_opts(wc)}",
     log:
@@ -23,10 +19,10 @@ rule ingest_csv:
 
 rule ingest_enu:
     input:
-        csv="results/{route}/route.csv",
-        code=stage_code("ingest/stage", "core/frames", "ingest/readers/text", "ingest/clean", "ingest/segments"),
+        csv=rules.ingest_csv.output[0],
+        code=code_inputs("imugen.ingest.stage"),
     output:
-        "results/{route}/enu.parquet",
+        layout.enu(),
     log:
         "logs/{route}/ingest_enu.log",
     shell:
