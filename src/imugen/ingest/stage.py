@@ -65,15 +65,11 @@ from imugen.ingest.segments import choose_path
 from imugen.tables import enu as tenu
 
 UNITS = {
-    "time_s": "s",
-    "lat_deg": "deg (WGS-84)",
-    "lon_deg": "deg (WGS-84)",
-    "alt_m": "m (ellipsoidal height as given by the file)",
-    "e_m": "m",
-    "n_m": "m",
-    "u_m": "m",
-    "utm_e_m": "m",
-    "utm_n_m": "m",
+    tenu.TIME: "s",
+    tenu.LAT: "deg (WGS-84)",
+    tenu.LON: "deg (WGS-84)",
+    tenu.ALT: "m (ellipsoidal height as given by the file)",
+    **dict.fromkeys((*tenu.ENU, *tenu.UTM), "m"),
 }
 _GEOD = Geod(ellps="WGS84")
 ENU_SPAN_M = 2.0 * 6378137.0 + 200e3
@@ -508,15 +504,16 @@ def _ingest(
 
     data = {}
     if timed:
-        data["time_s"] = cols["time"]
-    data.update(lat_deg=lat, lon_deg=lon, alt_m=alt, e_m=enu[:, 0], n_m=enu[:, 1], u_m=enu[:, 2])
+        data[tenu.TIME] = cols["time"]
+    data.update({tenu.LAT: lat, tenu.LON: lon, tenu.ALT: alt})
+    data.update({c: enu[:, i] for i, c in enumerate(tenu.ENU)})
     utm_meta = None
     if utm:
         try:
             crs = utm_crs(origin)
         except ValueError as exc:
             raise InputError(src, f"--utm: {exc}") from None
-        data["utm_e_m"], data["utm_n_m"] = to_utm(lat, lon, crs)
+        data[tenu.UTM[0]], data[tenu.UTM[1]] = to_utm(lat, lon, crs)
         utm_meta = {"epsg": crs.to_epsg(), "name": crs.name}
     table = pd.DataFrame(data)
 

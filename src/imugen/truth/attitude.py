@@ -495,8 +495,8 @@ class GroundAttitude:
     noise_up_m : float
         Noise of those heights [m].
     profile : (BSpline, dict) or None
-        A height profile ``H(s)`` already fitted and its report (a graded motion's or path's,
-        :func:`imugen.truth.road.graded_motion`, :func:`imugen.truth.road.graded_path`):
+        A height profile ``H(s)`` already fitted and its report (a motion's or path's on the road profile,
+        :func:`imugen.truth.road.motion_on_road`, :func:`imugen.truth.road.path_on_road`):
         used instead of fitting one.
     grid_dt : float
         Step of the internal time grid of the distance [s].

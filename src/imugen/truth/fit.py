@@ -186,7 +186,7 @@ class PenalizedSpline:
 class TimedMotion:
     """Position spline p(t) (vector-valued quintic BSpline) and its derivatives; with
     ``vertical``, a scalar spline replacing the third coordinate (a road profile,
-    :func:`imugen.truth.road.graded_motion`)."""
+    :func:`imugen.truth.road.motion_on_road`)."""
 
     kind = "timed"
 

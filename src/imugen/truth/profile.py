@@ -15,7 +15,7 @@ from imugen.core.errors import InputError
 class PathMotion:
     """Position ``G(s(t))``: geometry G(s) (arc length) and speed profile s(t) (PPoly);
     ``profile``: the road profile ``(H, report)`` whose vertical ``G`` has
-    (:func:`imugen.truth.road.graded_path`), or None."""
+    (:func:`imugen.truth.road.path_on_road`), or None."""
 
     kind = "untimed"
 

@@ -10,7 +10,7 @@ the vertical of the truth is ``H(s(t))``, the height profile ``H`` (smoothed ove
 ``grade_smooth_m``, :func:`imugen.truth.fit.fit_height_profile`) at the horizontal distance
 ``s(t)`` travelled, so the velocity's pitch is the road's grade. An untimed path's geometry
 ``G`` gets the vertical ``H(s_h)`` at its horizontal distance ``s_h`` before its speed profile
-(:func:`graded_path`): the polyline's heights step and wander like a track's.
+(:func:`path_on_road`): the polyline's heights step and wander like a track's.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from imugen.truth.fit import (
 )
 
 _GL = np.polynomial.legendre.leggauss(4)
-KNOT_MAX_S = 1.0  # knots of the graded vertical at most this far apart in time [s]
+KNOT_MAX_S = 1.0  # knots of the road-profile vertical at most this far apart in time [s]
 KNOTS_PER_SMOOTH = 5  # ... and at most grade_smooth_m / this far apart in distance
 _LAM = 1e-2  # penalty of the vertical spline (normalized): near interpolation of H(s(t))
 _HEIGHT_ITER = 3  # iterations from the profile's ellipsoidal height to n's Up (wgs84)
@@ -90,7 +90,7 @@ def _knot_sites(t_in, ds_in, smooth_m):
     return np.r_[x, t_in[-1]], idx
 
 
-def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
+def motion_on_road(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
     """The timed motion with its vertical replaced by the road profile ``H(s(t))``.
 
     Parameters
@@ -110,7 +110,7 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
     Returns
     -------
     (TimedMotion, BSpline or None, dict)
-        The graded motion (the input one when the route is too short for a profile), ``H(s)``
+        The motion on the road profile (the input one when the route is too short for a profile), ``H(s)``
         and a report (grade fit, knots, largest departure of the vertical from ``H(s(t))``).
     """
     t_in, h_in = (np.asarray(a, float) for a in heights)
@@ -136,8 +136,8 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
     u0 = float(np.mean(u_x))
     V = ps.bspline(ps.solve(_LAM, u_x - u0))
     V = BSpline(V.t, V.c + u0, V.k, extrapolate=True)  # the B-splines sum to 1
-    graded = TimedMotion(motion.spline, motion.t0, motion.t1, vertical=V)
-    pz = graded.position(z)
+    on_road = TimedMotion(motion.spline, motion.t0, motion.t1, vertical=V)
+    pz = on_road.position(z)
     report = {
         "method": "road profile H(s(t)): heights against horizontal distance (grade), "
         "quintic spline in time through it with knots at the input times and every "
@@ -147,16 +147,16 @@ def graded_motion(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
         "max_departure_m": float(np.max(np.abs(E.height(pz) - H(s_z)))),
         "max_change_from_time_fit_m": float(np.max(np.abs(pz[:, 2] - motion.position(z)[:, 2]))),
     }
-    return graded, H, report
+    return on_road, H, report
 
 
-def graded_path(G, L, E, vp, vertices, y, spacing_m):
+def path_on_road(G, L, E, vp, vertices, y, spacing_m):
     """An untimed path whose vertical is the road profile ``H(s_h)``, re-parameterized by
     arc length.
 
     ``H`` is fitted to the input heights against the horizontal distance ``s_h`` of their
     points on ``G`` (:func:`imugen.truth.fit.fit_height_profile`; noise from the heights'
-    neighbour predictions along ``s_h``, :func:`imugen.truth.fit.noise_estimate`). The graded
+    neighbour predictions along ``s_h``, :func:`imugen.truth.fit.noise_estimate`). The
     curve keeps the East/North of ``G`` and takes n's Up giving ``H(s_h)``: both sampled
     every ``spacing_m`` of ``G`` are interpolated (quintic) against their new arc length.
 
@@ -182,7 +182,7 @@ def graded_path(G, L, E, vp, vertices, y, spacing_m):
     (BSpline, float, BSpline or None, dict)
         Graded geometry ``G`` and its length (the input ones when the path is too short for a
         profile), ``H(s_h)`` and a report (grade fit, largest departure of the vertical from
-        ``H(s_h)``, distances of the input points to the graded path).
+        ``H(s_h)``, distances of the input points to the path on the road profile).
     """
     sig_v, h_v = (np.asarray(a, float) for a in vertices)
     n = max(64, int(np.ceil(L / spacing_m)))
@@ -200,7 +200,7 @@ def graded_path(G, L, E, vp, vertices, y, spacing_m):
     P[:, 2] = _up_of_height(E, P, H(sh))
     U1 = make_interp_spline(x, P[:, 2], k=K_SPLINE).derivative(1)
 
-    def speed(q):  # |dP/dx|: East/North of G, Up of the graded vertical
+    def speed(q):  # |dP/dx|: East/North of G, Up of the road-profile vertical
         d = G1(q)
         return np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + U1(q) ** 2)
 
