@@ -4,7 +4,7 @@
 # `snakemake --lint` reports one remaining lint per rule, "Specify a conda environment or
 # container": deliberate. imugen is a pip package; every rule calls its `imugen` command from
 # the environment Snakemake itself runs in (README: one `pip install`), so a per-rule conda
-# environment would only duplicate that environment. tests/test_workflow.py asserts that no
+# environment would only duplicate that environment. tests/system/test_workflow.py asserts that no
 # other lint appears.
 import copy
 from pathlib import Path
@@ -19,7 +19,7 @@ min_version("9.0")
 # instead of merging into them (Snakemake's `configfile:` directive would merge, adding the
 # example route and the default grades to every user's run), and merges every other key as
 # usual. `config` holds the command line's files and overrides at this point.
-# tests/test_workflow.py checks it on the dry-run job list.
+# tests/system/test_workflow.py checks it on the dry-run job list.
 _cli_config = copy.deepcopy(config)
 _shipped = Path("config/config.yaml")
 if _shipped.is_file():

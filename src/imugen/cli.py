@@ -392,7 +392,7 @@ def _cmd_closure(a) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="imugen", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"imugen {__version__}")
-    # every subcommand's help shows each option's default (tests/test_cli.py checks that every
+    # every subcommand's help shows each option's default (tests/system/test_cli.py checks that every
     # option has help text and that defaults agree with the workflow's schema)
     sub = parser.add_subparsers(
         dest="command",

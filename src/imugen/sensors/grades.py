@@ -196,7 +196,7 @@ def gm_avar(tau, sigma, T):
 GM_PEAK, GM_PEAK_X = 0.6173642831444415, 1.8926178169666992
 """Peak Allan deviation of a unit-sigma GM process and where it is (tau = 1.8926 T): the
 maximum of :func:`gm_avar` (constants, so that loading the module does not import
-scipy.optimize; ``tests/test_grades.py`` recomputes them)."""
+scipy.optimize; ``tests/sensors/test_grades.py`` recomputes them)."""
 
 
 def flicker_taus(band: tuple[float, float], components: int):

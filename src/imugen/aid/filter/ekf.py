@@ -93,7 +93,7 @@ Measurements, at each GNSS epoch (sequential scalar updates, per-axis variances)
       Without that term an exact constraint is overconfident after the alignment (NEES 130-200
       at the first epoch, at 3e-5 m/s); a constant noise instead (the former 0.1 m/s, or even
       1e-3 m/s) over-covers the two attitude directions NHC fixes (NEES 0.3 per direction
-      where 1 is due, measured in P's eigenbasis, car rectangle of tests/test_companions.py).
+      where 1 is due, measured in P's eigenbasis, car rectangle of tests/aid/test_companions.py).
       ``R`` is the nominal mounting (identity), or, with ``nhc_misalignment_sd_rad`` set,
       ``Rz(yaw) Ry(-pitch)`` of two more error states, the IMU's pitch and yaw from the vehicle
       (random constants with that prior sigma): a misaligned IMU driving straight at ``u`` sees

@@ -24,7 +24,7 @@ from imugen.core.errors import InputError
 from imugen.ingest import limits
 from imugen.ingest.readers import read_route_file
 
-HOSTILE = Path(__file__).parent / "data" / "hostile"
+HOSTILE = Path(__file__).resolve().parents[1] / "data" / "hostile"
 KML_HEAD = '<kml xmlns="http://www.opengis.net/kml/2.2"><Placemark><name>P</name>'
 
 

@@ -24,13 +24,14 @@ import math
 
 import numpy as np
 import pytest
-from oracles.strapdown import exact_increments
 
 from imugen.closure import attitude_angle
 from imugen.core import earth as E
 from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
 from imugen.navigate import mechanize as M
 from imugen.navigate._kernel import S_FB
+
+from oracles.strapdown import exact_increments
 
 A, B = E.A_WGS84, E.B_WGS84
 C2 = A * A - B * B
@@ -386,7 +387,7 @@ def test_local_level_reports_at_the_vehicle():
 def test_gravitation_nodes_interpolation_bound():
     """The kernels' cubic-in-time gravitation between exact nodes every T = 0.4 s: error
     <= T^4/24 max|d^4G/dt^4| ~ T^4/24 |Gamma| snap, |Gamma| <= 2 GM / r^3 = 3.1e-6 s^-2
-    (tests/test_gravity_nodes.py: the check that enforces the tolerance)."""
+    (tests/navigate/test_gravity_nodes.py: the check that enforces the tolerance)."""
     fr = E.OriginFrame.from_deg(45.0, 7.0, 300.0, model="wgs84")
     w = E.earth_rate_n(fr)
     T = M.GRAVITY_NODE_S

@@ -41,16 +41,17 @@ from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import truth as col
 
 
-def _sibling(name):
-    """A sibling test module (the suite runs with ``--import-mode=importlib``)."""
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
+def _sibling(path):
+    """Another test module, ``path`` under tests/ (the suite runs with ``--import-mode=importlib``)."""
+    name = Path(path).stem
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[1] / path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
-TA = _sibling("test_aided")  # car scene, receivers and error helpers
-TL = _sibling("test_truth_long")  # analytic long routes
+TA = _sibling("aid/test_filter.py")  # car scene, receivers and error helpers
+TL = _sibling("truth/test_build_long.py")  # analytic long routes
 SCENES, enu_input = TL.SCENES, TL.enu_input
 LEVER, ORIGIN, errors, nees, quiet_receiver = (
     TA.LEVER,

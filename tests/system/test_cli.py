@@ -10,7 +10,7 @@ import yaml
 
 from imugen.cli import build_parser
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _subparsers(parser, prefix=()):
@@ -63,3 +63,24 @@ def test_cli_defaults_agree_with_the_workflow(command, dest, section, key):
     schema = yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text())
     default = schema["properties"][section]["properties"][key]["default"]
     assert _option(command, dest) == default
+
+
+def test_vehicle_classes_are_those_of_both_stages():
+    """The parser lists the vehicle classes itself (it imports no stage); ingest's cleaning
+    limits and truth's motion models define exactly these."""
+    from imugen.cli import VEHICLES
+    from imugen.ingest.clean import VEHICLE_LIMITS
+    from imugen.truth.vehicles import VEHICLES as MODELS
+
+    assert list(VEHICLES) == list(VEHICLE_LIMITS) == list(MODELS)
+
+
+def test_the_parser_imports_no_stage():
+    """`imugen --help` loads no stage package: each command imports its own inside the
+    dispatch, so a rule's code inputs are its stage's closure (workflow/rules/common.smk)."""
+    import subprocess
+    import sys
+
+    code = "import sys, imugen.cli; print(sorted(m for m in sys.modules if m.startswith('imugen')))"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip() == "['imugen', 'imugen.cli', 'imugen.core', 'imugen.core.errors']"

@@ -5,12 +5,8 @@ dry-run job list); -j1 and -j2 give identical tables and bit-identical datasets;
 """
 
 import copy
-import hashlib
 import re
 import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -19,74 +15,15 @@ import yaml
 from imugen.core.io import read_meta
 from imugen.tables.shard import route_id
 
-REPO = Path(__file__).resolve().parents[1]
-ROUTE = REPO / "resources" / "example_route.kml"
-PAPER = REPO / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
-
-TINY = {
-    "routes": {
-        "example": {"file": str(ROUTE)},
-        "paper": {"file": str(PAPER), "origin": [31.63, -7.99, 480.6], "dt_s": 1.0},
-    },
-    "truth": {"rate_hz": 10, "earth": "wgs84"},
-    "grades": {
-        "consumer": {},
-        "tactical": {},
-        "mine": {
-            "id": 101,
-            "gyro": {"white_noise": {"value": 0.2, "unit": "deg_per_sqrt_h"}},
-            "accel": {"white_noise": {"value": 0.05, "unit": "m_per_s_per_sqrt_h"}},
-        },
-    },
-    "simulate": {"sequences": 4, "sequences_per_shard": 2, "seed": 7},
-    "allan": {"static_s": 300, "rate_hz": 10, "sequences": 2},
-}
-
-
-def snakemake(workdir, *args):
-    bindir = Path(sys.executable).parent
-    # the `imugen` the rules call runs this checkout's code, whatever the venv's install points to
-    env = {"PATH": f"{bindir}:/usr/bin:/bin", "HOME": str(workdir), "PYTHONPATH": str(REPO / "src")}
-    return subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "snakemake",
-            "-s",
-            str(REPO / "Snakefile"),
-            "-d",
-            str(workdir),
-            *args,
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=900,
-    )
-
-
-def write_config(workdir, cfg):
-    (workdir / "config").mkdir(exist_ok=True)
-    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
-
-
-def planned_jobs(workdir) -> dict[str, int]:
-    """Rule -> job count of a dry run (the `Job stats` table)."""
-    proc = snakemake(workdir, "-n", "-j1", "--quiet", "rules")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    out = proc.stdout + proc.stderr
-    if "Nothing to be done" in out:
-        return {}
-    jobs = dict(re.findall(r"^(\w+)\s+(\d+)$", out, flags=re.M))
-    jobs.pop("total", None)
-    return {k: int(v) for k, v in jobs.items()}
-
-
-def digest(paths):
-    h = hashlib.sha256()
-    for p in sorted(paths):
-        h.update(p.read_bytes())
-    return h.hexdigest()
+from helpers import (
+    REPO,
+    TINY,
+    digest,
+    dry_run_outputs,
+    planned_jobs,
+    snakemake,
+    write_config,
+)
 
 
 @pytest.fixture(scope="module")
@@ -263,7 +200,7 @@ def test_bad_route_fails_cleanly(tmp_path):
 def test_max_extent_km_is_a_route_limit(tmp_path):
     """``max_extent_km`` in a route's config is accepted by the schema and reaches ingestion as
     ``--max-extent-km``: a 222 km path beyond a 100 km limit is refused (without a limit it is
-    accepted: tests/test_ingest.py)."""
+    accepted: tests/ingest/test_stage.py)."""
     far = tmp_path / "far.gpx"
     far.write_text(
         '<gpx><trk><trkseg><trkpt lat="0" lon="0"/><trkpt lat="0" lon="2"/></trkseg></trk></gpx>'
@@ -288,14 +225,6 @@ def test_lint_only_the_documented_conda_lint(tmp_path):
     lints = re.findall(r"^\s+\* (.+?):$", text, flags=re.M)
     assert lints, text[-2000:]
     assert set(lints) == {"Specify a conda environment or container for each rule."}
-
-
-def dry_run_outputs(workdir, *args) -> list[str]:
-    """Output paths of every job a dry run schedules."""
-    proc = snakemake(workdir, "-n", "-j1", *args)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = re.findall(r"^\s+output: (.+)$", proc.stdout + proc.stderr, flags=re.M)
-    return [p for line in lines for p in line.split(", ")]
 
 
 def test_configfile_replaces_the_shipped_routes_and_grades(tmp_path):

@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from oracles.strapdown import exact_increments
 
 from imugen.core.earth import OriginFrame, earth_rate_n, gravity_n
 from imugen.core.errors import InputError
@@ -25,6 +24,8 @@ from imugen.sensors.ideal import ArrayTruth
 from imugen.simulate import stage as SIM
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
+
+from oracles.strapdown import exact_increments
 
 ORIGIN = (45.0, 7.0, 300.0)
 ANGLES = np.array([0.02, -0.015, 0.035])  # roll, pitch, yaw [rad]
@@ -522,14 +523,9 @@ def test_odometer_is_mounting_aware(car):
 def test_workflow_passes_the_config_mounting(tmp_path):
     """``mounting.enabled`` reaches every simulate job as ``--mounting JSON`` (dry run); the
     schema refuses a malformed section."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location(
-        "wf", Path(__file__).with_name("test_workflow.py")
-    )
-    wf = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(wf)
+    import helpers as wf
+
     TINY, snakemake, write_config = wf.TINY, wf.snakemake, wf.write_config
 
     cfg = {**TINY, "mounting": {"enabled": True, "lever_arm_m": [0.5, 0.0, 0.3]}}

@@ -20,7 +20,7 @@ from imugen.web import form as fm  # noqa: E402
 from imugen.web.app import create_app  # noqa: E402
 from imugen.web.runs import safe_name  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 ROUTE = REPO / "resources" / "example_route.kml"
 TINY = {
     "route.vehicle": "car",

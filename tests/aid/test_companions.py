@@ -43,7 +43,7 @@ RECTANGLE = np.array(
 
 def car_truth(pts=RECTANGLE, earth="flat"):
     """A car on the polyline ``pts`` (ENU, m) at 100 Hz; by default a 400 m x 200 m rectangle
-    one and a half times (about 180 s, the scene of tests/test_aided.py)."""
+    one and a half times (about 180 s, the scene of tests/aid/test_filter.py)."""
     enu = pd.DataFrame(pts, columns=["e_m", "n_m", "u_m"])
     meta = {"origin": dict(zip(("lat_deg", "lon_deg", "alt_m"), ORIGIN, strict=True))}
     meta["timed"] = False
@@ -417,14 +417,9 @@ def test_companion_options_are_checked(stage, tmp_path, cli):
 def test_workflow_passes_the_companion_keys(tmp_path):
     """Dry run (the subprocess keeps this worktree's PYTHONPATH): the aid jobs get the
     companion options and outputs; an unknown preset is refused by the schema."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location(
-        "_wf", Path(__file__).with_name("test_workflow.py")
-    )
-    W = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(W)
+    import helpers as W
+
     cfg = {k: v for k, v in W.TINY.items() if k != "grades"}
     cfg["grades"] = {"consumer": {}}
     comp = {"odometer": "abs", "barometer": "ms5611", "barometer_rate_hz": 5}

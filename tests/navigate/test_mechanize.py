@@ -6,11 +6,12 @@ import math
 
 import numpy as np
 import pytest
-from oracles.strapdown import mechanize_numpy
 
 from imugen.core import earth as E
 from imugen.core.rotations import relative_rotation_vector
 from imugen.navigate import mechanize as M
+
+from oracles.strapdown import mechanize_numpy
 
 FLAT = E.OriginFrame.from_deg(40.78, -73.97, 30.0, model="flat")
 WGS = FLAT.with_model("wgs84")

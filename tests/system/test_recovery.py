@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PAPER = REPO / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
 # one shard's navigation: ingest, truth, simulate, navigate (the whole run adds minutes)
 TARGET = "results/paper/nav/consumer/shard-000.parquet"

@@ -13,7 +13,7 @@ from imugen.evaluate import stage as evaluate
 from imugen.navigate import stage as navigate
 from imugen.tables import shard as tshard
 
-REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
+REPO = __import__("pathlib").Path(__file__).resolve().parents[2]
 PAPER = REPO / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
 RATE, S, SEGMENTS = 10, 6, (30.0, 60.0)
 

@@ -6,8 +6,6 @@ for the increments, the stated limits of the speed profile and of the fit.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -18,8 +16,10 @@ from imugen.core.errors import InputError
 from imugen.core.io import METADATA_KEY
 from imugen.tables import truth as col
 
+from helpers import SHARED_TRAJ
+
 ORIGIN = (45.0, 7.0, 300.0)
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories"
+SHARED = SHARED_TRAJ
 PAPER = SHARED / "seed_reference_trajectory_enu.txt"
 
 
@@ -270,6 +270,7 @@ def test_right_angle_corner_radius_is_corner_length():
 # ------------------------------------------------------------------------------------------
 # fitting timed routes
 # ------------------------------------------------------------------------------------------
+@pytest.mark.shared
 @pytest.mark.skipif(not PAPER.exists(), reason="shared trajectories absent")
 def test_paper_trajectory_fit_and_plausible_acceleration():
     y = np.loadtxt(PAPER)

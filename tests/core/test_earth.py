@@ -361,7 +361,7 @@ def test_auto_keeps_the_paper_scene_flat(shared_file, config):
     from imugen.ingest.stage import ingest
     from imugen.truth import build_truth
 
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     cfg = yaml.safe_load((repo / "config" / config).read_text())
     route = yaml.safe_load((repo / "config" / "paper.yaml").read_text())["routes"]["paper"]
     ing = ingest(

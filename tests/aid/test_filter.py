@@ -11,7 +11,6 @@
 
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -26,6 +25,8 @@ from imugen.core.earth import OriginFrame, earth_rate_n
 from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
 from imugen.simulate import stage as SIM
 from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
+
+from helpers import SHARED_TRAJ
 
 ORIGIN = (45.0, 7.0, 200.0)
 TERMS = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -176,19 +177,11 @@ def test_ideal_inputs_stay_on_truth(flat_car):
         assert np.max(np.abs(r1.accel_bias)) < 1e-5, (earth, np.abs(r1.accel_bias).max(axis=1))
 
 
-PAPER = next(
-    (
-        d / "shared" / "data" / "trajectories" / "seed_reference_trajectory_enu.txt"
-        for d in (
-            Path(__file__).resolve().parents[1].parent,
-            Path(__file__).resolve().parents[2].parent,
-        )
-        if (d / "shared" / "data" / "trajectories" / "seed_reference_trajectory_enu.txt").exists()
-    ),
-    None,
-)
+PAPER = SHARED_TRAJ / "seed_reference_trajectory_enu.txt"
+PAPER = PAPER if PAPER.exists() else None
 
 
+@pytest.mark.shared
 @pytest.mark.skipif(PAPER is None, reason="shared trajectories absent")
 def test_ideal_inputs_with_nhc_through_an_outage_on_the_paper_scene():
     """Zero-error increments, a 180 s GNSS outage, NHC on: the truth's car moves along body x

@@ -10,7 +10,6 @@ departures are confined to the places where the fitted path itself is beyond the
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,16 +19,10 @@ from imugen.core import rotations as rot
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
 
+from helpers import SHARED_TRAJ
+
 ORIGIN = (31.63, -7.99, 480.6)
-_HERE = Path(__file__).resolve()
-SHARED = next(
-    (
-        d / "shared" / "data" / "trajectories"
-        for d in (_HERE.parents[1].parent, _HERE.parents[2].parent)
-        if (d / "shared" / "data" / "trajectories").is_dir()
-    ),
-    None,
-)
+SHARED = SHARED_TRAJ if SHARED_TRAJ.is_dir() else None
 
 
 def _arr(tr, cols):
@@ -135,6 +128,7 @@ def _departure_outside_implausible(tr, vp, window_m=12.0):
     return np.abs(vb[keep, 1:]).max(axis=0) if keep.any() else np.zeros(2), keep.mean()
 
 
+@pytest.mark.shared
 @pytest.mark.skipif(SHARED is None, reason="shared trajectories absent")
 def test_paper_trajectory_nhc():
     """Measured before this model (heading smoothed over 2 m, pitch from the grade): body

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "paper_method.py"
+_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "paper_method.py"
 if not _PATH.exists():
     pytest.skip("benchmarks/paper_method.py not present", allow_module_level=True)
 _spec = importlib.util.spec_from_file_location("paper_method", _PATH)

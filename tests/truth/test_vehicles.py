@@ -22,11 +22,13 @@ from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
 
+from helpers import SHARED_TRAJ
+
 ORIGIN = (45.0, 7.0, 300.0)
 SHARED = Path(
     os.environ.get(
         "IMUGEN_SHARED_TRAJECTORIES",
-        Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories",
+        SHARED_TRAJ,
     )
 )
 
@@ -327,6 +329,7 @@ def _plausibility_at_10hz(ing, vehicle, vp, label):
     return meta
 
 
+@pytest.mark.shared
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
 @pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
 def test_real_timed_tracks_are_plausible(path):
@@ -349,6 +352,7 @@ def test_real_timed_tracks_are_plausible(path):
 MAX_GROUND_PATH_M = 500e3  # longer "ground" paths (an ocean crossing) take minutes at 10 Hz
 
 
+@pytest.mark.shared
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
 @pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
 def test_real_untimed_ground_paths_are_plausible(path):

@@ -21,18 +21,12 @@ from imugen.core.errors import InputError
 from imugen.ingest.readers import kml as kml_mod
 from imugen.ingest.readers.kml import read_kml, read_kmz
 
-DATA = Path(__file__).resolve().parent / "data" / "kml"
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories"
+from helpers import DATA as DATA_DIR
+from helpers import REPO
 
+DATA = DATA_DIR / "kml"
 NS22 = "http://www.opengis.net/kml/2.2"
 GX = "http://www.google.com/kml/ext/2.2"
-
-
-def shared_file(name: str) -> Path:
-    path = SHARED / name
-    if not path.is_file():
-        pytest.skip(f"shared trajectory {name} not available")
-    return path
 
 
 def write(tmp_path: Path, text: str | bytes, name: str = "route.kml") -> Path:
@@ -662,7 +656,7 @@ def _regex_track(text: str, coord_tag: str) -> tuple[list[float], int]:
     return times, n_coords
 
 
-def test_real_kml23_track():
+def test_real_kml23_track(shared_file):
     path = shared_file("b_kml23_track_no_gx_prefix.kml")
     times, n = _regex_track(path.read_text(), "coord")
     assert n == len(times) == 7
@@ -671,7 +665,7 @@ def test_real_kml23_track():
     np.testing.assert_array_equal(p.time_unix_s, times)
 
 
-def test_real_mapfinity_gx_track():
+def test_real_mapfinity_gx_track(shared_file):
     path = shared_file("b_mapfinity_hike_austin_gxtrack.kml")
     times, n = _regex_track(path.read_text(), "gx:coord")
     assert n == len(times) == 451
@@ -682,7 +676,7 @@ def test_real_mapfinity_gx_track():
     assert p.time_unix_s[-1] - p.time_unix_s[0] == times[-1] - times[0]
 
 
-def test_real_pacific_route():
+def test_real_pacific_route(shared_file):
     path = shared_file("f_pacific_route_antimeridian.kml")
     (p,) = read_kml(path)
     assert (p.name, p.n_points) == ("Path", 4)
@@ -694,7 +688,7 @@ def test_real_pacific_route():
 
 
 def test_example_route_resource():
-    path = Path(__file__).resolve().parents[1] / "resources" / "example_route.kml"
+    path = REPO / "resources" / "example_route.kml"
     (p,) = read_kml(path)
     assert p.kind == "LineString"
     assert p.altitude_mode == "absolute" and p.altitude_trusted

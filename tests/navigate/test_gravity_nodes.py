@@ -19,12 +19,13 @@ import math
 
 import numpy as np
 import pytest
-from oracles.strapdown import exact_increments
 
 from imugen.core import earth as E
 from imugen.core.rotations import exp_dcm
 from imugen.navigate import mechanize as M
 from imugen.navigate._kernel import S_FB
+
+from oracles.strapdown import exact_increments
 
 WGS = E.OriginFrame.from_deg(45.0, 7.0, 10_000.0, model="wgs84")
 V_AIRLINER = 214.0  # m/s (770 km/h)

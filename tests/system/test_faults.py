@@ -30,7 +30,7 @@ from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.truth import run as truth_run
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "resources" / "example_route.kml"
 
 # 50 still sequences of 600 s at 100 Hz: 3 M rows, three 2^20-row groups written one by one

@@ -209,14 +209,8 @@ def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     """Dry runs (the subprocess keeps this worktree's PYTHONPATH): no aid job by default; one
     per route, grade and shard with ``gnss.enabled`` (and one outage figure per route); a bad
     receiver refused by the schema."""
-    import importlib.util
-    from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location(
-        "_wf", Path(__file__).with_name("test_workflow.py")
-    )
-    W = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(W)
+    import helpers as W
 
     cfg = {k: v for k, v in W.TINY.items() if k != "grades"}
     cfg["grades"] = {"consumer": {}, "tactical": {}}

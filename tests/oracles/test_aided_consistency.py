@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from scipy.stats import chi2
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import bench_aided_nees as B
 
 from imugen.aid.filter import ekf as A
