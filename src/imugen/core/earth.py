@@ -231,12 +231,6 @@ def normal_gravity(lat_rad, h_m):
     return g if g.ndim else float(g)
 
 
-def somigliana(lat_rad):
-    """Somigliana's closed form of normal gravity on the ellipsoid [m/s^2] (an oracle)."""
-    s2 = np.sin(lat_rad) ** 2
-    return GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2_WGS84 * s2)
-
-
 # --- geodetic <-> ECEF --------------------------------------------------------------------------
 def ecef_from_geodetic(lat_rad, lon_rad, h_m):
     """Geodetic (WGS-84) -> ECEF.

@@ -32,8 +32,9 @@ def batch_size(samples: int, budget: int = BATCH_BYTES) -> int:
 
 class Navigator:
     """Mechanizes batches of increments against one truth and tabulates their errors (used by
-    :func:`navigate` on a shard file and by ``imugen simulate --navigate`` on the sequences as
-    they are generated: the same arithmetic, hence the same table).
+    :func:`imugen.navigate.stage.navigate` on a shard file and by ``imugen simulate
+    --navigate`` on the sequences as they are generated: the same arithmetic, hence the same
+    table).
 
     Parameters
     ----------
