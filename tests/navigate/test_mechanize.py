@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from imugen.core import earth as E
+from imugen.core import rotations_nb
 from imugen.core.rotations import relative_rotation_vector
 from imugen.navigate import mechanize as M
 
@@ -417,18 +418,18 @@ def test_dtheta_from_quaternions_is_precise_during_stops():
 
 # --- kernel arithmetic ----------------------------------------------------------------------------
 def test_fused_multiply_add_rounds_once():
-    """``_fma(a, b, c)`` is ``a b + c`` rounded once: the exact rational result, rounded."""
+    """``fma(a, b, c)`` is ``a b + c`` rounded once: the exact rational result, rounded."""
     from fractions import Fraction
 
     from imugen.core.jit import njit
 
-    fma = njit(lambda a, b, c: fma(a, b, c))
+    fused = njit(lambda a, b, c: rotations_nb.fma(a, b, c))
     a, b = 1.0 + 2.0**-30, 1.0 - 2.0**-30
     assert a * b - 1.0 == 0.0  # two roundings lose it
-    assert fma(a, b, -1.0) == -(2.0**-60)
+    assert fused(a, b, -1.0) == -(2.0**-60)
     rng = np.random.default_rng(3)
     for a, b, c in rng.normal(size=(200, 3)) * [1.0, 1e3, 1e-2]:
-        assert fma(a, b, c) == float(Fraction(a) * Fraction(b) + Fraction(c))
+        assert fused(a, b, c) == float(Fraction(a) * Fraction(b) + Fraction(c))
 
 
 def test_attitude_stays_unit_through_large_and_many_increments():

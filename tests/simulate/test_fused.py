@@ -8,6 +8,7 @@ import pytest
 
 from imugen import truth as T
 from imugen.core.errors import InputError
+from imugen.navigate import navigator
 from imugen.navigate import stage as nv
 from imugen.simulate import stage as S
 from imugen.tables import nav as tnav
@@ -41,7 +42,8 @@ def truth_path(tmp_path_factory):
 )
 def test_fused_equals_simulate_then_navigate(truth_path, tmp_path, monkeypatch, kw):
     # batches of 2 over 5 sequences: a full batch, another, and a short last one
-    monkeypatch.setattr(nv, "batch_size", lambda samples: 2)
+    for module in (nv, navigator):  # the navigate stage's and simulate --navigate's batches
+        monkeypatch.setattr(module, "batch_size", lambda samples: 2)
     args = dict(grade="consumer", sequences=5, seed=3, shard=1, shard_size=5, **kw)
     two = tmp_path / "two"
     S.run(truth_path, two / "shard-001.parquet", **args)
