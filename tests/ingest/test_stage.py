@@ -363,3 +363,16 @@ def test_long_candidate_lists_are_cut_with_a_count_and_a_hint(tmp_path):
     msg = str(e.value)
     assert "and 32 more" in msg and "--path longest" in msg and len(msg) < 2000
     assert msg.count("[") == ing.LIST_CANDIDATES
+
+
+def test_the_reader_registry_names_every_reader():
+    """imugen.ingest.formats (the help of `imugen ingest`) names every reader module, and only
+    those; GPSBabel's suffixes are the babel reader's."""
+    import pkgutil
+
+    from imugen.ingest import formats, readers
+
+    modules = {m.name for m in pkgutil.iter_modules(readers.__path__)}
+    assert {f.reader for f in formats.FORMATS} == modules
+    babel = next(f for f in formats.FORMATS if f.reader == "babel")
+    assert set(babel.suffixes) == set(formats.GPSBABEL)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from imugen.core.errors import InputError
 from imugen.ingest import limits
+from imugen.ingest.formats import GPSBABEL
 from imugen.ingest.route import RoutePath
 
 _SNIFF_BYTES = 4096
@@ -30,7 +31,7 @@ def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePa
 
     KMZ is recognised by its zip signature, KML and GPX by their XML root element, NMEA by
     ``$GP``/``$GN``/... sentences, IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
-    suffixes of :data:`imugen.ingest.readers.babel.FORMATS` go through GPSBabel; NUL bytes, ROS
+    suffixes of :data:`imugen.ingest.formats.GPSBABEL` go through GPSBabel; NUL bytes, ROS
     NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.ingest.readers.gnsscsv`; anything else is
     read as delimited text (CSV with a header, or E N U rows). ``data`` is
     the file's content when the caller has already read it with
@@ -55,7 +56,7 @@ def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
     suffix = path.suffix.lower()
     if head.startswith(b"PK\x03\x04") or suffix == ".kmz":
         return kml.read_kmz(path, data)
-    if suffix in babel.FORMATS:
+    if suffix in GPSBABEL:
         return babel.read_with_gpsbabel(path)
     wide = next((enc for bom, enc in _WIDE_BOMS if head.startswith(bom)), None)
     if wide:
