@@ -30,6 +30,8 @@ from imugen.core.earth import OriginFrame
 from imugen.core.rotations import quat_to_dcm
 from imugen.simulate import stage as SIM
 
+from helpers import simulate_shard
+
 ORIGIN = (45.0, 7.0, 200.0)
 TERMS = ["turn_on_bias", "white_noise", "bias_instability"]
 LEVER = (0.6, 0.3, 1.2)
@@ -336,9 +338,9 @@ def stage(tmp_path_factory):
     meta["timed"] = False
     df, tm = TR.build_truth(enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False)
     ttruth.write(df, tm, d / "truth.parquet")
-    SIM.run(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=5, shard=1,
+    simulate_shard(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=5, shard=1,
             shard_size=3, route="car", dtype="float64")  # fmt: skip
-    params = AID.AidParams(
+    params = AID.AidOptions(
         intervals=({"kind": "outage", "start_s": 80.0, "duration_s": 30.0},),
         odometer="abs", barometer="ms5611", barometer_rate_hz=5.0,
     )  # fmt: skip
@@ -400,14 +402,17 @@ def test_companion_options_are_checked(stage, tmp_path, cli):
 
     d, _ = stage
     with pytest.raises(InputError, match="unknown preset"):
-        AID.AidParams(odometer="tyre")
+        AID.AidOptions(odometer="tyre")
     with pytest.raises(InputError, match="nhc-slip-sd"):
-        AID.AidParams(nhc_slip_sd_mps=(0.1, -0.01))
+        AID.AidOptions(nhc_slip_sd_mps=(0.1, -0.01))
     # one number is both components; unset: the truth's report (an old truth: the fallback)
-    assert AID.AidParams(nhc_slip_sd_mps=0.05).options("car").nhc_sd_mps == (0.05, 0.05)
+    assert AID.filter_options(AID.AidOptions(nhc_slip_sd_mps=0.05), "car").nhc_sd_mps == (
+        0.05,
+        0.05,
+    )
     rep = {"max_body_lateral_speed_mps": 0.3, "max_body_vertical_speed_mps": 1e-3}
-    assert AID.AidParams().options("car", None, rep).nhc_sd_mps == (0.3, 1e-3)
-    assert AID.AidParams().options("car").nhc_sd_mps == (AID.SLIP_FALLBACK_MPS,) * 2
+    assert AID.filter_options(AID.AidOptions(), "car", None, rep).nhc_sd_mps == (0.3, 1e-3)
+    assert AID.filter_options(AID.AidOptions(), "car").nhc_sd_mps == (AID.SLIP_FALLBACK_MPS,) * 2
     r = cli("aid", str(d / "truth.parquet"), str(d / "imu.parquet"), "--gnss-out",
             str(tmp_path / "g.parquet"), "-o", str(tmp_path / "a.parquet"), "--baro", "bmp388")  # fmt: skip
     assert r.returncode == 2 and "--companions-out" in r.stderr

@@ -40,6 +40,8 @@ from imugen.simulate import stage as SIM
 from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import truth as col
 
+from helpers import simulate_shard
+
 
 def _sibling(path):
     """Another test module, ``path`` under tests/ (the suite runs with ``--import-mode=importlib``)."""
@@ -344,9 +346,9 @@ def test_aid_stage_on_a_geodetic_truth(tmp_path):
                                verbose=False)  # fmt: skip
     assert tm["earth"] == "geodetic"
     col.write(df, tm, tmp_path / "truth.parquet")
-    SIM.run(tmp_path / "truth.parquet", tmp_path / "imu.parquet", "consumer", sequences=6,
+    simulate_shard(tmp_path / "truth.parquet", tmp_path / "imu.parquet", "consumer", sequences=6,
             seed=4, route="road", dtype="float64")  # fmt: skip
-    params = AID.AidParams(barometer="bmp388", nhc=True)
+    params = AID.AidOptions(barometer="bmp388", nhc=True)
     AID.run(tmp_path / "truth.parquet", tmp_path / "imu.parquet", tmp_path / "g.parquet",
             tmp_path / "a.parquet", params, out_companions=tmp_path / "c.parquet")  # fmt: skip
     a = taided.read(tmp_path / "a.parquet")

@@ -124,9 +124,9 @@ def code_inputs(*modules):
 
     The transitive closure, computed from the code with ``ast``, of the imugen modules the
     command's modules import (``modules``: the stage's ``stage.py`` face, or whichever module
-    the command dispatches to), anywhere in them, function-level imports included, plus what
-    ``imugen.cli`` imports when it starts (it imports each command's module inside its
-    dispatch, so one stage's closure holds no other stage). Computed once per rule when the
+    the command dispatches to; each imports its command's options module), anywhere in them,
+    function-level imports included, plus what ``imugen.cli`` imports when it starts (it loads
+    the one command's options module by name, so one stage's closure holds no other stage). Computed once per rule when the
     workflow is parsed (cached per module). Snakemake does not track imported code itself;
     these files are small, so their checksums are recorded and a mere timestamp change (a git
     checkout) reruns nothing. tests/system/test_code_inputs.py edits a module of each stage
