@@ -11,6 +11,7 @@ from pyproj import Geod
 
 from imugen.core.errors import InputError
 from imugen.core.io import read_meta
+from imugen.ingest.options import IngestOptions
 from imugen.ingest.stage import ingest, run
 
 GEOD = Geod(ellps="WGS84")
@@ -80,7 +81,7 @@ def test_csv_stage_round_trip(tmp_path):
         [(31.63, -7.99, 450, T(0)), (31.6301, -7.9901, 455, T(1.5)), (31.6305, -7.99, 452, T(3))],
         tmp=tmp_path,
     )
-    a = run(f, tmp_path / "r.csv", origin="31.62,-7.98,440")
+    a = run(f, tmp_path / "r.csv", IngestOptions(origin="31.62,-7.98,440"))
     b = run(tmp_path / "r.csv", tmp_path / "r.parquet")
     assert b.meta["origin"] == a.meta["origin"] and "carried" in b.meta["origin_from"]
     assert b.meta["start_time_utc"] == a.meta["start_time_utc"]
