@@ -27,9 +27,9 @@ rule aid:
     log:
         "logs/{route}/aid/{grade}/shard-{shard}.log",
     shell:
-        "imugen aid {input.truth:q} {input.shard:q} --gnss-out {output.gnss:q} -o {output.aided:q} "
-        "--companions-out {output.companions:q} --grade {params.grade:q} "
-        "--eval-rate-hz {params.eval_rate_hz} {params.opts} > {log:q} 2>&1"
+        "imugen aid {input.truth:q} {input.shard:q} --gnss-out={output.gnss:q} --output={output.aided:q} "
+        "--companions-out={output.companions:q} --grade={params.grade:q} "
+        "--eval-rate-hz={params.eval_rate_hz} {params.opts} > {log:q} 2>&1"
 
 
 rule outage_figure:
@@ -56,5 +56,5 @@ rule outage_figure:
     log:
         "logs/{route}/outage_figure.log",
     shell:
-        "imugen outage-figure -o results/{wildcards.route}/figures/outage_growth "
-        "{params.aided} {params.nav} --formats {params.formats} --dpi {params.dpi} > {log:q} 2>&1"
+        "imugen outage-figure --output=results/{wildcards.route}/figures/outage_growth "
+        "{params.aided} {params.nav} --formats {params.formats} --dpi={params.dpi} > {log:q} 2>&1"

@@ -36,7 +36,7 @@ SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
 WRITE_IMU = SIM["write_imu"]
 MOUNTING = config.get("mounting", {})
 MOUNTING_ARG = (
-    f"--mounting {shlex.quote(json.dumps(MOUNTING))}" if MOUNTING.get("enabled") else ""
+    f"--mounting={shlex.quote(json.dumps(MOUNTING))}" if MOUNTING.get("enabled") else ""
 )
 """`imugen simulate --mounting JSON` when the config's mounting is enabled (else nothing)."""
 # the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
@@ -95,27 +95,31 @@ def shard_sequences(wildcards):
 
 
 def ingest_opts(wildcards):
-    """Command-line options of `imugen ingest` for this route (path, origin, dt, extent)."""
+    """Command-line options of `imugen ingest` for this route (path, origin, dt, extent).
+
+    Every value is written `--name=value`: a southern latitude (`--origin=-33.9,...`) or a
+    path name starting with `-` would otherwise be taken for an option.
+    """
     r = config["routes"][wildcards.route]
     opts = []
     if r.get("path") is not None:
-        opts += ["--path", shlex.quote(str(r["path"]))]
+        opts.append("--path=" + shlex.quote(str(r["path"])))
     if r.get("origin") is not None:
-        opts += ["--origin", ",".join(repr(float(x)) for x in r["origin"])]
+        opts.append("--origin=" + ",".join(repr(float(x)) for x in r["origin"]))
     if r.get("dt_s") is not None:
-        opts += ["--dt", repr(float(r["dt_s"]))]
+        opts.append(f"--dt={float(r['dt_s'])!r}")
     if r.get("max_extent_km") is not None:
-        opts += ["--max-extent-km", repr(float(r["max_extent_km"]))]
+        opts.append(f"--max-extent-km={float(r['max_extent_km'])!r}")
     return " ".join(opts)
 
 
 def ingest_clean_opts(wildcards):
     """`imugen ingest` options of the cleaning and gap rules for this route."""
     r = config["routes"][wildcards.route]
-    opts = ["--vehicle", shlex.quote(str(r.get("vehicle", "car")))]
+    opts = ["--vehicle=" + shlex.quote(str(r.get("vehicle", "car")))]
     if r.get("max_gap_s") is not None:
-        opts += ["--max-gap-s", repr(float(r["max_gap_s"]))]
-    opts += ["--gaps", shlex.quote(str(r.get("gaps", "split")))]
+        opts.append(f"--max-gap-s={float(r['max_gap_s'])!r}")
+    opts.append("--gaps=" + shlex.quote(str(r.get("gaps", "split"))))
     return " ".join(opts)
 
 
@@ -123,7 +127,7 @@ def auto_grades():
     """`--grade` options of the truth: every configured grade (presets by name, custom grades
     as FILE.yaml:NAME) takes part in the `--earth auto` budget."""
     return " ".join(
-        f"--grade {shlex.quote(f'results/grades/{g}.yaml:{g}' if is_custom(g) else g)}"
+        f"--grade={shlex.quote(f'results/grades/{g}.yaml:{g}' if is_custom(g) else g)}"
         for g in GRADES
     )
 
@@ -153,7 +157,7 @@ def grade_pairs(kind):
         files = input[kind]
         per = len(files) // len(GRADES)
         return " ".join(
-            f"--{kind} {g}={shlex.quote(f)}"
+            f"--{kind}={shlex.quote(f'{g}={f}')}"
             for i, g in enumerate(GRADES)
             for f in files[i * per : (i + 1) * per]
         )
@@ -193,20 +197,20 @@ AID_ON = bool(GNSS["enabled"])
 
 def aid_opts(wildcards):
     """`imugen aid` options from the gnss, scenarios and aided config blocks."""
-    opts = [f"--receiver {GNSS['receiver']}", f"--gnss-draw {GNSS['draw']}"]
+    opts = [f"--receiver={GNSS['receiver']}", f"--gnss-draw={GNSS['draw']}"]
     if GNSS["rate_hz"] is not None:
-        opts.append(f"--gnss-rate-hz {GNSS['rate_hz']!r}")
-    opts.append("--lever-arm " + ",".join(repr(float(x)) for x in GNSS["lever_arm_b_m"]))
-    opts.append(f"--lever-arm-sd {float(GNSS['lever_arm_sd_m'])!r}")
+        opts.append(f"--gnss-rate-hz={GNSS['rate_hz']!r}")
+    opts.append("--lever-arm=" + ",".join(repr(float(x)) for x in GNSS["lever_arm_b_m"]))
+    opts.append(f"--lever-arm-sd={float(GNSS['lever_arm_sd_m'])!r}")
     specs = [f"outage:{float(T)!r}" for T in SCEN["outages_s"]] + list(SCEN["draw"])
     for iv in SCEN["intervals"]:
         extra = "".join(
             f",{k}={float(v)!r}" for k, v in iv.items() if k not in ("kind", "start_s", "duration_s")
         )
         specs.append(f"{iv['kind']}:{float(iv['duration_s'])!r}@{float(iv['start_s'])!r}{extra}")
-    opts += [f"--scenario {shlex.quote(s)}" for s in specs]
-    opts.append(f"--settle-s {float(SCEN['settle_s'])!r}")
-    opts.append(f"--tuning-level {AIDED['tuning_level']}")
+    opts += [f"--scenario={shlex.quote(s)}" for s in specs]
+    opts.append(f"--settle-s={float(SCEN['settle_s'])!r}")
+    opts.append(f"--tuning-level={AIDED['tuning_level']}")
     if not AIDED["gnss_bias_states"]:
         opts.append("--no-gnss-bias-states")
     if AIDED["scale_factors"]:
@@ -218,22 +222,22 @@ def aid_opts(wildcards):
     slip = AIDED["nhc_slip_sd_mps"]
     if slip is not None:
         slip = slip if isinstance(slip, list) else [slip]
-        opts.append("--nhc-slip-sd " + ",".join(repr(float(x)) for x in slip))
+        opts.append("--nhc-slip-sd=" + ",".join(repr(float(x)) for x in slip))
     if not AIDED["zupt"]:
         opts.append("--no-zupt")
-    opts.append(f"--gate-sigma {float(AIDED['gate_sigma'])!r}")
-    opts.append(f"--align-speed {float(AIDED['align_speed_mps'])!r}")
-    opts.append(f"--companion-draw {COMP['draw']}")
+    opts.append(f"--gate-sigma={float(AIDED['gate_sigma'])!r}")
+    opts.append(f"--align-speed={float(AIDED['align_speed_mps'])!r}")
+    opts.append(f"--companion-draw={COMP['draw']}")
     if COMP["odometer"] is not None:
-        opts.append(f"--odometer {COMP['odometer']}")
+        opts.append(f"--odometer={COMP['odometer']}")
         if COMP["odometer_rate_hz"] is not None:
-            opts.append(f"--odometer-rate-hz {float(COMP['odometer_rate_hz'])!r}")
+            opts.append(f"--odometer-rate-hz={float(COMP['odometer_rate_hz'])!r}")
         lever = ",".join(repr(float(x)) for x in COMP["odometer_lever_b_m"])
-        opts.append(f"--odometer-lever {lever}")
+        opts.append(f"--odometer-lever={lever}")
         if not COMP["odometer_scale_state"]:
             opts.append("--no-odometer-scale-state")
     if COMP["barometer"] is not None:
-        opts.append(f"--baro {COMP['barometer']}")
+        opts.append(f"--baro={COMP['barometer']}")
         if COMP["barometer_rate_hz"] is not None:
-            opts.append(f"--baro-rate-hz {float(COMP['barometer_rate_hz'])!r}")
+            opts.append(f"--baro-rate-hz={float(COMP['barometer_rate_hz'])!r}")
     return " ".join(opts)

@@ -17,13 +17,13 @@ rule evaluate:
         "results/{route}/metrics/{grade}.parquet",
     params:
         segments=(
-            "--segments " + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
+            "--segments=" + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
         ),
         aided="--aided" if AID_ON else "",
     log:
         "logs/{route}/evaluate/{grade}.log",
     shell:
-        "imugen evaluate {input.truth:q} {input.nav:q} -o {output:q} --grade {wildcards.grade} "
+        "imugen evaluate {input.truth:q} {input.nav:q} --output={output:q} --grade={wildcards.grade} "
         "{params.segments} {input.imu:q} {params.aided} {input.aided:q} > {log:q} 2>&1"
 
 
@@ -49,4 +49,4 @@ rule tables:
     log:
         "logs/{route}/tables.log",
     shell:
-        "imugen tables {input.metrics:q} -o {output.csv:q} > {log:q} 2>&1"
+        "imugen tables {input.metrics:q} --output={output.csv:q} > {log:q} 2>&1"

@@ -12,8 +12,8 @@ rule export_mat:
     log:
         "logs/{route}/export_mat/{grade}.log",
     shell:
-        "imugen export-mat --truth {input.truth:q} --shards {input.shards:q} --nav {input.nav:q} "
-        "--grade {wildcards.grade} --route {wildcards.route} -o {output:q} > {log:q} 2>&1"
+        "imugen export-mat --truth={input.truth:q} --shards {input.shards:q} --nav {input.nav:q} "
+        "--grade={wildcards.grade} --route={wildcards.route} --output={output:q} > {log:q} 2>&1"
 
 
 # the companion sensors (aid stage, config `companions`) go to the ROS 2 bags
@@ -35,10 +35,10 @@ if SPLIT["val_fraction"] + SPLIT["test_fraction"] >= 1:
         "imugen: error: exports.split: val_fraction + test_fraction must leave some for train"
     )
 SPLIT_OPTS = (
-    f"--split-by {SPLIT['by']} --split-seed {int(SPLIT['seed'])} "
-    f"--val-fraction {float(SPLIT['val_fraction'])!r} "
-    f"--test-fraction {float(SPLIT['test_fraction'])!r}"
-    + (f" --holdout-routes {shlex.quote(','.join(SPLIT['holdout_routes']))}" if SPLIT["holdout_routes"] else "")
+    f"--split-by={SPLIT['by']} --split-seed={int(SPLIT['seed'])} "
+    f"--val-fraction={float(SPLIT['val_fraction'])!r} "
+    f"--test-fraction={float(SPLIT['test_fraction'])!r}"
+    + (f" --holdout-routes={shlex.quote(','.join(SPLIT['holdout_routes']))}" if SPLIT["holdout_routes"] else "")
 )
 """`imugen export` options of the split lists (config `exports.split`)."""
 
@@ -68,7 +68,7 @@ rule export_formats:
     log:
         "logs/{route}/export_formats/{grade}.log",
     shell:
-        "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
-        "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
+        "imugen export {input.truth:q} {input.shards:q} --output={output:q} --format={params.formats} "
+        "--route={wildcards.route} --grade={wildcards.grade} --nav-rate-hz={params.nav_rate_hz} "
         "{params.split} "
         "--overwrite {params.gnss} {params.aided} {params.companions} > {log:q} 2>&1"

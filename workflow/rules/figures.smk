@@ -47,6 +47,6 @@ rule figures:
     log:
         "logs/{route}/figures.log",
     shell:
-        "imugen figures {input.truth:q} -o results/{wildcards.route}/figures "
-        "{params.nav} {params.metrics} {params.imu} --formats {params.formats} --dpi {params.dpi} "
-        "--zoom-fraction {params.zoom} --representative {params.representative} > {log:q} 2>&1"
+        "imugen figures {input.truth:q} --outdir=results/{wildcards.route}/figures "
+        "{params.nav} {params.metrics} {params.imu} --formats {params.formats} --dpi={params.dpi} "
+        "--zoom-fraction={params.zoom} --representative={params.representative} > {log:q} 2>&1"

@@ -18,7 +18,7 @@ rule ingest_csv:
     log:
         "logs/{route}/ingest_csv.log",
     shell:
-        "imugen ingest {input.src:q} -o {output:q} {params.opts} > {log:q} 2>&1"
+        "imugen ingest --output={output:q} {params.opts} -- {input.src:q} > {log:q} 2>&1"
 
 
 rule ingest_enu:
@@ -30,4 +30,4 @@ rule ingest_enu:
     log:
         "logs/{route}/ingest_enu.log",
     shell:
-        "imugen ingest {input.csv:q} -o {output:q} > {log:q} 2>&1"
+        "imugen ingest {input.csv:q} --output={output:q} > {log:q} 2>&1"

@@ -40,17 +40,17 @@ rule simulate:
         vibration=SIM["vibration"] or "off",
         mounting=MOUNTING_ARG,
         shard=lambda wc: int(wc.shard),
-        imu=lambda wc, output: f"-o {shlex.quote(output.imu[0])}" if WRITE_IMU else "",
+        imu=lambda wc, output: f"--output={shlex.quote(output.imu[0])}" if WRITE_IMU else "",
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
         "IMUGEN_CONSOLE_FD=3 "
-        "imugen simulate {input.truth:q} {params.imu} --navigate {output.nav:q} "
-        "--eval-rate-hz {params.eval_rate_hz} --route {wildcards.route:q} --grade {params.grade:q} "
-        "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
-        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
-        "--vibration {params.vibration} {params.mounting} "
+        "imugen simulate {input.truth:q} {params.imu} --navigate={output.nav:q} "
+        "--eval-rate-hz={params.eval_rate_hz} --route={wildcards.route:q} --grade={params.grade:q} "
+        "--sequences={params.sequences} --shard-size={params.shard_size} --seed={params.seed} "
+        "--shard={params.shard} --draw={params.draw} --dtype={params.dtype} --outputs={params.outputs} --increments={params.increments} {params.series} "
+        "--vibration={params.vibration} {params.mounting} "
         "3>&2 > {log:q} 2>&1"
 
 
@@ -71,9 +71,9 @@ rule allan_static:
     log:
         "logs/allan/{grade}/static.log",
     shell:
-        "imugen simulate --static {params.static_s} --rate-hz {params.rate_hz} "
-        "-o {output:q} --grade {params.grade:q} --sequences {params.sequences} "
-        "--seed {params.seed} --shard 0 --draw nominal > {log:q} 2>&1"
+        "imugen simulate --static={params.static_s} --rate-hz={params.rate_hz} "
+        "--output={output:q} --grade={params.grade:q} --sequences={params.sequences} "
+        "--seed={params.seed} --shard=0 --draw=nominal > {log:q} 2>&1"
 
 
 rule allan:
@@ -91,4 +91,4 @@ rule allan:
     log:
         "logs/allan/{grade}/allan.log",
     shell:
-        "imugen allan {input.static:q} --plot {output.plot:q} > {output.json:q} 2> {log:q}"
+        "imugen allan {input.static:q} --plot={output.plot:q} > {output.json:q} 2> {log:q}"

@@ -37,5 +37,5 @@ rule truth:
     log:
         "logs/{route}/truth.log",
     shell:
-        "imugen truth {input.enu:q} -o {output:q} --rate-hz {params.rate_hz} "
-        "--earth {params.earth} --vehicle {params.vehicle} {params.grades} > {log:q} 2>&1"
+        "imugen truth {input.enu:q} --output={output:q} --rate-hz={params.rate_hz} "
+        "--earth={params.earth} --vehicle={params.vehicle} {params.grades} > {log:q} 2>&1"
