@@ -56,6 +56,10 @@ onsuccess:
     run_summary()
 
 
+onerror:
+    report_failures(log)
+
+
 rule all:
     default_target: True
     input:

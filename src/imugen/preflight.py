@@ -56,21 +56,86 @@ def _non_finite(node, where: str = "config"):
     return None
 
 
+def schema_problems(config: dict, schema: dict, limit: int = 20) -> list[str]:
+    """Every way ``config`` breaks the JSON schema, one short line each naming the key.
+
+    Snakemake's own validation prints the first error with the whole sub-schema (1,635 lines
+    for a misspelt top-level key); this lists each problem as ``KEY: what is wrong`` (at most
+    ``limit`` lines), an unknown key with the closest known one.
+    """
+    import difflib
+
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(validator.iter_errors(config), key=lambda e: [str(p) for p in e.path])
+    lines = []
+    for e in errors:
+        where = ".".join(["config", *map(str, e.absolute_path)])
+        if e.validator == "additionalProperties" and isinstance(e.instance, dict):
+            known = sorted(e.schema.get("properties", {}))
+            for key in sorted(set(e.instance) - set(known), key=str):
+                close = difflib.get_close_matches(str(key), known, n=1)
+                hint = f"did you mean {close[0]!r}?" if close else f"known: {', '.join(known)}"
+                lines.append(f"{where}.{key}: unknown key ({limit_text(hint, 160)})")
+            continue
+        if e.context:  # anyOf / oneOf: the branch that came closest
+            e = jsonschema.exceptions.best_match(e.context)
+        lines.append(f"{where}: {limit_text(' '.join(e.message.split()), 200)}")
+    if len(lines) > limit:
+        lines = [*lines[:limit], f"config: and {len(lines) - limit} more problems"]
+    return lines
+
+
+def limit_text(text: str, n: int) -> str:
+    """``text`` cut to ``n`` characters (an ellipsis marks the cut)."""
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
 def check_values(config: dict) -> None:
-    """Refuse NaN/inf anywhere and invalid custom grades (InputError naming the key)."""
+    """Refuse NaN/inf anywhere and invalid custom grades (InputError naming the key).
+
+    A custom grade is checked as the jobs will read it: fully valid, not named like a preset
+    and not using a preset's id (``imugen.grades.load_grades`` refuses both in a job), and
+    with an id no other grade of the run has (ids seed the random draws).
+    """
     from imugen.grades import grade_from_config, presets
 
     hit = _non_finite(config)
     if hit:
         raise InputError(hit, "is not a finite number")
+    pre = presets()
+    ids = {g.id: f"the preset {n!r}" for n, g in pre.items() if n in config.get("grades", {})}
+    pre_ids = {g.id: n for n, g in pre.items()}
     for name, spec in config.get("grades", {}).items():
+        where = f"config grades.{name}"
         if spec:
-            grade_from_config(name, spec, origin=f"config grades.{name}")
-        elif name not in presets():
+            if name in pre:
+                raise InputError(
+                    where, "is the name of a shipped preset: give the custom grade another name"
+                )
+            g = grade_from_config(name, spec, origin=where)
+            if g.id in pre_ids:
+                raise InputError(
+                    where, f"id {g.id} is the preset {pre_ids[g.id]!r}'s: choose another id"
+                )
+            if g.id in ids:
+                raise InputError(where, f"id {g.id} is already used by {ids[g.id]}")
+            ids[g.id] = f"grade {name!r}"
+        elif name not in pre:
             raise InputError(
-                f"config grades.{name}",
-                f"is empty but no preset has this name (presets: {', '.join(presets())})",
+                where,
+                f"is empty but no preset has this name (presets: {', '.join(pre)})",
             )
+
+
+def human_bytes(n: float) -> str:
+    """``n`` bytes in binary units with 3 significant digits: ``50.0 MiB``, ``1.25 GiB``."""
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB"):
+        if abs(n) < 1024 or unit == "TiB":
+            return f"{n:.0f} bytes" if unit == "bytes" else f"{n:.3g} {unit}"
+        n /= 1024
+    raise AssertionError  # pragma: no cover
 
 
 def route_duration_s(name: str, route: dict, results: Path) -> float | None:
@@ -168,20 +233,19 @@ def check_budget(config: dict, results: Path = Path("results")) -> dict:
     """Refuse a run whose estimate exceeds a budget (InputError with the estimate)."""
     est = estimate(config, results)
     mem, disk = budgets(config, results)
-    gib = 2**30
     if est["memory_b"] > mem:
         raise InputError(
             "config",
-            f"the largest truth job needs about {est['memory_b'] / gib:.1f} GiB of memory "
+            f"the largest truth job needs about {human_bytes(est['memory_b'])} of memory "
             f"(routes of {max(est['route_durations_s'].values()):.0f} s at "
-            f"{config['truth']['rate_hz']:g} Hz) but the budget is {mem / gib:.1f} GiB "
+            f"{config['truth']['rate_hz']:g} Hz) but the budget is {human_bytes(mem)} "
             "(budget.memory_gib); lower truth.rate_hz or split the route",
         )
     if est["disk_b"] > disk:
         raise InputError(
             "config",
-            f"the run would write about {est['disk_b'] / gib:.1f} GiB but the budget is "
-            f"{disk / gib:.1f} GiB (budget.disk_gib, default the free space); lower "
+            f"the run would write about {human_bytes(est['disk_b'])} but the budget is "
+            f"{human_bytes(disk)} (budget.disk_gib, default the free space); lower "
             "simulate.sequences, truth.rate_hz or allan.static_s",
         )
     return est

@@ -5,6 +5,7 @@ import shlex
 import sys
 from pathlib import Path
 
+import yaml
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
@@ -14,10 +15,18 @@ from imugen import preflight
 from imugen.errors import InputError
 
 
+# The schema first, one line per problem naming the key (Snakemake's `validate` would print
+# the first problem with its whole sub-schema); then `validate` fills the defaults.
+_problems = preflight.schema_problems(
+    config, yaml.safe_load((Path(workflow.basedir) / "workflow/schemas/config.schema.yaml").read_text())
+)
+if _problems:
+    raise WorkflowError("\n".join(f"imugen: error: {p}" for p in _problems))
 validate(config, "../schemas/config.schema.yaml")
-# Before any job: no NaN/inf, custom grades valid, the run within the memory and disk budgets
-# (estimates in the message; see src/imugen/preflight.py). Jobs re-reading this file on a
-# cluster node skip the budget (it was checked where the run was started).
+# Before any job: no NaN/inf, custom grades valid (not named like a preset), the run within
+# the memory and disk budgets (estimates in the message; see src/imugen/preflight.py). Jobs
+# re-reading this file on a cluster node skip the budget (it was checked where the run was
+# started).
 try:
     preflight.check_values(config)
     if workflow.is_main_process and not workflow.dryrun:
@@ -185,6 +194,43 @@ def run_summary():
                 f"(limit {b.get('fraction', 0.1):.0%})"
             )
         print(f"  {r}: results/{r}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
+
+
+def failed_job_reasons(snakemake_logs):
+    """(rule, log file, reason) of each failed job in Snakemake's log files (a path or a
+    list): the job's last line `imugen: error: ...` (without the prefix), else its log's
+    last line."""
+    if isinstance(snakemake_logs, (str, Path)):
+        snakemake_logs = [snakemake_logs]
+    text = "\n".join(
+        Path(f).read_text(errors="replace") for f in snakemake_logs or [] if Path(f).is_file()
+    )
+    out, failed = [], None
+    for line in text.splitlines():
+        if line.startswith("Error in rule "):
+            failed = line[len("Error in rule ") :].rstrip(":")
+        elif failed and line.strip().startswith("log: ") and "(check log file" in line:
+            for f in line.strip()[5:].split(" (check log file")[0].split(", "):
+                out.append((failed, f, _last_reason(Path(f))))
+            failed = None
+    return out
+
+
+def _last_reason(path):
+    try:
+        lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return "(no log written)"
+    errors = [ln for ln in lines if ln.startswith("imugen: error: ")]
+    if errors:
+        return errors[-1][len("imugen: error: ") :]
+    return lines[-1][:300] if lines else "(its log is empty)"
+
+
+def report_failures(snakemake_logs):
+    """On a failed run: each failed job's one-line reason, on the terminal (not only in its log)."""
+    for name, f, reason in failed_job_reasons(snakemake_logs):
+        print(f"imugen: error: {name} failed: {reason} ({f})", file=sys.stderr)
 
 
 # --- aid stage (GNSS-denied scenarios, aided baseline): workflow/rules/aid.smk ---
