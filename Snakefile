@@ -52,6 +52,10 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
 
 
+onstart:
+    check_executor()
+
+
 onsuccess:
     run_summary()
 

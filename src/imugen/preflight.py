@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
+import subprocess
 from pathlib import Path
 
 from imugen.errors import InputError
@@ -249,3 +251,65 @@ def check_budget(config: dict, results: Path = Path("results")) -> dict:
             "simulate.sequences, truth.rate_hz or allan.static_s",
         )
     return est
+
+
+SLURM_QUERY_TIMEOUT_S = 30
+
+
+def slurm_status_problem(status_command: str | None, init_s: float = 40.0) -> str | None:
+    """Why a run through snakemake-executor-plugin-slurm would never see its jobs end, or None.
+
+    The plugin polls job states with ``sacct`` whenever the command exists (with ``squeue``
+    only when asked, ``--slurm-status-command squeue``, and only while SLURM's ``MinJobAge``
+    is at least 3 x ``--slurm-init-seconds-before-status-checks``; else it falls back to
+    ``sacct``). On a cluster without accounting ``sacct`` exists but fails, and the run waits
+    for ever after its jobs have finished.
+    """
+    if shutil.which("sacct") is None:
+        return None  # the plugin uses squeue
+    uses_sacct = status_command in (None, "", "sacct")
+    if not uses_sacct:
+        age = _slurm_min_job_age()
+        if age is None or age >= 3 * init_s:
+            return None
+    try:
+        p = subprocess.run(
+            ["sacct", "-X", "-n", "-S", "now"],
+            capture_output=True,
+            text=True,
+            timeout=SLURM_QUERY_TIMEOUT_S,
+        )
+    except subprocess.TimeoutExpired:
+        why = f"sacct did not answer within {SLURM_QUERY_TIMEOUT_S} s"
+    except OSError as exc:
+        why = f"sacct cannot be run ({exc.strerror or exc})"
+    else:
+        if p.returncode == 0:
+            return None
+        lines = (p.stderr or p.stdout).strip().splitlines()
+        why = f"sacct fails ({lines[-1][:160] if lines else f'exit status {p.returncode}'})"
+    if uses_sacct:
+        return (
+            f"this SLURM cluster has no job accounting: {why}, and the executor plugin would "
+            "wait for ever; add --slurm-status-command squeue (workflow/profiles/slurm/README.md)"
+        )
+    return (
+        f"SLURM's MinJobAge ({age} s) is below 3 x --slurm-init-seconds-before-status-checks "
+        f"({init_s:g} s): the executor plugin would fall back to sacct, and {why}; lower "
+        "--slurm-init-seconds-before-status-checks (workflow/profiles/slurm/README.md)"
+    )
+
+
+def _slurm_min_job_age() -> int | None:
+    """SLURM's ``MinJobAge`` in seconds (``scontrol show config``), None when unknown."""
+    try:
+        p = subprocess.run(
+            ["scontrol", "show", "config"],
+            capture_output=True,
+            text=True,
+            timeout=SLURM_QUERY_TIMEOUT_S,
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    m = re.search(r"^MinJobAge\s*=\s*(\d+)", p.stdout, flags=re.M)
+    return int(m.group(1)) if m else None
