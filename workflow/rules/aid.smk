@@ -9,10 +9,6 @@ rule aid:
         truth="results/{route}/truth.parquet",
         shard="results/{route}/imu/{grade}/shard-{shard}.parquet",
         grade=grade_files,
-        code=stage_code(
-            "aid", "aided", "gnss", "scenarios", "companions", "mechanize", "earth", "mounting",
-            "local_errors",
-        ),
     output:
         gnss="results/{route}/gnss/{grade}/shard-{shard}.parquet",
         labels="results/{route}/gnss/{grade}/shard-{shard}.labels.parquet",
@@ -21,6 +17,10 @@ rule aid:
         companions="results/{route}/companions/{grade}/shard-{shard}.parquet",
         companion_labels="results/{route}/companions/{grade}/shard-{shard}.labels.parquet",
     params:
+        code=stage_code(
+            "aid", "aided", "gnss", "scenarios", "companions", "mechanize", "earth", "mounting",
+            "local_errors",
+        ),
         opts=aid_opts,
         grade=grade_arg,
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
@@ -40,7 +40,6 @@ rule outage_figure:
         nav=lambda wc: [
             f"results/{wc.route}/nav/{g}/shard-{s}.parquet" for g in GRADES for s in SHARDS
         ],
-        code=stage_code("figures_outage", "figures", "plotting"),
     output:
         report(
             expand("results/{{route}}/figures/outage_growth.{ext}", ext=FIG["formats"]),
@@ -49,6 +48,7 @@ rule outage_figure:
             labels={"route": "{route}", "figure": "error growth during GNSS outages"},
         ),
     params:
+        code=stage_code("figures_outage", "figures", "plotting"),
         aided=grade_pairs("aided"),
         nav=grade_pairs("nav"),
         formats=" ".join(FIG["formats"]),

@@ -1,4 +1,6 @@
 # Helpers for every stage: config validation, routes/grades/shards, code tracking.
+import functools
+import hashlib
 import json
 import math
 import shlex
@@ -68,13 +70,20 @@ wildcard_constraints:
     shard=r"\d\d\d|[1-9]\d\d\d+",
 
 
+@functools.cache
 def stage_code(*modules):
-    """Source files of the stage modules, as inputs: editing one reruns the stage.
+    """A digest of the stage modules' source, as a rule param: editing one reruns the stage.
 
-    Snakemake does not track imported code; these files are small, so their checksums are
-    recorded and a mere timestamp change (git checkout) does not rerun anything.
+    Snakemake does not track imported code. A changed param reruns its jobs (Snakemake's
+    `params` rerun trigger; a mere timestamp change, such as a git checkout, reruns nothing),
+    and a static param costs a job nothing, where the same files as inputs of every shard job
+    cost a fifth of a 10,000-shard dry run (README "Workflow").
     """
-    return [str(Path(workflow.basedir) / "src" / "imugen" / f"{m}.py") for m in modules]
+    h = hashlib.sha256()
+    for m in modules:
+        h.update(m.encode() + b"\0")
+        h.update((Path(workflow.basedir) / "src" / "imugen" / f"{m}.py").read_bytes())
+    return h.hexdigest()[:16]
 
 
 PRESETS = str(Path(workflow.basedir) / "src" / "imugen" / "data" / "grades.yaml")
@@ -196,22 +205,41 @@ def run_summary():
         print(f"  {r}: results/{r}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
 
 
+def check_executor():
+    """Before the first job of a SLURM run: refuse, in one line, a run that would wait for
+    ever (a cluster without accounting; src/imugen/preflight.py, slurm_status_problem)."""
+    plugin = workflow.executor_plugin
+    if plugin is None or plugin.name != "slurm":
+        return
+    settings = workflow.executor_settings
+    problem = preflight.slurm_status_problem(
+        getattr(settings, "status_command", None),
+        float(getattr(settings, "init_seconds_before_status_checks", None) or 40),
+    )
+    if problem:
+        print(f"imugen: error: {problem}", file=sys.stderr)
+        sys.exit(1)
+
+
 def failed_job_reasons(snakemake_logs):
     """(rule, log file, reason) of each failed job in Snakemake's log files (a path or a
     list): the job's last line `imugen: error: ...` (without the prefix), else its log's
-    last line."""
+    last line, else Snakemake's message (a failed submission: `SLURM sbatch failed ...`)."""
     if isinstance(snakemake_logs, (str, Path)):
         snakemake_logs = [snakemake_logs]
     text = "\n".join(
         Path(f).read_text(errors="replace") for f in snakemake_logs or [] if Path(f).is_file()
     )
-    out, failed = [], None
+    out, failed, message = [], None, None
     for line in text.splitlines():
+        s = line.strip()
         if line.startswith("Error in rule "):
-            failed = line[len("Error in rule ") :].rstrip(":")
-        elif failed and line.strip().startswith("log: ") and "(check log file" in line:
-            for f in line.strip()[5:].split(" (check log file")[0].split(", "):
-                out.append((failed, f, _last_reason(Path(f))))
+            failed, message = line[len("Error in rule ") :].rstrip(":"), None
+        elif failed and s.startswith("message: ") and s != "message: None":
+            message = s[len("message: ") :]
+        elif failed and s.startswith("log: ") and "(check log file" in s:
+            for f in s[5:].split(" (check log file")[0].split(", "):
+                out.append((failed, f, _last_reason(Path(f)) or message or "(no log written)"))
             failed = None
     return out
 
@@ -220,11 +248,11 @@ def _last_reason(path):
     try:
         lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
     except OSError:
-        return "(no log written)"
+        return None
     errors = [ln for ln in lines if ln.startswith("imugen: error: ")]
     if errors:
         return errors[-1][len("imugen: error: ") :]
-    return lines[-1][:300] if lines else "(its log is empty)"
+    return lines[-1][:300] if lines else None
 
 
 def report_failures(snakemake_logs):

@@ -12,10 +12,10 @@ rule evaluate:
         nav=shard_paths("nav"),
         imu=shard_paths("imu") if SEGMENTS else [],
         aided=shard_paths("aided") if AID_ON else [],
-        code=stage_code("evaluate", "navigate", "mechanize", "earth", "rotations"),
     output:
         "results/{route}/metrics/{grade}.parquet",
     params:
+        code=stage_code("evaluate", "navigate", "mechanize", "earth", "rotations"),
         segments=(
             "--segments=" + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
         ),
@@ -30,7 +30,6 @@ rule evaluate:
 rule tables:
     input:
         metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
-        code=stage_code("evaluate"),
     output:
         csv=report(
             "results/{route}/rmse.csv",
@@ -46,6 +45,8 @@ rule tables:
             category="RMSE",
             labels={"route": "{route}", "format": "table"},
         ),
+    params:
+        code=stage_code("evaluate"),
     log:
         "logs/{route}/tables.log",
     shell:

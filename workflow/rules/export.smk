@@ -6,9 +6,10 @@ rule export_mat:
         truth="results/{route}/truth.parquet",
         shards=shard_paths("imu"),
         nav=shard_paths("nav"),
-        code=stage_code("export"),
     output:
         "results/{route}/datasets/{grade}.mat",
+    params:
+        code=stage_code("export"),
     log:
         "logs/{route}/export_mat/{grade}.log",
     shell:
@@ -50,13 +51,13 @@ rule export_formats:
         gnss=shard_paths("gnss") if AID_ON else [],
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
         companions=shard_paths("companions") if COMPANION_EXPORT else [],
+    output:
+        directory("results/{route}/datasets/{grade}"),
+    params:
         code=stage_code(
             "formats/__init__", "formats/source", "formats/common", "formats/convert", "dataset",
             *(f"formats/{f}" for f in config["exports"]["formats"]),
         ),
-    output:
-        directory("results/{route}/datasets/{grade}"),
-    params:
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],
         split=SPLIT_OPTS,

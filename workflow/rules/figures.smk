@@ -8,7 +8,6 @@ rule figures:
         ],
         metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
         imu=expand("results/{{route}}/imu/{grade}/shard-000.parquet", grade=IMU_GRADES),
-        code=stage_code("figures", "mapview"),
     output:
         report(
             expand("results/{{route}}/figures/figure8.{ext}", ext=FIG["formats"]),
@@ -37,6 +36,7 @@ rule figures:
             labels={"route": "{route}", "figure": "IMU signals"},
         ),
     params:
+        code=stage_code("figures", "mapview"),
         nav=grade_pairs("nav"),
         metrics=grade_pairs("metrics"),
         imu=grade_pairs("imu"),

@@ -6,14 +6,14 @@
 rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
+    output:
+        "results/{route}/route.csv",
+    params:
         code=stage_code(
             "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
             "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
             "readers/gnsscsv", "readers/babel", "clean", "segments", "limits",
         ),
-    output:
-        "results/{route}/route.csv",
-    params:
         opts=lambda wc: f"{ingest_opts(wc)} {ingest_clean_opts(wc)}",
     log:
         "logs/{route}/ingest_csv.log",
@@ -24,9 +24,10 @@ rule ingest_csv:
 rule ingest_enu:
     input:
         csv="results/{route}/route.csv",
-        code=stage_code("ingest", "frames", "readers/text", "clean", "segments"),
     output:
         "results/{route}/enu.parquet",
+    params:
+        code=stage_code("ingest", "frames", "readers/text", "clean", "segments"),
     log:
         "logs/{route}/ingest_enu.log",
     shell:

@@ -18,17 +18,18 @@ rule simulate:
     input:
         truth="results/{route}/truth.parquet",
         grade=grade_files,
-        code=stage_code(
-            "simulate", "sensors", "grades", "units", "vibration", "mounting", "navigate",
-            "mechanize", "earth", "rotations", "local_errors",
-        ),
         presets=PRESETS,
     output:
         nav="results/{route}/nav/{grade}/shard-{shard}.parquet",
         imu=IMU_OUTPUTS,
+    # few function params: Snakemake calls each one for each job; the grade's definition
+    # reaches the job through its file (input grade), the shard number through its wildcard
     params:
+        code=stage_code(
+            "simulate", "sensors", "grades", "units", "vibration", "mounting", "navigate",
+            "mechanize", "earth", "rotations", "local_errors",
+        ),
         grade=grade_arg,
-        spec=lambda wc: config["grades"][wc.grade],
         sequences=shard_sequences,
         shard_size=PER_SHARD,
         seed=SIM["seed"],
@@ -39,7 +40,6 @@ rule simulate:
         increments=SIM["increments"],
         vibration=SIM["vibration"] or "off",
         mounting=MOUNTING_ARG,
-        shard=lambda wc: int(wc.shard),
         imu=lambda wc, output: f"--output={shlex.quote(output.imu[0])}" if WRITE_IMU else "",
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
     log:
@@ -49,7 +49,7 @@ rule simulate:
         "imugen simulate {input.truth:q} {params.imu} --navigate={output.nav:q} "
         "--eval-rate-hz={params.eval_rate_hz} --route={wildcards.route:q} --grade={params.grade:q} "
         "--sequences={params.sequences} --shard-size={params.shard_size} --seed={params.seed} "
-        "--shard={params.shard} --draw={params.draw} --dtype={params.dtype} --outputs={params.outputs} --increments={params.increments} {params.series} "
+        "--shard={wildcards.shard} --draw={params.draw} --dtype={params.dtype} --outputs={params.outputs} --increments={params.increments} {params.series} "
         "--vibration={params.vibration} {params.mounting} "
         "3>&2 > {log:q} 2>&1"
 
@@ -57,11 +57,11 @@ rule simulate:
 rule allan_static:
     input:
         grade=grade_files,
-        code=stage_code("simulate", "sensors", "grades", "units"),
         presets=PRESETS,
     output:
         "results/allan/{grade}/static.parquet",
     params:
+        code=stage_code("simulate", "sensors", "grades", "units"),
         grade=grade_arg,
         spec=lambda wc: config["grades"][wc.grade],
         static_s=config["allan"]["static_s"],
@@ -79,7 +79,6 @@ rule allan_static:
 rule allan:
     input:
         static="results/allan/{grade}/static.parquet",
-        code=stage_code("allan"),
     output:
         json="results/allan/{grade}/allan.json",
         plot=report(
@@ -88,6 +87,8 @@ rule allan:
             category="Allan deviation",
             labels={"grade": "{grade}"},
         ),
+    params:
+        code=stage_code("allan"),
     log:
         "logs/allan/{grade}/allan.log",
     shell:

@@ -4,6 +4,13 @@
 rule truth:
     input:
         enu="results/{route}/enu.parquet",
+        # the grades feed only the `earth: auto` budget: with an explicit Earth model the truth
+        # does not depend on them (editing a grade then reruns only that grade's jobs)
+        grade_files=custom_grade_files() if AUTO_EARTH else [],
+        presets=PRESETS if AUTO_EARTH else [],
+    output:
+        "results/{route}/truth.parquet",
+    params:
         code=stage_code(
             "truth/__init__",
             "truth/budget",
@@ -23,13 +30,6 @@ rule truth:
             "tables/truth",
             "grades",
         ),
-        # the grades feed only the `earth: auto` budget: with an explicit Earth model the truth
-        # does not depend on them (editing a grade then reruns only that grade's jobs)
-        grade_files=custom_grade_files() if AUTO_EARTH else [],
-        presets=PRESETS if AUTO_EARTH else [],
-    output:
-        "results/{route}/truth.parquet",
-    params:
         rate_hz=config["truth"]["rate_hz"],
         earth=config["truth"]["earth"],
         vehicle=lambda wc: config["routes"][wc.route]["vehicle"],
