@@ -129,3 +129,17 @@ def test_disk_budget_of_50_mib_is_not_called_zero(tmp_path):
     }
     with pytest.raises(InputError, match=r"would write about [\d.]+ MiB but the budget is 50 MiB"):
         preflight.check_budget(cfg, tmp_path / "results")
+
+
+def test_the_readme_report_leaves_nothing_untracked():
+    """``snakemake --report`` as the README writes it lands in ``results/``; a bare
+    ``report.html`` in the checkout is ignored by git."""
+    import shutil
+
+    if not shutil.which("git") or not (REPO / ".git").exists():
+        pytest.skip("not a git checkout")
+    readme = (REPO / "README.md").read_text()
+    assert "snakemake --report results/report.html" in readme
+    for name in ("report.html", "results/report.html"):
+        proc = subprocess.run(["git", "-C", str(REPO), "check-ignore", "-q", name])
+        assert proc.returncode == 0, name

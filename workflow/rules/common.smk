@@ -72,7 +72,8 @@ wildcard_constraints:
 
 @functools.cache
 def stage_code(*modules):
-    """A digest of the stage modules' source, as a rule param: editing one reruns the stage.
+    """A digest of the stage modules' source, a param of the stage's rules: editing one reruns
+    the stage.
 
     Snakemake does not track imported code. A changed param reruns its jobs (Snakemake's
     `params` rerun trigger; a mere timestamp change, such as a git checkout, reruns nothing),
@@ -121,7 +122,7 @@ def ingest_opts(wildcards):
     r = config["routes"][wildcards.route]
     opts = []
     if r.get("path") is not None:
-        opts.append("--path=" + shlex.quote(str(r["path"])))
+        opts.append(f"--path={shlex.quote(str(r['path']))}")
     if r.get("origin") is not None:
         opts.append("--origin=" + ",".join(repr(float(x)) for x in r["origin"]))
     if r.get("dt_s") is not None:
@@ -134,10 +135,10 @@ def ingest_opts(wildcards):
 def ingest_clean_opts(wildcards):
     """`imugen ingest` options of the cleaning and gap rules for this route."""
     r = config["routes"][wildcards.route]
-    opts = ["--vehicle=" + shlex.quote(str(r.get("vehicle", "car")))]
+    opts = [f"--vehicle={shlex.quote(str(r.get('vehicle', 'car')))}"]
     if r.get("max_gap_s") is not None:
         opts.append(f"--max-gap-s={float(r['max_gap_s'])!r}")
-    opts.append("--gaps=" + shlex.quote(str(r.get("gaps", "split"))))
+    opts.append(f"--gaps={shlex.quote(str(r.get('gaps', 'split')))}")
     return " ".join(opts)
 
 
@@ -221,6 +222,10 @@ def check_executor():
         sys.exit(1)
 
 
+ERROR_IN_RULE = "Error in rule "
+"""How Snakemake's log starts the block of a failed job."""
+
+
 def failed_job_reasons(snakemake_logs):
     """(rule, log file, reason) of each failed job in Snakemake's log files (a path or a
     list): the job's last line `imugen: error: ...` (without the prefix), else its log's
@@ -233,8 +238,8 @@ def failed_job_reasons(snakemake_logs):
     out, failed, message = [], None, None
     for line in text.splitlines():
         s = line.strip()
-        if line.startswith("Error in rule "):
-            failed, message = line[len("Error in rule ") :].rstrip(":"), None
+        if line.startswith(ERROR_IN_RULE):
+            failed, message = line[len(ERROR_IN_RULE) :].rstrip(":"), None
         elif failed and s.startswith("message: ") and s != "message: None":
             message = s[len("message: ") :]
         elif failed and s.startswith("log: ") and "(check log file" in s:
