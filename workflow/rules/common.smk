@@ -78,7 +78,7 @@ def stage_code(*modules):
     Snakemake does not track imported code. A changed param reruns its jobs (Snakemake's
     `params` rerun trigger; a mere timestamp change, such as a git checkout, reruns nothing),
     and a static param costs a job nothing, where the same files as inputs of every shard job
-    cost a fifth of a 10,000-shard dry run (README "Workflow").
+    cost a fifth of a 10,000-shard dry run (benchmarks/bench_dryrun.py).
     """
     h = hashlib.sha256()
     for m in modules:
