@@ -4,7 +4,7 @@
 # `snakemake --lint` reports one remaining lint per rule, "Specify a conda environment or
 # container": deliberate. imugen is a pip package; every rule calls its `imugen` command from
 # the environment Snakemake itself runs in (README: one `pip install`), so a per-rule conda
-# environment would only duplicate that environment. tests/test_workflow.py asserts that no
+# environment would only duplicate that environment. tests/system/test_workflow.py asserts that no
 # other lint appears.
 import copy
 from pathlib import Path
@@ -19,7 +19,7 @@ min_version("9.0")
 # instead of merging into them (Snakemake's `configfile:` directive would merge, adding the
 # example route and the default grades to every user's run), and merges every other key as
 # usual. `config` holds the command line's files and overrides at this point.
-# tests/test_workflow.py checks it on the dry-run job list.
+# tests/system/test_workflow.py checks it on the dry-run job list.
 _cli_config = copy.deepcopy(config)
 _shipped = Path("config/config.yaml")
 if _shipped.is_file():
@@ -39,7 +39,7 @@ localrules:
     ingest_csv,
     ingest_enu,
     custom_grade,
-    tables,
+    rmse_table,
 
 
 include: "workflow/rules/common.smk"
@@ -50,6 +50,7 @@ include: "workflow/rules/aid.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
+include: "workflow/rules/allan.smk"
 
 
 onstart:
@@ -67,21 +68,17 @@ onerror:
 rule all:
     default_target: True
     input:
-        expand("results/{route}/rmse.csv", route=ROUTES),
-        expand("results/{route}/figures/figure8.{ext}", route=ROUTES, ext=FIG["formats"]),
+        expand(rules.rmse_table.output.csv, route=ROUTES),
+        expand(layout.figure("figure8"), route=ROUTES, ext=FIG["formats"]),
+        expand(layout.figure("outage_growth"), route=ROUTES if AID_ON else [], ext=FIG["formats"]),
+        expand(rules.allan.output.json, grade=GRADES),
         expand(
-            "results/{route}/figures/outage_growth.{ext}",
-            route=ROUTES if AID_ON else [],
-            ext=FIG["formats"],
-        ),
-        expand("results/allan/{grade}/allan.json", grade=GRADES),
-        expand(
-            "results/{route}/datasets/{grade}.mat",
+            rules.export_mat.output[0],
             route=ROUTES,
             grade=GRADES if config["exports"]["mat"] and WRITE_IMU else [],
         ),
         expand(
-            "results/{route}/datasets/{grade}",
+            layout.datasets_dir(),
             route=ROUTES,
             grade=GRADES if config["exports"]["formats"] and WRITE_IMU else [],
         ),

@@ -14,9 +14,9 @@ attitude). Each method's IMU data is integrated by the integrator its data type 
    construction whatever the signals are (not a fidelity measure). Signal fidelity: RMS error
    of f_b and omega_ib_b against the true instantaneous IMU at t_k.
 2. spline + sampled rates + standard integrator: the true instantaneous gyro/accelerometer
-   samples at t_k through ``imugen.mechanize.mechanize_rates`` (trapezoid + coning + sculling).
+   samples at t_k through ``imugen.navigate.mechanize.mechanize_rates`` (trapezoid + coning + sculling).
 3. spline + exact increments (imugen's default): the truth's dtheta/dv through
-   ``imugen.mechanize.mechanize``.
+   ``imugen.navigate.mechanize.mechanize``.
 
 Wall time = synthesis (from the ingested ENU table to IMU data) + mechanization, one sequence,
 median of repeats, numba compilation excluded by a warm-up. Method 1's synthesis is the spline
@@ -48,11 +48,11 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from imugen import earth as ea  # noqa: E402
-from imugen import mechanize as M  # noqa: E402
-from imugen import rotations as rot  # noqa: E402
 from imugen import truth as tr  # noqa: E402
-from imugen.ingest import ingest  # noqa: E402
+from imugen.core import earth as ea  # noqa: E402
+from imugen.core import rotations as rot  # noqa: E402
+from imugen.ingest.stage import ingest  # noqa: E402
+from imugen.navigate import mechanize as M  # noqa: E402
 from imugen.tables import truth as col  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

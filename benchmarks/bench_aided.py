@@ -42,12 +42,12 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from imugen import aided as A  # noqa: E402
-from imugen import companions as CP  # noqa: E402
-from imugen import gnss as G  # noqa: E402
-from imugen import simulate as SIM  # noqa: E402
 from imugen import truth as T  # noqa: E402
-from imugen.earth import OriginFrame, earth_rate_n  # noqa: E402
+from imugen.aid import companions as CP  # noqa: E402
+from imugen.aid import gnss as G  # noqa: E402
+from imugen.aid.filter import ekf as A  # noqa: E402
+from imugen.core.earth import OriginFrame, earth_rate_n  # noqa: E402
+from imugen.simulate import stage as SIM  # noqa: E402
 
 ORIGIN = (45.0, 7.0, 200.0)
 
@@ -147,7 +147,7 @@ def _init_head(init, n):
 
 
 def outage_table(M: int) -> dict:
-    from imugen import scenarios as SC
+    from imugen.aid import scenarios as SC
 
     frame, _, _, _, p, v, q, _ = scene("flat", 1)
     pts = np.array(

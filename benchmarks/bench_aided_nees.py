@@ -37,13 +37,13 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
-from imugen import aided as A  # noqa: E402
-from imugen import gnss as G  # noqa: E402
-from imugen import simulate as SIM  # noqa: E402
 from imugen import truth as T  # noqa: E402
-from imugen import units  # noqa: E402
-from imugen.earth import OriginFrame  # noqa: E402
-from imugen.rotations import dcm_to_quat, exp_dcm, quat_to_dcm  # noqa: E402
+from imugen.aid import gnss as G  # noqa: E402
+from imugen.aid.filter import ekf as A  # noqa: E402
+from imugen.core import units  # noqa: E402
+from imugen.core.earth import OriginFrame  # noqa: E402
+from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm  # noqa: E402
+from imugen.simulate import stage as SIM  # noqa: E402
 
 ORIGIN = (45.0, 7.0, 200.0)
 LEVER = (0.6, 0.3, 1.2)

@@ -9,7 +9,7 @@ Measures (results in ``benchmarks/results/cost.{json,md}``, chart ``docs/figures
 * floors, in CPU seconds on one core: the normal-variate floor -- the same generator as the
   injection (PCG64 ``standard_normal``, float64) drawing the same number of variates (sequences
   x samples x the grade's normals per sample) into one preallocated ``(CHUNK, 3)`` buffer, best
-  of 3 -- and the mechanization kernel (``imugen.mechanize.mechanize`` on in-memory increments);
+  of 3 -- and the mechanization kernel (``imugen.navigate.mechanize.mechanize`` on in-memory increments);
 * injection: the generation loop of a shard (plan made beforehand) into a null sink and its
   ratio to the normal-variate floor (floor CPU / injection CPU, same variates; the two
   interleaved, best of 3 each); the same through the shard writer (Parquet file, float32,
@@ -44,6 +44,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from imugen.simulate.plan import plan_shard
+from imugen.simulate.sinks import WriterSink
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUTE = ROOT / "resources" / "paper" / "seed_reference_trajectory_enu.txt"
@@ -99,7 +102,7 @@ def normals_cpu(n_variates: int) -> float:
     """The normal-variate floor: CPU seconds of PCG64 ``standard_normal`` (float64, the
     injection's generator) drawing ``n_variates`` (the injection's own count) into one
     preallocated ``(CHUNK, 3)`` buffer."""
-    from imugen.simulate import CHUNK
+    from imugen.simulate.stage import CHUNK
 
     rng = np.random.Generator(np.random.PCG64(0))
     buf = np.empty((CHUNK, 3))
@@ -115,7 +118,7 @@ def normals_cpu(n_variates: int) -> float:
 
 def mech_rate(truth_path: Path, batch: int = 16) -> float:
     """Mechanization kernel: sample-sequences per CPU second (flat Earth, in memory)."""
-    from imugen.mechanize import mechanize
+    from imugen.navigate.mechanize import mechanize
     from imugen.tables import truth as ttruth
 
     tr = ttruth.read(truth_path, arrow=True)
@@ -160,11 +163,11 @@ def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
     """Generation loop of an M-sequence shard (the plan -- truth read, draws -- made before the
     clock starts): into a null sink, and through the shard writer (Parquet, float32, implicit
     clock) to a file; CPU seconds, best of ``repeats``."""
-    from imugen import simulate as S
+    from imugen.simulate import stage as S
     from imugen.tables import shard as tshard
 
-    S._loop(S._plan(str(truth_path), grade, 1, 1, 0), _Null())  # kernels loaded
-    plan = S._plan(str(truth_path), grade, M, 1, 0)
+    S._loop(plan_shard(str(truth_path), grade, 1, 1, 0), _Null())  # kernels loaded
+    plan = plan_shard(str(truth_path), grade, M, 1, 0)
     out = truth_path.parent / "inj.parquet"
 
     def null():
@@ -174,7 +177,7 @@ def injection(truth_path: Path, grade: str, M: int, repeats: int = 3) -> dict:
         times = plan.truth.times()
         dt = S._nominal_dt(plan.truth)
         with tshard.writer(out, plan.meta, plan.names, "float32", time_s=times, dt=dt) as w:
-            S._loop(plan, S._WriterSink(w, plan.ids))
+            S._loop(plan, WriterSink(w, plan.ids))
             w.labels = plan.label_columns()
 
     nps = null()

@@ -5,7 +5,7 @@ Scene: the paper's reference trajectory (shared/data/trajectories/seed_reference
 increments plus a small per-sequence constant gyro/accelerometer bias, so no two are alike).
 
 Measured, single thread (the numbers are per core):
-* numba kernel (``imugen.mechanize``), sequences in chunks, positions only at every 100th sample
+* numba kernel (``imugen.navigate.mechanize``), sequences in chunks, positions only at every 100th sample
   (1 Hz) into one preallocated output, reused input buffers;
 * the same recursion in pure NumPy (vectorized across the 1 000 sequences, Python loop over
   time) on the same batch (identical sequences as broadcast views: same arithmetic, no copies);
@@ -53,10 +53,15 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from imugen import earth as E  # noqa: E402
-from imugen import mechanize as M  # noqa: E402
-from imugen import rotations as rot  # noqa: E402
+from imugen.core import earth as E  # noqa: E402
+from imugen.core import rotations as rot  # noqa: E402
+from imugen.navigate import mechanize as M  # noqa: E402
+from imugen.navigate._kernel import S_FB  # noqa: E402
 from imugen.tables import truth as col  # noqa: E402
+
+# the pure NumPy twin of the kernel is a test oracle (tests/oracles/strapdown.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from oracles.strapdown import mechanize_numpy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT.parent / "shared" / "data" / "trajectories" / "seed_reference_trajectory_enu.txt"
@@ -73,7 +78,8 @@ def compile_times() -> dict:
         import json, time
         t0 = time.perf_counter()
         import numpy as np
-        from imugen import earth as E, mechanize as M
+        from imugen.core import earth as E
+        from imugen.navigate import mechanize as M
         t1 = time.perf_counter()
         fr = E.OriginFrame.from_deg(31.6, -8.0, 0.0)
         z = np.zeros((3, 3))
@@ -97,7 +103,7 @@ def build_scene(scene: Path, rate_hz: float, model: str):
     """Truth table and frame; ``geodetic`` is the ``wgs84`` truth expressed in ECEF (the body
     increments are the same)."""
     from imugen import truth
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
 
     ing = ingest(scene, dt=1.0, origin=ORIGIN)
     tm = "wgs84" if model == "geodetic" else model
@@ -156,7 +162,7 @@ def run_numba(df, frame, S, chunk, every, rng, repeat=1):
             c_kernel += time.process_time() - c1
             if a == 0:
                 q_end = mech.q_nb[0]
-            fallback += mech.state[:, M.S_FB].sum()
+            fallback += mech.state[:, S_FB].sum()
         passes.append((t_kernel, c_kernel))
     t_kernel = min(p[0] for p in passes)
     c_kernel = min(p[1] for p in passes)
@@ -201,7 +207,7 @@ def run_numpy(df, frame, S, steps, every):
     dv = np.broadcast_to(dv0[:N], (S, N, 3))
     t0 = time.perf_counter()
     c0 = time.process_time()
-    Pn, _, _ = M.mechanize_numpy(dth, dv, dt, P[0], V[0], Q[0], frame, every=every)
+    Pn, _, _ = mechanize_numpy(dth, dv, dt, P[0], V[0], Q[0], frame, every=every)
     el = time.perf_counter() - t0
     cpu = time.process_time() - c0
     idx = np.arange(0, N + 1, every)

@@ -6,7 +6,7 @@ Measures in one run (results in ``benchmarks/results/scale.{json,md}`` and the c
 * the machine: CPU, cores, memory, versions, load average before and after;
 * the floors, measured here: the disk's own sequential write rate (``dd`` of a 2 GiB file with
   ``conv=fdatasync``, then deleted), NumPy's normal-variate rate (PCG64 ``standard_normal``
-  into a reused buffer, one core), the mechanization kernel (``imugen.mechanize.mechanize``
+  into a reused buffer, one core), the mechanization kernel (``imugen.navigate.mechanize.mechanize``
   on in-memory contiguous increments, one core); from them, for each run, the time floors on
   ``--cores`` cores: ``normals = N K n_per_sample / (rate cores)``,
   ``mechanization = N (K-1) / (rate cores)``, ``disk = bytes written / dd rate``;
@@ -56,6 +56,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from imugen.sensors.ideal import ArrayTruth
+from imugen.simulate.plan import plan_shard
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "Snakefile"
@@ -173,7 +176,7 @@ def dd_rate(scratch: Path, mib: int) -> dict:
 
 def normals_rate(seconds: float = 3.0) -> float:
     """Normals per second on one core (PCG64 standard_normal float64 into a reused buffer)."""
-    from imugen.simulate import CHUNK
+    from imugen.simulate.stage import CHUNK
 
     rng = np.random.default_rng(0)
     buf = np.empty((CHUNK, 3))
@@ -187,20 +190,20 @@ def normals_rate(seconds: float = 3.0) -> float:
 
 def normals_per_sample(truth_path: Path, grade: str) -> float:
     """Normals the grade draws per IMU sample (both sensors), from the simulator itself."""
-    from imugen import simulate as S
+    from imugen.simulate import stage as S
 
     class Null:
         def put(self, *a):
             pass
 
-    tr = S.ArrayTruth.read(truth_path)
+    tr = ArrayTruth.read(truth_path)
     tr.K = min(tr.K, 2 * S.CHUNK)
-    return float(S._loop(S._plan(tr, grade, 1, 1, 0), Null()))
+    return float(S._loop(plan_shard(tr, grade, 1, 1, 0), Null()))
 
 
 def mech_rate(truth_path: Path, batch: int = 16, repeats: int = 3) -> float:
     """Sample-sequences per second of the mechanization kernel on one core (as navigate calls it)."""
-    from imugen.mechanize import mechanize
+    from imugen.navigate.mechanize import mechanize
     from imugen.tables import truth as ttruth
 
     tr = ttruth.read(truth_path)

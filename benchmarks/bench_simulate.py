@@ -28,7 +28,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen import simulate as S
+from imugen.simulate import stage as S
+from imugen.simulate.plan import plan_shard
+from imugen.simulate.sources import StaticTruth
 from imugen.tables import shard as tshard
 
 
@@ -54,9 +56,9 @@ def normals_rate(dtype=np.float64, seconds=2.0, shape=(S.CHUNK, 3)) -> float:
 
 
 def injection(grade, M, K, rate_hz=100.0):
-    tr = S.StaticTruth((K - 1) / rate_hz, rate_hz)
-    S._loop(S._plan(tr, grade, 2, 1, 0), _Null())  # compile
-    plan = S._plan(tr, grade, M, 1, 0)
+    tr = StaticTruth((K - 1) / rate_hz, rate_hz)
+    S._loop(plan_shard(tr, grade, 2, 1, 0), _Null())  # compile
+    plan = plan_shard(tr, grade, M, 1, 0)
     t0 = time.perf_counter()
     nps = S._loop(plan, _Null())
     el = time.perf_counter() - t0

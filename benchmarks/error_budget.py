@@ -23,10 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from imugen import navigate_arrays
-from imugen import simulate as S
 from imugen import truth as T
-from imugen.grades import get_grade
-from imugen.ingest import ingest
+from imugen.ingest.stage import ingest
+from imugen.sensors.grades import get_grade
+from imugen.simulate import stage as S
 from imugen.tables import truth as ttruth
 
 PAPER = (

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imugen.figures_outage import OUTAGE_COLUMNS, outage_curves
+from imugen.figures.outage import OUTAGE_COLUMNS, outage_curves
 from imugen.tables import aided as taided
 
 LIMIT_M = 10.0

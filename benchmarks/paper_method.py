@@ -18,7 +18,7 @@ Corrected where the paper's code was wrong (each would only make this baseline w
 3. the attitude loop is closed (bug B1): the mechanization rotates ``f_b`` with its own
    integrated angles, not the reference ones;
 4. one consistent convention: n = ENU, b = x forward / y left / z up,
-   ``C_nb = Rz(yaw) Ry(-pitch) Rx(roll)`` (as :func:`imugen.rotations.euler_to_dcm`);
+   ``C_nb = Rz(yaw) Ry(-pitch) Rx(roll)`` (as :func:`imugen.core.rotations.euler_to_dcm`);
 5. flat Earth (n inertial, constant gravity ``g_n = (0, 0, -g0)``), as the comparison scene.
 
 Sample conventions (both consequences of forward differences): ``v_k`` is the mean velocity
@@ -66,7 +66,7 @@ def body_rate_from_euler_rate(e, e_dot):
 
 def dcm_from_euler(e):
     """``C_nb = Rz(yaw) Ry(-pitch) Rx(roll)`` from (..., 3) Euler angles -> (..., 3, 3)."""
-    from imugen.rotations import euler_to_dcm
+    from imugen.core.rotations import euler_to_dcm
 
     return euler_to_dcm(e[..., 0], e[..., 1], e[..., 2])
 

@@ -25,12 +25,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imugen.earth import OriginFrame
-from imugen.evaluate import sequence_metrics
-from imugen.ingest import ingest
-from imugen.mechanize import mechanize
-from imugen.rotations import quat_to_dcm
-from imugen.simulate import simulate
+from imugen.core.earth import OriginFrame
+from imugen.core.rotations import quat_to_dcm
+from imugen.evaluate.stage import sequence_metrics
+from imugen.ingest.stage import ingest
+from imugen.navigate.mechanize import mechanize
+from imugen.simulate.stage import simulate
 from imugen.tables import truth as col
 from imugen.truth import build_truth
 

@@ -5,7 +5,7 @@ The paper's trajectory (``resources/paper/seed_reference_trajectory_enu.txt``, o
 then, for every grade and every term the grade configures, ``--sequences`` Monte-Carlo
 sequences are simulated with only that term on (``simulate(..., terms=["gyro.<term>"])``, the
 API of ``imugen simulate --terms``), mechanized from the true initial state (free inertial,
-no aiding) and evaluated at 1 Hz epochs as the workflow does (:func:`imugen.evaluate.
+no aiding) and evaluated at 1 Hz epochs as the workflow does (:func:`imugen.evaluate.stage.
 sequence_metrics`). A last row per grade has every term on. The sequences of a term are the
 same draws whether it runs alone or with the others (each term has its own random streams), so
 the rows are comparable.
@@ -27,12 +27,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imugen.earth import OriginFrame
-from imugen.evaluate import sequence_metrics
-from imugen.grades import SENSORS, TERMS, get_grade
-from imugen.ingest import ingest
-from imugen.mechanize import mechanize
-from imugen.simulate import simulate
+from imugen.core.earth import OriginFrame
+from imugen.evaluate.stage import sequence_metrics
+from imugen.ingest.stage import ingest
+from imugen.navigate.mechanize import mechanize
+from imugen.sensors.grades import SENSORS, TERMS, get_grade
+from imugen.simulate.stage import simulate
 from imugen.tables import truth as col
 from imugen.truth import build_truth
 
@@ -61,7 +61,7 @@ def grade_terms(name: str) -> list[str]:
 
 
 def run_term(truth, frame, grade, terms, sequences, seed, rate_hz, batch=25, vibration=None):
-    """Per-sequence metrics (:func:`imugen.evaluate.sequence_metrics`) with ``terms`` on."""
+    """Per-sequence metrics (:func:`imugen.evaluate.stage.sequence_metrics`) with ``terms`` on."""
     t = truth[col.TIME].to_numpy()
     p_true = truth[list(col.POS)].to_numpy()
     v0 = truth[list(col.VEL)].to_numpy()[0]

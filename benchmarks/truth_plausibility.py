@@ -77,8 +77,8 @@ def main():
     sys.path.insert(0, str(a.src or REPO / "src"))
     warnings.simplefilter("ignore")
     from imugen import truth
-    from imugen.errors import InputError
-    from imugen.ingest import ingest
+    from imugen.core.errors import InputError
+    from imugen.ingest.stage import ingest
 
     here = REPO / "src" / "imugen" / "truth"
     report = _load("_report", here / "report.py")

@@ -4,7 +4,7 @@
    white noise, flicker floor and rate random walk each dominate a decade, and for every
    shipped preset (nominal levels): configured vs measured, plots ``allan_*.png``.
 2. Error growth, each source alone, 1,000 sequences on a still level IMU (flat Earth),
-   mechanized with :mod:`imugen.mechanize`: RMS position error against the closed forms
+   mechanized with :mod:`imugen.navigate.mechanize`: RMS position error against the closed forms
    (accel bias b t^2/2, gyro bias g w t^3/6, VRW N sqrt(t^3/3), ARW g N sqrt(t^5/20)) over time,
    plot ``growth.png``.
 
@@ -26,11 +26,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from imugen import allan
-from imugen import simulate as S
-from imugen.earth import OriginFrame
-from imugen.grades import grade_from_config, presets
-from imugen.mechanize import mechanize
+from imugen.allan import stage as allan
+from imugen.core.earth import OriginFrame
+from imugen.navigate.mechanize import mechanize
+from imugen.sensors.grades import grade_from_config, presets
+from imugen.simulate import stage as S
+from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import shard as tshard
 
 TEST_GRADE = {
@@ -93,7 +94,7 @@ def allan_part(out: Path, quick: bool) -> dict:
 def growth_part(out: Path, quick: bool) -> dict:
     rate, T = 20.0, 120.0
     dt = 1.0 / rate
-    frame = OriginFrame.from_deg(*S.DEFAULT_STATIC_ORIGIN, model="flat")
+    frame = OriginFrame.from_deg(*DEFAULT_STATIC_ORIGIN, model="flat")
     g0 = frame.g0
     cases = {
         "accel_bias": (

@@ -1,4 +1,4 @@
-"""Run the structure-aware reader fuzz tests (tests/test_fuzz_readers.py) on a fresh seed.
+"""Run the structure-aware reader fuzz tests on a fresh seed (tests/system/test_fuzz_readers.py).
 
 The test suite runs one fixed regression seed; this script draws other cases on demand:
 
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"fuzz_readers: seed {seed}, {a.cases} cases per reader", flush=True)
     env = dict(os.environ, IMUGEN_FUZZ_SEED=str(seed), IMUGEN_FUZZ_EXAMPLES=str(a.cases))
     cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-           str(REPO / "tests" / "test_fuzz_readers.py")]  # fmt: skip
+           str(REPO / "tests" / "system" / "test_fuzz_readers.py")]  # fmt: skip
     if a.reader:
         cmd += ["-k", " or ".join(f"test_fuzz_{r}" for r in a.reader)]
     rc = subprocess.call(cmd, cwd=REPO, env=env)

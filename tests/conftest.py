@@ -1,4 +1,5 @@
-"""Shared fixtures: the real route files in ../shared (skipped when absent) and a CLI runner."""
+"""Fixtures of every test folder: the real route files in ../shared (skipped when absent, marked
+``shared``) and a CLI runner. Paths and the tiny-workflow runner: ``tests/helpers.py``."""
 
 from __future__ import annotations
 
@@ -8,8 +9,15 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED_TRAJ = REPO.parent / "shared" / "data" / "trajectories"
+from helpers import SHARED_TRAJ
+
+
+def pytest_collection_modifyitems(items):
+    """Tests that read ``../shared`` through the ``shared_file`` fixture carry the ``shared``
+    marker (``pytest -m "not shared"`` leaves them out); the others are marked by hand."""
+    for item in items:
+        if "shared_file" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.shared)
 
 
 @pytest.fixture

@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from imugen import dataset as ds
-from imugen.errors import InputError
-from imugen.io import write_parquet
+from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
 from imugen.tables import truth as col
 
 K, M = 101, 3

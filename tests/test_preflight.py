@@ -19,7 +19,7 @@ import yaml
 from snakemake.utils import validate
 
 from imugen import preflight
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
@@ -132,6 +132,9 @@ def test_workflow_refuses_before_any_job(tmp_path):
     assert proc.returncode != 0
     assert "imugen: error: config: the run would write about" in proc.stdout + proc.stderr
     assert not (tmp_path / "results").exists() and not (tmp_path / "logs").exists()
+    proc = snakemake(tmp_path, "-n", "-j1")  # a dry run checks the budget too
+    assert proc.returncode != 0
+    assert "imugen: error: config: the run would write about" in proc.stdout + proc.stderr
     cfg = copy.deepcopy(BASE)
     cfg["truth"]["rate_hz"] = float("nan")
     write_config(tmp_path, cfg)
@@ -151,7 +154,7 @@ def test_more_than_1000_shards(tmp_path):
 def test_untimed_path_memory_term(tmp_path):
     """An untimed path adds its fitting memory: 1,600 B per metre at corner_m 10 m, scaled by
     10 / corner_m (the fit grid is corner_m / 16), on top of the per-sample term."""
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
     from imugen.truth import VEHICLES
 
     kml = REPO / "resources" / "example_route.kml"

@@ -1,6 +1,6 @@
 """Kill a whole ``snakemake -j2`` run mid-write, re-run it, compare with a clean run (on demand).
 
-The unit test ``tests/test_faults.py`` kills one ``imugen simulate`` job; this script does it at
+The unit test ``tests/system/test_faults.py`` kills one ``imugen simulate`` job; this script does it at
 the workflow level, as a lost node or an out-of-memory kill would: it starts the workflow on a
 small configuration, waits until a shard is being written (a ``.shard-*.tmp`` file is growing),
 SIGKILLs Snakemake and its jobs (the whole process group), then runs Snakemake again in the same

@@ -8,7 +8,7 @@ Frames
     ``b``  body frame: x forward, y left, z up (FLU). A level, still IMU reads
            specific force ``f_b = (0, 0, +g)``.
     ``v``  vehicle frame, FLU at the vehicle reference point: the truth's body frame. The IMU's
-           ``b`` is ``v`` unless a mounting is simulated (:mod:`imugen.mounting`: ``C_vb`` and
+           ``b`` is ``v`` unless a mounting is simulated (:mod:`imugen.sensors.mounting`: ``C_vb`` and
            the lever arm ``l_v``; the truth of such an IMU is then the vehicle's moved there).
     ``e``  Earth-centred Earth-fixed (ECEF, WGS-84).
     ``C_nb`` rotates a vector from ``b`` to ``n`` (``v_n = C_nb @ v_b``).
@@ -23,14 +23,14 @@ Time
     Seconds from the first sample of the route (``time_s``); absolute start time, when
     known, is kept in file metadata as ISO-8601 UTC.
 Errors
-    A problem with a user's input raises :class:`imugen.errors.InputError`; the CLI prints
+    A problem with a user's input raises :class:`imugen.core.errors.InputError`; the CLI prints
     it as one line naming the file and exits with status 2.
 """
 
 __version__ = "0.1.0"
 
 _LAZY = {
-    "navigate_arrays": ("imugen.navigate", "navigate_arrays"),
+    "navigate_arrays": ("imugen.navigate.stage", "navigate_arrays"),
     "write_shard": ("imugen.tables.shard", "write_like"),
 }
 """Public functions loaded on first use, so that ``import imugen`` stays cheap."""
@@ -39,7 +39,7 @@ __all__ = ["__version__", "navigate_arrays", "write_shard"]
 
 
 def __getattr__(name):
-    """``imugen.navigate_arrays`` (:func:`imugen.navigate.navigate_arrays`) and
+    """``imugen.navigate_arrays`` (:func:`imugen.navigate.stage.navigate_arrays`) and
     ``imugen.write_shard`` (:func:`imugen.tables.shard.write_like`), imported lazily."""
     if name in _LAZY:
         import importlib

@@ -18,8 +18,12 @@ import sys
 import warnings
 
 from imugen import __version__
-from imugen.clean import VEHICLE_LIMITS
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+
+VEHICLES = ("car", "bicycle", "pedestrian", "aircraft", "airliner")
+"""Vehicle classes of ``--vehicle``: the cleaning limits of ``ingest`` and the motion models of
+``truth`` (listed here so that the parser imports no stage; tests/system/test_cli.py checks
+both stages define exactly these)."""
 
 
 def _printable(text: str) -> str:
@@ -38,7 +42,7 @@ def _add_ingest_options(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_ingest(a) -> int:
-    from imugen.ingest import run
+    from imugen.ingest.stage import run
 
     ing = run(
         a.src,
@@ -88,7 +92,7 @@ def _cmd_truth(a) -> int:
 
 
 def _cmd_simulate(a) -> int:
-    from imugen.simulate import run
+    from imugen.simulate.stage import run
 
     if a.truth is None and a.static is None:
         raise InputError("imugen simulate", "give a TRUTH.parquet or --static SECONDS")
@@ -143,21 +147,23 @@ def _cmd_simulate(a) -> int:
 
 
 def _cmd_allan(a) -> int:
-    from imugen.allan import run
+    from imugen.allan.stage import run
 
-    print(json.dumps(run(a.shard, plot=a.plot, max_sequences=a.max_sequences)))
+    rep = run(a.shard, plot=a.plot, max_sequences=a.max_sequences, out=a.output)
+    if a.output is None:
+        print(json.dumps(rep))
     return 0
 
 
 def _cmd_navigate(a) -> int:
-    from imugen.navigate import run
+    from imugen.navigate.stage import run
 
     run(a.truth, a.shard, a.output, eval_rate_hz=a.eval_rate_hz)
     return 0
 
 
 def _cmd_aid(a) -> int:
-    from imugen.aid import AidParams, parse_scenarios, run
+    from imugen.aid.stage import AidParams, parse_scenarios, run
 
     try:
         lever = [float(x) for x in a.lever_arm.split(",")]
@@ -218,7 +224,7 @@ def _seconds_list(text: str) -> list[float]:
 
 
 def _cmd_evaluate(a) -> int:
-    from imugen.evaluate import run
+    from imugen.evaluate.stage import run
 
     run(
         a.truth, a.nav, a.output, grade=a.grade, segments_s=a.segments, imu_paths=a.imu,
@@ -228,7 +234,7 @@ def _cmd_evaluate(a) -> int:
 
 
 def _cmd_tables(a) -> int:
-    from imugen.evaluate import run_tables
+    from imugen.evaluate.stage import run_tables
 
     paths = run_tables(a.metrics, a.output)
     print(paths["md"].read_text(), file=sys.stderr)
@@ -247,7 +253,7 @@ def _pairs(items, option):
 
 
 def _cmd_outage_figure(a) -> int:
-    from imugen.figures_outage import outage_growth
+    from imugen.figures.outage import outage_growth
 
     outage_growth(
         _pairs(a.aided, "--aided"),
@@ -262,7 +268,7 @@ def _cmd_outage_figure(a) -> int:
 def _cmd_figures(a) -> int:
     from pathlib import Path
 
-    from imugen import figures as fg
+    from imugen.figures import stage as fg
 
     nav = _pairs(a.nav, "--nav")
     metrics = {g: p[0] for g, p in _pairs(a.metrics, "--metrics").items()}
@@ -288,7 +294,7 @@ def _cmd_figures(a) -> int:
 
 
 def _cmd_export_mat(a) -> int:
-    from imugen.export import export_mat
+    from imugen.export.mat import export_mat
 
     export_mat(
         a.truth,
@@ -311,7 +317,7 @@ def _cmd_serve(a) -> int:
 
 
 def _cmd_export(a) -> int:
-    from imugen.formats import export
+    from imugen.export.stage import export
 
     export(
         a.format,
@@ -339,7 +345,7 @@ def _cmd_export(a) -> int:
 def _cmd_grade_import(a) -> int:
     import warnings
 
-    from imugen.grade_io import grades_document, import_grade, write_text
+    from imugen.sensors.grade_io import grades_document, import_grade, write_text
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -356,8 +362,8 @@ def _cmd_grade_import(a) -> int:
 
 
 def _cmd_grade_export(a) -> int:
-    from imugen.grade_io import to_kalibr, write_text
-    from imugen.grades import get_grade
+    from imugen.sensors.grade_io import to_kalibr, write_text
+    from imugen.sensors.grades import get_grade
 
     text = to_kalibr(get_grade(a.grade, a.grades_file), rate_hz=a.rate_hz, topic=a.topic)
     if a.output:
@@ -437,7 +443,7 @@ def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> l
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="imugen", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"imugen {__version__}")
-    # every subcommand's help shows each option's default (tests/test_cli.py checks that every
+    # every subcommand's help shows each option's default (tests/system/test_cli.py checks that every
     # option has help text and that defaults agree with the workflow's schema)
     sub = parser.add_subparsers(
         dest="command",
@@ -466,7 +472,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gap-warn-s", type=float, default=60.0, help="warn about longer time gaps")
     p.add_argument(
         "--vehicle",
-        choices=list(VEHICLE_LIMITS),
+        choices=list(VEHICLES),
         default="car",
         help="vehicle class whose limits decide what is an outlier",
     )
@@ -855,6 +861,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("shard", help="shard Parquet written by `imugen simulate --static`")
     p.add_argument("--plot", help="also draw the Allan plot to this PNG/SVG")
     p.add_argument("--max-sequences", type=int, default=16, help="sequences to analyse")
+    p.add_argument("-o", "--output", help="write the report (JSON) here instead of printing it")
     p.set_defaults(func=_cmd_allan)
     return parser
 
@@ -871,7 +878,7 @@ def _add_truth_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--vehicle",
-        choices=["car", "bicycle", "pedestrian", "aircraft", "airliner"],
+        choices=list(VEHICLES),
         default="car",
         help="vehicle model of the truth motion",
     )

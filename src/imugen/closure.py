@@ -1,6 +1,6 @@
 """Zero-error closure: route file -> ingest -> truth -> mechanization of the ideal increments.
 
-The truth generator's exact increments integrated by :mod:`imugen.mechanize` must give back the
+The truth generator's exact increments integrated by :mod:`imugen.navigate.mechanize` must give back the
 truth trajectory; the residual measures the consistency of the two (and float64 rounding).
 The mechanization runs in time chunks and compares each chunk with the truth as it goes, so
 long runs (1 kHz for an hour) need no full-length navigation arrays.
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imugen.mechanize import Mechanizer
+from imugen.navigate.mechanize import Mechanizer
 from imugen.tables import truth as col
 
 CHUNK = 1 << 16  # samples per mechanization chunk
@@ -153,11 +153,11 @@ def closure(
 
     Raises
     ------
-    imugen.errors.InputError
+    imugen.core.errors.InputError
         From ingestion or truth generation, for inputs they refuse.
     """
     from imugen import truth
-    from imugen.ingest import ingest
+    from imugen.ingest.stage import ingest
 
     t0 = time.perf_counter()
     ing = ingest(src, path=path, origin=origin, dt=dt, vehicle=vehicle)

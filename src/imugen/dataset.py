@@ -23,7 +23,7 @@ Every sequence of a route has the truth's ``K`` samples. A window is ``window`` 
 ``target``:
 
 - ``"increments"``: ``(window, 6)`` true ``dtheta, dv`` of the same rows (whatever the
-  ``inputs``), those of the IMU for a shard simulated with a mounting (:mod:`imugen.mounting`);
+  ``inputs``), those of the IMU for a shard simulated with a mounting (:mod:`imugen.sensors.mounting`);
 - ``"effective_error"``: ``(window, 6)`` everything the sensor adds except white noise and
   quantization, in the units of the input (``err_dtheta_*_rad``, ``err_dv_*_mps`` or
   ``err_gyro_*_radps``, ``err_accel_*_mps2``; shards simulated with ``series=True``): what
@@ -115,11 +115,12 @@ from pathlib import Path
 
 import numpy as np
 
-from imugen.errors import InputError
-from imugen.jit import njit
+from imugen.core.errors import InputError
+from imugen.core.jit import njit
 from imugen.tables import aided as taided
 from imugen.tables import companions as tcomp
 from imugen.tables import gnss as tgnss
+from imugen.tables import layout
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.shard import BIAS, EFFECTIVE_ERROR, SEQUENCE
@@ -165,9 +166,9 @@ EXTRA_ALIGN = ("hold", "event")
 
 
 def extra_path(shard, folder: str) -> Path:
-    """The table of ``folder`` beside IMU shard ``<route>/imu/<grade>/<name>``."""
-    shard = Path(shard)
-    return shard.parents[2] / folder / shard.parent.name / shard.name
+    """The table of ``folder`` beside IMU shard ``<route>/imu/<grade>/<name>``
+    (:func:`imugen.tables.layout.beside`)."""
+    return layout.beside(Path(shard), folder)
 
 
 @dataclass(frozen=True)
@@ -200,13 +201,9 @@ def find_routes(results_dir, grade: str | Iterable[str]) -> list[RouteFiles]:
     """
     grades = [grade] if isinstance(grade, str) else list(grade)
     out = []
-    for truth in sorted(Path(results_dir).glob("*/truth.parquet")):
+    for truth in layout.find_truths(results_dir):
         for g in grades:
-            shards = tuple(
-                p
-                for p in sorted((truth.parent / "imu" / g).glob("shard-*.parquet"))
-                if not p.name.endswith(".labels.parquet")
-            )
+            shards = tuple(layout.find_shards(truth.parent, g))
             if shards:
                 out.append(RouteFiles(truth.parent.name, truth, shards, g))
     return out
@@ -584,7 +581,7 @@ class WindowDataset:
         dts = [float((c[-1] - c[0]) / (len(c) - 1)) if len(c) > 1 else 0.0 for c in clocks]
         self._dt = np.array(dts, float)[self._route] if self.extras and len(self._route) else None
         self._epochs = {n: _EpochIndex.concat(v, len(EXTRAS[n].columns)) for n, v in epochs.items()}
-        # per window entry (angles, lever arm) of a mounted IMU (imugen.mounting), else None
+        # per window entry (angles, lever arm) of a mounted IMU (imugen.sensors.mounting), else None
         self._mount = np.concatenate(ent_mount) if mounted else None
         self._cache_paths = [
             _cache_path(p, self.x_cols + self.y_cols, self.dtype, cache_dir) for p in self.files
@@ -718,14 +715,14 @@ class WindowDataset:
 
 
 def _mounted_increments(t, w0, mount):
-    """True increments of mounted IMUs (:mod:`imugen.mounting`, compensated; the gravitation
+    """True increments of mounted IMUs (:mod:`imugen.sensors.mounting`, compensated; the gravitation
     gradient term, below ``3e-6 |l|`` m/s^2, left out) from the vehicle's.
 
     ``t`` (B, W, 9): the vehicle's ``dtheta, dv, omega_ib`` rows; ``w0`` (B, 3): ``omega_ib``
     of the sample before each window; ``mount`` (B, 6): angles [rad] then lever arm [m].
     Returns (B, W, 6) float64."""
-    from imugen.mounting import C_vb
-    from imugen.rotations import exp_dcm
+    from imugen.core.rotations import exp_dcm
+    from imugen.sensors.mounting import C_vb
 
     t = t.astype(np.float64)
     dth, dv, w = t[..., :3], t[..., 3:6], t[..., 6:9]

@@ -30,7 +30,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+from imugen.tables import layout
 
 TRUTH_BASE_B = 300e6
 TRUTH_PER_SAMPLE_B = 700.0
@@ -98,10 +99,10 @@ def check_values(config: dict) -> None:
     """Refuse NaN/inf anywhere and invalid custom grades (InputError naming the key).
 
     A custom grade is checked as the jobs will read it: fully valid, not named like a preset
-    and not using a preset's id (``imugen.grades.load_grades`` refuses both in a job), and
+    and not using a preset's id (``imugen.sensors.grades.load_grades`` refuses both in a job), and
     with an id no other grade of the run has (ids seed the random draws).
     """
-    from imugen.grades import grade_from_config, presets
+    from imugen.sensors.grades import grade_from_config, presets
 
     hit = _non_finite(config)
     if hit:
@@ -140,29 +141,25 @@ def human_bytes(n: float) -> str:
     raise AssertionError  # pragma: no cover
 
 
-def route_duration_s(name: str, route: dict, results: Path) -> float | None:
-    """Best estimate of a route's duration (s); None when the file cannot be read."""
-    return route_figures(name, route, results)[0]
-
-
 def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, float]:
-    """A route's duration (s, :func:`route_duration_s`; None when the file cannot be read)
-    and the truth memory of fitting its path (bytes; 0 for timed routes and computed
-    truths)."""
-    import pyarrow.parquet as pq
+    """A route's duration (s; None when its file cannot be read) and the truth memory of
+    fitting its path (bytes; 0 for timed routes and computed truths).
 
-    from imugen.ingest import ingest
+    The duration is that of the route's truth when already computed (``route["_rate_hz"]``
+    gives its rate), else that of its ingested file (time span, or length at 80 % of the
+    vehicle's cruise speed for an untimed path).
+    """
+    from imugen.ingest.stage import ingest
+    from imugen.tables import truth as ttruth
     from imugen.truth import VEHICLES
 
-    truth = results / name / "truth.parquet"
-    if truth.is_file():
+    truth = Path(layout.truth(name, root=results))
+    rate = route.get("_rate_hz")
+    if rate and truth.is_file():
         try:
-            md = pq.ParquetFile(truth).metadata
-            rate = route.get("_rate_hz")
-            if rate:
-                return md.num_rows / rate, 0.0
-        except (OSError, ValueError):
-            pass
+            return ttruth.samples(truth) / rate, 0.0
+        except InputError:
+            pass  # an unreadable truth is rebuilt: estimate from the route file
     try:
         ing = ingest(
             route["file"],
@@ -191,7 +188,7 @@ def _tree_bytes(root: Path) -> int:
     return total
 
 
-def estimate(config: dict, results: Path = Path("results")) -> dict:
+def estimate(config: dict, results: Path = Path(layout.RESULTS)) -> dict:
     """Largest job memory and total disk (bytes) of a run, with the terms behind them."""
     rate = float(config["truth"]["rate_hz"])
     n_seq = int(config["simulate"]["sequences"])
@@ -216,7 +213,7 @@ def estimate(config: dict, results: Path = Path("results")) -> dict:
     return {"memory_b": memory, "disk_b": disk, "route_durations_s": routes}
 
 
-def budgets(config: dict, results: Path = Path("results")) -> tuple[float, float]:
+def budgets(config: dict, results: Path = Path(layout.RESULTS)) -> tuple[float, float]:
     """Memory and disk budgets in bytes (configured, else this machine's)."""
     b = config.get("budget", {})
     if b.get("memory_gib") is not None:
@@ -231,7 +228,7 @@ def budgets(config: dict, results: Path = Path("results")) -> tuple[float, float
     return float(mem), float(disk)
 
 
-def check_budget(config: dict, results: Path = Path("results")) -> dict:
+def check_budget(config: dict, results: Path = Path(layout.RESULTS)) -> dict:
     """Refuse a run whose estimate exceeds a budget (InputError with the estimate)."""
     est = estimate(config, results)
     mem, disk = budgets(config, results)

@@ -1,4 +1,5 @@
 # Helpers for every stage: config validation, routes/grades/shards, code tracking.
+import ast
 import functools
 import hashlib
 import json
@@ -14,7 +15,8 @@ from snakemake.utils import validate
 # the checks below use this checkout's package (the jobs call the installed `imugen`)
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 from imugen import preflight
-from imugen.errors import InputError
+from imugen.core.errors import InputError
+from imugen.tables import layout
 
 
 # The schema first, one line per problem naming the key (Snakemake's `validate` would print
@@ -26,13 +28,15 @@ if _problems:
     raise WorkflowError("\n".join(f"imugen: error: {p}" for p in _problems))
 validate(config, "../schemas/config.schema.yaml")
 # Before any job: no NaN/inf, custom grades valid (not named like a preset), the run within
-# the memory and disk budgets (estimates in the message; see src/imugen/preflight.py). Jobs
-# re-reading this file on a cluster node skip the budget (it was checked where the run was
-# started).
+# the memory and disk budgets (estimates in the message; see src/imugen/preflight.py). The
+# budget is checked in dry runs too, which is what we want: `snakemake -n` refuses a run that
+# would not fit (Snakemake 9 cannot tell a dry run at parse time: `workflow.dryrun` is False
+# until the executor is set up, after this file is read). Jobs re-reading this file on a
+# cluster node skip the budget (it was checked where the run was started).
 try:
     preflight.check_values(config)
-    if workflow.is_main_process and not workflow.dryrun:
-        preflight.check_budget(config)
+    if workflow.is_main_process:
+        preflight.check_budget(config, Path(layout.RESULTS))
 except InputError as exc:
     raise WorkflowError(f"imugen: error: {exc}") from None
 
@@ -41,9 +45,8 @@ GRADES = list(config["grades"])
 SIM = config["simulate"]
 N_SEQ = SIM["sequences"]
 PER_SHARD = SIM["sequences_per_shard"]
-# shard-000 ... shard-999, then shard-1000, ...: at least three digits, no other leading
-# zeros, so adding shards never renames existing ones
-SHARDS = [f"{k:03d}" for k in range(math.ceil(N_SEQ / PER_SHARD))]
+# shard-000 ... shard-999, then shard-1000, ...: adding shards never renames existing ones
+SHARDS = [layout.shard_label(k) for k in range(math.ceil(N_SEQ / PER_SHARD))]
 WRITE_IMU = SIM["write_imu"]
 MOUNTING = config.get("mounting", {})
 MOUNTING_ARG = (
@@ -53,12 +56,7 @@ MOUNTING_ARG = (
 # the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
 # read shards (export_mat, the figures' IMU panels) are not scheduled
 IMU_OUTPUTS = (
-    [
-        "results/{route}/imu/{grade}/shard-{shard}.parquet",
-        "results/{route}/imu/{grade}/shard-{shard}.labels.parquet",
-    ]
-    if WRITE_IMU
-    else []
+    [layout.shard("imu"), layout.sidecar(layout.shard("imu"), "labels")] if WRITE_IMU else []
 )
 IMU_GRADES = GRADES if WRITE_IMU else []
 FIG = config["figures"]
@@ -70,20 +68,102 @@ wildcard_constraints:
     shard=r"\d\d\d|[1-9]\d\d\d+",
 
 
-@functools.cache
-def stage_code(*modules):
-    """A digest of the stage modules' source, a param of the stage's rules: editing one reruns
-    the stage.
+SRC = Path(workflow.basedir) / "src"
+"""The package source the jobs run (``imugen`` installed from this checkout)."""
 
-    Snakemake does not track imported code. A changed param reruns its jobs (Snakemake's
-    `params` rerun trigger; a mere timestamp change, such as a git checkout, reruns nothing),
-    and a static param costs a job nothing, where the same files as inputs of every shard job
-    cost a fifth of a 10,000-shard dry run (benchmarks/bench_dryrun.py).
+
+@functools.cache
+def _module_file(name):
+    """Source file of mod ``name`` (``imugen.a.b``) under ``SRC``, or None (not imugen's)."""
+    base = SRC.joinpath(*name.split("."))
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+@functools.cache
+def _imports(name, top_level_only=False):
+    """The imugen modules mod ``name`` imports (``top_level_only``: only the imports run
+    when it is imported, not those inside its functions), with their parent packages."""
+    path = _module_file(name)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+
+    def add(mod):
+        if _module_file(mod) is None:
+            return
+        parts = mod.split(".")
+        found.update(".".join(parts[:i]) for i in range(1, len(parts) + 1))
+
+    def visit(node):
+        for child in ast.iter_child_nodes(node):
+            if top_level_only and isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            if isinstance(child, ast.Import):
+                for alias in child.names:
+                    add(alias.name)
+            elif isinstance(child, ast.ImportFrom):
+                base = child.module or ""
+                if child.level:
+                    parent = package.split(".")[: len(package.split(".")) - child.level + 1]
+                    base = ".".join([*parent, base] if base else parent)
+                add(base)
+                for alias in child.names:  # `from package import mod`
+                    add(f"{base}.{alias.name}")
+            visit(child)
+
+    visit(ast.parse(path.read_text(), str(path)))
+    found.discard(name)
+    return frozenset(m for m in found if m == "imugen" or m.startswith("imugen."))
+
+
+@functools.cache
+def _closure(name):
+    """Every imugen mod that importing and running mod ``name`` may execute."""
+    parts = name.split(".")
+    seen, todo = set(), [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
+    while todo:
+        mod = todo.pop()
+        if mod not in seen:
+            seen.add(mod)
+            todo.extend(_imports(mod))
+    return frozenset(seen)
+
+
+def code_files(*modules):
+    """Source files of the code a rule's command runs (sorted paths under ``SRC``).
+
+    The transitive closure, computed from the code with ``ast``, of the imugen modules the
+    command's modules import (``modules``: the stage's ``stage.py`` face, or whichever module
+    the command dispatches to), anywhere in them, function-level imports included, plus what
+    ``imugen.cli`` imports when it starts (it imports each command's module inside its
+    dispatch, so one stage's closure holds no other stage).
+    """
+    names = {"imugen.cli"}
+    for m in (*_imports("imugen.cli", top_level_only=True), *modules):
+        names |= _closure(m)
+    return sorted(str(_module_file(m)) for m in names)
+
+
+@functools.cache
+def code_digest(*modules):
+    """A digest of the contents of :func:`code_files`, a param of the rule (``code=``):
+    editing one of its files reruns the rule's jobs, and what follows.
+
+    Snakemake does not track imported code itself. A changed param reruns its jobs
+    (Snakemake's ``params`` rerun trigger), and a mere timestamp change (a git checkout)
+    reruns nothing. Computed once per rule when the workflow is parsed (closures cached per
+    module); a static param costs a job nothing, where the same files as inputs of every shard
+    job cost a fifth of a 10,000-shard dry run (benchmarks/bench_dryrun.py). Files are keyed
+    by their path under ``SRC``, so a moved checkout reruns nothing.
+    tests/system/test_code_inputs.py edits a module of each stage and checks the jobs a dry
+    run schedules.
     """
     h = hashlib.sha256()
-    for m in modules:
-        h.update(m.encode() + b"\0")
-        h.update((Path(workflow.basedir) / "src" / "imugen" / f"{m}.py").read_bytes())
+    for f in code_files(*modules):
+        h.update(Path(f).relative_to(SRC).as_posix().encode() + b"\0")
+        h.update(Path(f).read_bytes() + b"\0")
     return h.hexdigest()[:16]
 
 
@@ -98,13 +178,13 @@ def is_custom(grade):
 def grade_files(wildcards):
     """The custom grade's YAML file, when the grade is custom."""
     g = wildcards.grade
-    return [f"results/grades/{g}.yaml"] if is_custom(g) else []
+    return [layout.grade_file(g)] if is_custom(g) else []
 
 
 def grade_arg(wildcards):
     """`--grade` value: the preset name, or FILE.yaml:NAME for a custom grade."""
     g = wildcards.grade
-    return f"results/grades/{g}.yaml:{g}" if is_custom(g) else g
+    return f"{layout.grade_file(g)}:{g}" if is_custom(g) else g
 
 
 def shard_sequences(wildcards):
@@ -146,7 +226,7 @@ def auto_grades():
     """`--grade` options of the truth: every configured grade (presets by name, custom grades
     as FILE.yaml:NAME) takes part in the `--earth auto` budget."""
     return " ".join(
-        f"--grade={shlex.quote(f'results/grades/{g}.yaml:{g}' if is_custom(g) else g)}"
+        f"--grade={shlex.quote(f'{layout.grade_file(g)}:{g}' if is_custom(g) else g)}"
         for g in GRADES
     )
 
@@ -156,17 +236,17 @@ AUTO_EARTH = config["truth"]["earth"] == "auto"
 
 def custom_grade_files():
     """YAML files of all custom grades (inputs of the truth's `--earth auto` budget)."""
-    return [f"results/grades/{g}.yaml" for g in GRADES if is_custom(g)]
+    return [layout.grade_file(g) for g in GRADES if is_custom(g)]
 
 
 def shard_paths(kind):
-    """Per-grade list of all shard files of one kind (imu or nav) for a route."""
-    return lambda wc: expand(
-        f"results/{{route}}/{kind}/{{grade}}/shard-{{shard}}.parquet",
-        route=wc.route,
-        grade=wc.grade,
-        shard=SHARDS,
-    )
+    """All shard tables of one kind (imu, nav, gnss, ...) of a route and grade."""
+    return lambda wc: [layout.shard(kind, wc.route, wc.grade, s) for s in SHARDS]
+
+
+def route_shards(kind):
+    """All shard tables of one kind of a route, grade by grade (``GRADES`` order)."""
+    return lambda wc: [layout.shard(kind, wc.route, g, s) for g in GRADES for s in SHARDS]
 
 
 def grade_pairs(kind):
@@ -186,11 +266,11 @@ def grade_pairs(kind):
 
 def run_summary():
     """Where the results are and, per route, the Earth model the truth used and why."""
-    from imugen.io import read_meta
+    from imugen.core.io import read_meta
 
-    print("imugen: results in " + str(Path("results").resolve()))
+    print("imugen: results in " + str(Path(layout.RESULTS).resolve()))
     for r in ROUTES:
-        truth = Path("results") / r / "truth.parquet"
+        truth = Path(layout.truth(r))
         if not truth.exists():
             continue
         m = read_meta(truth)
@@ -203,7 +283,7 @@ def run_summary():
                 f"{val / b['grade_effect_m']:.1%} of the {b.get('grade')} grade's error effect "
                 f"(limit {b.get('fraction', 0.1):.0%})"
             )
-        print(f"  {r}: results/{r}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
+        print(f"  {r}: {layout.route_dir(r)}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
 
 
 def check_executor():

@@ -1,4 +1,5 @@
-# Evaluation: per-grade per-sequence RMSE and relative drift, then the RMSE table of each route.
+# Evaluation: per-grade per-sequence RMSE and relative drift, then the RMSE table of each route
+# (rule rmse_table; command `imugen tables`).
 
 
 # relative drift re-navigates the IMU shards from true starts: without shards
@@ -8,14 +9,14 @@ SEGMENTS = config["evaluate"]["segments_s"] if WRITE_IMU else []
 
 rule evaluate:
     input:
-        truth="results/{route}/truth.parquet",
+        truth=rules.truth.output[0],
         nav=shard_paths("nav"),
         imu=shard_paths("imu") if SEGMENTS else [],
         aided=shard_paths("aided") if AID_ON else [],
     output:
-        "results/{route}/metrics/{grade}.parquet",
+        layout.metrics(),
     params:
-        code=stage_code("evaluate", "navigate", "mechanize", "earth", "rotations"),
+        code=code_digest("imugen.evaluate.stage"),
         segments=(
             "--segments=" + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
         ),
@@ -27,27 +28,27 @@ rule evaluate:
         "{params.segments} {input.imu:q} {params.aided} {input.aided:q} > {log:q} 2>&1"
 
 
-rule tables:
+rule rmse_table:
     input:
-        metrics=expand("results/{{route}}/metrics/{grade}.parquet", grade=GRADES),
+        metrics=expand(rules.evaluate.output[0], grade=GRADES, allow_missing=True),
     output:
         csv=report(
-            "results/{route}/rmse.csv",
+            layout.rmse(ext="csv"),
             caption="../report/rmse.rst",
             category="RMSE",
             labels={"route": "{route}", "format": "CSV"},
         ),
-        md="results/{route}/rmse.md",
-        tex="results/{route}/rmse.tex",
+        md=layout.rmse(ext="md"),
+        tex=layout.rmse(ext="tex"),
         html=report(
-            "results/{route}/rmse.html",
+            layout.rmse(ext="html"),
             caption="../report/rmse.rst",
             category="RMSE",
             labels={"route": "{route}", "format": "table"},
         ),
     params:
-        code=stage_code("evaluate"),
+        code=code_digest("imugen.evaluate.stage"),
     log:
-        "logs/{route}/tables.log",
+        "logs/{route}/rmse_table.log",
     shell:
         "imugen tables {input.metrics:q} --output={output.csv:q} > {log:q} 2>&1"

@@ -3,13 +3,13 @@
 
 rule export_mat:
     input:
-        truth="results/{route}/truth.parquet",
+        truth=rules.truth.output[0],
         shards=shard_paths("imu"),
         nav=shard_paths("nav"),
     output:
-        "results/{route}/datasets/{grade}.mat",
+        layout.dataset_mat(),
     params:
-        code=stage_code("export"),
+        code=code_digest("imugen.export.mat"),
     log:
         "logs/{route}/export_mat/{grade}.log",
     shell:
@@ -46,18 +46,15 @@ SPLIT_OPTS = (
 
 rule export_formats:
     input:
-        truth="results/{route}/truth.parquet",
+        truth=rules.truth.output[0],
         shards=shard_paths("imu"),
         gnss=shard_paths("gnss") if AID_ON else [],
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
         companions=shard_paths("companions") if COMPANION_EXPORT else [],
     output:
-        directory("results/{route}/datasets/{grade}"),
+        directory(layout.datasets_dir()),
     params:
-        code=stage_code(
-            "formats/__init__", "formats/source", "formats/common", "formats/convert", "dataset",
-            *(f"formats/{f}" for f in config["exports"]["formats"]),
-        ),
+        code=code_digest("imugen.export.stage"),
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],
         split=SPLIT_OPTS,

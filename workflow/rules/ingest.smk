@@ -7,13 +7,9 @@ rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
     output:
-        "results/{route}/route.csv",
+        layout.route_csv(),
     params:
-        code=stage_code(
-            "ingest", "frames", "route", "xmlsafe", "readers/__init__", "readers/kml",
-            "readers/gpx", "readers/text", "readers/nmea", "readers/igc", "readers/geojson",
-            "readers/gnsscsv", "readers/babel", "clean", "segments", "limits",
-        ),
+        code=code_digest("imugen.ingest.stage"),
         opts=lambda wc: f"{ingest_opts(wc)} {ingest_clean_opts(wc)}",
     log:
         "logs/{route}/ingest_csv.log",
@@ -23,11 +19,11 @@ rule ingest_csv:
 
 rule ingest_enu:
     input:
-        csv="results/{route}/route.csv",
+        csv=rules.ingest_csv.output[0],
     output:
-        "results/{route}/enu.parquet",
+        layout.enu(),
     params:
-        code=stage_code("ingest", "frames", "readers/text", "clean", "segments"),
+        code=code_digest("imugen.ingest.stage"),
     log:
         "logs/{route}/ingest_enu.log",
     shell:

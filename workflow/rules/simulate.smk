@@ -3,7 +3,7 @@
 
 rule custom_grade:
     output:
-        "results/grades/{grade}.yaml",
+        layout.grade_file(),
     params:
         doc=lambda wc: json.dumps({"grades": {wc.grade: config["grades"][wc.grade]}}),
     log:
@@ -16,19 +16,16 @@ rule custom_grade:
 # simulate.write_imu is false) and navigated in the same process, never re-read.
 rule simulate:
     input:
-        truth="results/{route}/truth.parquet",
+        truth=rules.truth.output[0],
         grade=grade_files,
         presets=PRESETS,
     output:
-        nav="results/{route}/nav/{grade}/shard-{shard}.parquet",
+        nav=layout.shard("nav"),
         imu=IMU_OUTPUTS,
     # few function params: Snakemake calls each one for each job; the grade's definition
     # reaches the job through its file (input grade), the shard number through its wildcard
     params:
-        code=stage_code(
-            "simulate", "sensors", "grades", "units", "vibration", "mounting", "navigate",
-            "mechanize", "earth", "rotations", "local_errors",
-        ),
+        code=code_digest("imugen.simulate.stage"),
         grade=grade_arg,
         sequences=shard_sequences,
         shard_size=PER_SHARD,
@@ -52,44 +49,3 @@ rule simulate:
         "--shard={wildcards.shard} --draw={params.draw} --dtype={params.dtype} --outputs={params.outputs} --increments={params.increments} {params.series} "
         "--vibration={params.vibration} {params.mounting} "
         "3>&2 > {log:q} 2>&1"
-
-
-rule allan_static:
-    input:
-        grade=grade_files,
-        presets=PRESETS,
-    output:
-        "results/allan/{grade}/static.parquet",
-    params:
-        code=stage_code("simulate", "sensors", "grades", "units"),
-        grade=grade_arg,
-        spec=lambda wc: config["grades"][wc.grade],
-        static_s=config["allan"]["static_s"],
-        rate_hz=config["allan"]["rate_hz"],
-        sequences=config["allan"]["sequences"],
-        seed=SIM["seed"],
-    log:
-        "logs/allan/{grade}/static.log",
-    shell:
-        "imugen simulate --static={params.static_s} --rate-hz={params.rate_hz} "
-        "--output={output:q} --grade={params.grade:q} --sequences={params.sequences} "
-        "--seed={params.seed} --shard=0 --draw=nominal > {log:q} 2>&1"
-
-
-rule allan:
-    input:
-        static="results/allan/{grade}/static.parquet",
-    output:
-        json="results/allan/{grade}/allan.json",
-        plot=report(
-            "results/allan/{grade}/allan.png",
-            caption="../report/allan.rst",
-            category="Allan deviation",
-            labels={"grade": "{grade}"},
-        ),
-    params:
-        code=stage_code("allan"),
-    log:
-        "logs/allan/{grade}/allan.log",
-    shell:
-        "imugen allan {input.static:q} --plot={output.plot:q} > {output.json:q} 2> {log:q}"

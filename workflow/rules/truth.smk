@@ -3,33 +3,15 @@
 
 rule truth:
     input:
-        enu="results/{route}/enu.parquet",
+        enu=rules.ingest_enu.output[0],
         # the grades feed only the `earth: auto` budget: with an explicit Earth model the truth
         # does not depend on them (editing a grade then reruns only that grade's jobs)
         grade_files=custom_grade_files() if AUTO_EARTH else [],
         presets=PRESETS if AUTO_EARTH else [],
     output:
-        "results/{route}/truth.parquet",
+        layout.truth(),
     params:
-        code=stage_code(
-            "truth/__init__",
-            "truth/budget",
-            "truth/build",
-            "truth/fit",
-            "truth/profile",
-            "truth/attitude",
-            "truth/increments",
-            "truth/report",
-            "truth/stage",
-            "truth/vehicles",
-            "earth",
-            "rotations",
-            "tables/__init__",
-            "tables/_parquet",
-            "tables/enu",
-            "tables/truth",
-            "grades",
-        ),
+        code=code_digest("imugen.truth.stage"),
         rate_hz=config["truth"]["rate_hz"],
         earth=config["truth"]["earth"],
         vehicle=lambda wc: config["routes"][wc.route]["vehicle"],

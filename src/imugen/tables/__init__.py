@@ -1,7 +1,7 @@
 """The contract layer: one module per file that passes between stages.
 
 Each module owns its table's column names, units, metadata block, reader and writer (built
-on the atomic writes of :mod:`imugen.io`); no stage parses another's file by hand.
+on the atomic writes of :mod:`imugen.core.io`); no stage parses another's file by hand.
 
 - :mod:`~imugen.tables.enu`: ingestion output (route points in local ENU);
 - :mod:`~imugen.tables.truth`: truth motion and ideal IMU at the IMU rate;
@@ -10,7 +10,8 @@ on the atomic writes of :mod:`imugen.io`); no stage parses another's file by han
 - :mod:`~imugen.tables.metrics`: per-sequence RMSE and final errors;
 - :mod:`~imugen.tables.gnss`: GNSS epochs of ``imugen aid`` with receiver and scenario labels;
 - :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors and state;
-- :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels.
+- :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels;
+- :mod:`~imugen.tables.layout`: where the workflow writes each of them (``results/...``).
 
 ``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them. The
 submodules load on first use (``imugen.tables.gnss`` and ``aided`` import pandas, which a
@@ -19,9 +20,12 @@ simulate or navigate job does not need: 0.4 CPU-s of its start-up).
 
 import importlib
 
-from imugen.tables._parquet import SEQUENCE, TIME
+SEQUENCE = "sequence"
+"""Sequence id column of shards, navigation and metrics tables (int32 or int64)."""
+TIME = "time_s"
+"""Time column, seconds from the first sample of the route."""
 
-_SUBMODULES = ("aided", "companions", "enu", "gnss", "metrics", "nav", "shard", "truth")
+_SUBMODULES = ("aided", "companions", "enu", "gnss", "layout", "metrics", "nav", "shard", "truth")
 __all__ = ["SEQUENCE", "TIME", *_SUBMODULES]
 
 

@@ -1,7 +1,7 @@
 """Parquet plumbing shared by the table modules: opening, reading, clear errors.
 
 Every reader maps a missing or unreadable file, or a missing column, to one-line
-:class:`~imugen.errors.InputError` naming the file and the kind of table expected.
+:class:`~imugen.core.errors.InputError` naming the file and the kind of table expected.
 """
 
 from __future__ import annotations
@@ -12,12 +12,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen.errors import InputError
-
-SEQUENCE = "sequence"
-"""Sequence id column of shards, navigation and metrics tables (int32 or int64)."""
-TIME = "time_s"
-"""Time column, seconds from the first sample of the route."""
+from imugen.core.errors import InputError
 
 
 def to_numpy(col) -> np.ndarray:

@@ -14,7 +14,7 @@ Errors and scenario context:
   :mod:`imugen.tables.nav`);
 - ``sd_e_m``, ``sd_n_m``, ``sd_u_m``: the filter's reported position 1-sigma (m), rotated to
   the same local level as the errors (correlations ignored:
-  :func:`imugen.local_errors.local_sd`), so that consistency can be checked downstream
+  :func:`imugen.navigate.local_errors.local_sd`), so that consistency can be checked downstream
   (``err / sd`` should be standard normal);
 - ``gnss_used`` int8: 1 when a GNSS position update was applied at the epoch;
 - ``state`` int8: scenario state of the epoch (:mod:`imugen.tables.gnss`);
@@ -54,9 +54,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen.io import METADATA_KEY, atomic_output
-from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
+from imugen.core.io import METADATA_KEY, atomic_output
+from imugen.core.io import read_meta as read_meta
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import from_numpy, names, read_table
 from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 from imugen.tables.truth import POS, QUAT, VEL
 
@@ -87,7 +88,7 @@ UNITS = {
     ERR_ATT: "rad",
     **dict.fromkeys(SD_POS, "m"),
     GNSS_USED: "1",
-    STATE: "imugen.scenarios.KINDS code",
+    STATE: "imugen.aid.scenarios.KINDS code",
     SINCE_FIX: "s",
     **dict.fromkeys(POS, "m"),
     **dict.fromkeys((*VEL, *SD_VEL), "m/s"),

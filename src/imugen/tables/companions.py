@@ -4,7 +4,7 @@ One row per sequence, sensor and epoch, sorted by ``sequence``, then ``sensor``,
 (long format: each sensor at its own rate; the other sensor's columns are NaN, or 0 ticks):
 
 - ``sequence`` int64, ``time_s`` (end of the epoch's interval, an IMU sample time, s),
-  ``sensor`` int8 (:data:`imugen.companions.KINDS`: 1 odometer, 2 barometer);
+  ``sensor`` int8 (:data:`imugen.aid.companions.KINDS`: 1 odometer, 2 barometer);
 - odometer: ``odo_ticks`` int64 (ticks counted over the interval), ``odo_speed_mps``
   (``ticks * tick_m / interval``), ``odo_true_speed_mps`` (true mean forward speed of the
   vehicle reference over the interval), ``odo_error_mps`` (measured minus true);
@@ -28,14 +28,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imugen.errors import InputError
-from imugen.io import read_meta as read_meta
-from imugen.io import write_parquet
-from imugen.tables._parquet import SEQUENCE, TIME, read_table
+from imugen.core.errors import InputError
+from imugen.core.io import read_meta as read_meta
+from imugen.core.io import write_parquet
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import read_table
 
 SENSOR = "sensor"
 ODOMETER, BAROMETER = 1, 2
-"""``sensor`` codes (as :data:`imugen.companions.KINDS`)."""
+"""``sensor`` codes (as :data:`imugen.aid.companions.KINDS`)."""
 ODO_TICKS = "odo_ticks"
 ODO_SPEED = "odo_speed_mps"
 ODO_TRUE = "odo_true_speed_mps"
@@ -50,7 +51,7 @@ COLUMNS = (SEQUENCE, TIME, SENSOR, *ODO_COLUMNS, *BARO_COLUMNS)
 UNITS = {
     SEQUENCE: "1",
     TIME: "s",
-    SENSOR: "imugen.companions.KINDS code",
+    SENSOR: "imugen.aid.companions.KINDS code",
     ODO_TICKS: "1",
     **dict.fromkeys((ODO_SPEED, ODO_TRUE, ODO_ERROR), "m/s"),
     **dict.fromkeys(BARO_COLUMNS, "m"),
@@ -65,7 +66,7 @@ def labels_path(path) -> Path:
 
 
 def frame(ids, odometer=None, barometer=None) -> pd.DataFrame:
-    """Rows for :class:`imugen.companions.CompanionData` of the sequences ``ids`` (either may
+    """Rows for :class:`imugen.aid.companions.CompanionData` of the sequences ``ids`` (either may
     be None)."""
     ids = np.asarray(ids, np.int64)
     parts = []

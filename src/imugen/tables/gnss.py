@@ -7,7 +7,7 @@ One row per sequence and GNSS epoch, sorted by ``sequence`` then time:
   ``v_{e,n,u}_mps`` measured antenna velocity (m/s; NaN without a fix);
 - ``sigma_p_{e,n,u}_m``, ``sigma_v_{e,n,u}_mps``: the 1-sigma the receiver reports;
 - ``fix`` int8: NMEA GGA fix quality (0: no fix); ``state`` int8: scenario state
-  (:data:`imugen.scenarios.KINDS`; 0 nominal, 1 outage, 2/3 jamming degraded/lost, 4-8 spoofing);
+  (:data:`imugen.aid.scenarios.KINDS`; 0 nominal, 1 outage, 2/3 jamming degraded/lost, 4-8 spoofing);
 - ``offset_p_{e,n,u}_m``, ``offset_v_{e,n,u}_mps``: true total error, measured minus the true
   antenna at the time of validity (receiver error plus attack);
 - ``attack_p_{e,n,u}_m``, ``attack_v_{e,n,u}_mps``: the part the scenario adds (0 outside
@@ -37,10 +37,11 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen.errors import InputError
-from imugen.io import atomic_output, with_meta, write_parquet
-from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, read_table
+from imugen.core.errors import InputError
+from imugen.core.io import atomic_output, with_meta, write_parquet
+from imugen.core.io import read_meta as read_meta
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import read_table
 
 ENU = "enu"
 P = tuple(f"p_{a}_m" for a in ENU)
@@ -63,7 +64,7 @@ UNITS = {
     **{c: "m" for c in (*P, *SIGMA_P, *OFFSET_P, *ATTACK_P)},
     **{c: "m/s" for c in (*V, *SIGMA_V, *OFFSET_V, *ATTACK_V)},
     FIX: "NMEA GGA quality",
-    STATE: "imugen.scenarios.KINDS code",
+    STATE: "imugen.aid.scenarios.KINDS code",
 }
 WHAT = "GNSS epochs table"
 
@@ -81,7 +82,7 @@ def intervals_path(path) -> Path:
 
 
 def frame(ids, scen) -> pd.DataFrame:
-    """The table's rows for a :class:`imugen.scenarios.ScenarioResult` of sequences ``ids``."""
+    """The table's rows for a :class:`imugen.aid.scenarios.ScenarioResult` of sequences ``ids``."""
     g = scen.gnss
     M, J = g.fix.shape
     out = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J), TIME: np.tile(g.time_s, M)}

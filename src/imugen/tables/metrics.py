@@ -7,7 +7,7 @@ the position error over the evaluation epochs, m; East/North/Up at the true posi
 ``rmse_cross_m`` (RMSE of the along- and cross-track errors, m) and ``final_along_m``,
 ``final_cross_m`` (their signed values at the last epoch, cross positive to the left, m), absent
 when the navigation tables had no track columns; ``epochs``; optional columns of
-:mod:`imugen.evaluate` (``drift_*``, ``aided_*``, ``outage_*``, ``time_to_10m_s``).
+:mod:`imugen.evaluate.stage` (``drift_*``, ``aided_*``, ``outage_*``, ``time_to_10m_s``).
 Metadata (JSON under ``b"imugen"``): ``stage``, ``grade``, ``distance_horizontal_m``,
 ``extent_m``, ``units``.
 """
@@ -17,10 +17,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imugen.errors import InputError
-from imugen.io import read_meta as read_meta
-from imugen.io import write_parquet
-from imugen.tables._parquet import SEQUENCE, read_table
+from imugen.core.errors import InputError
+from imugen.core.io import read_meta as read_meta
+from imugen.core.io import write_parquet
+from imugen.tables import SEQUENCE
+from imugen.tables._parquet import read_table
 
 AXES = ("east", "north", "up")
 RMSE = tuple(f"rmse_{a}_m" for a in AXES)

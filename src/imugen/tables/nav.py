@@ -3,7 +3,7 @@
 One row per sequence and evaluation epoch (every ``round(rate / eval_rate_hz)`` samples from
 ``t_0``): ``sequence`` (int64, the shard's id), ``time_s`` (s), position error
 ``err_e_m``, ``err_n_m``, ``err_u_m`` (navigation minus truth, m, East/North/Up at the TRUE
-position: :mod:`imugen.local_errors`; in the ``flat`` model the ENU of the route origin),
+position: :mod:`imugen.navigate.local_errors`; in the ``flat`` model the ENU of the route origin),
 ``err_along_m``, ``err_cross_m`` (horizontal error along the true track and across it, positive
 to the left, m) and attitude error ``err_att_rad`` (angle of the rotation from the true to the
 computed attitude). Tables written before the track columns existed lack them; readers
@@ -23,9 +23,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen.io import METADATA_KEY, atomic_output
-from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import SEQUENCE, TIME, from_numpy, names, read_table
+from imugen.core.io import METADATA_KEY, atomic_output
+from imugen.core.io import read_meta as read_meta
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables._parquet import from_numpy, names, read_table
 
 ERR_POS = ("err_e_m", "err_n_m", "err_u_m")
 """Position error columns, metres, ENU at the true position."""

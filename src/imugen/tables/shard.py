@@ -34,12 +34,12 @@ compensated.
 
 The labels sidecar holds one row per sequence: ``sequence``, ``route_id``, ``shard``,
 ``index``, ``seed``, ``grade_id`` and every drawn parameter (SI unit in each name), among them,
-when the shard was simulated with a mounting (metadata ``mounting``, :mod:`imugen.mounting`),
+when the shard was simulated with a mounting (metadata ``mounting``, :mod:`imugen.sensors.mounting`),
 the IMU's misalignment from the vehicle ``mount_roll_rad``, ``mount_pitch_rad``,
 ``mount_yaw_rad`` (``C_vb = Rz(yaw) Ry(-pitch) Rx(roll)``, IMU axes ``b`` from vehicle axes
 ``v``) and its lever arm from the vehicle reference point ``lever_arm_{x,y,z}_m`` (vehicle
 axes): the IMU measures at that point in those axes, and its truth is the vehicle's moved there
-(:func:`imugen.mounting.imu_states`; :func:`mounting` reads them back). Both
+(:func:`imugen.sensors.mounting.imu_states`; :func:`mounting` reads them back). Both
 files carry the shard metadata (JSON under ``b"imugen"``; :data:`FORMAT`); a shard written
 from corrected data by :func:`imugen.write_shard` has ``derived`` set.
 """
@@ -57,12 +57,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imugen.errors import InputError
-from imugen.io import METADATA_KEY, atomic_output, with_meta
-from imugen.io import read_meta as read_meta
+from imugen.core.errors import InputError
+from imugen.core.io import METADATA_KEY, atomic_output, with_meta
+from imugen.core.io import read_meta as read_meta
+from imugen.tables import SEQUENCE, TIME
 from imugen.tables._parquet import (
-    SEQUENCE,
-    TIME,
     from_numpy,
     names,
     num_rows,

@@ -30,9 +30,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from imugen.io import METADATA_KEY, write_parquet
-from imugen.io import read_meta as read_meta
-from imugen.tables._parquet import TIME, num_rows, open_file, read_table, require, to_numpy
+from imugen.core.io import METADATA_KEY, write_parquet
+from imugen.core.io import read_meta as read_meta
+from imugen.tables import TIME
+from imugen.tables._parquet import num_rows, open_file, read_table, require, to_numpy
 from imugen.tables.enu import ALT, LAT, LON, E, N, U
 
 if TYPE_CHECKING:
@@ -75,8 +76,8 @@ def write(df: pd.DataFrame, meta: dict, out) -> Path:
 
 
 def origin_frame(meta: dict):
-    """The :class:`imugen.earth.OriginFrame` (origin and Earth model) a truth was built with."""
-    from imugen.earth import OriginFrame
+    """The :class:`imugen.core.earth.OriginFrame` (origin and Earth model) a truth was built with."""
+    from imugen.core.earth import OriginFrame
 
     o = meta["origin"]
     return OriginFrame.from_deg(o["lat_deg"], o["lon_deg"], o["alt_m"], model=meta["earth"])

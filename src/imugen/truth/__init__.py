@@ -61,7 +61,7 @@ used alone. Untimed ``airliner`` routes are flown in phases (:mod:`imugen.truth.
 
 Every truth carries a plausibility report (:mod:`imugen.truth.report`).
 
-Ideal IMU (per :mod:`imugen.earth` and the issue-3 spec)
+Ideal IMU (per :mod:`imugen.core.earth` and the issue-3 spec)
 ---------------------------------------------------------
 ``omega_ib_b = omega_nb_b + C_nb^T Omega_n``; ``f_b = C_nb^T (a_n + 2 Omega_n x v_n - g_n(p_n))``;
 ``dtheta_k = Log(C_nb(t_k)^T Exp(Omega_n dt) C_nb(t_k+1))``;
@@ -72,7 +72,7 @@ gravitation integral by 4-node Gauss-Legendre quadrature on the continuous truth
 
 from __future__ import annotations
 
-from imugen.io import write_parquet
+from imugen.core.io import write_parquet
 from imugen.truth.budget import earth_budget
 from imugen.truth.build import CHUNK, TruthOptions, build_motion, build_truth, enu_table
 from imugen.truth.fit import TimedMotion, fit_path, fit_timed, noise_estimate

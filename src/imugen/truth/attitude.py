@@ -9,12 +9,12 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
-from imugen import earth as ea
-from imugen import rotations as rot
-from imugen.errors import InputError
-from imugen.jit import njit
+from imugen.core import earth as ea
+from imugen.core import rotations as rot
+from imugen.core.errors import InputError
+from imugen.core.jit import njit
 from imugen.truth.fit import fit_height_profile
-from imugen.truth.grade import distance_steps
+from imugen.truth.road import distance_steps
 
 
 def _smoothstep(x, lo, hi):
@@ -77,7 +77,7 @@ def _sphere_directions(n):
 
 
 class EarthField:
-    """Gravity/up helpers on top of :mod:`imugen.earth` for one origin frame."""
+    """Gravity/up helpers on top of :mod:`imugen.core.earth` for one origin frame."""
 
     def __init__(self, frame: ea.OriginFrame):
         self.frame = frame
@@ -96,7 +96,7 @@ class EarthField:
         (``a_l = C_ln a - omega_nl_l x v_l``, that level's North towards ``axis``:
         :meth:`local`)."""
         if self.ecef and a is None:  # |v - (v . up) up| with the geodetic up at p
-            sl, cl, co, so, _ = ea._geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
+            sl, cl, co, so, _ = ea.geodetic_parts(p[:, 0], p[:, 1], p[:, 2])
             vu = cl * (co * v[:, 0] + so * v[:, 1]) + sl * v[:, 2]
             return np.sqrt(np.maximum(np.einsum("mi,mi->m", v, v) - vu * vu, 0.0)), None
         if self.ecef:
@@ -156,7 +156,7 @@ class EarthField:
         p = np.asarray(p, float)
         p = p[:: max(1, len(p) // 20_000)]
         r = self.frame.ecef_from_n(p)
-        sl, cl, co, so, _ = ea._geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
+        sl, cl, co, so, _ = ea.geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
         if np.max(np.abs(sl)) <= math.cos(POLE_MARGIN_RAD):
             return None
         u = np.column_stack([cl * co, cl * so, sl])
@@ -185,7 +185,7 @@ class EarthField:
         C_en = self.frame.C_en
         r = self.frame.ecef_from_n(p)
         v_e = v @ C_en  # C_ne v per row
-        sl, cl, co, so, h = ea._geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
+        sl, cl, co, so, h = ea.geodetic_parts(r[:, 0], r[:, 1], r[:, 2])
         u = np.column_stack([cl * co, cl * so, sl])
         ku = u @ k
         m = k[None, :] - ku[:, None] * u
@@ -495,8 +495,8 @@ class GroundAttitude:
     noise_up_m : float
         Noise of those heights [m].
     profile : (BSpline, dict) or None
-        A height profile ``H(s)`` already fitted and its report (a graded motion's or path's,
-        :func:`imugen.truth.grade.graded_motion`, :func:`imugen.truth.grade.graded_path`):
+        A height profile ``H(s)`` already fitted and its report (a motion's or path's on the road profile,
+        :func:`imugen.truth.road.motion_on_road`, :func:`imugen.truth.road.path_on_road`):
         used instead of fitting one.
     grid_dt : float
         Step of the internal time grid of the distance [s].

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from imugen import earth as ea
+from imugen.core import earth as ea
 
 
 def grade_figures(grade) -> ea.GradeFigures:
-    """Budget figures of a grade given as figures, a :class:`imugen.grades.Grade`, a preset
+    """Budget figures of a grade given as figures, a :class:`imugen.sensors.grades.Grade`, a preset
     name or ``FILE.yaml:NAME`` (a custom grade)."""
     if isinstance(grade, ea.GradeFigures):
         return grade
-    from imugen.grades import budget_figures
+    from imugen.sensors.grades import budget_figures
 
     return budget_figures(grade)
 
@@ -35,7 +35,7 @@ def earth_budget(motion, samples, lat0_rad, grades=None, fraction=0.1):
 
     Returns
     -------
-    imugen.earth.EarthBudget
+    imugen.core.earth.EarthBudget
         The deciding grade's budget.
     """
     if grades is None:

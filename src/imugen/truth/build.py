@@ -10,18 +10,18 @@ import numpy as np
 import pandas as pd
 
 from imugen import __version__
-from imugen import earth as ea
-from imugen.errors import InputError
+from imugen.core import earth as ea
+from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.flight import flight_geometry
-from imugen.truth.grade import graded_motion, graded_path
 from imugen.truth.increments import imu_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
+from imugen.truth.road import motion_on_road, path_on_road
 from imugen.truth.vehicles import VehicleParams, vehicle_params
 
 CHUNK = 1 << 16  # samples per evaluation chunk
@@ -87,7 +87,7 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
     """Fit the route: returns (motion, fit report, timing report).
 
     With ``E`` (the :class:`EarthField` of the truth), an untimed ground route's geometry
-    takes the vertical of its road profile before its speed profile (:func:`_graded_path`);
+    takes the vertical of its road profile before its speed profile (:func:`_path_on_road`);
     the motion's ``profile`` holds it."""
     for c in tenu.ENU:
         if c not in enu.columns:
@@ -103,7 +103,7 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOp
         G, L, fit, s_v = fit_path(y, vp, opts.corner_m, vertices=True)
         profile = None
         if E is not None and vp.attitude == "ground":
-            G, L, profile = _graded_path(G, L, E, vp, enu, fit, s_v)
+            G, L, profile = _path_on_road(G, L, E, vp, enu, fit, s_v)
         vmax, plan = None, None
         if vp.phases:
             alt = enu[tenu.ALT].to_numpy(float) if tenu.ALT in enu.columns else y[:, 2]
@@ -134,7 +134,7 @@ class EcefMotion:
     ----------
     motion : TimedMotion or PathMotion
         Positions in the ENU of ``origin`` [m].
-    origin : imugen.earth.OriginFrame
+    origin : imugen.core.earth.OriginFrame
         The route origin (any model: only its ``r0_e`` and ``C_en`` of the ENU axes are used).
     """
 
@@ -179,14 +179,14 @@ def _enu_field(E):
     return EarthField(E.frame.with_model("wgs84")) if E.ecef else E
 
 
-def _graded_path(G, L, E, vp, enu, fit, s_v):
+def _path_on_road(G, L, E, vp, enu, fit, s_v):
     """An untimed ground path with the vertical of its road profile
-    (:func:`imugen.truth.grade.graded_path`, in the origin's ENU; sampled at the fine grid of
+    (:func:`imugen.truth.road.path_on_road`, in the origin's ENU; sampled at the fine grid of
     :func:`fit_path`, ``densify_step_m / 4``), its length and ``(H, grade report)`` (None when
     too short for a profile); the fit report gets the profile's report and the distances of
-    the graded path to the input."""
+    the path on the road profile to the input."""
     y = enu[list(tenu.ENU)].to_numpy(float)
-    G2, L2, H, rep = graded_path(
+    G2, L2, H, rep = path_on_road(
         G, L, _enu_field(E), vp, (s_v, _heights(E, enu)), y, fit["densify_step_m"] / 4.0
     )
     fit["vertical"] = rep
@@ -199,28 +199,28 @@ def _graded_path(G, L, E, vp, enu, fit, s_v):
     return G2, L2, (H, rep["grade"])
 
 
-def _graded(motion, E, vp, enu, fit):
+def _on_road(motion, E, vp, enu, fit):
     """A timed ground route's motion with the vertical of its road profile
-    (:func:`imugen.truth.grade.graded_motion`, in the origin's ENU) and that profile; the fit
-    report gets the profile's report and the distances of the graded motion to the input."""
+    (:func:`imugen.truth.road.motion_on_road`, in the origin's ENU) and that profile; the fit
+    report gets the profile's report and the distances of the motion on the road profile to the input."""
     E_enu = _enu_field(E)
     t_in, h = _input_heights(E, enu)
     noise_up = float(fit["noise_estimate_m"][2])
-    graded, H, rep = graded_motion(motion, E_enu, vp, (t_in, h), noise_up, fit.get("stops", []))
+    on_road, H, rep = motion_on_road(motion, E_enu, vp, (t_in, h), noise_up, fit.get("stops", []))
     fit["vertical"] = rep
     if H is None:
         return motion, None
-    d = graded.position(t_in) - enu[list(tenu.ENU)].to_numpy(float)
+    d = on_road.position(t_in) - enu[list(tenu.ENU)].to_numpy(float)
     dist = np.linalg.norm(d, axis=1)
     fit["rms_distance_m"] = float(np.sqrt(np.mean(dist**2)))
     fit["max_distance_m"] = float(dist.max())
     fit["rms_horizontal_distance_m"] = float(np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))))
     fit["rms_vertical_distance_m"] = float(np.sqrt(np.mean(d[:, 2] ** 2)))
-    return graded, (H, rep["grade"])
+    return on_road, (H, rep["grade"])
 
 
 def _ground(motion, E, vp, enu, fit, profile=None) -> GroundAttitude:
-    """The ground-vehicle attitude of the motion: on a graded motion or path its road profile;
+    """The ground-vehicle attitude of the motion: on a motion on the road profile or path its road profile;
     heights from the input points of other timed routes (their own noise), else from the
     smoothed path."""
     if profile is not None:
@@ -337,13 +337,15 @@ def build_truth(
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)
         model = budget.model
         E = EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
-        if motion.kind == "untimed" and vp.attitude == "ground":  # graded in E's heights
+        if (
+            motion.kind == "untimed" and vp.attitude == "ground"
+        ):  # on the road profile of E's heights
             motion, fit, timing = build_motion(enu, meta, vp, opts, E)
             K = _samples(motion, rate_hz)
     times = motion.t0 + np.arange(K) * dt
     profile = None
     if motion.kind == "timed" and vp.attitude == "ground":
-        motion, profile = _graded(motion, E, vp, enu, fit)
+        motion, profile = _on_road(motion, E, vp, enu, fit)
     elif motion.kind == "untimed":
         profile = motion.profile
     if E.ecef:

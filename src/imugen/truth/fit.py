@@ -12,7 +12,7 @@ from scipy.ndimage import binary_dilation, maximum_filter1d, minimum_filter1d
 from scipy.optimize import brentq
 from scipy.sparse.linalg import splu
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.truth.vehicles import VehicleParams
 
 K_SPLINE = 5  # quintic
@@ -85,7 +85,7 @@ def noise_estimate(t, y) -> np.ndarray:
     return est
 
 
-class _PenalizedSpline:
+class PenalizedSpline:
     """Quintic B-spline with knots at the data sites; minimizes residual^2 + lam*int(f''')^2.
 
     ``ties``: list of (i0, i1) coefficient ranges forced equal (constant stretches).
@@ -186,7 +186,7 @@ class _PenalizedSpline:
 class TimedMotion:
     """Position spline p(t) (vector-valued quintic BSpline) and its derivatives; with
     ``vertical``, a scalar spline replacing the third coordinate (a road profile,
-    :func:`imugen.truth.grade.graded_motion`)."""
+    :func:`imugen.truth.road.motion_on_road`)."""
 
     kind = "timed"
 
@@ -308,7 +308,7 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
             f"{vp.fit_tol_max_m}] m"
         )
     target = np.maximum(target, vp.fit_floor_m / math.sqrt(3))
-    ps = _PenalizedSpline(t)
+    ps = PenalizedSpline(t)
     loglam = np.array([ps.lam_for_rms(y[:, i], target[i]) for i in range(3)])
     lam = 10.0**loglam
     coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
@@ -322,7 +322,7 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
         if stop_list:
             # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
             ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
-            ps = _PenalizedSpline(t, ties)
+            ps = PenalizedSpline(t, ties)
             coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
             spline = ps.bspline(coef)
     motion = TimedMotion(spline, float(t[0]), float(t[-1]))
@@ -372,7 +372,7 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
         mid = 0.5 * (dense[0] + dense[-1])
         dense = np.vstack([dense[0], mid, dense[-1]])
         u = np.array([0.0, 0.5 * u[-1], u[-1]])
-    ps = _PenalizedSpline(u)
+    ps = PenalizedSpline(u)
     # equivalent-kernel bandwidth of an order-3 smoothing spline ~ lam^(1/6) samples;
     # calibrated so that a right-angle corner becomes an arc of radius ~ ell (tests check)
     lam = (ell / ps.scale) ** 6 * _CORNER_CAL
@@ -388,7 +388,7 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     s = np.r_[0.0, np.cumsum(0.5 * h * (speed @ wg))]
     L = float(s[-1])
     G = make_interp_spline(s, g(uf), k=K_SPLINE)
-    d = _distance_to_curve(G, L, y, step / 8.0)
+    d = distance_to_curve(G, L, y, step / 8.0)
     report = {
         "method": "quintic penalized smoothing spline of the densified polyline vs chord "
         "length, re-parameterized by arc length",
@@ -404,7 +404,7 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     return G, L, report
 
 
-def _distance_to_curve(G, L, y, spacing):
+def distance_to_curve(G, L, y, spacing):
     """Distance [m] of each point ``y`` (N, 3) to the curve ``G(s)``, s in [0, L]: to the
     polyline of samples ``spacing`` apart next to the nearest sample (chord error
     ``spacing^2 kappa / 8``, not the ``spacing / 2`` of the nearest sample alone)."""
@@ -466,7 +466,7 @@ def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
     hm = np.bincount(inv, h) / cnt
     if len(sm) < 6:
         return None, {"bins": len(sm), "method": "level (too short)"}
-    ps = _PenalizedSpline(sm, weights=cnt)
+    ps = PenalizedSpline(sm, weights=cnt)
     target = max(float(noise_m), floor_m)
     h0 = float(np.average(hm, weights=cnt))  # fitted about the mean: no offset to round off
     # smoothing beyond the bins' own extent (bandwidth ~ lambda^(1/6) bins) changes nothing (the

@@ -35,7 +35,7 @@ import math
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from imugen import earth as ea
+from imugen.core import earth as ea
 from imugen.truth.vehicles import VehicleParams
 
 GRID_M = 25.0

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from imugen import rotations as rot
+from imugen.core import rotations as rot
 
 N_GAUSS = 4  # Gauss-Legendre nodes of the gravitation integral
 

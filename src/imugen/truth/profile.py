@@ -9,13 +9,13 @@ import numpy as np
 from scipy.interpolate import BSpline, PPoly
 from scipy.ndimage import minimum_filter1d
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 
 class PathMotion:
     """Position ``G(s(t))``: geometry G(s) (arc length) and speed profile s(t) (PPoly);
     ``profile``: the road profile ``(H, report)`` whose vertical ``G`` has
-    (:func:`imugen.truth.grade.graded_path`), or None."""
+    (:func:`imugen.truth.road.path_on_road`), or None."""
 
     kind = "untimed"
 

@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
-from imugen import earth as ea
-from imugen import rotations as rot
+from imugen.core import earth as ea
+from imugen.core import rotations as rot
 from imugen.tables import truth as col
 
 # tolerances of the consistency checks (numerical, not vehicle limits)
@@ -116,7 +116,7 @@ def plausibility(
         Fit report of the truth (``rms_distance_m``, ``max_distance_m``).
     airborne : ndarray of bool, shape (K,), optional
         Samples in flight (ground-vehicle limits do not apply there).
-    frame : imugen.earth.OriginFrame, optional
+    frame : imugen.core.earth.OriginFrame, optional
         The truth's Earth model; in ``geodetic`` (ECEF) the horizontal speed is taken in the
         local level at the vehicle (default: n's East-North plane).
 

@@ -6,7 +6,7 @@ import sys
 
 import pandas as pd
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as ttable
 from imugen.truth.build import build_truth, messages

@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from flask import (
 )
 from werkzeug.exceptions import RequestEntityTooLarge
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 from imugen.web import form as fm
 from imugen.web.runs import Refused, Run, Runs, safe_name
 from imugen.web.security import HEADERS, Guard, is_loopback, same_origin
@@ -83,8 +83,8 @@ def grade_name(text: str) -> str:
 
 def _grades(form, files) -> dict:
     """Preset grades ticked in the form, and the imported IMU description, if any."""
-    from imugen.grade_io import import_grade
-    from imugen.grades import presets
+    from imugen.sensors.grade_io import import_grade
+    from imugen.sensors.grades import presets
 
     grades = {g: {} for g in form.getlist("grades") if g in presets()}
     up = files.get("kalibr")
@@ -137,13 +137,10 @@ def plan(run: Run) -> dict | None:
     out = run.root / "preview" / "enu.parquet"
     if not out.exists():
         return None
-    import pandas as pd
+    from imugen.tables import enu as tenu
 
-    from imugen.io import read_meta
-
-    meta = read_meta(out)
-    df = pd.read_parquet(out, columns=["e_m", "n_m"])
-    e, n = df["e_m"].to_numpy(), df["n_m"].to_numpy()
+    df, meta = tenu.read(out, columns=[tenu.E, tenu.N])
+    e, n = df[tenu.E].to_numpy(), df[tenu.N].to_numpy()
     step = max(1, len(e) // 2000)
     e, n = e[::step], n[::step]
     span = max(float(np.ptp(e)), float(np.ptp(n)), 1.0)
@@ -184,16 +181,24 @@ def results(run: Run) -> dict:
     out = {"tables": [], "figures": [], "allan": [], "files": [], "truth": []}
     if not res.is_dir():
         return out
-    from imugen.io import read_meta
+    import glob
 
-    for t in sorted(res.glob("*/rmse.html")):
+    from imugen.tables import layout
+    from imugen.tables import truth as ttruth
+
+    root = glob.escape(str(res))
+
+    def find(pattern: str) -> list[Path]:
+        return sorted(map(Path, glob.glob(pattern)))
+
+    for t in find(layout.rmse("*", "html", root=root)):
         out["tables"].append((t.parent.name, t.read_text()))
-    for f in sorted(res.glob("*/figures/*.png")):
+    for f in find(layout.figure("*", "png", route="*", root=root)):
         out["figures"].append(str(f.relative_to(run.root)))
-    for f in sorted(res.glob("allan/*/allan.png")):
+    for f in find(layout.allan("*", "png", root=root)):
         out["allan"].append(str(f.relative_to(run.root)))
-    for t in sorted(res.glob("*/truth.parquet")):
-        m = read_meta(t)
+    for t in layout.find_truths(res):
+        m = ttruth.read_meta(t)
         rep = m.get("plausibility") or m.get("motion") or {}
         out["truth"].append(
             {
@@ -234,7 +239,7 @@ def create_app(
     app.config["GUARD"] = guard
 
     def page(template, status=200, **kw):
-        from imugen.grades import presets
+        from imugen.sensors.grades import presets
 
         kw.setdefault("error", None)
         return (

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 SKIP = ("routes", "grades")
 """Top-level keys the page builds itself (the uploaded route, the grade checkboxes)."""

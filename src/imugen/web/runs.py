@@ -26,7 +26,7 @@ from pathlib import Path
 
 import yaml
 
-from imugen.errors import InputError
+from imugen.core.errors import InputError
 
 RUN_ID = re.compile(r"^[0-9a-f]{12}$")
 ERROR_LINE = re.compile(r"^imugen: error: (.+)$", re.M)

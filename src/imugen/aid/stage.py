@@ -1,0 +1,598 @@
+"""Aid stage: a shard of measured IMU sequences + GNSS (with scenarios) -> aided navigation errors.
+
+For every sequence of the shard (streamed in batches, memory bounded as in
+:mod:`imugen.navigate.stage`):
+
+1. GNSS fixes are drawn (:func:`imugen.aid.gnss.simulate_gnss`) from the truth, then the
+   configured scenario intervals (declared, and/or drawn per sequence) are applied
+   (:func:`imugen.aid.scenarios.apply`);
+2. the loosely-coupled error-state filter (:func:`imugen.aid.filter.ekf.run`) runs on the shard's
+   increments (raw ones get navigation's coning/sculling correction; rates are integrated as
+   navigation does) with its tuning from the grade's figures (``tuning_level``) and the
+   receiver's nominal figures, aligned by :func:`imugen.aid.filter.ekf.align` (moving starts at
+   ``align_speed_mps``);
+3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels) and the
+   aided errors and filter state at the evaluation epochs (:mod:`imugen.tables.aided`) are
+   written, each streamed one row group per batch;
+4. with an odometer and/or a barometer configured (``companions``), their epochs are drawn
+   from the truth (:mod:`imugen.aid.companions`), used by the filter (at the GNSS epochs that are
+   also companion epochs) and written to the companion table (:mod:`imugen.tables.companions`).
+
+Randomness: sequence ``i`` (its index in the route, ``shard * shard_size + j``) of route id
+``r`` draws its receiver, its scenario and the jamming noise from ``SeedSequence([seed, r, i],
+spawn_key=(KEY, ...))`` with the receiver's and the scenarios' own keys and streams
+(``shard = j = 0`` inside those keys: the identity is in the entropy). The draw therefore
+depends on neither the IMU grade (grades are compared on the same GNSS, common random
+numbers), nor the shard size, nor the other sequences. The companions draw likewise from the
+same entropy with their own key, sensor kind and id (the tree: :mod:`imugen.core.seeding`).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from imugen import __version__
+from imugen.aid import companions as CP
+from imugen.aid import gnss as G
+from imugen.aid import scenarios as SC
+from imugen.aid.filter import ekf as A
+from imugen.core.earth import earth_rate_n
+from imugen.core.errors import InputError
+from imugen.core.rotations import quat_to_dcm
+from imugen.core.seeding import sequence_entropy
+from imugen.navigate import local_errors as lerr
+from imugen.navigate.mechanize import compensate_raw, increments_from_rates
+from imugen.navigate.navigator import batch_size
+from imugen.tables import SEQUENCE, TIME
+from imugen.tables import aided as taided
+from imugen.tables import companions as tcomp
+from imugen.tables import gnss as tgnss
+from imugen.tables import shard as tshard
+from imugen.tables import truth as ttruth
+from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
+
+AID_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
+
+
+@dataclass(frozen=True)
+class AidParams:
+    """Receiver, scenarios and filter settings of the stage (config keys ``gnss``,
+    ``scenarios``, ``aided``; see config/README.md).
+
+    ``nhc=None`` turns the non-holonomic constraint on for a ``car`` truth;
+    ``nhc_slip_sd_mps`` (lateral, vertical) [m/s] the vehicle's residual slip NHC must cover,
+    None: the truth's own (:func:`truth_slip_sd`); ``seed=None`` takes the shard's simulation
+    seed.
+    """
+
+    receiver: str = "standalone"
+    rate_hz: float | None = None
+    draw: str = "ranges"
+    lever_arm_b_m: tuple = (0.0, 0.0, 0.0)
+    lever_arm_sd_m: float = 0.0
+    intervals: tuple = ()
+    draw_kinds: tuple = ()
+    outage_durations_s: tuple = SC.OUTAGE_PRESETS_S
+    settle_s: float = 60.0
+    tuning_level: str = "upper"
+    gnss_bias_states: bool = True
+    scale_factors: bool = False
+    gyro_cross_coupling: bool = True
+    nhc: bool | None = None
+    nhc_slip_sd_mps: tuple | None = None
+    zupt: bool = True
+    gate_sigma: float = 0.0
+    align_speed_mps: float = 5.0
+    eval_rate_hz: float = 1.0
+    seed: int | None = None
+    grade: str | None = None
+    odometer: str | None = None
+    odometer_rate_hz: float | None = None
+    odometer_lever_b_m: tuple = (0.0, 0.0, 0.0)
+    odometer_scale_state: bool = True
+    barometer: str | None = None
+    barometer_rate_hz: float | None = None
+    companion_draw: str = "ranges"
+    intervals_parsed: tuple = field(default=(), repr=False)
+
+    def __post_init__(self):
+        ivs = tuple(
+            iv if isinstance(iv, SC.Interval) else SC.Interval.from_config(iv, f"scenario[{n}]")
+            for n, iv in enumerate(self.intervals)
+        )
+        object.__setattr__(self, "intervals_parsed", ivs)
+        object.__setattr__(self, "outage_durations_s", tuple(self.outage_durations_s))
+        object.__setattr__(self, "draw_kinds", tuple(self.draw_kinds))
+        object.__setattr__(self, "lever_arm_b_m", tuple(float(x) for x in self.lever_arm_b_m))
+        for k in self.draw_kinds:
+            if k not in SC.KINDS:
+                raise InputError(
+                    "scenarios.draw", f"unknown kind {k!r}; one of {', '.join(SC.KINDS)}"
+                )
+        if not self.align_speed_mps > 0:
+            raise InputError("--align-speed", "must be > 0 m/s")
+        if self.eval_rate_hz <= 0:
+            raise InputError("--eval-rate-hz", "must be > 0")
+        object.__setattr__(
+            self, "odometer_lever_b_m", tuple(float(x) for x in self.odometer_lever_b_m)
+        )
+        if self.odometer is not None:
+            CP.get_sensor("odometer", self.odometer)
+        if self.barometer is not None:
+            CP.get_sensor("barometer", self.barometer)
+        if self.companion_draw not in ("ranges", "nominal"):
+            raise InputError("--companion-draw", "must be ranges or nominal")
+        if self.nhc_slip_sd_mps is not None:
+            slip = np.atleast_1d(np.asarray(self.nhc_slip_sd_mps, float))
+            if slip.shape not in ((1,), (2,)) or not np.all(np.isfinite(slip) & (slip >= 0)):
+                raise InputError(
+                    "--nhc-slip-sd", "expected LATERAL[,VERTICAL] m/s, finite and >= 0"
+                )
+            object.__setattr__(
+                self, "nhc_slip_sd_mps", tuple(float(x) for x in np.broadcast_to(slip, (2,)))
+            )
+
+    def options(
+        self, vehicle: str | None, mounting: dict | None = None, plausibility: dict | None = None
+    ) -> A.Options:
+        """Filter options; ``mounting`` (the shard metadata's, :mod:`imugen.sensors.mounting`) gives
+        NHC its nominal lever arm and the misalignment sigmas its noise must cover;
+        ``plausibility`` (the truth's report) the vehicle's residual slip, unless
+        ``nhc_slip_sd_mps`` is set."""
+        nhc = (vehicle == "car") if self.nhc is None else bool(self.nhc)
+        slip = self.nhc_slip_sd_mps
+        mount = {"nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip}
+        if mounting:
+            sd = np.radians(mounting["misalignment_sd_deg"])
+            mount |= {
+                "nhc_lever_arm_m": tuple(mounting["lever_arm_m"]),
+                "nhc_misalignment_sd_rad": (float(sd[1]), float(sd[2])),
+                "nhc_lever_arm_sd_m": tuple(mounting["lever_arm_sd_m"]),
+            }
+        return A.Options(
+            scale_factors=self.scale_factors,
+            gyro_cross_coupling=self.gyro_cross_coupling,
+            gnss_bias=self.gnss_bias_states,
+            nhc=nhc,
+            zupt=self.zupt,
+            gate_sigma=self.gate_sigma,
+            odometer=self.odometer is not None,
+            odo_scale_state=self.odometer_scale_state,
+            baro=self.barometer is not None,
+            **mount,
+        )
+
+
+def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:
+    """The vehicle's residual slip (lateral, vertical) [m/s] NHC must cover: the largest
+    lateral and vertical body speeds of the truth's plausibility report
+    (:mod:`imugen.truth.report`), or :data:`SLIP_FALLBACK_MPS` for a truth without them.
+
+    The largest, not the RMS: the truth slips in bursts where its path is implausible (the
+    paper scene: RMS 0.010 m/s, largest 0.33 m/s, 1 % of the moving time), which white noise
+    of the RMS cannot cover (zero-error inputs through a 180 s outage: 0.043 m and 0.012 rad
+    off the truth, against 0.002 m and 8e-5 rad with the largest). On a plausible route the
+    simulator's car has none (5e-8 m/s)."""
+    rep = plausibility or {}
+    out = []
+    for key in ("max_body_lateral_speed_mps", "max_body_vertical_speed_mps"):
+        v = rep.get(key)
+        out.append(float(v) if v is not None and math.isfinite(v) else SLIP_FALLBACK_MPS)
+    return out[0], out[1]
+
+
+SLIP_FALLBACK_MPS = 0.1
+"""NHC slip sigma [m/s] of a truth whose report gives no body speeds (the former constant)."""
+
+
+def parse_scenarios(specs) -> dict:
+    """``--scenario`` specs -> ``{"intervals": [...], "draw_kinds": [...], "outage_durations_s": [...]}``.
+
+    ``KIND:DURATION@START[,param=value...]`` declares an interval (same for every sequence,
+    seconds from the first sample); ``outage:DURATION`` without ``@START`` draws, per sequence,
+    an outage whose duration is chosen uniformly among those given (start uniform after
+    ``settle_s``); a bare ``KIND`` draws one interval of that kind with the documented
+    distributions (:mod:`imugen.aid.scenarios`).
+    """
+    intervals, kinds, durs = [], [], []
+    for spec in specs or ():
+        head, *extra = str(spec).split(",")
+        kind, _, rest = head.partition(":")
+        kind = kind.strip()
+        if kind not in SC.KINDS:
+            raise InputError("--scenario", f"{spec!r}: kind must be one of {', '.join(SC.KINDS)}")
+        try:
+            prm = {k.strip(): float(v) for k, v in (e.split("=", 1) for e in extra)}
+            if not rest:
+                if prm:
+                    raise ValueError("parameters need KIND:DURATION@START")
+                kinds.append(kind)
+            elif "@" in rest:
+                dur, start = rest.split("@", 1)
+                iv = {"kind": kind, "start_s": float(start), "duration_s": float(dur), **prm}
+                intervals.append(iv)
+            elif kind == "outage" and not prm:
+                durs.append(float(rest))
+                kinds.append(kind)
+            else:
+                raise ValueError("only outage:DURATION may omit @START")
+        except ValueError as exc:
+            raise InputError("--scenario", f"{spec!r}: {exc}") from None
+    out = {"intervals": intervals, "draw_kinds": list(dict.fromkeys(kinds))}
+    if durs:
+        if any(not d > 0 for d in durs):
+            raise InputError("--scenario", "outage durations must be > 0 s")
+        out["outage_durations_s"] = sorted(set(durs))
+    return out
+
+
+def entropy_of(seed: int, sequence_id: int) -> list[int]:
+    """:func:`imugen.core.seeding.sequence_entropy` of a global sequence id."""
+    rid, idx = tshard.split_ids([sequence_id])
+    return sequence_entropy(seed, rid[0], idx[0])
+
+
+_PER_SEQUENCE = (
+    "p_n", "v_n", "p_ant_n", "v_ant_n", "bias_n", "offset_p_n", "offset_v_n", "sigma_p_n",
+    "sigma_v_n", "fix",
+)  # fmt: skip
+"""Fields of :class:`imugen.aid.gnss.GnssData` with a leading sequence axis."""
+
+
+def _stack(parts: list[SC.ScenarioResult]) -> SC.ScenarioResult:
+    """Concatenate one-sequence scenario results along the sequence axis."""
+    g0 = parts[0].gnss
+    arrays = {k: np.concatenate([getattr(p.gnss, k) for p in parts]) for k in _PER_SEQUENCE}
+    params = G.ReceiverParams(
+        **{
+            f.name: np.concatenate([getattr(p.gnss.params, f.name) for p in parts])
+            for f in fields(G.ReceiverParams)
+        }
+    )
+    labels = pd.concat([p.gnss.labels for p in parts], ignore_index=True)
+    g = replace(g0, **arrays, params=params, labels=labels)
+    return SC.ScenarioResult(
+        g,
+        np.concatenate([p.state for p in parts]),
+        np.concatenate([p.attack_p_n for p in parts]),
+        np.concatenate([p.attack_v_n for p in parts]),
+        pd.concat([p.intervals for p in parts], ignore_index=True),
+    )
+
+
+def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None):
+    """GNSS fixes after the scenarios of the sequences ``ids`` (global ids) of a truth (a
+    :class:`imugen.aid.scenarios.ScenarioResult`). ``mount``: the sequences' ``(angles, lever)``
+    (:func:`imugen.tables.shard.mounting`) when the IMU is mounted: the antenna lever arm is
+    then from the IMU, in its axes, on the IMU's truth."""
+    t = truth.time_s
+    frame = truth.origin_frame()
+    rec = G.get_receiver(params.receiver)
+    duration = float(t[-1] - t[0])
+    parts = []
+    states = (truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b)
+    for i, sid in enumerate(np.asarray(ids, np.int64)):
+        ent = entropy_of(seed, int(sid))
+        if mount is not None:
+            states = _imu_truth(truth, frame, mount[0][i], mount[1][i])
+        g = G.simulate_gnss(
+            t, *states, rec, 1, ent, 0,
+            rate_hz=params.rate_hz, draw=params.draw, lever_arm_b_m=params.lever_arm_b_m,
+            lever_sd_m=params.lever_arm_sd_m, omega_ie_n=earth_rate_n(frame), first=int(sid),
+            frame=frame,
+        )  # fmt: skip
+        ivs = list(params.intervals_parsed)
+        if params.draw_kinds:
+            ivs += SC.draw(
+                params.draw_kinds, duration, ent, 0, 1, settle_s=params.settle_s,
+                durations_s=params.outage_durations_s,
+            )[0]  # fmt: skip
+        parts.append(SC.apply(g, [ivs], ent, 0, first=int(sid), frame=frame))
+    return _stack(parts)
+
+
+def _stack_companion(parts: list[CP.CompanionData]) -> CP.CompanionData:
+    """Concatenate one-sequence companion data along the sequence axis."""
+    p0 = parts[0]
+    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in (
+        "value", "true", "ticks", "count", "bias")}  # fmt: skip
+    params = {k: np.concatenate([p.params[k] for p in parts]) for k in p0.params}
+    labels = pd.concat([p.labels for p in parts], ignore_index=True)
+    return replace(p0, **cat, params=params, labels=labels)
+
+
+def companions_for(truth: ttruth.Truth, ids, params: AidParams, seed: int):
+    """``(odometer, barometer)`` :class:`imugen.aid.companions.CompanionData` of the sequences
+    ``ids`` (global ids), each None when not configured."""
+    t = truth.time_s
+    frame = truth.origin_frame()
+    out = []
+    w_eb = None
+    if params.odometer is not None:
+        C = quat_to_dcm(truth.q_nb)
+        w_eb = truth.omega_ib_b - np.einsum("kji,j->ki", C, earth_rate_n(frame))
+    for kind, preset in (("odometer", params.odometer), ("barometer", params.barometer)):
+        if preset is None:
+            out.append(None)
+            continue
+        parts = []
+        for sid in np.asarray(ids, np.int64):
+            ent = entropy_of(seed, int(sid))
+            if kind == "odometer":
+                d = CP.simulate_odometer(
+                    t, truth.v_n, truth.q_nb, w_eb, preset, 1, ent, 0,
+                    rate_hz=params.odometer_rate_hz, draw=params.companion_draw,
+                    lever_arm_b_m=params.odometer_lever_b_m, first=int(sid),
+                )  # fmt: skip
+            else:
+                d = CP.simulate_barometer(
+                    t, truth.p_n, frame, preset, 1, ent, 0, rate_hz=params.barometer_rate_hz,
+                    draw=params.companion_draw, first=int(sid),
+                )  # fmt: skip
+            parts.append(d)
+        out.append(_stack_companion(parts))
+    return tuple(out)
+
+
+def _imu_truth(truth, frame, angles, lever):
+    """``(p_n, v_n, q_nb, omega_ib_b)`` (K, 3|4) of one mounted IMU (:mod:`imugen.sensors.mounting`)."""
+    from imugen.sensors.mounting import C_vb, imu_states
+
+    w = truth.omega_ib_b
+    p, v, q = imu_states(truth.p_n, truth.v_n, truth.q_nb, w, earth_rate_n(frame), angles, lever)
+    return p[0], v[0], q[0], w @ C_vb(angles)
+
+
+def _increments(a, c, kind, raw, dt):
+    """(b, K, 3) angle and velocity increments, row 0 unused, from a shard block (skip 0)."""
+    if kind == "increments":
+        if raw:
+            compensate_raw(a[:, 1:], c[:, 1:])
+        return a, c
+    dth, dvb = increments_from_rates(a, c, dt)
+    z = np.zeros((len(a), 1, 3))
+    return np.concatenate([z, dth], 1), np.concatenate([z, dvb], 1)
+
+
+def _since_fix(t, valid):
+    """(M, J) time since the last epoch with a fix (NaN before the first)."""
+    last = np.where(valid, t[None, :], -np.inf)
+    last = np.maximum.accumulate(last, axis=1)
+    out = t[None, :] - last
+    return np.where(np.isfinite(out), out, np.nan)
+
+
+def eval_mask(index, every: int, valid) -> np.ndarray:
+    """(M, J) epochs kept: on the evaluation grid (sample ``index % every == 0``) or the last
+    epoch of a run without a fix (the end of an outage)."""
+    grid = (np.asarray(index) % every == 0)[None, :]
+    nofix = ~np.asarray(valid, bool)
+    nxt = np.concatenate([~nofix[:, 1:], np.ones((nofix.shape[0], 1), bool)], 1)
+    return grid | (nofix & nxt)
+
+
+def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int, mount=None):
+    """The aided table's rows (:data:`imugen.tables.aided.COLUMNS`) for a filter result of
+    sequences ``ids``: errors against the truth, scenario context and the filter's state
+    (``mount``: as :func:`gnss_for`; errors of a mounted IMU are against its own truth)."""
+    idx = res.index
+    t = res.time_s
+    p_true, q_true = truth.p_n[idx][None], truth.q_nb[idx][None]
+    if mount is not None:
+        from imugen.sensors.mounting import imu_states
+
+        Om = earth_rate_n(truth.origin_frame())
+        p_true, _, q_true = imu_states(p_true[0], None, q_true[0], None, Om, *mount)
+    C = lerr.rotation_ln(truth.origin_frame(), truth.p_n[idx])
+    track = lerr.track_direction(np.einsum("jik,jk->ji", C, truth.v_n[idx]))
+    err = lerr.apply(C, track, res.p_n - p_true)
+    q = np.where(np.isnan(res.q_nb), [1.0, 0.0, 0.0, 0.0], res.q_nb)
+    att = np.linalg.norm(A.attitude_error(q, q_true), axis=-1)
+    valid = scen.gnss.valid
+    aligned = (res.flags & A.F_ALIGNED) != 0
+    keep = eval_mask(idx, every, valid) & aligned & np.isfinite(err[..., :3]).all(-1)
+    S, J = keep.shape
+    since = _since_fix(t, valid)
+    geo = truth.origin_frame().model == "geodetic"  # the filter's sigmas are local there
+    sd = res.sd[..., A.I_P : A.I_P + 3] if geo else lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
+    rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
+    rows[TIME] = np.tile(t, S)[keep.ravel()]
+    rows[ERR_ATT] = att[keep]
+    rows[taided.GNSS_USED] = ((res.flags & A.F_GNSS_P) != 0)[keep].astype(np.int8)
+    rows[taided.STATE] = scen.state[keep].astype(np.int8)
+    rows[taided.SINCE_FIX] = since[keep]
+    for cols, arr in (
+        ((*ERR_POS, *ERR_TRACK), err),
+        (taided.SD_POS, sd),
+        (ttruth.POS, res.p_n),
+        (ttruth.VEL, res.v_n),
+        (ttruth.QUAT, res.q_nb),
+        (taided.GYRO_BIAS, res.gyro_bias),
+        (taided.ACCEL_BIAS, res.accel_bias),
+        (taided.SD_VEL, res.sd[..., A.I_V : A.I_V + 3]),
+        (taided.SD_ATT, res.sd[..., A.I_PSI : A.I_PSI + 3]),
+        (taided.SD_GYRO_BIAS, res.sd[..., A.I_BG : A.I_BG + 3]),
+        (taided.SD_ACCEL_BIAS, res.sd[..., A.I_BA : A.I_BA + 3]),
+    ):
+        for i, c in enumerate(cols):
+            rows[c] = arr[..., i][keep]
+    return pd.DataFrame(rows)[list(taided.COLUMNS)]
+
+
+def aid(
+    truth_path, shard_path, params: AidParams, *, batch: int | None = None, sink=None,
+    aided_sink=None, companion_sink=None,
+):  # fmt: skip
+    """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
+
+    ``sink(meta, df)`` and ``aided_sink(meta, df)``, when given, receive the GNSS rows and the
+    aided rows batch by batch (and ``gnss rows``, ``aided rows`` are then None), so neither
+    table of a shard sits whole in memory. ``companion_sink(rows, labels)`` receives the
+    companion-table rows and labels of each batch.
+    """
+    truth_path, shard_path = Path(truth_path), Path(shard_path)
+    truth = ttruth.read(truth_path, columns=AID_TRUTH_COLUMNS)
+    smeta = tshard.read_meta(shard_path)
+    K = truth.K
+    n = smeta.get("samples_per_sequence")
+    if n is not None and n != K:
+        raise InputError(shard_path, f"has {n} samples per sequence where the truth has {K}")
+    seed = params.seed
+    if seed is None:
+        lab = tshard.read_labels(shard_path, smeta)
+        if "seed" not in lab.columns or lab["seed"].nunique() != 1:
+            raise InputError(shard_path, "labels carry no single seed: pass --seed")
+        seed = int(lab["seed"].iloc[0])
+    sgrade = smeta.get("grade")
+    sgrade = sgrade.get("name") if isinstance(sgrade, dict) else sgrade
+    grade = params.grade or sgrade
+    if not grade:
+        raise InputError(shard_path, "records no grade: pass --grade")
+    tun = A.Tuning.from_grade(grade, params.tuning_level)
+    opts = params.options(
+        truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility")
+    )
+    mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
+    frame = truth.origin_frame()
+    columns, kind = tshard.measurement(shard_path)
+    raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
+    every = max(1, round(truth.rate_hz / params.eval_rate_hz))
+    batch = batch or batch_size(K)
+    rec = G.get_receiver(params.receiver)
+    meta = {
+        "imugen_version": __version__,
+        "truth": truth_path.name,
+        "truth_sha256": ttruth.checksum(truth_path),
+        "shard": shard_path.name,
+        "grade": sgrade,
+        "route": smeta.get("route"),
+        "seed": seed,
+        "receiver": rec.name,
+        "rate_hz": float(params.rate_hz or rec.rate_hz),
+        "scenarios": [asdict(iv) for iv in params.intervals_parsed],
+        "scenario_draw": list(params.draw_kinds),
+        "options": asdict(opts),
+        "tuning_level": params.tuning_level,
+        "align_speed_mps": params.align_speed_mps,
+        "eval_rate_hz": params.eval_rate_hz,
+        "odometer": params.odometer,
+        "barometer": params.barometer,
+        "error": "filter minus truth, ENU at the true position; along/cross the true track",
+    }
+    gnss_rows, labels, intervals, aided_rows = [], [], [], []
+    never = batches = 0
+    for ids, a, c in tshard.iter_blocks(shard_path, columns, K, int(batch), 0):
+        ids = ids.copy()
+        dth, dvb = _increments(a, c, kind, raw, truth.dt)
+        mount = tshard.mounting(mlabels, ids)
+        scen = gnss_for(truth, ids, params, seed, mount)
+        odo, baro = companions_for(truth, ids, params, seed)
+        ce = CP.filter_input(
+            scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,
+            lever_arm_b_m=params.odometer_lever_b_m,
+        )  # fmt: skip
+        T = A.companion_tuning(A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver), ce)
+        init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
+                       speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
+        never += int(np.sum(init.k0 >= K))
+        res = A.run(
+            dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce
+        )
+        if companion_sink is not None:
+            clab = pd.DataFrame({SEQUENCE: ids})
+            for d in (odo, baro):
+                if d is not None:
+                    clab = clab.join(d.labels.drop(columns="sequence"))
+            companion_sink(tcomp.frame(ids, odo, baro), clab)
+        if sink is None:
+            gnss_rows.append(tgnss.frame(ids, scen))
+        else:
+            sink(meta, tgnss.frame(ids, scen))
+        lab = scen.gnss.labels.copy()
+        lab[SEQUENCE] = ids  # global int64 ids (the receiver's labels count from ``first``)
+        labels.append(lab)
+        intervals.append(scen.intervals)
+        rows = aided_errors(truth, ids, res, scen, every, mount)
+        if aided_sink is None:
+            aided_rows.append(rows)
+        else:
+            aided_sink(meta, rows)
+        batches += 1
+    if not batches:
+        raise InputError(shard_path, "holds no sequences")
+    if never:
+        warnings.warn(
+            f"{shard_path}: {never} sequence(s) never aligned (not still at the start, and no "
+            f"fix at >= {params.align_speed_mps:g} m/s): no aided rows for them; lower "
+            "aided.align_speed_mps (--align-speed)",
+            stacklevel=2,
+        )
+    return (
+        pd.concat(gnss_rows, ignore_index=True) if sink is None else None,
+        pd.concat(labels, ignore_index=True),
+        pd.concat(intervals, ignore_index=True),
+        pd.concat(aided_rows, ignore_index=True) if aided_sink is None else None,
+        meta,
+    )
+
+
+def run(
+    truth, shard, out_gnss, out_nav, params: AidParams | None = None, *, batch=None,
+    out_companions=None,
+):  # fmt: skip
+    """Run the stage on one shard and write the GNSS table (with sidecars), the aided table
+    (both streamed batch by batch) and, when ``out_companions`` is given, the companion table
+    (with its labels; no rows when no companion is configured) atomically. Returns
+    ``(out_gnss, out_nav)`` paths."""
+    params = params or AidParams()
+    if out_companions is None and (params.odometer or params.barometer):
+        raise InputError("--companions-out", "needed with an odometer or a barometer")
+    crow, clab = [], []
+
+    def csink(rows, labels):
+        crow.append(rows)
+        clab.append(labels)
+
+    with tgnss.writer(out_gnss) as w, taided.writer(out_nav) as wa:
+
+        def sink(meta, df):
+            w.meta = {**meta, "stage": "aid-gnss"}
+            w.put(df)
+
+        def aided_sink(meta, df):
+            wa.meta = {**meta, "stage": "aid", "gnss": Path(out_gnss).name}
+            wa.put(df)
+
+        _, w.labels, w.intervals, _, meta = aid(
+            truth, shard, params, batch=batch, sink=sink, aided_sink=aided_sink,
+            companion_sink=csink,
+        )  # fmt: skip
+        if out_companions is not None:
+            cmeta = {
+                k: meta[k] for k in ("imugen_version", "truth", "shard", "grade", "route", "seed")
+            }
+            cmeta.update(
+                stage="aid-companions", odometer=params.odometer, barometer=params.barometer,
+                odometer_rate_hz=_rate("odometer", params.odometer, params.odometer_rate_hz),
+                barometer_rate_hz=_rate("barometer", params.barometer, params.barometer_rate_hz),
+            )  # fmt: skip
+            tcomp.write(
+                pd.concat(crow, ignore_index=True), pd.concat(clab, ignore_index=True), cmeta,
+                out_companions,
+            )  # fmt: skip
+    return Path(out_gnss), Path(out_nav)
+
+
+def _rate(kind, preset, rate):
+    if preset is None:
+        return None
+    return float(rate or CP.get_sensor(kind, preset).rate_hz)
+
+
+__all__ = ["AidParams", "aid", "aided_errors", "companions_for", "eval_mask", "gnss_for", "run"]

@@ -1,0 +1,312 @@
+"""Allan-deviation check of a simulated static shard against its grade (allantools).
+
+For each sensor, the overlapping Allan variance (``allantools.oadev``) of every used
+(sequence, axis) series is averaged; the average is fitted, by non-negative least squares with
+relative weights ``sqrt(T/tau) / model(tau)`` (the Allan-variance estimate's relative
+uncertainty shrinks as ``sqrt(tau/T)``), with the term shapes of IEEE Std 952-1997 annex C:
+white ``N^2 / tau``, rate random walk ``K^2 tau / 3``, quantization ``3 Q^2 / tau^2`` and the
+configured bias-instability process (exact Gauss-Markov Allan variance of the drawn sigmas and
+correlation times; a flicker sum when so configured). The fitted amplitudes are the measured
+ARW/VRW, bias instability and RRW; configured values are the RMS over the used sequences and
+axes of the drawn parameters (labels sidecar), so shards drawn over ranges are handled too.
+Only terms the grade configures (and the shard applied) are reported, in the unit the grade
+gives them in.
+
+Static data are needed (``imugen simulate --static SECONDS``): motion would dominate the
+curves. Turn-on bias, scale factor and misalignment are constant on a still IMU and do not
+appear in an Allan deviation.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import allantools
+import numpy as np
+import pandas as pd
+from scipy.optimize import nnls
+
+from imugen.core import units
+from imugen.core.errors import InputError
+from imugen.sensors.model import avar_bias_instability, avar_quantization, avar_rrw, avar_white
+from imugen.tables import shard as tshard
+from imugen.tables.shard import SEQUENCE
+
+QUANTITIES = {
+    # key: (sensor, term)
+    "arw": ("gyro", "white_noise"),
+    "vrw": ("accel", "white_noise"),
+    "gyro_bias_instability": ("gyro", "bias_instability"),
+    "accel_bias_instability": ("accel", "bias_instability"),
+    "gyro_rrw": ("gyro", "rate_random_walk"),
+    "accel_rrw": ("accel", "rate_random_walk"),
+}
+_DEFAULT_UNIT = {
+    "arw": "deg_per_sqrt_h",
+    "vrw": "m_per_s_per_sqrt_h",
+    "gyro_bias_instability": "deg_per_h",
+    "accel_bias_instability": "ug",
+    "gyro_rrw": "deg_per_h_per_sqrt_h",
+    "accel_rrw": "m_per_s2_per_sqrt_s",
+}
+_RATE = {"gyro": "radps", "accel": "mps2"}
+
+
+def default_taus(K: int, dt: float, per_decade: int = 8) -> np.ndarray:
+    """Averaging times ``m dt`` (distinct integers m, log-spaced from 1 to K/4)."""
+    m = np.unique(
+        np.round(np.geomspace(1, max(2, K // 4), int(per_decade * math.log10(max(K // 4, 10))) + 1))
+    )
+    return m * dt
+
+
+def avar_curve(series: np.ndarray, dt: float, taus: np.ndarray, increments: bool) -> np.ndarray:
+    """Overlapping Allan variance of one series at ``taus`` (allantools).
+
+    Parameters
+    ----------
+    series : (K,)
+        Increments (row 0 is ignored) or rate samples.
+    increments : bool
+        Series are increments: the phase is their cumulative sum (float64).
+    """
+    rate = 1.0 / dt
+    if increments:
+        x = np.concatenate([[0.0], np.cumsum(np.asarray(series[1:], dtype=np.float64))])
+        t, ad, _, _ = allantools.oadev(x, rate=rate, data_type="phase", taus=taus)
+    else:
+        t, ad, _, _ = allantools.oadev(
+            np.asarray(series, np.float64), rate=rate, data_type="freq", taus=taus
+        )
+    if len(t) != len(taus) or not np.allclose(t, taus, rtol=1e-9):
+        out = np.interp(np.log(taus), np.log(t), ad**2)
+        return out
+    return ad**2
+
+
+def _lab(labels: pd.DataFrame, name: str) -> np.ndarray:
+    return labels[name].to_numpy(dtype=float) if name in labels.columns else None
+
+
+def _bases(sensor, term_set, labels, dt, taus):
+    """Basis Allan-variance shapes (avar for unit amplitude) and configured RMS amplitudes."""
+    r = _RATE[sensor]
+    dens = "rad_per_sqrt_s" if sensor == "gyro" else "m_per_s_per_sqrt_s"
+    rw = "radps_per_sqrt_s" if sensor == "gyro" else "mps2_per_sqrt_s"
+    bases, conf = {}, {}
+    if "white_noise" in term_set:
+        v = np.column_stack([_lab(labels, f"{sensor}_white_noise_{a}_{dens}") for a in "xyz"])
+        conf["white_noise"] = float(np.sqrt(np.mean(v**2)))
+        bases["white_noise"] = avar_white(taus, 1.0)
+    if "rate_random_walk" in term_set:
+        v = np.column_stack([_lab(labels, f"{sensor}_rate_random_walk_{a}_{rw}") for a in "xyz"])
+        conf["rate_random_walk"] = float(np.sqrt(np.mean(v**2)))
+        bases["rate_random_walk"] = avar_rrw(taus, 1.0)
+    if "bias_instability" in term_set:
+        C = sum(1 for c in labels.columns if c.startswith(f"{sensor}_bias_instability_tau"))
+        shape = np.zeros_like(taus)
+        n = 0
+        for _, row in labels.iterrows():
+            tau_c = [row[f"{sensor}_bias_instability_tau{c}_s"] for c in range(C)]
+            for a in "xyz":
+                sg = [row[f"{sensor}_bias_instability_sigma{c}_{a}_{r}"] for c in range(C)]
+                shape += avar_bias_instability(taus, sg, tau_c)
+                n += 1
+        lev = np.column_stack(
+            [_lab(labels, f"{sensor}_bias_instability_level_{a}_{r}") for a in "xyz"]
+        )
+        conf["bias_instability"] = float(np.sqrt(np.mean(lev**2)))
+        if conf["bias_instability"] > 0:
+            bases["bias_instability"] = shape / n / conf["bias_instability"] ** 2
+    if "quantization" in term_set:
+        lsb = float(labels[f"{sensor}_quantization_{r}"].iloc[0])
+        bases["quantization"] = avar_quantization(taus, lsb, dt)
+        conf["quantization"] = 1.0
+    return bases, conf
+
+
+def fit_avar(taus, avar, bases: dict, T: float) -> dict:
+    """Non-negative least-squares amplitudes (squared) of the basis shapes."""
+    names = list(bases)
+    A = np.column_stack([bases[n] for n in names])
+    model = A.sum(axis=1)
+    ok = np.isfinite(avar) & (avar > 0) & (model > 0)
+    w = np.sqrt(T / taus[ok]) / avar[ok]
+    coef, _ = nnls(A[ok] * w[:, None], avar[ok] * w)
+    return dict(zip(names, coef, strict=True))
+
+
+def _read_shard(path, max_sequences):
+    path = Path(path)
+    meta = tshard.read_meta(path)
+    labels = tshard.read_labels(path, meta)
+    first = int(meta["sequence_ids"][0])
+    n = min(int(meta["sequences"]), int(max_sequences))
+    labels = labels[labels[SEQUENCE] < first + n].reset_index(drop=True)
+    inc = meta["outputs"] in ("increments", "both")
+    cols = list(tshard.INCREMENTS if inc else tshard.RATES)
+    tbl = tshard.read(path, [SEQUENCE, *cols], filters=[(SEQUENCE, "<", first + n)])
+    seq = tbl.column(SEQUENCE).to_numpy()
+    K = int(meta["samples_per_sequence"])
+    data = {}
+    for s, names in (("gyro", cols[:3]), ("accel", cols[3:])):
+        arr = np.column_stack([tbl.column(c).to_numpy().astype(np.float64) for c in names])
+        if len(seq) != n * K:
+            raise InputError(path, "shard rows do not match its metadata")
+        data[s] = arr.reshape(n, K, 3)
+    return meta, labels, data, inc
+
+
+def allan_curves(source, max_sequences: int = 16, taus=None, sensors=("gyro", "accel")):
+    """Averaged Allan variance per sensor, with the fit inputs.
+
+    Parameters
+    ----------
+    source : path or Shard
+        A static shard written by :func:`imugen.simulate.stage.run`, or an in-memory shard
+        (:class:`imugen.simulate.Shard`: ``meta``, ``labels`` and ``data``).
+    max_sequences : int
+        Use at most this many sequences (the first ones).
+
+    Returns
+    -------
+    dict
+        ``{"meta", "labels", "taus", "dt", "T", "gyro": avar (n_tau,), "accel": avar}``.
+    """
+    if not isinstance(source, str | os.PathLike):  # an in-memory shard
+        meta = source.meta
+        n = min(len(source.labels), int(max_sequences))
+        labels = source.labels.iloc[:n].reset_index(drop=True)
+        inc = "dtheta" in source.data
+        data = {
+            "gyro": source.data["dtheta" if inc else "gyro"][:n],
+            "accel": source.data["dv" if inc else "accel"][:n],
+        }
+    else:
+        meta, labels, data, inc = _read_shard(source, max_sequences)
+    dt = float(meta["dt_s"])
+    K = data["gyro"].shape[1]
+    taus = default_taus(K, dt) if taus is None else np.asarray(taus, float)
+    out = {
+        "meta": meta,
+        "labels": labels,
+        "taus": taus,
+        "dt": dt,
+        "T": (K - 1) * dt,
+        "increments": inc,
+    }
+    for s in sensors:
+        acc = np.zeros_like(taus)
+        for j in range(data[s].shape[0]):
+            for i in range(3):
+                acc += avar_curve(data[s][j, :, i], dt, taus, inc)
+        out[s] = acc / (3 * data[s].shape[0])
+    return out
+
+
+def allan_report(source, max_sequences: int = 16, curves=None) -> dict:
+    """Configured vs measured noise terms of a static shard, in datasheet units.
+
+    Returns
+    -------
+    dict
+        For each of ``arw``, ``vrw``, ``gyro_bias_instability``, ``accel_bias_instability``,
+        ``gyro_rrw``, ``accel_rrw`` that the grade configures and the shard applied:
+        ``{"configured": x, "measured": y, "unit": name, "ratio": y / x, ...}``. The
+        bias-instability entries carry ``kind`` (``allan_floor`` or ``gm_sigma``, as
+        configured).
+    """
+    cv = curves if curves is not None else allan_curves(source, max_sequences)
+    meta = cv["meta"]
+    cfg = meta["grade"]["config"]
+    terms = meta["terms"]
+    report = {}
+    fits = {}
+    for s in ("gyro", "accel"):
+        if s not in cv:
+            continue
+        ts = set(terms.get(s, ()))
+        bases, conf = _bases(s, ts, cv["labels"], cv["dt"], cv["taus"])
+        if not bases:
+            continue
+        coef = fit_avar(cv["taus"], cv[s], bases, cv["T"])
+        fits[s] = (bases, conf, coef)
+    for key, (s, term) in QUANTITIES.items():
+        if s not in fits or term not in fits[s][0]:
+            continue
+        bases, conf, coef = fits[s]
+        entry_cfg = (cfg.get(s) or {}).get(term) or {}
+        uname = entry_cfg.get("unit", _DEFAULT_UNIT[key])
+        c_si = conf[term]
+        m_si = math.sqrt(coef[term])
+        e = {
+            "configured": units.from_si(c_si, uname),
+            "measured": units.from_si(m_si, uname),
+            "unit": uname,
+            "ratio": m_si / c_si if c_si > 0 else None,
+        }
+        if term == "bias_instability":
+            e["kind"] = entry_cfg.get("kind")
+            e["model"] = entry_cfg.get("model", "gauss_markov")
+        if term == "white_noise":
+            i1 = int(np.argmin(np.abs(np.log(cv["taus"]))))
+            e["adev_at_tau_s"] = float(cv["taus"][i1])
+            e["adev_at_tau"] = units.from_si(math.sqrt(cv[s][i1]), uname)
+        report[key] = e
+    return report
+
+
+def plot_allan(curves: dict, out, report: dict | None = None, dpi: float = 150) -> Path:
+    """Allan deviation of the shard (averaged) against the configured model.
+
+    Drawn in the project's figure style (:mod:`imugen.core.plotting`) and written atomically; the
+    format follows the file name's extension (PNG, SVG or PDF).
+    """
+    from imugen.core.plotting import figure, save, style
+
+    out = Path(out)
+    fmt = out.suffix.lstrip(".").lower() or "png"
+    taus = curves["taus"]
+    with style():
+        fig = figure(figsize=(11, 4.8), layout="constrained")
+        axes = fig.subplots(1, 2)
+        for ax, s, unit_name, label in (
+            (axes[0], "gyro", "deg_per_h", "deg/h"),
+            (axes[1], "accel", "ug", "ug"),
+        ):
+            f = units.unit(unit_name).factor
+            ax.loglog(taus, np.sqrt(curves[s]) / f, "k.", label="simulated (oadev, mean AVAR)")
+            ts = set(curves["meta"]["terms"].get(s, ()))
+            bases, conf = _bases(s, ts, curves["labels"], curves["dt"], taus)
+            total = np.zeros_like(taus)
+            for name, b in bases.items():
+                amp2 = conf[name] ** 2 if name != "quantization" else 1.0
+                ax.loglog(taus, np.sqrt(b * amp2) / f, "--", lw=1, label=f"{name} (configured)")
+                total += b * amp2
+            if bases:
+                ax.loglog(taus, np.sqrt(total) / f, "r-", lw=1.2, label="configured total")
+            ax.set_xlabel("averaging time tau [s]")
+            ax.set_ylabel(f"Allan deviation [{label}]")
+            ax.set_title(f"{s} ({curves['meta']['grade']['name']}, {1 / curves['dt']:g} Hz)")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
+
+
+def run(shard, plot=None, max_sequences: int = 16, out=None) -> dict:
+    """CLI entry: report (and optionally plot) the Allan check of a static shard; ``out``: also
+    write the report as one line of JSON, atomically (:func:`imugen.core.io.atomic_output`)."""
+    cv = allan_curves(shard, max_sequences)
+    rep = allan_report(shard, max_sequences, curves=cv)
+    if plot:
+        plot_allan(cv, plot, rep)
+    if out is not None:
+        import json
+
+        from imugen.core.io import atomic_output
+
+        with atomic_output(out) as tmp:
+            tmp.write_text(json.dumps(rep) + "\n")
+    return rep

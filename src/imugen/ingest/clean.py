@@ -1,0 +1,376 @@
+"""Robust cleaning of a GNSS track at ingestion: outliers, missing heights, noise levels.
+
+Real logs hold spikes (a fix kilometres off for one epoch), multipath heights (tens of metres
+for a few epochs) and fixes without a height. Instead of refusing the file, ingestion removes
+what a vehicle cannot do and says so; it refuses only when too little survives.
+
+Criterion (timed paths)
+    For every point the *chord deviation* ``d_i = |p_i - p̂_i|``, where ``p̂_i`` interpolates
+    linearly in time between its kept neighbours (end points: extrapolation from the next
+    two), is the displacement a detour through ``p_i`` needs. A vehicle whose acceleration is
+    bounded by ``a_max`` deviates from the chord by at most ``a_max dt_a dt_b / 2`` (exact for
+    constant acceleration; ``dt_a``, ``dt_b`` the time steps on either side), and white
+    position noise of standard deviation ``sigma`` adds ``sigma sqrt(1.5)`` per axis. A point is
+    an outlier when ``d_i > a_max dt_a dt_b / 2 + K_SIGMA sigma sqrt(1.5)``. ``sigma`` is
+    estimated robustly from the median chord deviation (median of a Rayleigh variable for the
+    horizontal, of a half-normal one for the vertical), so a few outliers cannot inflate it.
+    In each run of consecutive violations the point farthest from the median of the
+    predictions of its neighbour pairs is removed and the deviations recomputed, until none violates: a spike's
+    neighbours, which violate the chord criterion too but sit on the median, are kept. Horizontal outliers remove the point; vertical
+    ones (multipath heights) only its height, which is then interpolated.
+Refusal
+    When more than ``1 - MIN_KEPT_FRACTION`` (50 %) of the points are outliers the file is
+    refused: beyond that fraction the median no longer describes the track (breakdown point of
+    the median), so the criterion cannot tell the track from its outliers.
+Missing heights
+    Points the reader marks without a height (GPX without ``<ele>``, NMEA RMC-only epochs, IGC
+    fixes without GNSS altitude, ROS NaN) get a height interpolated linearly in time (untimed:
+    along the horizontal distance) between their neighbours, held at the ends; counted and
+    flagged in the metadata, never 0 m inside a track.
+Noise
+    Horizontal and vertical position noise (m) estimated separately from the median chord
+    deviations of the kept points; on sparse fixes they include real manoeuvres, so they are
+    upper bounds.
+Metadata (``cleaning`` of the ingest metadata, carried through the CSV stage)
+    ``vehicle``, ``limits``, ``k_sigma``, ``min_kept_fraction``, ``points_in``,
+    ``outliers_removed`` and ``outlier_points`` (1-based, of the points kept after duplicate
+    removal), ``heights_rejected``, ``heights_filled`` and ``height_filled_points`` (1-based
+    rows of the output), ``noise_horizontal_m``, ``noise_vertical_m`` (None when untimed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from imugen.core.errors import InputError
+
+if TYPE_CHECKING:
+    from imugen.core.frames import LocalFrame
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Motion a vehicle class can perform (SI), used to recognise impossible fixes.
+
+    Attributes
+    ----------
+    max_accel_mps2 : float
+        Horizontal acceleration bound (m/s^2), braking and turning combined.
+    max_vaccel_mps2 : float
+        Vertical acceleration bound (m/s^2).
+    """
+
+    max_accel_mps2: float
+    max_vaccel_mps2: float
+
+
+#: Generous physical bounds per vehicle class: a car brakes or corners at up to about 1 g; a
+#: bicycle or a runner at about 0.6 g; an aircraft pulls several g. Vertical bounds are those
+#: of road crests and dips (car, bicycle), of steps and jumps (pedestrian), of manoeuvres
+#: (aircraft).
+VEHICLE_LIMITS = {
+    "car": Limits(10.0, 5.0),
+    "bicycle": Limits(6.0, 4.0),
+    "pedestrian": Limits(6.0, 4.0),
+    "aircraft": Limits(30.0, 30.0),
+    "airliner": Limits(30.0, 30.0),
+}
+#: Outlier threshold in noise standard deviations (a 2-D Gaussian exceeds 5 sigma with
+#: probability 4e-6).
+K_SIGMA = 5.0
+#: Least fraction of the points that must survive outlier removal.
+MIN_KEPT_FRACTION = 0.5
+#: Most point numbers listed in the metadata (``outlier_points``, ``height_filled_points``).
+MAX_LISTED = 1000
+#: Neighbours on each side whose pair predictions pick the outlier of a violating run.
+MEDIAN_HALF_WINDOW = 3
+#: Floor of the noise estimates (m): quantised coordinates can give a median deviation of 0.
+NOISE_FLOOR_M = 0.05
+
+#: Ceiling of the noise estimates (m): GNSS noise is metres; a median deviation implying more
+#: is a track mostly made of outliers, which the ceiling lets the criterion find and refuse.
+NOISE_CEILING_M = 20.0
+
+_RAYLEIGH_MEDIAN = np.sqrt(2.0 * np.log(2.0))  # median of a unit Rayleigh variable
+_HALFNORMAL_MEDIAN = 0.6744897501960817  # median of |N(0, 1)|
+_CHORD = np.sqrt(1.5)  # std of p_i - (p_{i-1} + p_{i+1}) / 2 per unit of position noise
+
+
+def chord_deviation(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Deviation of every point from the chord of its neighbours, and its acceleration factor.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Strictly increasing times (s), n >= 3.
+    x : ndarray, shape (n, k)
+        Positions (m).
+
+    Returns
+    -------
+    d : ndarray, shape (n,)
+        ``|x_i - x̂_i|`` (m), ``x̂_i`` the linear interpolation (ends: extrapolation) of the
+        neighbours at ``t_i``.
+    w : ndarray, shape (n,)
+        ``dt_a dt_b / 2`` (s^2): a constant acceleration ``a`` deviates by ``a w``.
+    """
+    dt = np.diff(t)
+    lo, hi = np.arange(len(t)) - 1, np.arange(len(t)) + 1
+    lo[0], hi[0] = 1, 2
+    lo[-1], hi[-1] = len(t) - 3, len(t) - 2
+    lam = (t - t[lo]) / (t[hi] - t[lo])
+    pred = x[lo] + lam[:, None] * (x[hi] - x[lo])
+    d = np.linalg.norm(x - pred, axis=1)
+    w = np.empty(len(t))
+    w[1:-1] = dt[:-1] * dt[1:] / 2
+    w[0] = dt[0] * (dt[0] + dt[1]) / 2
+    w[-1] = dt[-1] * (dt[-1] + dt[-2]) / 2
+    return d, w
+
+
+def noise_sigma(d: np.ndarray, dims: int) -> float:
+    """Position noise (m) from chord deviations: median / (median of the unit distribution).
+
+    Bounded to [:data:`NOISE_FLOOR_M`, :data:`NOISE_CEILING_M`].
+    """
+    scale = _RAYLEIGH_MEDIAN if dims == 2 else _HALFNORMAL_MEDIAN
+    return min(max(float(np.median(d)) / (scale * _CHORD), NOISE_FLOOR_M), NOISE_CEILING_M)
+
+
+def median_residual(
+    t: np.ndarray, x: np.ndarray, at: np.ndarray | None = None, half: int = MEDIAN_HALF_WINDOW
+) -> np.ndarray:
+    """Distance of every point from the median prediction of its neighbours.
+
+    Every pair of neighbours ``(i - a, i + b)``, ``1 <= a, b <= half``, predicts ``x_i`` by
+    linear interpolation in time; the per-axis median of these predictions is robust to
+    outliers among the neighbours (a spike spoils only the pairs it is in). The first and the
+    last point, which have neighbours on one side only, extrapolate from pairs on that side.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Strictly increasing times (s), n >= 3.
+    x : ndarray, shape (n, k)
+        Positions (m).
+    at : ndarray of int, shape (m,), optional
+        Points to evaluate (default all).
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        ``|x_i - median prediction|`` (m) at the points ``at``.
+    """
+    n = len(t)
+    i = np.arange(n) if at is None else np.asarray(at)
+    straddle = [(-a, b) for a in range(1, half + 1) for b in range(1, half + 1)]
+    one_side = [(a, b) for a in range(1, half + 1) for b in range(a + 1, half + 2)]
+    one_side += [(-b, -a) for a, b in one_side]
+    preds = []
+    for lo, hi in straddle + one_side:
+        j, k = i + lo, i + hi
+        ok = (j >= 0) & (k < n) & (j != k)
+        if (lo, hi) in one_side:
+            ok &= (i == 0) | (i == n - 1)
+        j, k = np.where(ok, j, 0), np.where(ok, k, 1)
+        lam = (t[i] - t[j]) / (t[k] - t[j])
+        p = x[j] + lam[:, None] * (x[k] - x[j])
+        p[~ok] = np.nan
+        preds.append(p)
+    med = np.nanmedian(np.stack(preds, axis=1), axis=1)
+    return np.linalg.norm(x[i] - med, axis=1)
+
+
+def find_outliers(t: np.ndarray, x: np.ndarray, a_max: float) -> np.ndarray:
+    """Indices of the points whose chord deviation no bounded acceleration explains.
+
+    Detection by the chord criterion (module docstring); within each run of consecutive
+    violating points one point is removed per pass, the one farthest from the median
+    prediction of its neighbours (:func:`median_residual`; then the largest violation), because a spike's neighbours violate the
+    chord criterion too but sit on the median. Passes repeat until nothing violates.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Strictly increasing times (s).
+    x : ndarray, shape (n, k)
+        Positions (m): k = 2 horizontal, k = 1 vertical.
+    a_max : float
+        Acceleration bound (m/s^2).
+
+    Returns
+    -------
+    ndarray of int
+        Sorted indices of the outliers.
+    """
+    keep = np.ones(len(t), dtype=bool)
+    dims = x.shape[1]
+    while keep.sum() >= 4:
+        idx = np.flatnonzero(keep)
+        d, w = chord_deviation(t[idx], x[idx])
+        sigma = noise_sigma(d, dims)
+        ratio = d / (a_max * w + K_SIGMA * sigma * _CHORD)
+        over = np.flatnonzero(ratio > 1.0)
+        if not len(over):
+            break
+        run = np.cumsum(np.diff(over, prepend=-2) > 1)
+        resid = median_residual(t[idx], x[idx], over)
+        order = np.lexsort((ratio[over], resid, run))
+        last = np.flatnonzero(np.diff(run[order], append=run[order][-1] + 1))
+        keep[idx[over[order[last]]]] = False
+        if (~keep).sum() > (1.0 - MIN_KEPT_FRACTION) * len(t):
+            break
+    return np.flatnonzero(~keep)
+
+
+def fill(x: np.ndarray, values: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """Interpolate ``values`` linearly in ``x`` where ``missing``; held at the ends."""
+    out = values.copy()
+    have = ~missing
+    out[missing] = np.interp(x[missing], x[have], values[have])
+    return out
+
+
+def _metric(cols: dict, enu_frame: LocalFrame | None) -> np.ndarray:
+    if enu_frame is not None:
+        return np.array(cols["pos"], dtype=float)
+    from imugen.core.frames import LocalFrame, Origin  # pyproj: only when a file is geographic
+
+    o = Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0]))
+    return LocalFrame(o).to_enu(cols["lat"], cols["lon"], cols["alt"])
+
+
+def clean_path(
+    cols: dict,
+    p,
+    *,
+    timed: bool,
+    vehicle: str,
+    source: str | Path,
+    warnings: list[str],
+    enu_frame: LocalFrame | None = None,
+) -> tuple[dict, dict]:
+    """Fill missing heights and remove outliers of one ingested path.
+
+    Parameters
+    ----------
+    cols : dict of ndarray
+        Ingestion's per-point columns ``pos`` (n, 3), ``lat``, ``lon``, ``alt``, ``alt_missing``
+        and, when timed, ``time`` (s); all shape (n,) but ``pos``.
+    p : RoutePath
+        The path as read (altitude mode and trust, carried metadata).
+    timed : bool
+        Whether ``cols["time"]`` is the clock.
+    vehicle : str
+        Key of :data:`VEHICLE_LIMITS`.
+    source : path-like
+        File name for messages.
+    warnings : list of str
+        Appended with what was done.
+    enu_frame : LocalFrame, optional
+        For E N U input (``pos`` in metres): the frame giving lat/lon/alt back.
+
+    Returns
+    -------
+    cols : dict
+        The columns with outliers removed and heights filled.
+    report : dict
+        Counts and estimates for the metadata (see the module docstring).
+    """
+    if p.carried.get("cleaning"):
+        return cols, dict(p.carried["cleaning"], carried=True)
+    if vehicle not in VEHICLE_LIMITS:
+        raise InputError("--vehicle", f"{vehicle!r} is not one of {', '.join(VEHICLE_LIMITS)}")
+    lim = VEHICLE_LIMITS[vehicle]
+    n_in = len(cols["lat"])
+    missing = np.asarray(cols.pop("alt_missing"), dtype=bool)
+    report = {
+        "vehicle": vehicle,
+        "limits": asdict(lim),
+        "k_sigma": K_SIGMA,
+        "min_kept_fraction": MIN_KEPT_FRACTION,
+        "points_in": n_in,
+        "outliers_removed": 0,
+        "outlier_points": [],
+        "heights_rejected": 0,
+        "heights_filled": 0,
+        "height_filled_points": [],
+        "noise_horizontal_m": None,
+        "noise_vertical_m": None,
+    }
+    kml = p.kind in ("LineString", "Track")
+    if kml and p.altitude_mode is None and np.any(cols["alt"] != 0):
+        warnings.append(
+            "heights kept as written although the file gives no altitudeMode (KML default "
+            "clampToGround); they are flagged as untrusted in the metadata"
+        )
+    enu = _metric(cols, enu_frame)
+    if timed and n_in >= 4:
+        t = cols["time"]
+        bad = find_outliers(t, enu[:, :2], lim.max_accel_mps2)
+        if len(bad) > (1.0 - MIN_KEPT_FRACTION) * n_in:
+            raise InputError(
+                source,
+                f"{len(bad)} of {n_in} points are outliers for a {vehicle} (implied acceleration "
+                f"above {lim.max_accel_mps2:g} m/s^2 plus {K_SIGMA:g} sigma of noise): less than "
+                f"{MIN_KEPT_FRACTION:.0%} of the track survives; check --vehicle or the file",
+            )
+        if len(bad):
+            keep = np.ones(n_in, dtype=bool)
+            keep[bad] = False
+            for k in cols:
+                cols[k] = cols[k][keep]
+            enu, missing, t = enu[keep], missing[keep], t[keep]
+            report["outliers_removed"] = len(bad)
+            report["outlier_points"] = (bad[:MAX_LISTED] + 1).tolist()
+            shown = ", ".join(str(i + 1) for i in bad[:10]) + (", ..." if len(bad) > 10 else "")
+            warnings.append(
+                f"removed {len(bad)} horizontal outliers (points {shown} of the kept points; implied "
+                f"acceleration beyond a {vehicle}'s {lim.max_accel_mps2:g} m/s^2 plus noise)"
+            )
+        if np.any(cols["alt"][~missing] != 0):
+            have = np.flatnonzero(~missing)
+            if len(have) >= 4:
+                vbad = have[find_outliers(t[have], enu[have, 2:], lim.max_vaccel_mps2)]
+                if len(vbad):
+                    missing = missing.copy()
+                    missing[vbad] = True
+                    report["heights_rejected"] = len(vbad)
+                    warnings.append(
+                        f"rejected {len(vbad)} outlying heights (multipath?): vertical "
+                        f"acceleration beyond {lim.max_vaccel_mps2:g} m/s^2 plus noise; "
+                        "interpolated from their neighbours"
+                    )
+    if missing.any() and not missing.all():
+        x = cols["time"] if timed else _along(enu)
+        filled = fill(x, enu[:, 2] if enu_frame is not None else cols["alt"], missing)
+        if enu_frame is not None:
+            cols["pos"] = np.column_stack([enu[:, :2], filled])
+            cols["lat"], cols["lon"], cols["alt"] = enu_frame.to_geodetic(cols["pos"])
+        else:
+            cols["alt"] = filled
+            cols["pos"] = np.column_stack([cols["lat"], cols["lon"], filled])
+        n_fill = int(missing.sum()) - report["heights_rejected"]
+        report["heights_filled"] = int(missing.sum())
+        report["height_filled_points"] = (np.flatnonzero(missing)[:MAX_LISTED] + 1).tolist()
+        if n_fill:
+            warnings.append(
+                f"{n_fill} points have no height: interpolated from their neighbours "
+                "(not 0 m), flagged in the metadata"
+            )
+        enu = _metric(cols, enu_frame)
+    if timed and len(cols["time"]) >= 3:
+        d_h, _ = chord_deviation(cols["time"], enu[:, :2])
+        d_v, _ = chord_deviation(cols["time"], enu[:, 2:])
+        report["noise_horizontal_m"] = noise_sigma(d_h, 2)
+        report["noise_vertical_m"] = noise_sigma(d_v, 1)
+    return cols, report
+
+
+def _along(enu: np.ndarray) -> np.ndarray:
+    step = np.hypot(*np.diff(enu[:, :2], axis=0).T)
+    return np.concatenate([[0.0], np.cumsum(step)]) + np.arange(len(enu)) * 1e-9

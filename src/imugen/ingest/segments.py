@@ -1,0 +1,225 @@
+"""Choosing the path of a route file: trivial candidates, time gaps, ``--path longest``.
+
+Gaps
+    A timed path whose clock jumps by more than ``max_gap_s`` (default :data:`MAX_GAP_S`) is
+    never bridged silently. With ``gaps="split"`` (the default) it is split at every such gap
+    into parts named ``"<name> / part k"``, which become candidate paths like GPX track
+    segments: ``--path`` names or indexes one (indexes count the parts), ``--path longest``
+    takes the longest. When the file holds one path (or ``--path`` names a path that was
+    split), its longest part is taken with a warning listing the others, so a workflow does
+    not stop on a long log with a few gaps, yet no motion is invented in them. Parts of a
+    single point are dropped (noted). ``gaps="bridge"`` keeps the path whole and warns: the
+    truth stage then interpolates through the gaps.
+Trivial candidates
+    When ``--path`` is not given and exactly one candidate is a real path, it is taken with a
+    warning naming the others; a candidate is trivial when it has fewer than
+    :data:`MIN_REAL_POINTS` points or is shorter than :data:`MIN_REAL_LENGTH_M`.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from pyproj import Geod
+
+from imugen.core.errors import InputError
+from imugen.ingest.route import RoutePath
+
+#: Default longest time gap (s) a path may hold before it is split.
+MAX_GAP_S = 60.0
+#: Fewest points of a real path.
+MIN_REAL_POINTS = 5
+#: Shortest real path (m).
+MIN_REAL_LENGTH_M = 25.0
+GAP_MODES = ("split", "bridge")
+_GEOD = Geod(ellps="WGS84")
+
+
+def length_m(p: RoutePath) -> float:
+    """Horizontal length (m) of a candidate: geodesic, or along its E N U rows."""
+    if p.enu_m is not None:
+        return float(np.nansum(np.hypot(*np.diff(p.enu_m[:, :2], axis=0).T)))
+    ok = np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
+    ok &= (np.abs(p.lat_deg) <= 90) & (np.abs(p.lon_deg) <= 180)
+    if ok.sum() < 2:
+        return 0.0
+    return float(_GEOD.line_length(p.lon_deg[ok], p.lat_deg[ok]))
+
+
+def _label(p: RoutePath) -> str:
+    m = length_m(p)
+    size = f"{m / 1000:.2f} km" if m >= 1000 else f"{m:.0f} m"
+    span = ""
+    t = p.time_unix_s
+    if t is not None and np.isfinite(t).all() and len(t) > 1:
+        span = f", {t[-1] - t[0]:.0f} s"
+    return f"{p.name!r} ({p.n_points} points, {size}{span})"
+
+
+def _slice(p: RoutePath, sl: slice, name: str, note: str) -> RoutePath:
+    def cut(a):
+        return None if a is None else a[sl]
+
+    geo = p.enu_m is None
+    return replace(
+        p,
+        name=name,
+        lat_deg=p.lat_deg[sl] if geo else p.lat_deg,
+        lon_deg=p.lon_deg[sl] if geo else p.lon_deg,
+        alt_m=p.alt_m[sl] if geo else p.alt_m,
+        enu_m=cut(p.enu_m),
+        time_unix_s=cut(p.time_unix_s),
+        alt_missing=cut(p.alt_missing),
+        notes=[*p.notes, note],
+        warnings=list(p.warnings),
+    )
+
+
+def split_at_gaps(p: RoutePath, max_gap_s: float) -> list[RoutePath]:
+    """Split ``p`` at every time step longer than ``max_gap_s``; ``[p]`` when there is none.
+
+    Paths without a complete clock are returned whole (their clock is decided later).
+    """
+    t = p.time_unix_s
+    if t is None or len(t) < 2 or not np.isfinite(t).all():
+        return [p]
+    cuts = np.flatnonzero(np.diff(t) > max_gap_s) + 1
+    if not len(cuts):
+        return [p]
+    bounds = [0, *cuts.tolist(), len(t)]
+    spans = [(a, b) for a, b in itertools.pairwise(bounds) if b - a >= 2]
+    dropped = len(bounds) - 1 - len(spans)
+    gap_s = np.diff(t)[cuts - 1]
+    note = (
+        f"split at {len(cuts)} time gaps longer than {max_gap_s:g} s (longest {gap_s.max():g} s)"
+        + (f"; {dropped} single-point parts dropped" if dropped else "")
+    )
+    if len(spans) == 1:
+        a, b = spans[0]
+        return [_slice(p, slice(a, b), p.name, note)]
+    return [
+        _slice(p, slice(a, b), f"{p.name} / part {k}", f"part {k} of {len(spans)}: {note}")
+        for k, (a, b) in enumerate(spans, start=1)
+    ]
+
+
+def _sole_real(cands: list[RoutePath], warnings: list[str]) -> list[RoutePath]:
+    real = [p for p in cands if p.n_points >= MIN_REAL_POINTS and length_m(p) >= MIN_REAL_LENGTH_M]
+    if len(real) != 1:
+        return cands
+    others = "; ".join(_label(p) for p in cands if p is not real[0])
+    warnings.append(
+        f"took {real[0].name!r}, the only real path of the {len(cands)} candidates (the others "
+        f"have fewer than {MIN_REAL_POINTS} points or {MIN_REAL_LENGTH_M:g} m: {others})"
+    )
+    return real
+
+
+def _longest(group: list[RoutePath], why: str, warnings: list[str]) -> RoutePath:
+    best = max(group, key=length_m)
+    others = [p for p in group if p is not best]
+    if others:
+        warnings.append(
+            f"{why}: took the longest, {_label(best)}; not used: "
+            + "; ".join(_label(p) for p in others)
+            + " (choose one with --path NAME or INDEX, or bridge the gaps with --gaps bridge)"
+        )
+    return best
+
+
+def choose_path(
+    cands: list[RoutePath],
+    spec: str | int | None,
+    *,
+    max_gap_s: float | None,
+    gaps: str,
+    source: str | Path,
+    warnings: list[str],
+    select,
+) -> tuple[RoutePath, dict]:
+    """Choose one candidate path, splitting at gaps first (see the module docstring).
+
+    Parameters
+    ----------
+    cands : list of RoutePath
+        Every candidate of the file, as read.
+    spec : str or int or None
+        ``--path``: a name, a 1-based index, ``"longest"``, or None.
+    max_gap_s : float or None
+        Longest time gap kept inside a path (s); None: :data:`MAX_GAP_S`.
+    gaps : {"split", "bridge"}
+        What to do with longer gaps.
+    source : path-like
+        File name for messages.
+    warnings : list of str
+        Appended with what was decided.
+    select : callable
+        ``select(cands, spec, source)``: the name/index selection of :mod:`imugen.ingest.stage`.
+
+    Returns
+    -------
+    path : RoutePath
+    info : dict
+        For the metadata: ``mode``, ``max_gap_s``, ``parts`` (of the chosen path's original),
+        ``not_used`` (names of the other parts; with ``longest``, of every other candidate),
+        ``bridged_gaps``.
+    """
+    if gaps not in GAP_MODES:
+        raise InputError("--gaps", f"{gaps!r} is not one of {', '.join(GAP_MODES)}")
+    limit = MAX_GAP_S if max_gap_s is None else float(max_gap_s)
+    if not (np.isfinite(limit) and limit > 0):
+        raise InputError("--max-gap-s", f"{max_gap_s!r} must be a positive number of seconds")
+    carried = cands[0].carried.get("segments") if len(cands) == 1 else None
+    if carried:
+        return cands[0], dict(carried, carried=True)
+    info = {"mode": gaps, "max_gap_s": limit, "parts": 1, "not_used": [], "bridged_gaps": 0}
+    spec_s = None if spec is None or spec == "" else str(spec)
+    if spec_s is None and len(cands) > 1:
+        cands = _sole_real(cands, warnings)
+    groups: dict[str, list[RoutePath]] = {}
+    expanded: list[RoutePath] = []
+    for p in cands:
+        parts = split_at_gaps(p, limit) if gaps == "split" else [p]
+        if len(parts) > 1:
+            groups[p.name] = parts
+        expanded += parts
+    if not expanded:
+        raise InputError(
+            source,
+            f"no path is left after splitting at time gaps longer than {limit:g} s: every part "
+            "has a single point (raise --max-gap-s, or keep the gaps with --gaps=bridge)",
+        )
+    if spec_s is not None and spec_s.casefold() == "longest":
+        chosen = _longest(expanded, "--path longest", warnings)
+        group = next((g for g in groups.values() if any(q is chosen for q in g)), [chosen])
+        info["not_used"] = [p.name for p in expanded if p is not chosen]
+    else:
+        group = None
+        if spec_s is None and len(cands) == 1 and groups:
+            group = groups[cands[0].name]
+        elif spec_s is not None and spec_s not in {p.name for p in expanded}:
+            hits = [n for n in groups if n == spec_s] or [
+                n for n in groups if n.casefold() == spec_s.casefold()
+            ]
+            group = groups[hits[0]] if len(hits) == 1 else None
+        if group is not None:
+            why = f"{len(group)} parts after splitting at gaps longer than {limit:g} s"
+            chosen = _longest(group, why, warnings)
+        else:
+            chosen = select(expanded, spec, source)
+            group = next((g for g in groups.values() if any(q is chosen for q in g)), [chosen])
+    info["parts"] = len(group)
+    info["not_used"] = info["not_used"] or [p.name for p in group if p is not chosen]
+    t = chosen.time_unix_s
+    if gaps == "bridge" and t is not None and np.isfinite(t).all():
+        n_long = int((np.diff(t) > limit).sum())
+        info["bridged_gaps"] = n_long
+        if n_long:
+            warnings.append(
+                f"bridged {n_long} time gaps longer than {limit:g} s (--gaps bridge, longest "
+                f"{np.diff(t).max():g} s): the truth stage interpolates motion through them"
+            )
+    return chosen, info

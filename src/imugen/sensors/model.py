@@ -1,0 +1,494 @@
+"""Sensor error model: ideal rates/increments -> what a gyro or accelerometer triad outputs.
+
+One model, applied consistently to instantaneous rate samples and to increments (``dtheta``,
+``dv``). For one sensor triad (``u`` the true rate -- ``omega_ib_b`` or ``f_b`` --, ``du`` its
+increment over the interval ``[t_{k-1}, t_k]``, ``a``/``da`` the specific force and its
+increment for the gyro g-sensitivity, ``dT`` the temperature offset):
+
+slow bias (state at sample ``t_k``)
+    ``s_k = b_on + sum_c x_c(t_k) + r(t_k) + k_b dT(t_k)``
+    * ``b_on`` turn-on bias, constant over the run;
+    * ``x_c`` first-order Gauss-Markov (bias instability), exact discretization
+      ``x_k = phi x_{k-1} + sigma sqrt(1 - phi^2) xi``, ``phi = exp(-dt/T)``, started from
+      its stationary law ``x_0 ~ N(0, sigma^2)`` when it is the whole slow bias, or from
+      ``x_0 = 0`` when it is the in-run wander beside a turn-on bias (grade key ``start``);
+      a sum of several (log-spaced ``T``)
+      approximates flicker (1/f) noise;
+    * ``r`` rate random walk, ``r_k = r_{k-1} + K sqrt(dt) xi``, ``r_0 = 0`` (the turn-on bias
+      is the initial value);
+    * ``k_b dT`` temperature-driven bias.
+rate output (sample at ``t_k``)
+    ``y_k = u_k + E_k u_k + G a_k + s_k + (N / sqrt(dt)) w_k``
+    with ``E_k = diag(s_f + k_s dT_k) + C`` (scale-factor errors and the off-diagonal
+    misalignment / cross-coupling ``C``), ``G`` the g-sensitivity matrix (gyro only) and ``N``
+    the white-noise density (ARW/VRW). The white term is the mean of white noise of density
+    ``N`` over one sample interval (variance ``N^2 / dt``), i.e. the averaged-rate output of a
+    real sensor; the same normal ``w_k`` drives the increment below, so ``increment / dt`` and
+    the rate output carry the same white noise.
+increment output (interval ending at ``t_k``, ``k >= 1``; row 0 is zero as in the truth)
+    ``dy_k = du_k + E_bar du_k + G da_k + dt (s_{k-1} + s_k) / 2 + N sqrt(dt) w_k``
+    * white noise of density ``N`` integrated over ``dt`` has standard deviation
+      ``N sqrt(dt)`` (exact);
+    * a constant bias contributes ``b dt`` (exact);
+    * GM and random-walk biases contribute their integral over the interval, taken as the
+      trapezoid of the end states. This is the conditional mean of the integral given both
+      ends (exact for the random walk's Brownian bridge, to ``O(dt/T)`` for GM); the omitted
+      conditional variance ``q dt^3 / 12`` (``q = K^2`` or ``2 sigma^2 / T``) is white and
+      below ``dt sqrt(dt / (6T))`` of the bias itself, e.g. 4e-3 at 100 Hz, ``T = 100 s``;
+    * ``E_bar`` uses the mean temperature of the interval; scale factor and cross-coupling are
+      linear, so applying them to the exact increment is exact for constant ``E``;
+    * g-sensitivity uses the true ``dv`` (``int G f dt`` up to the body rotation within
+      the interval, an ``O(|omega| dt)`` relative effect on an already small term).
+saturation and quantization (last)
+    The output is clipped to ``+-range`` (increments: ``+-range dt``), then quantized to the
+    LSB ``q`` (increments: ``q dt``) with residual carry (``r += y; out = q round(r / q);
+    r -= out``), so the quantization error does not accumulate in integrated outputs.
+effective error (optional output)
+    Everything above except the white term and quantization: ``E u + G a + s`` (rates) or
+    ``E_bar du + G da + dt (s_{k-1} + s_k) / 2`` (increments), plus the saturation excess
+    (clipped minus unclipped output), so that ``output = true + effective error + white +
+    quantization error`` holds exactly.
+
+Everything is vectorized over a batch of sequences (leading axis ``S``) in a numba kernel
+that resumes from a state array, so time can be processed in chunks (increments alone, without
+series or temperature: a one-pass kernel giving the same bits as the general one). The random
+normals are drawn outside (NumPy ``Generator``) so reproducibility is NumPy's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from imugen.core import units
+from imugen.sensors._kernel import kernel, kernel_increments
+from imugen.sensors.grades import TERMS, SensorSpec
+
+# Layout of one sequence's parameter draw for one sensor (always drawn in full, whatever is
+# configured or enabled, so that each term's draw never depends on another term).
+N_UNIFORM = len(TERMS) + 1  # one level per term + the GM correlation time
+N_NORMAL = (
+    3 + 3 + 6 + 9 + 3 + 3
+)  # turn-on, scale factor, cross-coupling, g-sens, temp bias, temp SF
+_OFFDIAG = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+AXES = "xyz"
+
+
+@dataclass
+class SensorParams:
+    """Drawn error parameters of one sensor triad for a batch of ``S`` sequences (SI).
+
+    Attributes
+    ----------
+    b_on : (S, 3)      turn-on bias [rad/s | m/s^2] (for a grade calibrated at rest, minus the
+                       static error on gravity the calibration removed: ``G (0, 0, g0)`` for
+                       a gyro, ``E (0, 0, g0)`` for an accelerometer)
+    bi_level : (S, 3)  drawn bias-instability level in the configured kind (Allan floor or
+                       GM sigma) [rad/s | m/s^2]
+    bi_floor : (S, 3)  Allan-deviation floor (peak for one GM) of the in-run bias
+    bi_sigma : (S, 3, C) GM sigma of each component
+    bi_tau : (S, C)    GM correlation times [s]
+    white : (S, 3)     white-noise density [rad/s/sqrt(Hz) | m/s^2/sqrt(Hz)]
+    rrw : (S, 3)       rate-random-walk density [rad/s/sqrt(s) | m/s^2/sqrt(s)]
+    sf : (S, 3)        scale-factor error (dimensionless)
+    cc : (S, 3, 3)     cross-coupling (zero diagonal)
+    gs : (S, 3, 3)     g-sensitivity [rad/s per m/s^2] (zeros for accelerometers)
+    tb : (S, 3)        bias temperature coefficient [.../K]
+    ts : (S, 3)        scale-factor temperature coefficient [1/K]
+    lsb : float        quantization step of the rate output (0: off)
+    full_scale : float measurement range (inf: off)
+    bi_x0 : (S, 3, C)  standard deviation of each GM component's initial state: ``bi_sigma``
+                       (start from the stationary law) or 0 (in-run wander from the turn-on
+                       value); None means ``bi_sigma``
+    """
+
+    b_on: np.ndarray
+    bi_level: np.ndarray
+    bi_floor: np.ndarray
+    bi_sigma: np.ndarray
+    bi_tau: np.ndarray
+    white: np.ndarray
+    rrw: np.ndarray
+    sf: np.ndarray
+    cc: np.ndarray
+    gs: np.ndarray
+    tb: np.ndarray
+    ts: np.ndarray
+    lsb: float
+    full_scale: float
+    bi_x0: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.bi_x0 is None:
+            self.bi_x0 = self.bi_sigma
+
+    @property
+    def components(self) -> int:
+        return self.bi_sigma.shape[2]
+
+    @staticmethod
+    def stack(items: list[SensorParams]) -> SensorParams:
+        """Concatenate per-sequence parameter sets along the sequence axis."""
+        f = items[0]
+        kw = {}
+        for name in (
+            "b_on",
+            "bi_level",
+            "bi_floor",
+            "bi_sigma",
+            "bi_tau",
+            "white",
+            "rrw",
+            "sf",
+            "cc",
+            "gs",
+            "tb",
+            "ts",
+            "bi_x0",
+        ):
+            kw[name] = np.concatenate([getattr(p, name) for p in items])
+        return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale)
+
+    def labels(self, prefix: str, unit: str) -> dict[str, np.ndarray]:
+        """Flat label columns ``{name: (S,) array}`` with the SI unit in each name."""
+        out = {}
+        rate = unit  # "radps" or "mps2"
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_turn_on_bias_{a}_{rate}"] = self.b_on[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_bias_instability_level_{a}_{rate}"] = self.bi_level[:, i]
+            out[f"{prefix}_bias_instability_floor_{a}_{rate}"] = self.bi_floor[:, i]
+            for c in range(self.components):
+                out[f"{prefix}_bias_instability_sigma{c}_{a}_{rate}"] = self.bi_sigma[:, i, c]
+        for c in range(self.components):
+            out[f"{prefix}_bias_instability_tau{c}_s"] = self.bi_tau[:, c]
+        dens = "rad_per_sqrt_s" if unit == "radps" else "m_per_s_per_sqrt_s"
+        rw = "radps_per_sqrt_s" if unit == "radps" else "mps2_per_sqrt_s"
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_white_noise_{a}_{dens}"] = self.white[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_rate_random_walk_{a}_{rw}"] = self.rrw[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_scale_factor_{a}"] = self.sf[:, i]
+        for i, j in _OFFDIAG:
+            out[f"{prefix}_cross_coupling_{AXES[i]}{AXES[j]}"] = self.cc[:, i, j]
+        if prefix == "gyro":
+            for i in range(3):
+                for j in range(3):
+                    out[f"gyro_g_sensitivity_{AXES[i]}{AXES[j]}_radps_per_mps2"] = self.gs[:, i, j]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_temperature_bias_{a}_{rate}_per_K"] = self.tb[:, i]
+        for i, a in enumerate(AXES):
+            out[f"{prefix}_temperature_scale_factor_{a}_per_K"] = self.ts[:, i]
+        n = len(self.b_on)
+        out[f"{prefix}_quantization_{rate}"] = np.full(n, self.lsb)
+        out[f"{prefix}_range_{rate}"] = np.full(n, self.full_scale)
+        return out
+
+
+def _level(p, u: float, nominal: bool) -> np.ndarray:
+    """Per-axis level: nominal, or log-uniform in [lo, hi] with one uniform shared by the axes."""
+    v = np.asarray(p.value)
+    if nominal or p.lo is None:
+        return v.copy()
+    lo = np.asarray(p.lo)
+    hi = np.asarray(p.hi)
+    return lo * (hi / lo) ** u
+
+
+def draw_sensor(
+    spec: SensorSpec, rng: np.random.Generator, enabled: frozenset, nominal: bool = False
+) -> SensorParams:
+    """Draw one sequence's parameters for one sensor triad.
+
+    Distributions: each configured level (1-sigma, density, Allan floor, correlation time) is
+    log-uniform in its ``range`` (one uniform per term shared by the three axes; the nominal
+    value when there is no range or ``nominal``); realizations are Gaussian with that level:
+    turn-on bias, scale factor, temperature coefficients ``N(0, level^2)`` per axis,
+    cross-coupling and g-sensitivity ``N(0, level^2)`` per matrix element. The draw consumes a
+    fixed number of variates (:data:`N_UNIFORM` uniforms, :data:`N_NORMAL` normals) whatever is
+    configured or ``enabled``, so a term's draw never depends on the others.
+
+    Parameters
+    ----------
+    spec : SensorSpec
+    rng : numpy.random.Generator
+        The sequence's parameter stream.
+    enabled : frozenset of str
+        Term names to apply (others are zero in the result).
+    nominal : bool
+        Use nominal levels instead of drawing them in the ranges.
+    """
+    u = rng.random(N_UNIFORM)
+    z = rng.standard_normal(N_NORMAL)
+    ti = {t: i for i, t in enumerate(TERMS)}
+
+    def lvl(term):
+        p = getattr(spec, term)
+        if p is None or term not in enabled:
+            return None
+        if term == "bias_instability":
+            p = p.level
+        return _level(p, u[ti[term]], nominal)
+
+    zero3 = np.zeros(3)
+    b = lvl("turn_on_bias")
+    b_on = zero3 if b is None else b * z[0:3]
+    bi = spec.bias_instability
+    C = 1 if bi is None else bi.components
+    bi_level = np.zeros(3)
+    bi_floor = np.zeros(3)
+    bi_sigma = np.zeros((3, C))
+    bi_x0 = bi_sigma
+    bi_tau = np.ones(C)
+    lv = lvl("bias_instability")
+    if lv is not None:
+        bi_level = lv
+        if bi.model == "gauss_markov":
+            bi_tau = _level(bi.correlation_time, u[-1], nominal)[:1]
+        else:
+            from imugen.sensors.grades import flicker_taus
+
+            bi_tau = flicker_taus(bi.flicker_band, C)
+        bi_sigma = np.array([[bi.sigma_from_level(x)] * C for x in lv])
+        bi_x0 = bi_sigma if bi.start == "stationary" else np.zeros_like(bi_sigma)
+        bi_floor = np.array([bi.allan_floor_from_level(x) for x in lv])
+    w = lvl("white_noise")
+    r = lvl("rate_random_walk")
+    s = lvl("scale_factor")
+    sf = zero3 if s is None else s * z[3:6]
+    c = lvl("cross_coupling")
+    cc = np.zeros((3, 3))
+    if c is not None:
+        for k, (i, j) in enumerate(_OFFDIAG):
+            cc[i, j] = c[i] * z[6 + k]
+    g = lvl("g_sensitivity")
+    gs = np.zeros((3, 3)) if g is None else g[:, None] * z[12:21].reshape(3, 3)
+    if spec.static_g_removed:
+        # calibrated at rest and level: the bias estimate absorbed the static error on gravity,
+        # (E + G) (0, 0, g0) with E = diag(sf) + cross-coupling, G the g-sensitivity
+        E = cc + np.diag(sf)
+        if spec.sensor == "accel":
+            b_on = b_on - E[:, 2] * units.G0
+        b_on = b_on - gs[:, 2] * units.G0
+    tbl = lvl("temperature_bias")
+    tb = zero3 if tbl is None else tbl * z[21:24]
+    tsl = lvl("temperature_scale_factor")
+    ts = zero3 if tsl is None else tsl * z[24:27]
+    q = spec.quantization
+    lsb = q.value[0] if q is not None and "quantization" in enabled else 0.0
+    fr = spec.range
+    full_scale = fr.value[0] if fr is not None and "range" in enabled else math.inf
+    return SensorParams(
+        b_on=b_on[None],
+        bi_level=bi_level[None],
+        bi_floor=bi_floor[None],
+        bi_sigma=bi_sigma[None],
+        bi_tau=np.asarray(bi_tau, float)[None],
+        white=(zero3 if w is None else w)[None],
+        rrw=(zero3 if r is None else r)[None],
+        sf=sf[None],
+        cc=cc[None],
+        gs=gs[None],
+        tb=tb[None],
+        ts=ts[None],
+        lsb=float(lsb),
+        full_scale=float(full_scale),
+        bi_x0=bi_x0[None],
+    )
+
+
+class SensorState:
+    """Resumable state of one sensor triad for ``S`` sequences (time-chunked processing).
+
+    Attributes
+    ----------
+    x : (S, 3, C)  Gauss-Markov states
+    r : (S, 3)     rate-random-walk state
+    s_prev : (S, 3) slow bias at the previous sample (trapezoid of increments)
+    q_rate, q_inc : (S, 3) quantization residuals of the rate and increment outputs
+    """
+
+    def __init__(self, S: int, C: int):
+        self.x = np.zeros((S, 3, C))
+        self.r = np.zeros((S, 3))
+        self.s_prev = np.zeros((S, 3))
+        self.q_rate = np.zeros((S, 3))
+        self.q_inc = np.zeros((S, 3))
+
+
+_EMPTY3 = np.zeros((0, 0, 3))
+_EMPTY2 = np.zeros((0, 3))
+_EMPTY1 = np.zeros(1)
+
+
+class SensorModel:
+    """Apply one sensor triad's errors to time chunks of truth, for ``S`` sequences.
+
+    Parameters
+    ----------
+    params : SensorParams
+        Drawn parameters (leading axis ``S``).
+    dt : float
+        Sample interval [s].
+    """
+
+    def __init__(self, params: SensorParams, dt: float):
+        self.p = params
+        self.dt = float(dt)
+        phi = np.exp(-self.dt / params.bi_tau)  # (S, C)
+        self.phi = phi
+        self.drv = params.bi_sigma * np.sqrt(-np.expm1(-2.0 * self.dt / params.bi_tau))[:, None, :]
+        self.use_w = bool(np.any(params.white > 0))
+        self.use_r = bool(np.any(params.rrw > 0))
+        self.use_b = bool(np.any(params.bi_sigma > 0))
+        self.use_g = bool(np.any(params.gs != 0))
+        self.use_t = bool(np.any(params.tb != 0) or np.any(params.ts != 0))
+        self.state = SensorState(len(params.b_on), params.components)
+        self._slow = np.empty((0, 3))  # scratch of the kernel's slow-bias pass, reused
+
+    @property
+    def normals_per_sample(self) -> int:
+        """Gaussian variates this sensor consumes per sample and sequence."""
+        return 3 * (self.use_w + self.use_r) + (3 * self.p.components if self.use_b else 0)
+
+    def step(
+        self,
+        k0,
+        u,
+        du,
+        a,
+        da,
+        dT,
+        zw,
+        zr,
+        zb,
+        out_rate=None,
+        out_inc=None,
+        out_bias=None,
+        out_sf=None,
+        out_err_rate=None,
+        out_err_inc=None,
+    ):
+        """Process samples ``k0 .. k0 + L - 1`` (call with consecutive chunks).
+
+        Parameters
+        ----------
+        k0 : int
+            Global index of the first sample of the chunk (0 starts the processes).
+        u, du : ndarray, shape (L, 3)
+            True rate at each sample and true increment of the interval ending at it.
+        a, da : ndarray, shape (L, 3) or None
+            Specific force and its increment (gyro g-sensitivity only).
+        dT : ndarray, shape (L + 1,) or None
+            Temperature offset [K] at the sample before the chunk and at each sample.
+        zw, zr : ndarray, shape (S, L, 3) or None
+            Standard normals of the white noise and of the rate random walk.
+        zb : ndarray, shape (S, L, 3 C) or None
+            Standard normals of the Gauss-Markov components (axis-major, component minor).
+        out_rate, out_inc, out_bias, out_sf : ndarray, shape (S, L, 3) or None
+            Outputs: rate samples, increments, slow bias and scale-factor error labels.
+        out_err_rate, out_err_inc : ndarray, shape (S, L, 3) or None
+            Effective error of the rate and increment outputs: everything added except
+            white noise and quantization (slow bias, scale factor, cross-coupling,
+            g-sensitivity, temperature, saturation excess), so that output = true + error +
+            white noise + quantization error.
+        """
+        p = self.p
+        st = self.state
+        if len(self._slow) < len(u):
+            self._slow = np.empty((len(u), 3))
+        use_g = self.use_g and a is not None and da is not None
+        use_t = self.use_t and dT is not None
+        if (
+            out_inc is not None
+            and out_rate is None
+            and out_bias is None
+            and out_sf is None
+            and out_err_inc is None
+            and not use_t
+            and (p.components == 1 or not (self.use_b and zb is not None))
+        ):
+            kernel_increments(int(k0), self.dt, du, da if use_g else _EMPTY2,
+                              _EMPTY3 if zw is None else zw, _EMPTY3 if zr is None else zr,
+                              _EMPTY3 if zb is None else zb, self.use_w and zw is not None,
+                              self.use_r and zr is not None, self.use_b and zb is not None, p.b_on,
+                              p.bi_x0, self.phi, self.drv, p.white, p.rrw, p.sf, p.cc, p.gs, use_g,
+                              p.ts, p.lsb, p.full_scale, st.x, st.r, st.s_prev, st.q_inc,
+                              out_inc)  # fmt: skip
+            return
+        kernel(
+            int(k0),
+            self.dt,
+            u,
+            du,
+            a if use_g else _EMPTY2,
+            da if use_g else _EMPTY2,
+            dT if use_t else _EMPTY1,
+            use_t,
+            _EMPTY3 if zw is None else zw,
+            _EMPTY3 if zr is None else zr,
+            _EMPTY3 if zb is None else zb,
+            self.use_w and zw is not None,
+            self.use_r and zr is not None,
+            self.use_b and zb is not None,
+            p.b_on,
+            p.bi_x0,
+            self.phi,
+            self.drv,
+            p.white,
+            p.rrw,
+            p.sf,
+            p.cc,
+            p.gs,
+            use_g,
+            p.tb,
+            p.ts,
+            p.lsb,
+            p.full_scale,
+            st.x,
+            st.r,
+            st.s_prev,
+            st.q_rate,
+            st.q_inc,
+            self._slow,
+            _EMPTY3 if out_rate is None else out_rate,
+            _EMPTY3 if out_inc is None else out_inc,
+            _EMPTY3 if out_bias is None else out_bias,
+            _EMPTY3 if out_sf is None else out_sf,
+            _EMPTY3 if out_err_rate is None else out_err_rate,
+            _EMPTY3 if out_err_inc is None else out_err_inc,
+        )
+
+
+# --- analytic Allan variances of the terms (used by the verification and the Allan report) -----
+def avar_white(tau, N):
+    """Allan variance of white rate noise of density ``N``: ``N^2 / tau``."""
+    return N**2 / np.asarray(tau, float)
+
+
+def avar_rrw(tau, K):
+    """Allan variance of a rate random walk of density ``K``: ``K^2 tau / 3``."""
+    return K**2 * np.asarray(tau, float) / 3.0
+
+
+def avar_quantization(tau, lsb, dt):
+    """Allan variance of rate quantization with residual carry (angle LSB ``q = lsb dt``).
+
+    ``3 q^2 / tau^2`` (IEEE Std 952-1997 C.1, quantization noise ``Q = q / sqrt(12)``).
+    """
+    q = lsb * dt
+    return 3.0 * (q / math.sqrt(12.0)) ** 2 / np.asarray(tau, float) ** 2
+
+
+def avar_bias_instability(tau, sigma, taus):
+    """Allan variance of a sum of GM components with sigmas ``sigma`` (C,) and ``taus`` (C,)."""
+    from imugen.sensors.grades import gm_avar
+
+    tau = np.asarray(tau, float)
+    out = np.zeros_like(tau)
+    for sg, T in zip(np.atleast_1d(sigma), np.atleast_1d(taus), strict=True):
+        out += gm_avar(tau, sg, T)
+    return out

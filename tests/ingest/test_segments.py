@@ -1,0 +1,158 @@
+"""Gaps split paths into candidate parts; --path longest; trivial candidates skipped."""
+
+from __future__ import annotations
+
+import itertools
+import re
+from datetime import datetime
+
+import numpy as np
+import pytest
+from pyproj import Geod
+
+from imugen.core.errors import InputError
+from imugen.ingest.route import RoutePath
+from imugen.ingest.segments import split_at_gaps
+from imugen.ingest.stage import ingest, write
+
+GEOD = Geod(ellps="WGS84")
+
+
+def _path(t, name="p"):
+    n = len(t)
+    return RoutePath(
+        name=name,
+        kind="trkseg",
+        lat_deg=40 + np.arange(n) * 1e-4,
+        lon_deg=np.full(n, -105.0),
+        alt_m=np.zeros(n),
+        time_unix_s=np.asarray(t, float),
+    )
+
+
+def _gpx(tmp_path, tracks, name="g.gpx"):
+    """tracks: list of (name, [seconds...]); points 11 m apart northwards, 1 track each."""
+    body = ""
+    for tname, times in tracks:
+        pts = "".join(
+            f'<trkpt lat="{40 + k * 1e-4!r}" lon="-105.0"><ele>1600</ele>'
+            f"<time>{datetime.fromtimestamp(1.7e9 + s).isoformat()}Z</time></trkpt>"
+            for k, s in enumerate(times)
+        )
+        body += f"<trk><name>{tname}</name><trkseg>{pts}</trkseg></trk>"
+    f = tmp_path / name
+    f.write_text(f"<gpx>{body}</gpx>")
+    return f
+
+
+def test_split_at_gaps():
+    t = [0, 1, 2, 100, 101, 102, 103, 300, 500, 501]
+    parts = split_at_gaps(_path(t), 60.0)
+    assert [p.name for p in parts] == ["p / part 1", "p / part 2", "p / part 3"]
+    assert [p.time_unix_s.tolist() for p in parts] == [[0, 1, 2], [100, 101, 102, 103], [500, 501]]
+    assert [p.lat_deg[0] for p in parts] == [40, 40 + 3e-4, 40 + 8e-4]
+    assert "single-point parts dropped" in parts[0].notes[-1]  # the fix at 300 s
+    # only the 200 s gap is longer than 199 s: the fix at 300 s stays with the first part
+    assert [p.n_points for p in split_at_gaps(_path(t), 199.0)] == [8, 2]
+    whole = _path([0, 1, 2])
+    untimed = _path([0, 100, 200])
+    untimed.time_unix_s = None
+    assert split_at_gaps(whole, 60.0) == [whole] and split_at_gaps(untimed, 1.0) == [untimed]
+
+
+def test_default_takes_longest_part_with_warning(tmp_path):
+    f = _gpx(tmp_path, [("drive", [*range(10), *range(200, 230), *range(400, 405)])])
+    ing = ingest(f)
+    assert ing.meta["path"] == "drive / part 2" and ing.meta["points_in"] == 30
+    assert ing.meta["duration_s"] == 29.0
+    seg = ing.meta["segments"]
+    assert (seg["mode"], seg["parts"], seg["not_used"]) == (
+        "split",
+        3,
+        ["drive / part 1", "drive / part 3"],
+    )
+    w = next(w for w in ing.warnings if "3 parts after splitting" in w)
+    assert "'drive / part 1' (10 points" in w and "--gaps bridge" in w
+    # the parts are candidates: by name, by index, longest, or the original's name
+    assert ingest(f, path="drive / part 3").meta["points_in"] == 5
+    assert ingest(f, path=1).meta["path"] == "drive / part 1"
+    assert ingest(f, path="longest").meta["path"] == "drive / part 2"
+    assert ingest(f, path="DRIVE").meta["path"] == "drive / part 2"
+    assert ingest(f, max_gap_s=500).meta["points_in"] == 45
+
+
+def test_bridge_only_when_asked(tmp_path):
+    f = _gpx(tmp_path, [("drive", [*range(10), *range(200, 230)])])
+    ing = ingest(f, gaps="bridge")
+    assert ing.meta["points_in"] == 40 and ing.meta["segments"]["bridged_gaps"] == 1
+    assert any("bridged 1 time gaps longer than 60 s" in w for w in ing.warnings)
+    # the CSV stage keeps the decision (it would split again otherwise)
+    again = ingest(write(ing, tmp_path / "route.csv"))
+    assert len(again.table) == 40 and again.meta["segments"]["carried"]
+    with pytest.raises(InputError, match="--max-gap-s"):
+        ingest(f, max_gap_s=0)
+    with pytest.raises(InputError, match="--gaps"):
+        ingest(f, gaps="jump")
+
+
+def test_several_tracks_still_need_a_choice(tmp_path):
+    f = _gpx(tmp_path, [("a", range(20)), ("b", [*range(10), *range(100, 120)])])
+    with pytest.raises(InputError, match=r"3 candidate paths.*\[2\] 'b / part 1'"):
+        ingest(f)
+    assert ingest(f, path="b").meta["path"] == "b / part 2"
+    assert ingest(f, path="longest").meta["points_in"] == 20
+
+
+def test_only_real_candidate_taken_with_note(tmp_path):
+    line = "<Placemark><name>{}</name><LineString><coordinates>{}</coordinates></LineString></Placemark>"
+    real = " ".join(f"-105.0,{40 + k * 1e-4!r},1600" for k in range(30))
+    stub = "-105.0,40.0,1600 -105.0,40.00002,1600"
+    few = " ".join(f"-105.0,{40 + k * 1e-3!r},1600" for k in range(3))
+    f = tmp_path / "m.kml"
+    f.write_text(
+        "<kml><Document>"
+        + line.format("stub", stub)
+        + line.format("route", real)
+        + line.format("few", few)
+        + "</Document></kml>"
+    )
+    ing = ingest(f)
+    assert ing.meta["path"] == "route"
+    w = next(w for w in ing.warnings if "only real path" in w)
+    assert "'stub' (2 points, 2 m)" in w and "'few' (3 points" in w
+    f.write_text(
+        "<kml><Document>" + line.format("a", real) + line.format("b", real) + "</Document></kml>"
+    )
+    with pytest.raises(InputError, match="2 candidate paths"):
+        ingest(f)
+
+
+def test_real_austin_hike_split_at_its_gaps(shared_file):
+    path = shared_file("b_mapfinity_hike_austin_gxtrack.kml")
+    text = re.search(r"<gx:Track>.*</gx:Track>", path.read_text(), re.S).group(0)
+    whens = [datetime.fromisoformat(w).timestamp() for w in re.findall(r"<when>(.*?)</when>", text)]
+    coords = np.array(
+        [[float(v) for v in c.split()] for c in re.findall(r"<gx:coord>(.*?)</gx:coord>", text)]
+    )
+    t = np.array(whens)
+    assert len(t) == len(coords) == 451
+    cuts = [0, *(np.flatnonzero(np.diff(t) > 60) + 1).tolist(), len(t)]
+    parts = [(a, b) for a, b in itertools.pairwise(cuts) if b - a >= 2]
+    lengths = [GEOD.line_length(coords[a:b, 0], coords[a:b, 1]) for a, b in parts]
+    a, b = parts[int(np.argmax(lengths))]
+    ing = ingest(path, vehicle="pedestrian")
+    assert ing.meta["segments"]["parts"] == len(parts) > 1
+    assert ing.meta["points_in"] == b - a
+    assert ing.meta["duration_s"] == pytest.approx(t[b - 1] - t[a])
+    assert np.diff(ing.table.time_s).max() <= 60
+
+
+def test_cli_gap_options(tmp_path, cli):
+    f = _gpx(tmp_path, [("drive", [*range(10), *range(100, 130)])])
+    out = tmp_path / "o.csv"
+    proc = cli("ingest", f, "-o", out, check=0)
+    assert "took the longest" in proc.stderr and "30 points" in proc.stderr
+    proc = cli("ingest", f, "-o", out, "--max-gap-s", "100", check=0)
+    assert "took the longest" not in proc.stderr and "40 points" in proc.stderr
+    proc = cli("ingest", f, "-o", out, "--gaps", "bridge", check=0)
+    assert "bridged 1 time gaps" in proc.stderr
