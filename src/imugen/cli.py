@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 import warnings
 
@@ -65,10 +66,60 @@ GROUPS = {"grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export
 """Commands of two words: the first word's help."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a hint when an option's value was taken for an option (``-33.9,...``)."""
+
+    def error(self, message: str):
+        m = re.match(r"argument ([-\w/]+)(?:/(--[-\w]+))?: expected one argument", message)
+        if m:
+            name = m.group(2) or m.group(1).split("/")[-1]
+            message += (
+                f" (a value starting with '-' is written {name}=VALUE, "
+                f"e.g. --origin=-33.9,151.2,10)"
+            )
+        super().error(message)
+
+
+_NEGATIVE = re.compile(r"^-(?:\d|\.\d)[\d.,eE+-]*$")
+"""A value that looks like a negative number or a comma-separated list starting with one."""
+
+
+def _valued_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Option strings of ``parser`` that take exactly one value."""
+    return {
+        s
+        for a in parser._actions
+        if a.nargs is None and isinstance(a, (argparse._StoreAction, argparse._AppendAction))
+        for s in a.option_strings
+    }
+
+
+def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--origin -33.9,151.2,10`` -> ``--origin=-33.9,151.2,10`` (argparse would take the
+    value for an option); only for options that take one value, only for number-like values."""
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    out: list[str] = []
+    valued = _valued_options(parser)
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if sub is not None and tok in sub.choices:
+            return [*out, tok, *_join_negative_values(sub.choices[tok], argv[i + 1 :])]
+        if tok == "--":
+            return [*out, *argv[i:]]
+        if tok in valued and i + 1 < len(argv) and _NEGATIVE.match(argv[i + 1]):
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def build_parser(commands=None) -> argparse.ArgumentParser:
     """The parser of ``imugen``; ``commands``: the commands whose options it loads (names of
     :data:`COMMANDS`; default all), the others listed by name and help only."""
-    parser = argparse.ArgumentParser(prog="imugen", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="imugen", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"imugen {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     groups = {}
@@ -105,7 +156,8 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     name = command_of(argv)
-    args = build_parser([name] if name else []).parse_args(argv)
+    parser = build_parser([name] if name else [])
+    args = parser.parse_args(_join_negative_values(parser, argv))
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning

@@ -23,7 +23,7 @@ class Format:
 
 GPSBABEL = {
     ".fit": "garmin_fit",
-    ".tcx": "gtrcrs",
+    ".tcx": "gtrnctr",  # Garmin Training Center (GPSBabel has no "gtrcrs")
     ".gdb": "gdb",
     ".plt": "ozi",
     ".sbp": "sbp",
