@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import re
 import sys
 import warnings
 
@@ -389,8 +390,58 @@ def _cmd_closure(a) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a hint when an option's value was taken for an option (``-33.9,...``)."""
+
+    def error(self, message: str):
+        m = re.match(r"argument ([-\w/]+)(?:/(--[-\w]+))?: expected one argument", message)
+        if m:
+            name = m.group(2) or m.group(1).split("/")[-1]
+            message += (
+                f" (a value starting with '-' is written {name}=VALUE, "
+                f"e.g. --origin=-33.9,151.2,10)"
+            )
+        super().error(message)
+
+
+_NEGATIVE = re.compile(r"^-(?:\d|\.\d)[\d.,eE+-]*$")
+"""A value that looks like a negative number or a comma-separated list starting with one."""
+
+
+def _valued_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Option strings of ``parser`` that take exactly one value."""
+    return {
+        s
+        for a in parser._actions
+        if a.nargs is None and isinstance(a, (argparse._StoreAction, argparse._AppendAction))
+        for s in a.option_strings
+    }
+
+
+def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--origin -33.9,151.2,10`` -> ``--origin=-33.9,151.2,10`` (argparse would take the
+    value for an option); only for options that take one value, only for number-like values."""
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    out: list[str] = []
+    valued = _valued_options(parser)
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if sub is not None and tok in sub.choices:
+            return [*out, tok, *_join_negative_values(sub.choices[tok], argv[i + 1 :])]
+        if tok == "--":
+            return [*out, *argv[i:]]
+        if tok in valued and i + 1 < len(argv) and _NEGATIVE.match(argv[i + 1]):
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="imugen", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="imugen", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"imugen {__version__}")
     # every subcommand's help shows each option's default (tests/system/test_cli.py checks that every
     # option has help text and that defaults agree with the workflow's schema)
@@ -398,7 +449,7 @@ def build_parser() -> argparse.ArgumentParser:
         dest="command",
         required=True,
         parser_class=functools.partial(
-            argparse.ArgumentParser, formatter_class=argparse.ArgumentDefaultsHelpFormatter
+            _Parser, formatter_class=argparse.ArgumentDefaultsHelpFormatter
         ),
     )
 
@@ -843,7 +894,8 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser.parse_args(_join_negative_values(parser, argv))
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning

@@ -429,8 +429,8 @@ def test_workflow_passes_the_companion_keys(tmp_path):
     proc = W.snakemake(tmp_path, "-n", "-j1", "-p")
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out
-    assert "--nhc-slip-sd 0.05,0.01" in out
-    assert "--odometer abs" in out and "--baro ms5611 --baro-rate-hz 5.0" in out
+    assert "--nhc-slip-sd=0.05,0.01" in out
+    assert "--odometer=abs" in out and "--baro=ms5611 --baro-rate-hz=5.0" in out
     assert "--companions-out" in out and "companions/consumer/shard-" in out
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": {"odometer": "x"}})
     proc = W.snakemake(tmp_path, "-n", "-j1")

@@ -60,7 +60,7 @@ from imugen.core.io import atomic_output
 from imugen.ingest import limits
 from imugen.ingest.clean import clean_path
 from imugen.ingest.readers import read_route_file
-from imugen.ingest.route import RoutePath, iso_utc
+from imugen.ingest.route import TIME_RANGE_S, RoutePath, iso_utc
 from imugen.ingest.segments import choose_path
 from imugen.tables import enu as tenu
 
@@ -245,6 +245,15 @@ def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str],
     if t is not None:
         if dt is not None:
             warnings.append("the file has a clock: the dt option is ignored")
+        if p.time_is_absolute:
+            out = ~((t >= TIME_RANGE_S[0]) & (t <= TIME_RANGE_S[1]))
+            if out.any():
+                i = _first_bad(out)
+                raise InputError(
+                    source,
+                    f"point {i + 1}: time {float(t[i]):.6g} s (POSIX) is outside the years 1 "
+                    "to 9999",
+                )
         start = iso_utc(float(t[0])) if p.time_is_absolute else None
         rel = t - t[0]
         if not np.isfinite(rel).all():  # differences of finite huge values may overflow
@@ -410,7 +419,7 @@ def _ingest(
         if origin is None:
             raise InputError(
                 src,
-                "E N U rows need an origin to be placed on the Earth: pass --origin LAT,LON,H "
+                "E N U rows need an origin to be placed on the Earth: pass --origin=LAT,LON,H "
                 "(the geodetic position of the first row)",
             )
         enu_first = p.enu_m - p.enu_m[0]

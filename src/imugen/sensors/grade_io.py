@@ -464,6 +464,8 @@ def import_grade(path, name: str | None = None, grade_id: int | None = None) -> 
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML: {str(exc).splitlines()[0]}") from None
+    except RecursionError:
+        raise InputError(path, "is nested too deeply to be an IMU description") from None
     try:
         fmt = detect_format(doc)
     except InputError as exc:

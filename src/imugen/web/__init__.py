@@ -8,5 +8,6 @@ then sees the RMSE table, figures and Allan checks and downloads the data and th
 
 Every run lives in its own folder ``WORKDIR/runs/<id>/`` (``input/`` the uploaded file under a
 sanitized name, ``config/config.yaml``, ``results/``, ``logs/``, ``run.log``, ``state.json``);
-the workflow runs there with ``snakemake -s <repo>/Snakefile -d <run folder>``.
+the workflow runs there with ``snakemake -s <repo>/Snakefile -d <run folder>``. The page obeys
+only the user who started it, from their own browser tab: :mod:`imugen.web.security`.
 """

@@ -19,7 +19,7 @@ from imugen.ingest.route import RoutePath
 #: File suffix -> GPSBabel input format.
 FORMATS = {
     ".fit": "garmin_fit",
-    ".tcx": "gtrcrs",
+    ".tcx": "gtrnctr",  # Garmin Training Center (GPSBabel has no "gtrcrs")
     ".gdb": "gdb",
     ".plt": "ozi",
     ".sbp": "sbp",
