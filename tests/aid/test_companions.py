@@ -22,10 +22,10 @@ from scipy.stats import chi2
 
 from imugen import truth as TR
 from imugen.aid import companions as CP
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
 from imugen.aid.companions import C_BARO_VAR, C_ODO_VAR
-from imugen.aid.filter import ekf as A
 from imugen.core.earth import OriginFrame
 from imugen.core.rotations import quat_to_dcm
 from imugen.simulate import stage as SIM
@@ -213,7 +213,7 @@ def test_nees_with_odometer_and_barometer(rect):
     Monte-Carlo mean: the NHC noise is the truth's slip (none) plus the constraint's
     second-order error, the odometer's tick quantization two residual states (a constant NHC
     sigma of 0.1 m/s and white quantization of c^2 / 6 per window gave NEES 6.4-7.0 at 5 of 25
-    epochs below the band; imugen.aid.filter.ekf module docstring)."""
+    epochs below the band; imugen.aid.filter.nhc and .odometer docstrings)."""
     df, (res, _, _, ba) = rect
     _, p, v, q, _ = arrays(df)
     M = res.p_n.shape[0]

@@ -13,10 +13,10 @@ import pyarrow.parquet as pq
 import pytest
 
 from imugen import truth as T
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
 from imugen.aid import stage as AID
-from imugen.aid.filter import ekf as A
 from imugen.core.errors import InputError
 from imugen.evaluate import stage as EV
 from imugen.tables import aided as taided

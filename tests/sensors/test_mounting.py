@@ -350,8 +350,8 @@ def aided_run(
     from dataclasses import replace
 
     from imugen.aid import companions as CP
+    from imugen.aid import filter as A
     from imugen.aid import stage as AID
-    from imugen.aid.filter import ekf as A
     from imugen.core.rotations import exp_dcm
 
     df, truth = car
@@ -393,7 +393,7 @@ def test_nhc_sees_the_misalignment_closed_form(car):
     velocity in the NOMINAL frame, at the nominal lever arm), evaluated on the filter's state
     (perfect IMU, noiseless GNSS, NHC off), is ``u C_bv (1, 0, 0)``: ``-u yaw``, ``-u pitch``
     to first order."""
-    from imugen.aid.filter import ekf as A
+    from imugen.aid import filter as A
 
     truth = car[1]
     opts = A.Options(gnss_bias=False, nhc=False)
@@ -431,7 +431,7 @@ def test_filter_estimates_the_mounting_and_stays_consistent(car):
 
     from scipy.stats import chi2
 
-    from imugen.aid.filter import ekf as A
+    from imugen.aid import filter as A
 
     M = 30
     terms = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -489,7 +489,7 @@ def test_odometer_is_mounting_aware(car):
     NHC rotating the reference point's lateral velocity and not its forward part)."""
     from scipy.stats import chi2
 
-    from imugen.aid.filter import ekf as A
+    from imugen.aid import filter as A
 
     M = 30
     spec = {"misalignment_sd_deg": [3.0, 3.0, 5.0], "lever_arm_m": [1.0, 0.5, 0.5],

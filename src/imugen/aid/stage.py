@@ -6,10 +6,10 @@ For every sequence of the shard (streamed in batches, memory bounded as in
 1. GNSS fixes are drawn (:func:`imugen.aid.gnss.simulate_gnss`) from the truth, then the
    configured scenario intervals (declared, and/or drawn per sequence) are applied
    (:func:`imugen.aid.scenarios.apply`);
-2. the loosely-coupled error-state filter (:func:`imugen.aid.filter.ekf.run`) runs on the shard's
+2. the loosely-coupled error-state filter (:func:`imugen.aid.filter.run`) runs on the shard's
    increments (raw ones get navigation's coning/sculling correction; rates are integrated as
    navigation does) with its tuning from the grade's figures (``tuning_level``) and the
-   receiver's nominal figures, aligned by :func:`imugen.aid.filter.ekf.align` (moving starts at
+   receiver's nominal figures, aligned by :func:`imugen.aid.filter.align` (moving starts at
    ``align_speed_mps``);
 3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels) and the
    aided errors and filter state at the evaluation epochs (:mod:`imugen.tables.aided`) are
@@ -39,9 +39,9 @@ import pandas as pd
 
 from imugen import __version__
 from imugen.aid import companions as CP
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
-from imugen.aid.filter import ekf as A
 from imugen.aid.options import AidOptions
 from imugen.core.earth import earth_rate_n
 from imugen.core.errors import InputError
@@ -287,7 +287,7 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
     S, J = keep.shape
     since = _since_fix(t, valid)
     geo = truth.origin_frame().model == "geodetic"  # the filter's sigmas are local there
-    sd = res.sd[..., A.I_P : A.I_P + 3] if geo else lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
+    sd = res.sd_of("p") if geo else lerr.local_sd(C, res.sd_of("p"))
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
     rows[ERR_ATT] = att[keep]
@@ -302,10 +302,10 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
         (ttruth.QUAT, res.q_nb),
         (taided.GYRO_BIAS, res.gyro_bias),
         (taided.ACCEL_BIAS, res.accel_bias),
-        (taided.SD_VEL, res.sd[..., A.I_V : A.I_V + 3]),
-        (taided.SD_ATT, res.sd[..., A.I_PSI : A.I_PSI + 3]),
-        (taided.SD_GYRO_BIAS, res.sd[..., A.I_BG : A.I_BG + 3]),
-        (taided.SD_ACCEL_BIAS, res.sd[..., A.I_BA : A.I_BA + 3]),
+        (taided.SD_VEL, res.sd_of("v")),
+        (taided.SD_ATT, res.sd_of("att")),
+        (taided.SD_GYRO_BIAS, res.sd_of("bg")),
+        (taided.SD_ACCEL_BIAS, res.sd_of("ba")),
     ):
         for i, c in enumerate(cols):
             rows[c] = arr[..., i][keep]
