@@ -19,9 +19,10 @@ import shlex
 import pytest
 import yaml
 
-from helpers import REPO, ROUTE, snakemake, write_config
 from imugen.cli import COMMANDS, build_parser, command_of
 from imugen.core.options import cli_fields, flag_of, from_namespace
+
+from helpers import REPO, ROUTE, snakemake, write_config
 
 SCHEMA = yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text())
 
