@@ -148,7 +148,7 @@ def code_files(*modules):
 
 @functools.cache
 def code_digest(*modules):
-    """A digest of the contents of :func:`code_files`, a param of the rule (``code=``):
+    """A digest of the contents of :func:`code_files`, given to a rule as its ``code`` param;
     editing one of its files reruns the rule's jobs, and what follows.
 
     Snakemake does not track imported code itself. A changed param reruns its jobs
