@@ -106,3 +106,17 @@ def njit(*args, **kwargs):
     if isinstance(out, Dispatcher):
         return _tolerant(out)
     return lambda func: _tolerant(out(func))
+
+
+def njit_borrowing(*args, **kwargs):
+    """:func:`njit` for a function that allocates nothing and only borrows its arrays: no
+    reference counting is compiled into it (numba's ``_nrt=False``).
+
+    Passing a named tuple of arrays to a compiled function costs two atomic reference-count
+    operations per array per call; the aided filter's time loop passes its inputs, outputs
+    and scratch arrays to one function per measurement at every epoch, which made it 6x
+    slower than the same arithmetic in one function (benchmarks/bench_aided.py). Its arrays
+    live, owned by the Python caller, for the whole call, so the counts are not needed. A
+    function compiled this way that allocates fails to compile (numba needs the runtime).
+    """
+    return njit(*args, _nrt=False, **kwargs)

@@ -17,18 +17,18 @@ import math
 import numpy as np
 
 from imugen.aid.filter import measurements
-from imugen.aid.filter.context import Epoch, new_work
-from imugen.aid.filter.error_model import propagate_covariance, transition_pattern
+from imugen.aid.filter.context import Epoch
+from imugen.aid.filter.error_model import propagate_covariance
 from imugen.aid.filter.geometry import dcm, local_level_nb, local_sd
 from imugen.aid.filter.kalman import symmetrize
 from imugen.aid.filter.measurements import F_ALIGNED
 from imugen.aid.filter.propagate import gravitation, rate_at, strapdown
 from imugen.core import earth
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 from imugen.core.rotations_nb import qexpm1, qmul
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def feedback(md, wk, x):
     """``x <- x (-) dx``: subtract the additive blocks, rotate the attitude by ``-psi``."""
     dx, fb, ia, qa = wk.dx, md.feedback, md.ie.att, md.ix.att
@@ -44,7 +44,7 @@ def feedback(md, wk, x):
     x[qa + 3] = q3 * nq
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def write_outputs(md, wk, x, out, s, j, flag):
     """Epoch ``j`` of sequence ``s``: nominal state, sigmas (along the local level in
     ``geodetic``), covariance (when stored), flags."""
@@ -65,15 +65,15 @@ def write_outputs(md, wk, x, out, s, j, flag):
     out.flag[s, j] = flag
 
 
-@njit(cache=True)
-def kernel(md, inp, out):
+@njit_borrowing(cache=True)
+def kernel(md, inp, out, wk, win, x):
     """Filter every sequence of the batch ``inp`` from its start sample ``inp.k0[s]`` through
-    the epochs ``inp.ep_idx`` and write ``out`` (:mod:`imugen.aid.filter.context`)."""
+    the epochs ``inp.ep_idx`` and write ``out`` (:mod:`imugen.aid.filter.context`); ``wk``
+    (:func:`~imugen.aid.filter.context.new_work`, its transition pattern filled), ``win``
+    (:func:`~imugen.aid.filter.measurements.new_windows`) and ``x`` (the nominal state's size)
+    are scratch buffers allocated by the caller: the loop allocates nothing and counts no
+    references (:func:`imugen.core.jit.njit_borrowing`)."""
     S, J, n = inp.dth.shape[0], inp.ep_idx.shape[0], inp.P0.shape[1]
-    wk = new_work(n)
-    transition_pattern(md.ie, md.wgs, wk.nnz, wk.nzc)
-    win = measurements.new_windows()
-    x = np.zeros(inp.x0.shape[1])
     P, dx = wk.P, wk.dx
     ip = md.ix.p
     for s in range(S):

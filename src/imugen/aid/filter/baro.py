@@ -15,13 +15,13 @@ from imugen.aid.companions import C_BARO, C_BARO_VAR
 from imugen.aid.filter.geometry import local_level_nb
 from imugen.aid.filter.kalman import F_REJECT, clear, put, scalar_update
 from imugen.core import earth
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 
 F_BARO = 128
 """Epoch flag: barometer update applied."""
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def height_row(md, x, wk, z):
     """The row of the height ``z`` [m]: fills ``wk.h``; returns ``(m, r)``."""
     ie, ix = md.ie, md.ix
@@ -45,7 +45,7 @@ def height_row(md, x, wk, z):
     return m, pred - z
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def update(e, md, inp, wk, x, tn, win):
     """Barometer update at epoch ``e`` when switched on and measured; returns the flag bits."""
     if not md.opt.baro:

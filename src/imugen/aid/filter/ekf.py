@@ -8,9 +8,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from imugen.aid.companions import CompanionEpochs
+from imugen.aid.filter import measurements
 from imugen.aid.filter._kernel import kernel
 from imugen.aid.filter.align import Initial, align
-from imugen.aid.filter.context import Inputs, Model, Outputs
+from imugen.aid.filter.context import Inputs, Model, Outputs, new_work
+from imugen.aid.filter.error_model import transition_pattern
 from imugen.aid.filter.options import Options
 from imugen.aid.filter.propagate import step_params
 from imugen.aid.filter.state import NOMINAL, NX, StateLayout
@@ -185,7 +187,10 @@ def run(
             cz=part(cz, lo, hi), cmark=cmark, clever=part(clever, lo, hi),
             tun=part(tuning_T, lo, hi), x0=part(init.x0, lo, hi), P0=part(init.P0, lo, hi),
         )  # fmt: skip
-        kernel(md, inp, Outputs(out_x[lo:hi], out_sd[lo:hi], out_P[lo:hi], flags[lo:hi]))
+        wk = new_work(inp.P0.shape[1])
+        transition_pattern(md.ie, md.wgs, wk.nnz, wk.nzc)
+        out = Outputs(out_x[lo:hi], out_sd[lo:hi], out_P[lo:hi], flags[lo:hi])
+        kernel(md, inp, out, wk, measurements.new_windows(), np.zeros(inp.x0.shape[1]))
 
     def nominal(key):
         return out_x[..., NOMINAL.slice(key)]

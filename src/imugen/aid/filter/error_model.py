@@ -53,7 +53,7 @@ from imugen.aid.filter.tuning import (
     T_QS,
 )  # fmt: skip
 from imugen.core import earth
-from imugen.core.jit import njit
+from imugen.core.jit import njit, njit_borrowing
 
 
 @njit(cache=True, inline="always")
@@ -98,7 +98,7 @@ def transition_pattern(ie, wgs, nnz, nzc):
         nnz[i] = m
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def _sparse_rows_times(Phi, nnz, nzc, P, T, n):
     """``T = Phi P`` using only the ``nnz[i]`` non-zero columns ``nzc[i, :]`` of each row of Phi."""
     for i in range(n):
@@ -111,7 +111,7 @@ def _sparse_rows_times(Phi, nnz, nzc, P, T, n):
                 T[i, j] += f * P[c, j]
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def motion_axis(tn, i, ti, di, t2, d2, sf_on, cg_on):
     """Gyro variance of body axis ``i`` along the rotation (times ``|t|^2``) and
     accelerometer variance of axis ``i`` over one interval (see :func:`motion_noise`)."""
@@ -123,7 +123,7 @@ def motion_axis(tn, i, ti, di, t2, d2, sf_on, cg_on):
     return vi, va
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def motion_noise(P, ie, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
     """Add the motion-dependent process noise of one interval of length ``T`` to ``P``
     (:mod:`imugen.aid.filter.tuning`).
@@ -169,7 +169,7 @@ def motion_noise(P, ie, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
         P[ia + a, ia + a] += viso
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def propagate_covariance(md, tn, wk, x, steps):
     """``P <- Phi P Phi^T + Q`` over ``steps`` IMU intervals just integrated by the strapdown
     (its integrals in ``wk``; ``x`` the nominal state at the interval's end), and the decay

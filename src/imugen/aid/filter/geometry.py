@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 
 from imugen.core import earth
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def level_nb(x, y, z):
     """ECEF -> ``(sin lat, cos lat, cos lon, sin lon, h)``: the numba twin of
     :func:`imugen.core.earth.geodetic_parts` (same operations, same order)."""
@@ -33,7 +33,7 @@ def level_nb(x, y, z):
     return sl, cl, 1.0, 0.0, h
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def local_level_nb(x, y, z, L):
     """``L = C_le`` (ECEF -> East, North, Up at the ECEF point ``(x, y, z)``); returns ``h``."""
     sl, cl, co, so, hgt = level_nb(x, y, z)
@@ -49,7 +49,7 @@ def local_level_nb(x, y, z, L):
     return hgt
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def local_sd(P, L, i0, out, o0):
     """``out[o0 + a] = sqrt(L_a P_blk L_a^T)``: 1-sigma along the rows of ``L`` of the 3x3
     block of ``P`` starting at ``i0``."""
@@ -61,7 +61,7 @@ def local_sd(P, L, i0, out, o0):
         out[o0 + a] = math.sqrt(max(acc, 0.0))
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def mv(m, o, x, y, z):
     """``M (x, y, z)`` with ``M`` the 3x3 matrix stored row-major at ``m[o : o + 9]``."""
     return (
@@ -71,7 +71,7 @@ def mv(m, o, x, y, z):
     )
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def dcm(q0, q1, q2, q3, C):
     """``C`` (3, 3) <- the rotation matrix of the unit quaternion ``q`` (scalar first)."""
     C[0, 0] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
@@ -85,7 +85,7 @@ def dcm(q0, q1, q2, q3, C):
     C[2, 2] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def skew(x, y, z, M):
     """``M`` (3, 3) <- ``[(x, y, z) x]``, the cross-product matrix."""
     M[0, 0] = 0.0

@@ -21,13 +21,13 @@ from imugen.aid.filter.geometry import local_level_nb, skew
 from imugen.aid.filter.kalman import F_REJECT, clear, put, scalar_update
 from imugen.aid.filter.tuning import T_GB_SD, T_GW
 from imugen.core import earth
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 
 F_GNSS_P, F_GNSS_V = 1, 2
 """Epoch flags: GNSS position, velocity updates applied."""
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def antenna(e, md, inp, x, wk):
     """The fix's prediction at epoch ``e``: antenna position ``pred`` and velocity ``predv``
     at the time of validity (n, m and m/s), ``C l``, ``C (omega x l)`` (relative to n) and the
@@ -62,7 +62,7 @@ def antenna(e, md, inp, x, wk):
     return pred, predv, (cl0, cl1, cl2), (cw0, cw1, cw2), L
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def _split_variance(var, tn, a):
     """The white part of the reported variance of axis ``a`` (with bias states)."""
     wsd = tn[T_GW + a]
@@ -70,7 +70,7 @@ def _split_variance(var, tn, a):
     return var * (wsd * wsd / tot) if tot > 0.0 else var
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def position_row(e, md, inp, x, wk, tn, a, pred, cl, L):
     """Row of axis ``a`` (n) of the position fix: fills ``wk.h``; returns ``(m, r, var)``."""
     ie = md.ie
@@ -92,7 +92,7 @@ def position_row(e, md, inp, x, wk, tn, a, pred, cl, L):
     return m, r, max(var, 1e-12)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def velocity_row(e, md, inp, x, wk, a, predv, cw):
     """Row of axis ``a`` (n) of the velocity fix: fills ``wk.h``; returns ``(m, r, var)``."""
     ie, C, s = md.ie, wk.C, e.s
@@ -116,7 +116,7 @@ def velocity_row(e, md, inp, x, wk, a, predv, cw):
     return m, predv[a] - inp.zv[s, e.j, a], var
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def position_row_local(e, md, inp, x, wk, tn, a, pred, cl, L):
     """Row of local axis ``a`` (E, N, U at the antenna, rows of ``wk.Lm``) of the position fix
     in ``geodetic``: fills ``wk.h``; returns ``(m, r, var)``."""
@@ -147,7 +147,7 @@ def position_row_local(e, md, inp, x, wk, tn, a, pred, cl, L):
     return m, r, max(var, 1e-12)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def velocity_row_local(e, md, inp, x, wk, a, predv, cw):
     """Row of local axis ``a`` of the velocity fix in ``geodetic``: fills ``wk.h``; returns
     ``(m, r, var)``."""
@@ -181,7 +181,7 @@ def velocity_row_local(e, md, inp, x, wk, a, predv, cw):
     return 9, r, max(inp.sv[e.s, e.j, a] ** 2, 1e-12)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def update(e, md, inp, wk, x, tn, win):
     """GNSS updates at epoch ``e`` when its fix is usable; returns the flag bits."""
     if not inp.ok[e.s, e.j]:

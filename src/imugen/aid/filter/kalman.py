@@ -16,13 +16,13 @@ optimal gain and would change the rounding of every published result.)
 
 from __future__ import annotations
 
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 
 F_REJECT = 16
 """Epoch flag: a scalar update was rejected by the innovation gate."""
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def clear(wk):
     """Zero the measurement row ``wk.h``; returns 0 (the row's count of non-zeros)."""
     for i in range(wk.h.shape[0]):
@@ -30,7 +30,7 @@ def clear(wk):
     return 0
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def put(wk, m, i, value):
     """Set ``h[i] = value`` as the row's ``m``-th non-zero; returns ``m + 1``."""
     wk.h[i] = value
@@ -38,7 +38,7 @@ def put(wk, m, i, value):
     return m + 1
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def scalar_update(wk, nnz, r, var, gate):
     """One scalar update of ``wk.P`` and ``wk.dx`` with the row ``wk.h`` (non-zero at
     ``wk.hz[:nnz]``), residual ``r = z_pred - z`` and noise variance ``var``.
@@ -74,7 +74,7 @@ def scalar_update(wk, nnz, r, var, gate):
     return True
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def fresh_state(P, dx, i, sd):
     """Start state ``i`` afresh: uncorrelated, zero mean error, variance ``sd^2``."""
     for j in range(P.shape[0]):
@@ -84,7 +84,7 @@ def fresh_state(P, dx, i, sd):
     dx[i] = 0.0
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def symmetrize(P):
     """``P <- (P + P^T) / 2`` in place (once per epoch)."""
     n = P.shape[0]

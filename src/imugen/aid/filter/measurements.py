@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 from imugen.aid.filter import baro, gnss, nhc, odometer, zupt
 from imugen.aid.filter.kalman import F_REJECT
-from imugen.core.jit import njit
+from imugen.core.jit import njit, njit_borrowing
 
 F_ALIGNED = 32
 """Epoch flag: the filter runs (set at every epoch after the start)."""
@@ -55,13 +55,13 @@ def new_windows():
     return Windows(odometer.new_window())
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def start(win):
     """A sequence's start: no window open."""
     odometer.start(win.odometer)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def update(e, md, inp, wk, x, tn, win):
     """Every measurement update at epoch ``e``, in order; returns the flag bits."""
     flag = gnss.update(e, md, inp, wk, x, tn, win)
@@ -72,20 +72,20 @@ def update(e, md, inp, wk, x, tn, win):
     return flag
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def begin_interval(win, md, inp, s, k, ke, x, wk):
     """Start of the strapdown from sample ``k`` to ``ke`` (nominal state ``x`` at ``k``)."""
     odometer.begin_interval(win.odometer, md, inp, s, k, ke, x, wk)
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def on_sample(win, md, wk, q0, q1, q2, q3, vx, vy, vz, tx, ty, tz):
     """After each strapdown step (``wk.C`` before the step; ``q``, ``v`` after it; ``t`` the
     corrected angle increment, body)."""
     odometer.on_sample(win.odometer, md, wk, q0, q1, q2, q3, vx, vy, vz, tx, ty, tz)
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def after_feedback(win, md, wk, tn):
     """After the epoch's feedback (the fed-back error still in ``wk.dx``)."""
     odometer.after_feedback(win.odometer, md, wk, tn)

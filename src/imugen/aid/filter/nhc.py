@@ -44,13 +44,13 @@ import math
 from imugen.aid.filter.geometry import skew
 from imugen.aid.filter.kalman import clear, put, scalar_update
 from imugen.aid.filter.tuning import T_NG
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 
 F_NHC = 8
 """Epoch flag: non-holonomic constraint applied."""
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def body_cov(P, i0, Cv, i, j):
     """``Cv[:, i]^T P_blk Cv[:, j]``: covariance of components ``i``, ``j`` (vehicle axes) of
     the 3x3 block of ``P`` starting at ``i0``."""
@@ -61,7 +61,7 @@ def body_cov(P, i0, Cv, i, j):
     return acc
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def second_order_var(P, ie, Cv, u, row):
     """Variance of the NHC prediction's second-order error (module docstring): with ``psi``, ``dv`` in vehicle axes, ``v_b,hat - v_b = -(psi x dv) +
     u/2 psi (psi_x) + ...``, so row y carries ``u/2 psi_y psi_x - psi_z dv_x + psi_x dv_z``
@@ -78,7 +78,7 @@ def second_order_var(P, ie, Cv, u, row):
     return 0.25 * u * u * (sxx * soo + sxo * sxo) + srr * vxx + sxx * vrr
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def vehicle_velocity(e, md, x, wk):
     """The reference point's velocity in vehicle axes, ``R (C^T v - omega x l)`` [m/s]
     (``(u, v_y, v_z)``), and the lever arm ``l`` (nominal plus its estimate, body [m]); fills
@@ -119,7 +119,7 @@ def vehicle_velocity(e, md, x, wk):
     return (ub, vby, vbz), (nlx, nly, nlz)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def row(e, md, x, wk, tn, r_, vel, lever):
     """Row ``r_`` (1: lateral, 2: vertical) of the constraint, after
     :func:`vehicle_velocity`: fills ``wk.h``; returns ``(m, r, var)``."""
@@ -168,7 +168,7 @@ def row(e, md, x, wk, tn, r_, vel, lever):
     return m, vel[r_], var
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def update(e, md, inp, wk, x, tn, win):
     """NHC at epoch ``e`` when switched on (lateral, then vertical); returns the flag bits."""
     if not md.opt.nhc:

@@ -40,7 +40,7 @@ from imugen.aid.companions import C_ODO, C_ODO_VAR
 from imugen.aid.filter.geometry import dcm
 from imugen.aid.filter.kalman import F_REJECT, clear, fresh_state, put, scalar_update
 from imugen.aid.filter.tuning import T_NG, T_OQ_SD, T_OSF_SD
-from imugen.core.jit import njit
+from imugen.core.jit import njit, njit_borrowing
 
 F_ODO = 64
 """Epoch flag: odometer update applied."""
@@ -79,14 +79,14 @@ def new_window():
     return Window(np.zeros(4), z, z.copy(), z.copy(), np.zeros(6), z.copy(), z.copy())
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def start(win):
     """No window open (a sequence's start)."""
     win.sc[W_ARMED] = 0.0
     reset(win)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def reset(win):
     """Close the window: zero distance, duration and sensitivities (``armed`` unchanged)."""
     win.sc[W_DIST] = 0.0
@@ -97,7 +97,7 @@ def reset(win):
         win.tw[a] = 0.0
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def axes(md, x, l_odo, ra):
     """The odometer's geometry in IMU axes: ``ra[:3]`` the vehicle's forward axis ``r``
     (``R^T e_x`` with the estimated mounting ``R = Rz(yaw) Ry(-pitch)``, else ``e_x``),
@@ -124,7 +124,7 @@ def axes(md, x, l_odo, ra):
     ra[5] = d0 * ra[1] - d1 * ra[0]
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def window_sensitivities(win, tn, dt):
     """Sensitivities of the window's distance to the gyro bias (``win.hbg = -a T_w``) and to
     the IMU lever arm (``win.hla = -(r x theta_w)``, ``theta_w`` the window's corrected angle,
@@ -141,7 +141,7 @@ def window_sensitivities(win, tn, dt):
     win.hla[2] = -(ra[0] * g1 - ra[1] * g0)
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def begin_interval(win, md, inp, s, k, ke, x, wk):
     """At the start of an interval (nominal state ``x`` at sample ``k``): the geometry and
     the forward speed at ``t_k`` (lever-arm term: the first interval's rate)."""
@@ -166,7 +166,7 @@ def begin_interval(win, md, inp, s, k, ke, x, wk):
     win.sc[W_U0] = u0
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def on_sample(win, md, wk, q0, q1, q2, q3, vx, vy, vz, tx, ty, tz):
     """After one strapdown step (``wk.C`` before it, quaternion ``q`` and velocity ``v``
     after it, ``t`` the corrected angle increment): the trapezoid of the forward speed, as
@@ -196,7 +196,7 @@ def on_sample(win, md, wk, q0, q1, q2, q3, vx, vy, vz, tx, ty, tz):
     win.hpsi[2] += dt * (cx * vy - cy * vx)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def distance_row(md, x, wk, win, z):
     """The row of the distance ``z`` [m] over the window: ``z_pred = (1 + k) d - e_a`` with
     ``e_a`` the estimated tick residual at the window's start (the end's has prior mean 0);
@@ -221,7 +221,7 @@ def distance_row(md, x, wk, win, z):
     return m, g * d_hat - x[ix.odo_tick] - z
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def update(e, md, inp, wk, x, tn, wins):
     """At a marked epoch: the distance update (when a window is open and the count is
     finite), then the end's tick residual becomes the next window's start and a new window
@@ -260,7 +260,7 @@ def update(e, md, inp, wk, x, tn, wins):
     return flag
 
 
-@njit(cache=True, inline="always")
+@njit_borrowing(cache=True, inline="always")
 def after_feedback(win, md, wk, tn):
     """An open window's distance so far, corrected by the epoch's feedback ``wk.dx``."""
     if not (md.opt.odometer and win.sc[W_ARMED] != 0.0):

@@ -26,7 +26,7 @@ import numpy as np
 from imugen.aid.filter import measurements
 from imugen.aid.filter.geometry import dcm, mv
 from imugen.core import earth
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 from imugen.core.rotations_nb import qexpm1, qmul
 
 # --- parameters of the strapdown step: the Earth model's (earth.N_PARAMS), then these slots ----
@@ -64,7 +64,7 @@ def step_params(frame, dt: float) -> np.ndarray:
     return prm
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def gravitation(md, x):
     """Gravitation at the nominal position ``x`` (``(0, 0, -g0)`` in ``flat``) [m/s^2]."""
     if md.wgs:
@@ -72,7 +72,7 @@ def gravitation(md, x):
     return 0.0, 0.0, -md.g0
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def strapdown(md, inp, s, k, ke, x, wk, win):
     """Propagate the nominal state ``x`` of sequence ``s`` from sample ``k`` to ``ke``.
 
@@ -227,7 +227,7 @@ def strapdown(md, inp, s, k, ke, x, wk, win):
     return still
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def rate_at(md, inp, s, ke, x):
     """Corrected angular rate at ``t_ke`` (body) [rad/s], extrapolated from the mean rates of
     the last two intervals (second order; the lever arms' velocity)."""

@@ -12,13 +12,13 @@ from __future__ import annotations
 import math
 
 from imugen.aid.filter.kalman import clear, put, scalar_update
-from imugen.core.jit import njit
+from imugen.core.jit import njit_borrowing
 
 F_ZUPT = 4
 """Epoch flag: zero-velocity update applied."""
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def velocity_row(md, x, wk, a):
     """Row of axis ``a``: ``r = v_a``, ``h = e_{v,a}``; returns ``(m, r, var)``."""
     m = clear(wk)
@@ -26,7 +26,7 @@ def velocity_row(md, x, wk, a):
     return m, x[md.ix.v + a], md.opt.zupt_sd**2
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def update(e, md, inp, wk, x, tn, win):
     """ZUPT at epoch ``e`` when switched on, still and slow; returns the flag bits."""
     if not (md.opt.zupt and e.still and e.started):
