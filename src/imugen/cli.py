@@ -32,6 +32,34 @@ def _printable(text: str) -> str:
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """The one help formatter of every command: each option's help ends with its default,
+    ``(default: X)``, printed once, by this formatter (a help text never repeats it; an option
+    without a default value, or a flag, shows none)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if (
+            not action.option_strings
+            or default is None
+            or default is argparse.SUPPRESS
+            or isinstance(default, bool)
+            or default == []
+        ):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def _route_formats() -> str:
+    """The route formats ingestion reads, from the reader registry."""
+    from imugen.ingest.readers import FORMATS
+
+    own = [f.name for f in FORMATS if f.module != "babel"]
+    babel = [f.name for f in FORMATS if f.module == "babel"]
+    return f"{', '.join(own)} (told apart by content); {', '.join(babel)} (by suffix, through GPSBabel)"
+
+
 def _add_ingest_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--path", help="candidate path name, or 1-based index, when the file has several"
@@ -392,18 +420,17 @@ def _cmd_closure(a) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="imugen", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"imugen {__version__}")
-    # every subcommand's help shows each option's default (tests/system/test_cli.py checks that every
-    # option has help text and that defaults agree with the workflow's schema)
+    # every subcommand's help shows each option's default once (_HelpFormatter;
+    # tests/system/test_cli.py checks that every option has help text, that no default is
+    # printed twice and that defaults agree with the workflow's schema)
     sub = parser.add_subparsers(
         dest="command",
         required=True,
-        parser_class=functools.partial(
-            argparse.ArgumentParser, formatter_class=argparse.ArgumentDefaultsHelpFormatter
-        ),
+        parser_class=functools.partial(argparse.ArgumentParser, formatter_class=_HelpFormatter),
     )
 
     p = sub.add_parser("ingest", help="route file -> geodetic table + local ENU (.parquet/.csv)")
-    p.add_argument("src", help="KML, KMZ, GPX, CSV or E N U text file")
+    p.add_argument("src", help=f"route file: {_route_formats()}")
     p.add_argument("-o", "--output", required=True, help="output file ending in .parquet or .csv")
     _add_ingest_options(p)
     p.add_argument("--utm", action="store_true", help="also write UTM easting/northing columns")
@@ -510,7 +537,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--vibration",
         choices=["off", "car", "aircraft", "vehicle"],
         default="off",
-        help="vibration of the IMU case (vehicle: the truth's vehicle class; default off)",
+        help="vibration of the IMU case (vehicle: the truth's vehicle class)",
     )
     p.add_argument("--temperature", metavar="JSON", help="temperature profile (see docs)")
     p.add_argument(
@@ -708,11 +735,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--host",
         default="127.0.0.1",
-        help="address to listen on (default 127.0.0.1: this machine only)",
+        help="address to listen on (127.0.0.1: this machine only)",
     )
-    p.add_argument(
-        "--workdir", default="imugen-runs", help="folder of the runs (default ./imugen-runs)"
-    )
+    p.add_argument("--workdir", default="imugen-runs", help="folder of the runs")
     p.add_argument("--repo", help="project folder with the Snakefile (default: found)")
     p.set_defaults(func=_cmd_serve)
     p = sub.add_parser(
@@ -736,21 +761,19 @@ def build_parser() -> argparse.ArgumentParser:
         "--split-by",
         choices=["sequence", "route"],
         default="sequence",
-        help="split unit of the lists: each sequence, or each route whole (default sequence)",
+        help="split unit of the lists: each sequence, or each route whole",
     )
     p.add_argument(
         "--holdout-routes",
         metavar="A,B",
         help="routes whose sequences form the test list, whole, in every export",
     )
-    p.add_argument(
-        "--val-fraction", type=float, default=0.1, help="share of the val list (default 0.1)"
-    )
+    p.add_argument("--val-fraction", type=float, default=0.1, help="share of the val list")
     p.add_argument(
         "--test-fraction",
         type=float,
         default=0.1,
-        help="share of the test list without --holdout-routes (default 0.1)",
+        help="share of the test list without --holdout-routes",
     )
     p.add_argument(
         "--sequences", type=int, nargs="+", metavar="ID", help="export only these sequence ids"
@@ -783,7 +806,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "grade", help="import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr"
     )
-    gsub = p.add_subparsers(dest="grade_command", required=True)
+    gsub = p.add_subparsers(
+        dest="grade_command",
+        required=True,
+        parser_class=functools.partial(argparse.ArgumentParser, formatter_class=_HelpFormatter),
+    )
     q = gsub.add_parser("import", help="IMU description -> imugen custom grade (YAML)")
     q.add_argument(
         "file",
@@ -802,7 +829,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("grade", help="preset name, or FILE.yaml:NAME")
     q.add_argument("--grades-file", help="YAML file with custom grades")
     q.add_argument("--rate-hz", type=float, default=100.0, help="update_rate (Hz)")
-    q.add_argument("--topic", default="/imu0", help="rostopic (default /imu0)")
+    q.add_argument("--topic", default="/imu0", help="rostopic")
     q.add_argument("-o", "--output", help="imu.yaml to write (default: print)")
     q.set_defaults(func=_cmd_grade_export)
 

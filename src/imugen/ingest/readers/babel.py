@@ -12,9 +12,12 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from imugen.core.errors import InputError
-from imugen.ingest.route import RoutePath
+
+if TYPE_CHECKING:
+    from imugen.ingest.route import RoutePath
 
 #: File suffix -> GPSBabel input format.
 FORMATS = {
