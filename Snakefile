@@ -53,8 +53,16 @@ include: "workflow/rules/export.smk"
 include: "workflow/rules/allan.smk"
 
 
+onstart:
+    check_executor()
+
+
 onsuccess:
     run_summary()
+
+
+onerror:
+    report_failures(log)
 
 
 rule all:

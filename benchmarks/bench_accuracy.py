@@ -126,7 +126,7 @@ def run_rate(ing, R, repeats):
         )
 
     def synth1():  # method 1: the same spline's positions at R, then forward differences
-        motion, _, _ = tr.build_motion(ing.table, ing.meta, vp, tr.TruthOptions())
+        motion, _, _ = tr.build_motion(ing.table, ing.meta, vp, tr.BuildOptions())
         p = motion.position(motion.t0 + np.arange(K) * dt)
         return p, pm.synthesize(p, dt, g0)
 

@@ -6,15 +6,21 @@ The batch is tiled to ``--sequences`` sequences. The filter starts at the first 
 (``initial_state`` at the truth), so every sample is filtered; the alignment and the Python
 set-up are excluded. Reported: million sample-sequences per second (Msps) for each option set,
 by wall clock and per CPU-second of this process (the per-core figure when other jobs share
-the cores):
+the cores), with the size of the error state (the default estimates the gyro's six
+cross-coupling elements):
 
-* 15 states (p, v, psi, b_g, b_a), GNSS position + velocity;
-* 18 states (+ GNSS Gauss-Markov bias), the default;
-* 18 states + NHC + ZUPT (a car);
-* 24 states (+ gyro and accelerometer scale factors) + NHC + ZUPT;
-* 22 states (18 + odometer scale factor + barometer drift + the odometer's two tick residuals)
+* p, v, psi, b_g, b_a only (15 states), GNSS position + velocity;
+* + GNSS Gauss-Markov bias, gyro cross-coupling (24 states), the default;
+* the default + NHC + ZUPT (a car);
+* + gyro and accelerometer scale factors + NHC + ZUPT;
+* the default + odometer scale factor + barometer drift + the odometer's two tick residuals
   + NHC + ZUPT + odometer (``abs``, 10 Hz) and barometer (``bmp388``, 10 Hz) updates;
-* 18 states + NHC + ZUPT in ``wgs84``.
+* the default + NHC + ZUPT in ``wgs84``.
+
+``--compile`` instead measures the filter kernel's numba compilation from a cold cache: in
+fresh processes with ``NUMBA_CACHE_DIR`` an empty folder, the CPU seconds of the first
+:func:`imugen.aid.filter.run` call minus those of the second (a tiny synthetic batch; every
+option set shares one compiled signature).
 
 ``--outage`` instead measures the horizontal error at the end of a 30 s and a 60 s GNSS outage
 starting at t = 100 s on the same scene (consumer and industrial, every configured error term,
@@ -26,6 +32,7 @@ Usage::
 
     python benchmarks/bench_aided.py [--sequences 512] [--repeat 3] [--json out.json]
     python benchmarks/bench_aided.py --outage [--sequences 200]
+    python benchmarks/bench_aided.py --compile [--repeat 3]
 """
 
 from __future__ import annotations
@@ -37,17 +44,24 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
+from types import SimpleNamespace  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from imugen import truth as T  # noqa: E402
 from imugen.aid import companions as CP  # noqa: E402
+from imugen.aid import filter as A  # noqa: E402
 from imugen.aid import gnss as G  # noqa: E402
-from imugen.aid.filter import ekf as A  # noqa: E402
 from imugen.core.earth import OriginFrame, earth_rate_n  # noqa: E402
 from imugen.simulate import stage as SIM  # noqa: E402
+
+if not hasattr(A, "run"):  # before the filter became a package (issue 23): one module
+    from imugen.aid.filter import ekf as A
 
 ORIGIN = (45.0, 7.0, 200.0)
 
@@ -179,13 +193,70 @@ def outage_table(M: int) -> dict:
     return out
 
 
+def _compile_child():
+    """First and second call of the filter on a tiny synthetic batch (no other kernel runs);
+    prints the CPU seconds of the first minus the second."""
+    S, K, J = 2, 201, 20
+    dth = np.zeros((S, K, 3))
+    dv = np.zeros((S, K, 3))
+    dv[..., 2] = 9.81 * 0.01
+    idx = np.arange(1, J + 1) * 10
+    gn = SimpleNamespace(
+        index=idx, time_s=idx * 0.01, p_n=np.zeros((S, J, 3)), v_n=np.zeros((S, J, 3)),
+        sigma_p_n=np.ones((S, J, 3)), sigma_v_n=np.full((S, J, 3), 0.1),
+        valid=np.ones((S, J), bool), receiver=None,
+        params=SimpleNamespace(lever_arm_b_m=np.zeros((S, 3)), latency_s=np.zeros(S)),
+    )  # fmt: skip
+    frame = OriginFrame.from_deg(*ORIGIN, model="flat")
+    tun = A.Tuning.from_grade("consumer")
+    opts = A.Options(nhc=True, zupt=True)
+    P0 = A.initial_covariance(tun, opts, 1.0, 0.1, 0.01)
+    init = A.initial_state(0, np.zeros(3), np.zeros(3), [1.0, 0, 0, 0], np.repeat(P0, S, 0))
+    T = A.tuning_matrix(tun, S)
+    cpu = []
+    for _ in range(2):
+        c0 = time.process_time()
+        A.run(dth, dv, 0.01, frame, gn, tun, opts, init, tuning_T=T)
+        cpu.append(time.process_time() - c0)
+    print(json.dumps({"compile_cpu_s": cpu[0] - cpu[1]}))
+
+
+def compile_time(repeat: int) -> dict:
+    """Cold-cache compilation of the filter kernel, in fresh processes (see the docstring)."""
+    out = []
+    for _ in range(repeat):
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+            t0 = time.perf_counter()
+            r = subprocess.run(
+                [sys.executable, __file__, "--compile-child"], env=env, check=True,
+                capture_output=True, text=True,
+            )  # fmt: skip
+            wall = time.perf_counter() - t0
+        cpu = json.loads(r.stdout.strip().splitlines()[-1])["compile_cpu_s"]
+        out.append({"compile_cpu_s": round(cpu, 2), "process_wall_s": round(wall, 2)})
+        print(f"compile {cpu:6.2f} CPU-s   (whole process {wall:6.2f} s wall)", flush=True)
+    return {"runs": out, "min_compile_cpu_s": min(o["compile_cpu_s"] for o in out)}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sequences", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json")
     ap.add_argument("--outage", action="store_true")
+    ap.add_argument("--compile", action="store_true")
+    ap.add_argument("--compile-child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.compile_child:
+        _compile_child()
+        return
+    if a.compile:
+        out = compile_time(a.repeat)
+        if a.json:
+            with open(a.json, "w") as fh:
+                json.dump(out, fh, indent=1)
+        return
     if a.outage:
         out = outage_table(a.sequences)
         if a.json:
@@ -193,13 +264,11 @@ def main():
                 json.dump(out, fh, indent=1)
         return
     configs = {
-        "15 states": A.Options(gnss_bias=False),
-        "18 states (GNSS bias)": A.Options(),
-        "18 states + NHC + ZUPT": A.Options(nhc=True, zupt=True),
-        "24 states (+ scale factors) + NHC + ZUPT": A.Options(
-            scale_factors=True, nhc=True, zupt=True
-        ),
-        "22 states + NHC + ZUPT + odometer + barometer": A.Options(
+        "base": A.Options(gnss_bias=False, gyro_cross_coupling=False),
+        "default": A.Options(),
+        "NHC + ZUPT": A.Options(nhc=True, zupt=True),
+        "scale factors + NHC + ZUPT": A.Options(scale_factors=True, nhc=True, zupt=True),
+        "NHC + ZUPT + odometer + barometer": A.Options(
             nhc=True, zupt=True, odometer=True, baro=True
         ),
     }
@@ -207,10 +276,10 @@ def main():
     for earth in ("flat", "wgs84"):
         data = scene(earth, a.sequences)
         for name, opts in configs.items():
-            if earth == "wgs84" and name != "18 states + NHC + ZUPT":
+            if earth == "wgs84" and name != "NHC + ZUPT":
                 continue
             wall, cpu = bench(*data, opts, a.repeat)
-            key = f"{earth}: {name}"
+            key = f"{earth}: {name} ({opts.n} states)"
             out[key] = {"wall_msps": round(wall, 3), "cpu_msps": round(cpu, 3)}
             print(f"{key:50s} {wall:6.2f} Msps wall  {cpu:6.2f} Msps per CPU-second")
     if a.json:

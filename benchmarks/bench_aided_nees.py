@@ -38,8 +38,8 @@ import pandas as pd  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
 from imugen import truth as T  # noqa: E402
+from imugen.aid import filter as A  # noqa: E402
 from imugen.aid import gnss as G  # noqa: E402
-from imugen.aid.filter import ekf as A  # noqa: E402
 from imugen.core import units  # noqa: E402
 from imugen.core.earth import OriginFrame  # noqa: E402
 from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm  # noqa: E402

@@ -40,9 +40,9 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from imugen import truth as T  # noqa: E402
+from imugen.aid import filter as A  # noqa: E402
 from imugen.aid import gnss as G  # noqa: E402
 from imugen.aid import scenarios as SC  # noqa: E402
-from imugen.aid.filter import ekf as A  # noqa: E402
 from imugen.core.earth import OriginFrame, earth_rate_n  # noqa: E402
 from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm  # noqa: E402
 from imugen.simulate import stage as SIM  # noqa: E402

@@ -58,6 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from imugen.sensors.ideal import ArrayTruth
+from imugen.simulate.options import SimulateOptions
 from imugen.simulate.plan import plan_shard
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -198,7 +199,8 @@ def normals_per_sample(truth_path: Path, grade: str) -> float:
 
     tr = ArrayTruth.read(truth_path)
     tr.K = min(tr.K, 2 * S.CHUNK)
-    return float(S._loop(plan_shard(tr, grade, 1, 1, 0), Null()))
+    opts = SimulateOptions(grade=grade, sequences=1, seed=1, shard=0)
+    return float(S._loop(plan_shard(tr, opts), Null()))
 
 
 def mech_rate(truth_path: Path, batch: int = 16, repeats: int = 3) -> float:

@@ -29,6 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen.simulate import stage as S
+from imugen.simulate.options import SimulateOptions
 from imugen.simulate.plan import plan_shard
 from imugen.simulate.sources import StaticTruth
 from imugen.tables import shard as tshard
@@ -57,8 +58,8 @@ def normals_rate(dtype=np.float64, seconds=2.0, shape=(S.CHUNK, 3)) -> float:
 
 def injection(grade, M, K, rate_hz=100.0):
     tr = StaticTruth((K - 1) / rate_hz, rate_hz)
-    S._loop(plan_shard(tr, grade, 2, 1, 0), _Null())  # compile
-    plan = plan_shard(tr, grade, M, 1, 0)
+    S._loop(plan_shard(tr, SimulateOptions(grade=grade, sequences=2, seed=1, shard=0)), _Null())
+    plan = plan_shard(tr, SimulateOptions(grade=grade, sequences=M, seed=1, shard=0))
     t0 = time.perf_counter()
     nps = S._loop(plan, _Null())
     el = time.perf_counter() - t0
@@ -128,16 +129,11 @@ def main():
         d = Path(a.out_dir or tempfile.mkdtemp())
         out = d / "bench_shard.parquet"
         t0 = time.perf_counter()
-        S.run(
-            None,
-            out,
-            a.grade,
-            sequences=a.sequences,
-            seed=1,
-            shard=0,
-            static_s=(a.samples - 1) / 100.0,
-            rate_hz=100.0,
-        )
+        opts = SimulateOptions(
+            grade=a.grade, sequences=a.sequences, seed=1, shard=0,
+            static_s=(a.samples - 1) / 100.0, rate_hz=100.0,
+        )  # fmt: skip
+        S.run(None, out, opts)
         el = time.perf_counter() - t0
         size = out.stat().st_size
         res.update(

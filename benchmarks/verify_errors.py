@@ -27,10 +27,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from imugen.allan import stage as allan
+from imugen.allan.options import AllanOptions
 from imugen.core.earth import OriginFrame
 from imugen.navigate.mechanize import mechanize
 from imugen.sensors.grades import grade_from_config, presets
 from imugen.simulate import stage as S
+from imugen.simulate.options import SimulateOptions
 from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import shard as tshard
 
@@ -73,17 +75,12 @@ def allan_part(out: Path, quick: bool) -> dict:
         print(f"test grade {rate:g} Hz:", {k: round(v["ratio"], 3) for k, v in rep.items()})
     for name in presets():
         p = out / f"static_{name}.parquet"
-        S.run(
-            None,
-            p,
-            name,
-            sequences=8,
-            seed=1,
-            static_s=1800.0 if quick else 7200.0,
-            rate_hz=100.0,
-            draw="nominal",
-        )
-        rep = allan.run(p, plot=out / f"allan_{name}.png", max_sequences=8)
+        opts = SimulateOptions(
+            grade=name, sequences=8, seed=1, shard=0, static_s=1800.0 if quick else 7200.0,
+            rate_hz=100.0, draw="nominal",
+        )  # fmt: skip
+        S.run(None, p, opts)
+        rep = allan.run(p, out / f"allan_{name}.png", AllanOptions(max_sequences=8))
         res[name] = rep
         p.unlink()
         tshard.labels_path(p).unlink()

@@ -103,3 +103,15 @@ def dry_run_outputs(workdir, *args) -> list[str]:
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = re.findall(r"^\s+output: (.+)$", proc.stdout + proc.stderr, flags=re.M)
     return [p for line in lines for p in line.split(", ")]
+
+
+# --- the stages' faces with the options of a test as keywords ----------------------------------
+def simulate_shard(truth, out, grade="consumer", sequences=1, seed=0, shard=0, *, navigate=None,
+                   **options):  # fmt: skip
+    """:func:`imugen.simulate.stage.run` with its options as keywords (those of
+    :class:`imugen.simulate.options.SimulateOptions`); the metadata written."""
+    from imugen.simulate.options import SimulateOptions
+    from imugen.simulate.stage import run
+
+    opts = SimulateOptions(grade=grade, sequences=sequences, seed=seed, shard=shard, **options)
+    return run(truth, out, opts, navigate=navigate)

@@ -116,10 +116,10 @@ def test_budget_estimate_and_refusal(tmp_path):
     assert est["disk_b"] == pytest.approx(disk)
     assert est["memory_b"] == pytest.approx(300e6 + 700 * samples)
     small = config(budget__disk_gib=disk / 2**30 / 2)
-    with pytest.raises(InputError, match=r"would write about 0\.0 GiB but the budget"):
+    with pytest.raises(InputError, match=r"would write about 1\.58 MiB but the budget is 810 KiB"):
         preflight.check_budget(small, tmp_path / "results")
     hungry = config(truth__rate_hz=10_000, budget__memory_gib=1)
-    with pytest.raises(InputError, match=r"needs about 4\.3 GiB of memory .*619 s at 10000 Hz"):
+    with pytest.raises(InputError, match=r"needs about 4\.31 GiB of memory .*619 s at 10000 Hz"):
         preflight.check_budget(hungry, tmp_path / "results")
     assert preflight.check_budget(config(budget__memory_gib=1), tmp_path / "results") == est
 
@@ -132,6 +132,9 @@ def test_workflow_refuses_before_any_job(tmp_path):
     assert proc.returncode != 0
     assert "imugen: error: config: the run would write about" in proc.stdout + proc.stderr
     assert not (tmp_path / "results").exists() and not (tmp_path / "logs").exists()
+    proc = snakemake(tmp_path, "-n", "-j1")  # a dry run checks the budget too
+    assert proc.returncode != 0
+    assert "imugen: error: config: the run would write about" in proc.stdout + proc.stderr
     cfg = copy.deepcopy(BASE)
     cfg["truth"]["rate_hz"] = float("nan")
     write_config(tmp_path, cfg)

@@ -7,7 +7,7 @@ the part, so the documentation cannot drift from the code:
 - ``config``: every configuration key (path, type, default, bounds, description), from
   ``workflow/schemas/config.schema.yaml``;
 - ``files``: every file that passes between stages, its columns and units, from ``imugen.tables``;
-- ``readers``: the route formats ingestion reads, from ``imugen.ingest.readers.FORMATS``;
+- ``readers``: the route formats ingestion reads, from the registry ``imugen.ingest.formats``;
 - ``rulegraph``: ``snakemake --rulegraph`` turned from DOT into a Mermaid diagram;
 - ``house``: stage -> rule -> rule file -> package -> command -> tests -> files in and out, from
   the rule files, the command line and a dry run of the workflow;
@@ -94,46 +94,70 @@ def _subcommands(parser, prefix=()):
                 yield from _subcommands(sub, (*prefix, name))
 
 
-def _option_row(parser, action) -> list[str]:
-    plain = argparse.HelpFormatter(parser.prog)  # the help text alone; defaults have a column
-    value = action.metavar or (None if action.choices else action.dest.upper())
-    if action.option_strings:
-        names = ", ".join(f"`{o}`" for o in action.option_strings)
-        if action.nargs != 0 and value:
-            names += f" `{plain._format_args(action, value)}`"
-    else:
-        names = f"`{plain._format_args(action, action.metavar or action.dest)}`"
+def _names(action, value=None) -> str:
+    """An argument as the house writes it: ``--name=VALUE`` for an option taking a value."""
+    plain = argparse.HelpFormatter("imugen")
+    value = value or action.metavar or action.dest.upper()
+    if not action.option_strings:
+        return f"`{plain._format_args(action, action.metavar or action.dest)}`"
+    if action.nargs == 0:
+        return ", ".join(f"`{o}`" for o in action.option_strings)
     if action.choices:
-        names += "<br>one of " + ", ".join(f"`{c}`" for c in action.choices)
-    help_text = plain._expand_help(action) if action.help else ""
-    default = action.default
-    if action.required or not action.option_strings:
-        shown = "required" if action.nargs not in ("?", "*") else ""
-    elif default in (None, argparse.SUPPRESS, []) or isinstance(default, bool):
-        shown = ""
-    else:
-        shown = _code(default)
-    return [names, _cell(help_text), shown]
+        value = "{" + ",".join(str(c) for c in action.choices) + "}"
+    spelled = plain._format_args(action, value)
+
+    def one(o):  # a long option takes its value after "=", a short one or a list after a space
+        sep = "=" if o.startswith("--") and action.nargs not in ("+", "*") else " "
+        return f"`{o}{sep}{spelled}`"
+
+    return ", ".join(one(o) for o in action.option_strings)
+
+
+def _io_row(action) -> list[str]:
+    """An input or output of a command (positional files, ``-o``)."""
+    shown = "required" if action.required or action.nargs not in ("?", "*") else ""
+    if action.option_strings and not action.required:
+        shown = "" if action.default in (None, []) else _code(action.default)
+    return [_names(action), _cell(action.help or ""), shown, ""]
+
+
+def _option_row(action, f) -> list[str]:
+    """An option, from its dataclass field (help, unit, default, config key written once)."""
+    from imugen.core.options import help_text
+
+    m = f.metadata
+    meaning = m["help"] + (f" [{m['unit']}]" if m.get("unit") else "")
+    shown = help_text(f).removeprefix(meaning).strip()
+    shown = shown.removeprefix("(default: ").removesuffix(")")
+    if action.required:
+        shown = "required"
+    elif shown and m.get("shown") is None:  # a value, as written on the command line
+        shown = f"`{shown}`"
+    config = f"`{m['config']}`" if m.get("config") else ""
+    return [_names(action), _cell(meaning), _cell(shown), config]
 
 
 @cache
 def cli() -> str:
     from imugen.cli import build_parser
+    from imugen.core.options import cli_fields
 
     out = []
     for path, sub, summary in _subcommands(build_parser()):
         if any(isinstance(a, argparse._SubParsersAction) for a in sub._actions):
             out += [f"## imugen {' '.join(path)}", "", _cell(summary), ""]
             continue
+        command = sub.get_default("_command")
         out += [f"## imugen {' '.join(path)}", "", _cell(summary) + ".", ""]
         usage = " ".join(sub.format_usage().split()).removeprefix("usage: ")
         out += ["```text", usage, "```", ""]
+        fields = {f.name: f for f in cli_fields(command.options)}
         rows = [
-            _option_row(sub, a)
+            _option_row(a, fields[a.dest]) if a.dest in fields else _io_row(a)
             for a in sub._actions
-            if a.dest != "help" and not isinstance(a, argparse._VersionAction)
+            if a.dest != "help"
         ]
-        out += [_table(["argument", "meaning", "default"], rows), ""]
+        out += [_table(["argument", "meaning", "default", "config key"], rows), ""]
     return "\n".join(out)
 
 
@@ -304,14 +328,14 @@ def files() -> str:
 # --- route formats -----------------------------------------------------------------------------
 @cache
 def readers() -> str:
-    from imugen.ingest.readers import FORMATS
+    from imugen.ingest.formats import FORMATS
 
     rows = [
         [
             _cell(f.name),
             _cell(f.what),
             ", ".join(f"`{s}`" for s in f.suffixes),
-            f"`imugen.ingest.readers.{f.module}`",
+            f"`imugen.ingest.readers.{f.reader}`",
         ]
         for f in FORMATS
     ]
@@ -365,10 +389,8 @@ def _jobs() -> dict[str, dict[str, set[str]]]:
     routes = set(cfg["routes"])
     grades = set(yaml.safe_load(HOUSE_CONFIG.read_text())["grades"])
 
-    def general(path: str) -> str | None:
+    def general(path: str) -> str:
         path = path.strip()
-        if path.startswith(str(REPO / "src")) and path.endswith(".py"):
-            return None  # the rule's code inputs (Map of the house: "code")
         path = path.removeprefix(str(REPO) + "/")
         parts = path.split("/")
         parts = ["{route}" if p in routes and i == 1 else p for i, p in enumerate(parts)]
@@ -406,23 +428,14 @@ def _commands() -> dict[str, tuple[str, str]]:
 
 
 def _command_modules() -> dict[str, str]:
-    """``imugen COMMAND`` -> the module its handler imports (the stage's face)."""
+    """``imugen COMMAND`` -> the module it runs (the stage's face), from its declaration."""
     from imugen.cli import build_parser
 
     out = {}
     for path, sub, _ in _subcommands(build_parser()):
-        fn = sub.get_default("func")
-        if fn is None:
-            continue
-        tree = ast.parse(inspect.getsource(fn))
-        mods = []
-        for n in ast.walk(tree):
-            if isinstance(n, ast.ImportFrom) and (n.module or "").startswith("imugen."):
-                base = REPO / "src" / Path(*n.module.split("."))
-                sub = [a.name for a in n.names if (base / f"{a.name}.py").is_file()]
-                mods.append(f"{n.module}.{sub[0]}" if sub else n.module)
-        if mods:
-            out["imugen " + " ".join(path)] = mods[0]
+        command = sub.get_default("_command")
+        if command is not None:
+            out["imugen " + " ".join(path)] = command.run.partition(":")[0]
     return out
 
 

@@ -204,7 +204,27 @@ PLUGIN_ARGS=(--slurm-init-seconds-before-status-checks 5)  # jobs here take seco
 grep -qF "$MARK" "$CONF" 2>/dev/null && [ -z "${SLURM_ACCOUNT:-}" ] && PLUGIN_ARGS+=(--slurm-no-account)
 # without accounting sacct fails ("accounting storage is disabled") and the plugin, which
 # prefers sacct, would never see a job finish: ask squeue instead
-sacct -X -n -S now >/dev/null 2>&1 || PLUGIN_ARGS+=(--slurm-status-command squeue)
+NO_ACCOUNTING=0
+sacct -X -n -S now >/dev/null 2>&1 || NO_ACCOUNTING=1
+[ "$NO_ACCOUNTING" = 1 ] && PLUGIN_ARGS+=(--slurm-status-command squeue)
+if [ "$NO_ACCOUNTING" = 1 ]; then
+  # without that option the plugin would wait for ever: the workflow must refuse the README's
+  # command in one line, before any submission (src/imugen/preflight.py)
+  say "no accounting: the README's command without --slurm-status-command squeue must refuse"
+  set +e
+  (cd "$WORK/slurm" && timeout -k 10 120 "${SMK[@]}" \
+    --workflow-profile "$REPO/workflow/profiles/slurm" --executor slurm --cores "$SLURM_CORES" \
+    >"$WORK/refused.log" 2>&1)
+  refused_rc=$?
+  set -e
+  if [ "$refused_rc" -eq 0 ] || [ "$refused_rc" -ge 124 ] \
+    || ! tail -1 "$WORK/refused.log" | grep -q '^imugen: error: this SLURM cluster has no job accounting'; then
+    tail -20 "$WORK/refused.log" >&2
+    say "FAIL: without accounting the run was not refused in one line (exit $refused_rc)"
+    exit 1
+  fi
+  say "  refused in one line: $(tail -1 "$WORK/refused.log" | cut -c1-100)..."
+fi
 say "SLURM run: --workflow-profile workflow/profiles/slurm --executor slurm (partition ${PARTITION:-default}) in $WORK/slurm"
 T_SLURM=$(date +%s.%N)
 say "  options: --cores $SLURM_CORES ${PLUGIN_ARGS[*]}"

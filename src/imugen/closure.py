@@ -8,15 +8,40 @@ long runs (1 kHz for an hour) need no full-length navigation arrays.
 
 from __future__ import annotations
 
+import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from imugen.navigate.mechanize import Mechanizer
-from imugen.tables import truth as col
+from imugen.core.options import Command, argument, option, same_as
+from imugen.ingest.options import IngestOptions
+from imugen.truth.options import TruthOptions
 
 CHUNK = 1 << 16  # samples per mechanization chunk
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClosureOptions:
+    """Options of ``imugen closure``: the truth's and ingestion's that shape the scene."""
+
+    rate_hz: float = same_as(TruthOptions, "rate_hz")
+    earth: str = same_as(TruthOptions, "earth")
+    vehicle: str = same_as(TruthOptions, "vehicle")
+    path: str | int | None = same_as(IngestOptions, "path")
+    origin: str | None = same_as(IngestOptions, "origin")
+    dt: float | None = same_as(IngestOptions, "dt")
+    grade: str | None = option(None, help="grade for the `--earth auto` budget", shown="consumer")
+
+
+COMMANDS = {
+    "closure": Command(
+        ClosureOptions,
+        "imugen.closure:main",
+        (argument("src", help="any route file ingestion reads"),),
+    )
+}
 
 
 def attitude_angle(q_ref, q) -> np.ndarray:
@@ -54,6 +79,9 @@ def closure_of_truth(df, meta, *, chunk: int = CHUNK) -> dict:
         ``max_attitude_error_rad``, ``max_velocity_error_mps``, ``samples``,
         ``mechanization_seconds``.
     """
+    from imugen.navigate.mechanize import Mechanizer
+    from imugen.tables import truth as col
+
     t0 = time.perf_counter()
     frame = col.origin_frame(meta)
     t = df[col.TIME].to_numpy()
@@ -156,13 +184,14 @@ def closure(
     imugen.core.errors.InputError
         From ingestion or truth generation, for inputs they refuse.
     """
-    from imugen import truth
     from imugen.ingest.stage import ingest
+    from imugen.tables import truth as col
+    from imugen.truth.build import build_truth
 
     t0 = time.perf_counter()
     ing = ingest(src, path=path, origin=origin, dt=dt, vehicle=vehicle)
     t1 = time.perf_counter()
-    df, meta = truth.build_truth(
+    df, meta = build_truth(
         ing.table,
         ing.meta,
         rate_hz=rate_hz,
@@ -189,3 +218,13 @@ def closure(
         }
     )
     return res
+
+
+def main(options: ClosureOptions, src) -> None:
+    """``imugen closure``: the closure of ``src`` as one JSON line on stdout."""
+    o = options
+    result = closure(
+        src, rate_hz=o.rate_hz, earth=o.earth, vehicle=o.vehicle, path=o.path, origin=o.origin,
+        dt=o.dt, grade=o.grade,
+    )  # fmt: skip
+    print(json.dumps(result))

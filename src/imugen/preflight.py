@@ -25,10 +25,13 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
+import subprocess
 from pathlib import Path
 
 from imugen.core.errors import InputError
+from imugen.tables import layout
 
 TRUTH_BASE_B = 300e6
 TRUTH_PER_SAMPLE_B = 700.0
@@ -56,46 +59,107 @@ def _non_finite(node, where: str = "config"):
     return None
 
 
+def schema_problems(config: dict, schema: dict, limit: int = 20) -> list[str]:
+    """Every way ``config`` breaks the JSON schema, one short line each naming the key.
+
+    Snakemake's own validation prints the first error with the whole sub-schema (1,635 lines
+    for a misspelt top-level key); this lists each problem as ``KEY: what is wrong`` (at most
+    ``limit`` lines), an unknown key with the closest known one.
+    """
+    import difflib
+
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(validator.iter_errors(config), key=lambda e: [str(p) for p in e.path])
+    lines = []
+    for e in errors:
+        where = ".".join(["config", *map(str, e.absolute_path)])
+        if e.validator == "additionalProperties" and isinstance(e.instance, dict):
+            known = sorted(e.schema.get("properties", {}))
+            for key in sorted(set(e.instance) - set(known), key=str):
+                close = difflib.get_close_matches(str(key), known, n=1)
+                hint = f"did you mean {close[0]!r}?" if close else f"known: {', '.join(known)}"
+                lines.append(f"{where}.{key}: unknown key ({limit_text(hint, 160)})")
+            continue
+        if e.context:  # anyOf / oneOf: the branch that came closest
+            e = jsonschema.exceptions.best_match(e.context)
+        lines.append(f"{where}: {limit_text(' '.join(e.message.split()), 200)}")
+    if len(lines) > limit:
+        lines = [*lines[:limit], f"config: and {len(lines) - limit} more problems"]
+    return lines
+
+
+def limit_text(text: str, n: int) -> str:
+    """``text`` cut to ``n`` characters (an ellipsis marks the cut)."""
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
 def check_values(config: dict) -> None:
-    """Refuse NaN/inf anywhere and invalid custom grades (InputError naming the key)."""
+    """Refuse NaN/inf anywhere and invalid custom grades (InputError naming the key).
+
+    A custom grade is checked as the jobs will read it: fully valid, not named like a preset
+    and not using a preset's id (``imugen.sensors.grades.load_grades`` refuses both in a job), and
+    with an id no other grade of the run has (ids seed the random draws).
+    """
     from imugen.sensors.grades import grade_from_config, presets
 
     hit = _non_finite(config)
     if hit:
         raise InputError(hit, "is not a finite number")
+    pre = presets()
+    ids = {g.id: f"the preset {n!r}" for n, g in pre.items() if n in config.get("grades", {})}
+    pre_ids = {g.id: n for n, g in pre.items()}
     for name, spec in config.get("grades", {}).items():
+        where = f"config grades.{name}"
         if spec:
-            grade_from_config(name, spec, origin=f"config grades.{name}")
-        elif name not in presets():
+            if name in pre:
+                raise InputError(
+                    where, "is the name of a shipped preset: give the custom grade another name"
+                )
+            g = grade_from_config(name, spec, origin=where)
+            if g.id in pre_ids:
+                raise InputError(
+                    where, f"id {g.id} is the preset {pre_ids[g.id]!r}'s: choose another id"
+                )
+            if g.id in ids:
+                raise InputError(where, f"id {g.id} is already used by {ids[g.id]}")
+            ids[g.id] = f"grade {name!r}"
+        elif name not in pre:
             raise InputError(
-                f"config grades.{name}",
-                f"is empty but no preset has this name (presets: {', '.join(presets())})",
+                where,
+                f"is empty but no preset has this name (presets: {', '.join(pre)})",
             )
 
 
-def route_duration_s(name: str, route: dict, results: Path) -> float | None:
-    """Best estimate of a route's duration (s); None when the file cannot be read."""
-    return route_figures(name, route, results)[0]
+def human_bytes(n: float) -> str:
+    """``n`` bytes in binary units with 3 significant digits: ``50.0 MiB``, ``1.25 GiB``."""
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB"):
+        if abs(n) < 1024 or unit == "TiB":
+            return f"{n:.0f} bytes" if unit == "bytes" else f"{n:.3g} {unit}"
+        n /= 1024
+    raise AssertionError  # pragma: no cover
 
 
 def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, float]:
-    """A route's duration (s, :func:`route_duration_s`; None when the file cannot be read)
-    and the truth memory of fitting its path (bytes; 0 for timed routes and computed
-    truths)."""
-    import pyarrow.parquet as pq
+    """A route's duration (s; None when its file cannot be read) and the truth memory of
+    fitting its path (bytes; 0 for timed routes and computed truths).
 
+    The duration is that of the route's truth when already computed (``route["_rate_hz"]``
+    gives its rate), else that of its ingested file (time span, or length at 80 % of the
+    vehicle's cruise speed for an untimed path).
+    """
     from imugen.ingest.stage import ingest
+    from imugen.tables import truth as ttruth
     from imugen.truth import VEHICLES
 
-    truth = results / name / "truth.parquet"
-    if truth.is_file():
+    truth = Path(layout.truth(name, root=results))
+    rate = route.get("_rate_hz")
+    if rate and truth.is_file():
         try:
-            md = pq.ParquetFile(truth).metadata
-            rate = route.get("_rate_hz")
-            if rate:
-                return md.num_rows / rate, 0.0
-        except (OSError, ValueError):
-            pass
+            return ttruth.samples(truth) / rate, 0.0
+        except InputError:
+            pass  # an unreadable truth is rebuilt: estimate from the route file
     try:
         ing = ingest(
             route["file"],
@@ -124,7 +188,7 @@ def _tree_bytes(root: Path) -> int:
     return total
 
 
-def estimate(config: dict, results: Path = Path("results")) -> dict:
+def estimate(config: dict, results: Path = Path(layout.RESULTS)) -> dict:
     """Largest job memory and total disk (bytes) of a run, with the terms behind them."""
     rate = float(config["truth"]["rate_hz"])
     n_seq = int(config["simulate"]["sequences"])
@@ -149,7 +213,7 @@ def estimate(config: dict, results: Path = Path("results")) -> dict:
     return {"memory_b": memory, "disk_b": disk, "route_durations_s": routes}
 
 
-def budgets(config: dict, results: Path = Path("results")) -> tuple[float, float]:
+def budgets(config: dict, results: Path = Path(layout.RESULTS)) -> tuple[float, float]:
     """Memory and disk budgets in bytes (configured, else this machine's)."""
     b = config.get("budget", {})
     if b.get("memory_gib") is not None:
@@ -164,24 +228,85 @@ def budgets(config: dict, results: Path = Path("results")) -> tuple[float, float
     return float(mem), float(disk)
 
 
-def check_budget(config: dict, results: Path = Path("results")) -> dict:
+def check_budget(config: dict, results: Path = Path(layout.RESULTS)) -> dict:
     """Refuse a run whose estimate exceeds a budget (InputError with the estimate)."""
     est = estimate(config, results)
     mem, disk = budgets(config, results)
-    gib = 2**30
     if est["memory_b"] > mem:
         raise InputError(
             "config",
-            f"the largest truth job needs about {est['memory_b'] / gib:.1f} GiB of memory "
+            f"the largest truth job needs about {human_bytes(est['memory_b'])} of memory "
             f"(routes of {max(est['route_durations_s'].values()):.0f} s at "
-            f"{config['truth']['rate_hz']:g} Hz) but the budget is {mem / gib:.1f} GiB "
+            f"{config['truth']['rate_hz']:g} Hz) but the budget is {human_bytes(mem)} "
             "(budget.memory_gib); lower truth.rate_hz or split the route",
         )
     if est["disk_b"] > disk:
         raise InputError(
             "config",
-            f"the run would write about {est['disk_b'] / gib:.1f} GiB but the budget is "
-            f"{disk / gib:.1f} GiB (budget.disk_gib, default the free space); lower "
+            f"the run would write about {human_bytes(est['disk_b'])} but the budget is "
+            f"{human_bytes(disk)} (budget.disk_gib, default the free space); lower "
             "simulate.sequences, truth.rate_hz or allan.static_s",
         )
     return est
+
+
+SLURM_QUERY_TIMEOUT_S = 30
+
+
+def slurm_status_problem(status_command: str | None, init_s: float = 40.0) -> str | None:
+    """Why a run through snakemake-executor-plugin-slurm would never see its jobs end, or None.
+
+    The plugin polls job states with ``sacct`` whenever the command exists (with ``squeue``
+    only when asked, ``--slurm-status-command squeue``, and only while SLURM's ``MinJobAge``
+    is at least 3 x ``--slurm-init-seconds-before-status-checks``; else it falls back to
+    ``sacct``). On a cluster without accounting ``sacct`` exists but fails, and the run waits
+    for ever after its jobs have finished.
+    """
+    if shutil.which("sacct") is None:
+        return None  # the plugin uses squeue
+    uses_sacct = status_command in (None, "", "sacct")
+    if not uses_sacct:
+        age = _slurm_min_job_age()
+        if age is None or age >= 3 * init_s:
+            return None
+    try:
+        p = subprocess.run(
+            ["sacct", "-X", "-n", "-S", "now"],
+            capture_output=True,
+            text=True,
+            timeout=SLURM_QUERY_TIMEOUT_S,
+        )
+    except subprocess.TimeoutExpired:
+        why = f"sacct did not answer within {SLURM_QUERY_TIMEOUT_S} s"
+    except OSError as exc:
+        why = f"sacct cannot be run ({exc.strerror or exc})"
+    else:
+        if p.returncode == 0:
+            return None
+        lines = (p.stderr or p.stdout).strip().splitlines()
+        why = f"sacct fails ({lines[-1][:160] if lines else f'exit status {p.returncode}'})"
+    if uses_sacct:
+        return (
+            f"this SLURM cluster has no job accounting: {why}, and the executor plugin would "
+            "wait for ever; add --slurm-status-command squeue (workflow/profiles/slurm/README.md)"
+        )
+    return (
+        f"SLURM's MinJobAge ({age} s) is below 3 x --slurm-init-seconds-before-status-checks "
+        f"({init_s:g} s): the executor plugin would fall back to sacct, and {why}; lower "
+        "--slurm-init-seconds-before-status-checks (workflow/profiles/slurm/README.md)"
+    )
+
+
+def _slurm_min_job_age() -> int | None:
+    """SLURM's ``MinJobAge`` in seconds (``scontrol show config``), None when unknown."""
+    try:
+        p = subprocess.run(
+            ["scontrol", "show", "config"],
+            capture_output=True,
+            text=True,
+            timeout=SLURM_QUERY_TIMEOUT_S,
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    m = re.search(r"^MinJobAge\s*=\s*(\d+)", p.stdout, flags=re.M)
+    return int(m.group(1)) if m else None

@@ -22,13 +22,15 @@ from scipy.stats import chi2
 
 from imugen import truth as TR
 from imugen.aid import companions as CP
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
 from imugen.aid.companions import C_BARO_VAR, C_ODO_VAR
-from imugen.aid.filter import ekf as A
 from imugen.core.earth import OriginFrame
 from imugen.core.rotations import quat_to_dcm
 from imugen.simulate import stage as SIM
+
+from helpers import simulate_shard
 
 ORIGIN = (45.0, 7.0, 200.0)
 TERMS = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -211,7 +213,7 @@ def test_nees_with_odometer_and_barometer(rect):
     Monte-Carlo mean: the NHC noise is the truth's slip (none) plus the constraint's
     second-order error, the odometer's tick quantization two residual states (a constant NHC
     sigma of 0.1 m/s and white quantization of c^2 / 6 per window gave NEES 6.4-7.0 at 5 of 25
-    epochs below the band; imugen.aid.filter.ekf module docstring)."""
+    epochs below the band; imugen.aid.filter.nhc and .odometer docstrings)."""
     df, (res, _, _, ba) = rect
     _, p, v, q, _ = arrays(df)
     M = res.p_n.shape[0]
@@ -336,9 +338,9 @@ def stage(tmp_path_factory):
     meta["timed"] = False
     df, tm = TR.build_truth(enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False)
     ttruth.write(df, tm, d / "truth.parquet")
-    SIM.run(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=5, shard=1,
+    simulate_shard(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=5, shard=1,
             shard_size=3, route="car", dtype="float64")  # fmt: skip
-    params = AID.AidParams(
+    params = AID.AidOptions(
         intervals=({"kind": "outage", "start_s": 80.0, "duration_s": 30.0},),
         odometer="abs", barometer="ms5611", barometer_rate_hz=5.0,
     )  # fmt: skip
@@ -400,14 +402,17 @@ def test_companion_options_are_checked(stage, tmp_path, cli):
 
     d, _ = stage
     with pytest.raises(InputError, match="unknown preset"):
-        AID.AidParams(odometer="tyre")
+        AID.AidOptions(odometer="tyre")
     with pytest.raises(InputError, match="nhc-slip-sd"):
-        AID.AidParams(nhc_slip_sd_mps=(0.1, -0.01))
+        AID.AidOptions(nhc_slip_sd_mps=(0.1, -0.01))
     # one number is both components; unset: the truth's report (an old truth: the fallback)
-    assert AID.AidParams(nhc_slip_sd_mps=0.05).options("car").nhc_sd_mps == (0.05, 0.05)
+    assert AID.filter_options(AID.AidOptions(nhc_slip_sd_mps=0.05), "car").nhc_sd_mps == (
+        0.05,
+        0.05,
+    )
     rep = {"max_body_lateral_speed_mps": 0.3, "max_body_vertical_speed_mps": 1e-3}
-    assert AID.AidParams().options("car", None, rep).nhc_sd_mps == (0.3, 1e-3)
-    assert AID.AidParams().options("car").nhc_sd_mps == (AID.SLIP_FALLBACK_MPS,) * 2
+    assert AID.filter_options(AID.AidOptions(), "car", None, rep).nhc_sd_mps == (0.3, 1e-3)
+    assert AID.filter_options(AID.AidOptions(), "car").nhc_sd_mps == (AID.SLIP_FALLBACK_MPS,) * 2
     r = cli("aid", str(d / "truth.parquet"), str(d / "imu.parquet"), "--gnss-out",
             str(tmp_path / "g.parquet"), "-o", str(tmp_path / "a.parquet"), "--baro", "bmp388")  # fmt: skip
     assert r.returncode == 2 and "--companions-out" in r.stderr
@@ -429,8 +434,8 @@ def test_workflow_passes_the_companion_keys(tmp_path):
     proc = W.snakemake(tmp_path, "-n", "-j1", "-p")
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out
-    assert "--nhc-slip-sd 0.05,0.01" in out
-    assert "--odometer abs" in out and "--baro ms5611 --baro-rate-hz 5.0" in out
+    assert "--nhc-slip-sd=0.05,0.01" in out
+    assert "--odometer=abs" in out and "--baro=ms5611 --baro-rate-hz=5.0" in out
     assert "--companions-out" in out and "companions/consumer/shard-" in out
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "companions": {"odometer": "x"}})
     proc = W.snakemake(tmp_path, "-n", "-j1")

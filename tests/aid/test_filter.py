@@ -18,8 +18,8 @@ import pytest
 from scipy.stats import chi2
 
 from imugen import truth as T
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
-from imugen.aid.filter import ekf as A
 from imugen.aid.stage import truth_slip_sd
 from imugen.core.earth import OriginFrame, earth_rate_n
 from imugen.core.rotations import dcm_to_quat, exp_dcm, quat_to_dcm
@@ -299,14 +299,14 @@ def test_moving_start_alignment_within_its_covariance(flat_car):
     init = A.align(sh.data["dtheta"], sh.data["dv"], 0.01, gn, tun, opts, frame, tuning_T=Tm)
     k0 = init.k0
     assert np.all(np.hypot(v[k0, 0], v[k0, 1]) >= 4.5)
-    psi = A.attitude_error(init.x0[:, A.X_Q : A.X_Q + 4], q[k0])
+    psi = A.attitude_error(init.x0[:, A.NOMINAL.slice("att")], q[k0])
     sd = np.sqrt(init.P0[:, [6, 7, 8], [6, 7, 8]])
     z2 = np.sum((psi / sd) ** 2)
     assert z2 < chi2.ppf(0.995, 3 * M)
     yaw_err = np.abs(psi[:, 2])
     assert np.all(yaw_err < 4 * sd[:, 2])
     # position: the fix carried forward over the latency (5 cm at 5 m/s for this receiver)
-    dp = init.x0[:, A.X_P : A.X_P + 3] - p[k0]
+    dp = init.x0[:, A.NOMINAL.slice("p")] - p[k0]
     sdp = np.sqrt(init.P0[:, [0, 1, 2], [0, 1, 2]])
     assert np.sum((dp / sdp) ** 2) < chi2.ppf(0.995, 3 * M)
 
@@ -406,9 +406,9 @@ def test_static_gyrocompass_alignment_within_its_covariance():
     tun = A.Tuning.from_grade("navigation")
     init = A.align(sh.data["dtheta"], sh.data["dv"], 0.01, gn, tun, A.Options(), frame, static_s=Ts)
     assert np.all(init.k0 == round(Ts / 0.01))
-    psi = A.attitude_error(init.x0[:, A.X_Q : A.X_Q + 4], q[init.k0])
+    psi = A.attitude_error(init.x0[:, A.NOMINAL.slice("att")], q[init.k0])
     sd = np.sqrt(init.P0[:, [6, 7, 8], [6, 7, 8]])
     assert np.all(sd[:, 2] < math.radians(1.0))  # north found to better than a degree
     z2 = np.sum((psi / sd) ** 2, axis=0)
     assert np.all(z2 < chi2.ppf(0.999, M)), z2 / M
-    np.testing.assert_array_equal(init.x0[:, A.X_V : A.X_V + 3], 0.0)
+    np.testing.assert_array_equal(init.x0[:, A.NOMINAL.slice("v")], 0.0)

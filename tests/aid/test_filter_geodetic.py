@@ -30,15 +30,17 @@ from scipy.stats import chi2
 
 from imugen import truth
 from imugen.aid import companions as CP
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
-from imugen.aid.filter import ekf as A
 from imugen.core import earth as E
 from imugen.core import rotations as R
 from imugen.core.rotations import quat_to_dcm
 from imugen.simulate import stage as SIM
 from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import truth as col
+
+from helpers import simulate_shard
 
 
 def _sibling(path):
@@ -189,8 +191,9 @@ def test_nees_within_chi_square_bounds_far_from_the_origin(road):
     # prior along the local axes, rotated to ECEF
     Pl = A.initial_covariance(tun, opts, [0.5, 0.5, 1.5], [0.05, 0.05, 0.1], [0.01, 0.01, 0.02])
     Tr = np.eye(opts.n)
-    for i0 in (A.I_P, A.I_V, A.I_PSI):
-        Tr[i0 : i0 + 3, i0 : i0 + 3] = frame.C_ln(p[k0]).T
+    for key in ("p", "v", "att"):
+        blk = opts.layout.slice(key)
+        Tr[blk, blk] = frame.C_ln(p[k0]).T
     P0 = np.repeat(Tr @ Pl @ Tr.T, M, 0)
     init = TA.truth_init(p, v, q, k0, P0, np.random.default_rng(5))
     res = A.run(sh.data["dtheta"], sh.data["dv"], 1 / RATE, frame, gn, tun, opts, init,
@@ -205,10 +208,11 @@ def test_nees_within_chi_square_bounds_far_from_the_origin(road):
     # output sigmas: sqrt(diag(C_le P C_el)) at the estimated position
     j = js[-1]
     L = frame.C_ln(res.p_n[:, j])
-    for i0 in (A.I_P, A.I_V, A.I_PSI):
-        blk = res.P[:, j, i0 : i0 + 3, i0 : i0 + 3]
+    for key in ("p", "v", "att"):
+        i = res.layout.slice(key)
+        blk = res.P[:, j, i, i]
         want = np.sqrt(np.einsum("sii->si", L @ blk @ np.swapaxes(L, 1, 2)))
-        np.testing.assert_allclose(res.sd[:, j, i0 : i0 + 3], want, rtol=1e-9)
+        np.testing.assert_allclose(res.sd[:, j, i], want, rtol=1e-9)
     assert res.sd[:, j, 2].mean() > 1.5 * res.sd[:, j, 0].mean()  # up: the vertical GNSS sigma
 
 
@@ -316,7 +320,7 @@ def test_static_gyrocompass_alignment_in_ecef():
     init = A.align(sh.data["dtheta"], sh.data["dv"], 0.01, gn, tun, A.Options(), fg, static_s=Ts)
     assert np.all(init.k0 == round(Ts / 0.01))
     C_le = fg.C_ln(fw.r0_e)
-    psi = A.attitude_error(init.x0[:, A.X_Q : A.X_Q + 4], q_e[init.k0]) @ C_le.T
+    psi = A.attitude_error(init.x0[:, A.NOMINAL.slice("att")], q_e[init.k0]) @ C_le.T
     Pl = C_le @ init.P0[:, 6:9, 6:9] @ C_le.T
     sd = np.sqrt(np.einsum("sii->si", Pl))
     assert np.all(sd[:, 2] < math.radians(1.0))  # north found to better than a degree
@@ -344,9 +348,9 @@ def test_aid_stage_on_a_geodetic_truth(tmp_path):
                                verbose=False)  # fmt: skip
     assert tm["earth"] == "geodetic"
     col.write(df, tm, tmp_path / "truth.parquet")
-    SIM.run(tmp_path / "truth.parquet", tmp_path / "imu.parquet", "consumer", sequences=6,
+    simulate_shard(tmp_path / "truth.parquet", tmp_path / "imu.parquet", "consumer", sequences=6,
             seed=4, route="road", dtype="float64")  # fmt: skip
-    params = AID.AidParams(barometer="bmp388", nhc=True)
+    params = AID.AidOptions(barometer="bmp388", nhc=True)
     AID.run(tmp_path / "truth.parquet", tmp_path / "imu.parquet", tmp_path / "g.parquet",
             tmp_path / "a.parquet", params, out_companions=tmp_path / "c.parquet")  # fmt: skip
     a = taided.read(tmp_path / "a.parquet")

@@ -13,17 +13,18 @@ import pyarrow.parquet as pq
 import pytest
 
 from imugen import truth as T
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
 from imugen.aid import stage as AID
-from imugen.aid.filter import ekf as A
 from imugen.core.errors import InputError
 from imugen.evaluate import stage as EV
-from imugen.simulate import stage as S
 from imugen.tables import aided as taided
 from imugen.tables import gnss as tgnss
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
+
+from helpers import simulate_shard
 
 OUTAGE = {"kind": "outage", "start_s": 80.0, "duration_s": 30.0}
 SEED = 5
@@ -41,9 +42,9 @@ def scene(tmp_path_factory):
     meta = {"origin": {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 200.0}, "timed": False}
     df, tm = T.build_truth(enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False)
     ttruth.write(df, tm, d / "truth.parquet")
-    S.run(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=SEED, shard=1,
+    simulate_shard(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=SEED, shard=1,
           shard_size=3, route="car", dtype="float64")  # fmt: skip
-    params = AID.AidParams(intervals=(OUTAGE,))
+    params = AID.AidOptions(intervals=(OUTAGE,))
     AID.run(d / "truth.parquet", d / "imu.parquet", d / "g.parquet", d / "a.parquet", params)
     return d
 
@@ -81,7 +82,7 @@ def test_gnss_file_matches_truth_and_labels(scene):
 
 
 def test_draw_does_not_depend_on_batch(scene, tmp_path):
-    params = AID.AidParams(intervals=(OUTAGE,))
+    params = AID.AidOptions(intervals=(OUTAGE,))
     AID.run(scene / "truth.parquet", scene / "imu.parquet", tmp_path / "g.parquet",
             tmp_path / "a.parquet", params, batch=1)  # fmt: skip
     pd.testing.assert_frame_equal(
@@ -155,7 +156,7 @@ def test_outage_end_equals_filter_in_memory(scene):
 
 
 def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
-    S.run(scene / "truth.parquet", tmp_path / "ideal.parquet", "consumer", sequences=1, seed=1,
+    simulate_shard(scene / "truth.parquet", tmp_path / "ideal.parquet", "consumer", sequences=1, seed=1,
           route="car", terms=[], dtype="float64")  # fmt: skip
     cfg = {"id": 902, "rate_hz": 10, "latency_s": 0.0, "position_bias_tau_s": 60.0}
     cfg.update({k: 0.0 for k in G.FIGURES if k not in cfg})
@@ -163,7 +164,7 @@ def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
     rec = G.receiver_from_config("quiet", cfg)
     # no NHC: the truth's car may slip sideways by up to a degree in corners (the ground-vehicle
     # attitude model), so the constraint is not exact for it
-    params = AID.AidParams(
+    params = AID.AidOptions(
         receiver=rec, draw="nominal", gnss_bias_states=False, zupt=False, nhc=False
     )
     AID.run(scene / "truth.parquet", tmp_path / "ideal.parquet", tmp_path / "g.parquet",
@@ -185,10 +186,10 @@ def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
 
 def test_bad_inputs_are_one_line_errors(scene, tmp_path, cli):
     with pytest.raises(InputError, match="kind must be one of"):
-        AID.parse_scenarios(["tunnel:30"])
+        SC.parse_scenarios(["tunnel:30"])
     with pytest.raises(InputError, match="only outage"):
-        AID.parse_scenarios(["jamming:30"])
-    assert AID.parse_scenarios(["outage:60", "outage:30", "jamming"]) == {
+        SC.parse_scenarios(["jamming:30"])
+    assert SC.parse_scenarios(["outage:60", "outage:30", "jamming"]) == {
         "intervals": [],
         "draw_kinds": ["outage", "jamming"],
         "outage_durations_s": [30.0, 60.0],

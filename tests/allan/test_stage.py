@@ -16,6 +16,8 @@ from imugen.allan import stage as allan
 from imugen.sensors.grades import grade_from_config
 from imugen.simulate import stage as S
 
+from helpers import simulate_shard
+
 DEG_H = math.pi / 180 / 3600
 GYRO = {
     "white_noise": {"value": 0.0118, "unit": "deg_per_sqrt_h"},
@@ -124,7 +126,7 @@ def test_report_from_file_and_plot(tmp_path):
         },
     )
     out = tmp_path / "static.parquet"
-    S.run(None, out, g, sequences=6, seed=6, static_s=600.0, rate_hz=20.0, draw="nominal")
+    simulate_shard(None, out, g, sequences=6, seed=6, static_s=600.0, rate_hz=20.0, draw="nominal")
     rep = allan.run(out, plot=tmp_path / "allan.png")
     json.dumps(rep)
     assert set(rep) == {"arw", "vrw", "gyro_bias_instability", "accel_bias_instability", "gyro_rrw"}

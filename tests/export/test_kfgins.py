@@ -21,9 +21,10 @@ from imugen.core.io import write_parquet
 from imugen.export.source import iter_sequences, read_truth
 from imugen.export.stage import export
 from imugen.sensors.grades import get_grade
-from imugen.simulate import stage as simulate
 from imugen.tables.truth import origin_frame
 from imugen.truth import build_truth, enu_table
+
+from helpers import simulate_shard
 
 RATE = 50.0
 D2R = math.pi / 180.0
@@ -107,9 +108,9 @@ def route(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("kfgins")
     truth = _truth(tmp)
     shard = tmp / "drive" / "imu" / "consumer" / "shard-000.parquet"
-    simulate.run(truth, shard, "consumer", sequences=2, seed=3, increments="raw")
+    simulate_shard(truth, shard, "consumer", sequences=2, seed=3, increments="raw")
     g, a = tmp / "g.parquet", tmp / "a.parquet"
-    aid.run(truth, shard, g, a, aid.AidParams(lever_arm_b_m=(0.4, -0.2, 1.1)))
+    aid.run(truth, shard, g, a, aid.AidOptions(lever_arm_b_m=(0.4, -0.2, 1.1)))
     out = tmp / "export"
     export(["kfgins"], truth, [shard], out, gnss_paths=[g], log=lambda m: None)
     return truth, shard, g, out
@@ -190,7 +191,7 @@ def test_imunoise_is_the_sequences_figures(route):
 def test_rate_only_shards_refused_before_anything_is_written(route, tmp_path, cli):
     truth = route[0]
     shard = tmp_path / "rates" / "shard-000.parquet"
-    simulate.run(truth, shard, "consumer", sequences=1, seed=1, outputs="rates")
+    simulate_shard(truth, shard, "consumer", sequences=1, seed=1, outputs="rates")
     out = tmp_path / "out"
     with pytest.raises(InputError, match="no increment columns"):
         export(["euroc", "kfgins"], truth, [shard], out, log=lambda m: None)
@@ -203,7 +204,7 @@ def test_rate_only_shards_refused_before_anything_is_written(route, tmp_path, cl
 def test_warnings_once_per_export_and_no_config_without_gnss(route, tmp_path):
     truth = route[0]
     shard = tmp_path / "comp" / "shard-000.parquet"
-    simulate.run(truth, shard, "consumer", sequences=3, seed=2)  # compensated increments
+    simulate_shard(truth, shard, "consumer", sequences=3, seed=2)  # compensated increments
     msgs = []
     export(["kfgins"], truth, [shard], tmp_path / "out", log=msgs.append)
     warns = [m for m in msgs if m.startswith("imugen: warning: ")]
@@ -249,9 +250,9 @@ def navigation_export(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("kfgins_nav")
     truth = _truth(tmp)
     shard = tmp / "drive" / "imu" / "navigation" / "shard-000.parquet"
-    simulate.run(truth, shard, "navigation", sequences=3, seed=3, increments="raw")
+    simulate_shard(truth, shard, "navigation", sequences=3, seed=3, increments="raw")
     g, a = tmp / "g.parquet", tmp / "a.parquet"
-    aid.run(truth, shard, g, a, aid.AidParams(lever_arm_b_m=(0.4, -0.2, 1.1)))
+    aid.run(truth, shard, g, a, aid.AidOptions(lever_arm_b_m=(0.4, -0.2, 1.1)))
     export(["kfgins"], truth, [shard], tmp / "out", gnss_paths=[g], log=lambda m: None)
     return exe, _folders(tmp / "out")
 

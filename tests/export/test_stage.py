@@ -15,9 +15,10 @@ from imugen.core.io import write_parquet
 from imugen.export import convert
 from imugen.export.source import iter_sequences, mounting_of, read_truth
 from imugen.export.stage import export, parse_formats
-from imugen.simulate import stage as simulate
 from imugen.tables import truth as ttruth
 from imugen.truth import build_truth, enu_table
+
+from helpers import simulate_shard
 
 M = 2
 RATE = 50.0
@@ -34,7 +35,7 @@ def route(tmp_path_factory):
     tdf, tmeta = build_truth(df, meta, rate_hz=RATE, earth="wgs84", verbose=False)
     truth = write_parquet(tdf, tmeta, tmp / "drive" / "truth.parquet")
     shard = tmp / "drive" / "imu" / "consumer" / "shard-000.parquet"
-    simulate.run(truth, shard, "consumer", sequences=M, seed=5, outputs="both", series=True)
+    simulate_shard(truth, shard, "consumer", sequences=M, seed=5, outputs="both", series=True)
     return truth, shard, tmp
 
 
@@ -154,7 +155,7 @@ def test_tum_aided_read_by_evo_and_equal_to_the_aided_table(route, tmp_path, cli
 
     truth, shard, _ = route
     g, a = tmp_path / "g.parquet", tmp_path / "a.parquet"
-    aid.run(truth, shard, g, a, aid.AidParams(eval_rate_hz=10.0))
+    aid.run(truth, shard, g, a, aid.AidOptions(eval_rate_hz=10.0))
     r = cli("export", str(truth), str(shard), "-o", str(tmp_path / "x"), "--format", "tum",
             "--aided", str(a))  # fmt: skip
     assert r.returncode == 0, r.stderr
@@ -531,7 +532,7 @@ def incremental(route):
     and no series, exported in the formats that want rates; the export's log lines."""
     truth, _, tmp = route
     shard = tmp / "drive" / "imu" / "consumer_inc" / "shard-000.parquet"
-    simulate.run(truth, shard, "consumer", sequences=M, seed=9, outputs="increments")
+    simulate_shard(truth, shard, "consumer", sequences=M, seed=9, outputs="increments")
     out, lines = tmp / "export_inc", []
     export(["euroc", "tlio", "ronin"], truth, [shard], out, log=lines.append)
     tr = read_truth(truth)
@@ -638,7 +639,7 @@ def test_tum_truth_of_a_mounted_imu(route):
     truth, _, tmp = route
     shard = tmp / "drive" / "imu" / "mounted" / "shard-000.parquet"
     mount = {"misalignment_sd_deg": [1.0, 1.0, 2.0], "lever_arm_m": [0.5, 0.2, 0.3]}
-    simulate.run(truth, shard, "consumer", sequences=1, seed=3, terms=[], mounting=mount)
+    simulate_shard(truth, shard, "consumer", sequences=1, seed=3, terms=[], mounting=mount)
     out = tmp / "export_mounted"
     export(["tum"], truth, [shard], out, log=lambda m: None)
     (est_path,) = [p for p in (out / "tum").glob("drive_*.tum") if p.name.count(".") == 1]
@@ -679,7 +680,7 @@ def test_export_streams_and_says_what_it_wrote(route):
 
     truth, _, tmp = route
     shard = tmp / "drive" / "imu" / "eight" / "shard-000.parquet"
-    simulate.run(truth, shard, "consumer", sequences=8, seed=11, outputs="both")
+    simulate_shard(truth, shard, "consumer", sequences=8, seed=11, outputs="both")
     ids = tshard.read_labels(shard, tshard.read_meta(shard))["sequence"].tolist()
     K = read_truth(truth).K
     one_seq = 12 * K * 8  # rates and increments, float64
@@ -719,9 +720,9 @@ def test_ros2_companions_tf_and_gnss_of_a_mounted_imu(route, tmp_path, cli):
     truth, _, _ = route
     shard = tmp_path / "drive" / "imu" / "consumer" / "shard-000.parquet"
     mount = {"enabled": True, "lever_arm_m": [0.8, -0.3, 0.4], "misalignment_sd_deg": [2, 2, 5]}
-    simulate.run(truth, shard, "consumer", sequences=1, seed=9, outputs="both", mounting=mount)
+    simulate_shard(truth, shard, "consumer", sequences=1, seed=9, outputs="both", mounting=mount)
     g, a, c = (tmp_path / f"{n}.parquet" for n in ("g", "a", "c"))
-    params = aid.AidParams(
+    params = aid.AidOptions(
         eval_rate_hz=10.0, odometer="abs", barometer="bmp388", lever_arm_b_m=(0.1, 0.2, 1.5)
     )
     aid.run(truth, shard, g, a, params, out_companions=c)

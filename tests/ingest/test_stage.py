@@ -11,6 +11,7 @@ from pyproj import Geod
 
 from imugen.core.errors import InputError
 from imugen.core.io import read_meta
+from imugen.ingest.options import IngestOptions
 from imugen.ingest.stage import ingest, run
 
 GEOD = Geod(ellps="WGS84")
@@ -80,7 +81,7 @@ def test_csv_stage_round_trip(tmp_path):
         [(31.63, -7.99, 450, T(0)), (31.6301, -7.9901, 455, T(1.5)), (31.6305, -7.99, 452, T(3))],
         tmp=tmp_path,
     )
-    a = run(f, tmp_path / "r.csv", origin="31.62,-7.98,440")
+    a = run(f, tmp_path / "r.csv", IngestOptions(origin="31.62,-7.98,440"))
     b = run(tmp_path / "r.csv", tmp_path / "r.parquet")
     assert b.meta["origin"] == a.meta["origin"] and "carried" in b.meta["origin_from"]
     assert b.meta["start_time_utc"] == a.meta["start_time_utc"]
@@ -363,3 +364,16 @@ def test_long_candidate_lists_are_cut_with_a_count_and_a_hint(tmp_path):
     msg = str(e.value)
     assert "and 32 more" in msg and "--path longest" in msg and len(msg) < 2000
     assert msg.count("[") == ing.LIST_CANDIDATES
+
+
+def test_the_reader_registry_names_every_reader():
+    """imugen.ingest.formats (the help of `imugen ingest`) names every reader module, and only
+    those; GPSBabel's suffixes are the babel reader's."""
+    import pkgutil
+
+    from imugen.ingest import formats, readers
+
+    modules = {m.name for m in pkgutil.iter_modules(readers.__path__)}
+    assert {f.reader for f in formats.FORMATS} == modules
+    babel = next(f for f in formats.FORMATS if f.reader == "babel")
+    assert set(babel.suffixes) == set(formats.GPSBABEL)

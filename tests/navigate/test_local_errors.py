@@ -18,6 +18,7 @@ from pyproj import Geod
 from imugen import truth as T
 from imugen.core import earth as E
 from imugen.evaluate import stage as EV
+from imugen.evaluate.options import EvaluateOptions
 from imugen.navigate import local_errors as L
 from imugen.navigate import stage as NV
 from imugen.navigate.navigator import Navigator
@@ -332,7 +333,7 @@ def test_evaluate_run_geodetic_truth_several_hours(tmp_path):
     lat, lon = _six_hour_flight(tmp_path)
     with pytest.warns(UserWarning, match="too long for unaided inertial navigation"):
         EV.run(tmp_path / "truth.parquet", [tmp_path / "nav.parquet"], tmp_path / "m.parquet",
-               grade="consumer")  # fmt: skip
+               EvaluateOptions(grade="consumer"))  # fmt: skip
     from imugen.tables import metrics as tmetrics
 
     m = tmetrics.read(tmp_path / "m.parquet")

@@ -7,7 +7,7 @@ Oracle: the mean over runs and epochs of NEES / dof of position, attitude and th
 between 0.5 (not grossly conservative) and the 99.5 % chi-square quantile of ``d M`` dof / ``d M``
 (the bound of one epoch's Monte-Carlo mean; epochs are correlated). Attitude and biases
 need the gyro cross-coupling states (``Options.gyro_cross_coupling``): across a turn that error
-is a body-fixed tilt no process noise can stand for (module docstring of imugen.aid.filter.ekf).
+is a body-fixed tilt no process noise can stand for (imugen.aid.filter.tuning).
 """
 
 import sys
@@ -19,7 +19,7 @@ from scipy.stats import chi2
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import bench_aided_nees as B
 
-from imugen.aid.filter import ekf as A
+from imugen.aid import filter as A
 
 M = 20
 

@@ -10,6 +10,7 @@ import pytest
 
 import imugen
 from imugen.evaluate import stage as evaluate
+from imugen.evaluate.options import EvaluateOptions
 from imugen.navigate import stage as navigate
 from imugen.tables import shard as tshard
 
@@ -66,10 +67,8 @@ def test_subtracting_the_effective_error_leaves_the_white_noise_drift(scene):
     out = {}
     for name, imu in (("measured", shard), ("corrected", fixed)):
         nav = navigate.run(truth, imu, d / f"nav-{name}.parquet")
-        m = evaluate.run(
-            truth, [nav], d / f"metrics-{name}.parquet", grade="consumer",
-            segments_s=SEGMENTS, imu_paths=[imu],
-        )  # fmt: skip
+        opts = EvaluateOptions(grade="consumer", segments_s=SEGMENTS)
+        m = evaluate.run(truth, [nav], d / f"metrics-{name}.parquet", opts, imu_paths=[imu])
         out[name] = pd.read_parquet(m).set_index("sequence")
     # the in-memory loop gives the same navigation as the written shard
     mem = imugen.navigate_arrays(truth, (corrected[..., :3], corrected[..., 3:]))

@@ -17,6 +17,8 @@ from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 
+from helpers import simulate_shard
+
 POS = ["err_e_m", "err_n_m", "err_u_m"]
 
 
@@ -111,7 +113,7 @@ def test_files_navigate_and_write_shard_round_trip(truths, tmp_path):
     ttruth.write(tr.frame, tr.meta, truth_path)
     shard = tmp_path / "imu" / "shard-000.parquet"
     terms = [t for t in TERMS if t != "quantization"]
-    S.run(truth_path, shard, "consumer", sequences=3, seed=2, terms=terms, series=True,
+    simulate_shard(truth_path, shard, "consumer", sequences=3, seed=2, terms=terms, series=True,
           dtype="float64", increments="raw")  # fmt: skip
     meta = tshard.read_meta(shard)
     assert meta["increments"] == "raw" and meta["route"] == "route"
@@ -135,7 +137,7 @@ def test_files_navigate_and_write_shard_round_trip(truths, tmp_path):
     assert tshard.read_labels(out).equals(tshard.read_labels(shard))
     fixed = navigate(truth_path, out)
     white = tmp_path / "white.parquet"
-    S.run(truth_path, white, "consumer", sequences=3, seed=2, terms=["white_noise"],
+    simulate_shard(truth_path, white, "consumer", sequences=3, seed=2, terms=["white_noise"],
           dtype="float64", increments="raw")  # fmt: skip
     ref = navigate(truth_path, white)
     before = np.abs(on_file[POS].to_numpy()).max()
@@ -157,7 +159,7 @@ def test_api_errors(truths, tmp_path):
     with pytest.raises(InputError, match="--increments"):
         S.simulate(tr.frame, "consumer", increments="cooked")
     shard = tmp_path / "s.parquet"
-    S.run(None, shard, "consumer", sequences=2, static_s=1.0)
+    simulate_shard(None, shard, "consumer", sequences=2, static_s=1.0)
     with pytest.raises(InputError, match="must be"):
         imugen.write_shard(tmp_path / "o.parquet", np.zeros((3, 101, 6)), like=shard)
     assert not (tmp_path / "o.parquet").exists()

@@ -25,6 +25,7 @@ from imugen.simulate import stage as SIM
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 
+from helpers import simulate_shard
 from oracles.strapdown import exact_increments
 
 ORIGIN = (45.0, 7.0, 300.0)
@@ -302,7 +303,7 @@ def test_wgs84_shard_file_closes_on_the_imu_truth(tmp_path):
     for mount in (None, MOUNT):
         name = "m" if mount else "p"
         out, nav = tmp_path / f"{name}.parquet", tmp_path / f"{name}-nav.parquet"
-        SIM.run(tpath, out, "consumer", sequences=2, seed=3, terms=[], dtype="float64",
+        simulate_shard(tpath, out, "consumer", sequences=2, seed=3, terms=[], dtype="float64",
                 mounting=mount, navigate=nav)  # fmt: skip
         e = tnav.read(nav)
         again = NV.navigate(tpath, out)
@@ -349,8 +350,8 @@ def aided_run(
     from dataclasses import replace
 
     from imugen.aid import companions as CP
+    from imugen.aid import filter as A
     from imugen.aid import stage as AID
-    from imugen.aid.filter import ekf as A
     from imugen.core.rotations import exp_dcm
 
     df, truth = car
@@ -358,7 +359,7 @@ def aided_run(
     sh = SIM.simulate(df, "consumer", sequences=M, seed=seed, draw="nominal", terms=terms,
                       mounting=spec)  # fmt: skip
     mount = tshard.mounting(sh.labels)
-    params = AID.AidParams(receiver=receiver, draw="nominal", lever_arm_b_m=(0.6, 0.3, 1.2))
+    params = AID.AidOptions(receiver=receiver, draw="nominal", lever_arm_b_m=(0.6, 0.3, 1.2))
     gn = AID.gnss_for(truth, sh.labels[tshard.SEQUENCE], params, seed, mount).gnss
     if white_gnss:  # white GNSS errors with known sigmas (no bias states)
         gn = replace(gn, p_n=gn.p_ant_n + gn.offset_p_n - gn.bias_n, sigma_p_n=gn.sigma_p_n * 0)
@@ -392,7 +393,7 @@ def test_nhc_sees_the_misalignment_closed_form(car):
     velocity in the NOMINAL frame, at the nominal lever arm), evaluated on the filter's state
     (perfect IMU, noiseless GNSS, NHC off), is ``u C_bv (1, 0, 0)``: ``-u yaw``, ``-u pitch``
     to first order."""
-    from imugen.aid.filter import ekf as A
+    from imugen.aid import filter as A
 
     truth = car[1]
     opts = A.Options(gnss_bias=False, nhc=False)
@@ -430,7 +431,7 @@ def test_filter_estimates_the_mounting_and_stays_consistent(car):
 
     from scipy.stats import chi2
 
-    from imugen.aid.filter import ekf as A
+    from imugen.aid import filter as A
 
     M = 30
     terms = ["turn_on_bias", "white_noise", "bias_instability"]
@@ -488,7 +489,7 @@ def test_odometer_is_mounting_aware(car):
     NHC rotating the reference point's lateral velocity and not its forward part)."""
     from scipy.stats import chi2
 
-    from imugen.aid.filter import ekf as A
+    from imugen.aid import filter as A
 
     M = 30
     spec = {"misalignment_sd_deg": [3.0, 3.0, 5.0], "lever_arm_m": [1.0, 0.5, 0.5],
@@ -552,7 +553,7 @@ def test_exports_carry_the_imu_truth(tmp_path):
     tpath = tmp_path / "drive" / "truth.parquet"
     ttruth.write(df, meta, tpath)
     shard = tmp_path / "drive" / "imu" / "consumer" / "shard-000.parquet"
-    SIM.run(tpath, shard, "consumer", sequences=2, seed=2, terms=[], dtype="float64",
+    simulate_shard(tpath, shard, "consumer", sequences=2, seed=2, terms=[], dtype="float64",
             outputs="both", mounting=MOUNT)  # fmt: skip
     out = tmp_path / "export"
     export(["euroc", "tum"], tpath, [shard], out, log=lambda m: None, nav_rate_hz=10.0)
@@ -584,9 +585,9 @@ def test_aid_stage_on_a_mounted_shard(car, tmp_path):
     ttruth.write(df, truth.meta, tpath)
     shard = tmp_path / "car" / "imu" / "consumer" / "shard-000.parquet"
     spec = {**CAR_MOUNT, "lever_arm_m": [0.5, 0.2, 1.0]}
-    SIM.run(tpath, shard, "consumer", sequences=2, seed=4, terms=[], mounting=spec)
-    params = AID.AidParams(receiver="rtk", draw="nominal", outage_durations_s=())
-    opts = params.options("car", tshard.read_meta(shard)["mounting"])
+    simulate_shard(tpath, shard, "consumer", sequences=2, seed=4, terms=[], mounting=spec)
+    params = AID.AidOptions(receiver="rtk", draw="nominal", outage_durations_s=())
+    opts = AID.filter_options(params, "car", tshard.read_meta(shard)["mounting"])
     assert opts.nhc and opts.mounting and opts.nhc_lever_arm_m == (0.5, 0.2, 1.0)
     _, apath = AID.run(tpath, shard, tmp_path / "g.parquet", tmp_path / "a.parquet", params)
     nav = taided.read(apath)
@@ -606,7 +607,7 @@ def test_loader_increments_target_is_the_mounted_imus(tmp_path):
     tpath = tmp_path / "drive" / "truth.parquet"
     ttruth.write(df, meta, tpath)
     shard = tmp_path / "drive" / "imu" / "consumer" / "shard-000.parquet"
-    SIM.run(tpath, shard, "consumer", sequences=3, seed=2, terms=[], mounting=MOUNT)
+    simulate_shard(tpath, shard, "consumer", sequences=3, seed=2, terms=[], mounting=MOUNT)
     ds = WindowDataset([RouteFiles("drive", tpath, (shard,), "consumer")], window=50, stride=25)
     x, y = ds.get_batch(np.arange(len(ds)))
     scale = np.abs(y).max(axis=(0, 1))

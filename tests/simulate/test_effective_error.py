@@ -11,6 +11,8 @@ from imugen.sensors.grades import TERMS
 from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 
+from helpers import simulate_shard
+
 RATE = 100.0
 DT = 1.0 / RATE
 SEED, SHARD, ROUTE = 12, 2, "oracle"
@@ -102,7 +104,9 @@ def test_residual_with_quantization_is_white_plus_bounded_carry():
 
 def test_series_columns_written_and_typed(tmp_path):
     out = tmp_path / "s.parquet"
-    S.run(None, out, "industrial", sequences=2, seed=1, static_s=1.0, outputs="both", series=True)
+    simulate_shard(
+        None, out, "industrial", sequences=2, seed=1, static_s=1.0, outputs="both", series=True
+    )
     names = tshard.column_names(out)
     for c in (
         *tshard.EFFECTIVE_ERROR["increments"],
@@ -113,6 +117,6 @@ def test_series_columns_written_and_typed(tmp_path):
     meta = tshard.read_meta(out)
     assert meta["units"]["err_dv_x_mps"] == "m/s" and meta["units"]["err_gyro_z_radps"] == "rad/s"
     # increments only: no rate error columns
-    S.run(None, out, "industrial", sequences=1, seed=1, static_s=1.0, series=True)
+    simulate_shard(None, out, "industrial", sequences=1, seed=1, static_s=1.0, series=True)
     names = tshard.column_names(out)
     assert "err_dtheta_x_rad" in names and "err_gyro_x_radps" not in names

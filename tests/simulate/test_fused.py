@@ -10,9 +10,12 @@ from imugen import truth as T
 from imugen.core.errors import InputError
 from imugen.navigate import navigator
 from imugen.navigate import stage as nv
+from imugen.navigate.options import NavigateOptions
 from imugen.simulate import stage as S
 from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
+
+from helpers import simulate_shard
 
 
 def sha(path):
@@ -46,10 +49,15 @@ def test_fused_equals_simulate_then_navigate(truth_path, tmp_path, monkeypatch, 
         monkeypatch.setattr(module, "batch_size", lambda samples: 2)
     args = dict(grade="consumer", sequences=5, seed=3, shard=1, shard_size=5, **kw)
     two = tmp_path / "two"
-    S.run(truth_path, two / "shard-001.parquet", **args)
-    nv.run(truth_path, two / "shard-001.parquet", two / "nav.parquet", eval_rate_hz=2.0)
+    simulate_shard(truth_path, two / "shard-001.parquet", **args)
+    nv.run(
+        truth_path,
+        two / "shard-001.parquet",
+        two / "nav.parquet",
+        NavigateOptions(eval_rate_hz=2.0),
+    )
     one = tmp_path / "one"
-    S.run(truth_path, one / "shard-001.parquet", navigate=one / "nav.parquet",
+    simulate_shard(truth_path, one / "shard-001.parquet", navigate=one / "nav.parquet",
           eval_rate_hz=2.0, **args)  # fmt: skip
     for name in ("shard-001.parquet", "shard-001.labels.parquet", "nav.parquet"):
         assert sha(one / name) == sha(two / name), name
@@ -60,8 +68,8 @@ def test_fused_equals_simulate_then_navigate(truth_path, tmp_path, monkeypatch, 
 
 def test_errors_only_without_shard(truth_path, tmp_path):
     args = dict(grade="tactical", sequences=3, seed=1)
-    S.run(truth_path, tmp_path / "s.parquet", navigate=tmp_path / "a.parquet", **args)
-    S.run(truth_path, None, navigate=tmp_path / "b.parquet", **args)
+    simulate_shard(truth_path, tmp_path / "s.parquet", navigate=tmp_path / "a.parquet", **args)
+    simulate_shard(truth_path, None, navigate=tmp_path / "b.parquet", **args)
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "a.parquet", "b.parquet", "s.labels.parquet", "s.parquet",
     ]  # fmt: skip
@@ -72,11 +80,11 @@ def test_errors_only_without_shard(truth_path, tmp_path):
 
 def test_refusals_leave_nothing(truth_path, tmp_path):
     with pytest.raises(InputError, match="and/or --navigate"):
-        S.run(truth_path, None, grade="consumer")
+        simulate_shard(truth_path, None, grade="consumer")
     with pytest.raises(InputError, match="needs a truth file"):
-        S.run(None, None, grade="consumer", static_s=2.0, navigate=tmp_path / "n.parquet")
+        simulate_shard(None, None, grade="consumer", static_s=2.0, navigate=tmp_path / "n.parquet")
     with pytest.raises(InputError, match="> 0"):
-        S.run(truth_path, tmp_path / "s.parquet", grade="consumer",
+        simulate_shard(truth_path, tmp_path / "s.parquet", grade="consumer",
               navigate=tmp_path / "n.parquet", eval_rate_hz=0.0)  # fmt: skip
     assert not list(tmp_path.iterdir())
 
@@ -99,7 +107,7 @@ def test_float32_outputs_are_the_rounded_float64_results(truth_path, tmp_path):
 
     kw = dict(grade="consumer", sequences=2, seed=5, outputs="both", series=True)
     mem = S.simulate(str(truth_path), **kw)
-    S.run(truth_path, tmp_path / "s.parquet", dtype="float32", **kw)
+    simulate_shard(truth_path, tmp_path / "s.parquet", dtype="float32", **kw)
     tbl = tshard.read(tmp_path / "s.parquet")
     for group, (cols, _) in tshard.GROUPS.items():
         if group in mem.data:

@@ -13,6 +13,8 @@ from imugen.simulate import stage as S
 from imugen.simulate.plan import enabled_terms
 from imugen.tables import shard as tshard
 
+from helpers import simulate_shard
+
 KW = {"static_s": 1.0, "rate_hz": 50.0}
 ROUTES = ("paper", "example", "city-loop", "")
 
@@ -108,8 +110,8 @@ def test_shard_bytes_do_not_depend_on_how_the_truth_path_is_spelled(tmp_path, mo
     truth = tmp_path / "myroute" / "truth.parquet"
     _truth_file(truth)
     monkeypatch.chdir(tmp_path)
-    a = S.run(truth.resolve(), tmp_path / "a.parquet", "consumer", sequences=2, seed=1)
-    b = S.run(
+    a = simulate_shard(truth.resolve(), tmp_path / "a.parquet", "consumer", sequences=2, seed=1)
+    b = simulate_shard(
         os.path.join("myroute", "..", "myroute", "truth.parquet"),
         tmp_path / "b.parquet",
         "consumer",
@@ -119,8 +121,10 @@ def test_shard_bytes_do_not_depend_on_how_the_truth_path_is_spelled(tmp_path, mo
     assert a["route"] == b["route"] == "myroute"  # default: the truth's folder name
     assert a["truth"]["file"] == "truth.parquet" and "path" not in a["truth"]
     # the shard and labels bytes are identical once each is written under the same name
-    S.run("myroute/truth.parquet", tmp_path / "x" / "s.parquet", "consumer", sequences=2, seed=1)
-    S.run(truth.resolve(), tmp_path / "y" / "s.parquet", "consumer", sequences=2, seed=1)
+    simulate_shard(
+        "myroute/truth.parquet", tmp_path / "x" / "s.parquet", "consumer", sequences=2, seed=1
+    )
+    simulate_shard(truth.resolve(), tmp_path / "y" / "s.parquet", "consumer", sequences=2, seed=1)
     for name in ("s.parquet", "s.labels.parquet"):
         assert (tmp_path / "x" / name).read_bytes() == (tmp_path / "y" / name).read_bytes()
 
@@ -128,7 +132,9 @@ def test_shard_bytes_do_not_depend_on_how_the_truth_path_is_spelled(tmp_path, mo
 def test_route_option_and_errors(tmp_path):
     truth = tmp_path / "r1" / "truth.parquet"
     _truth_file(truth)
-    m = S.run(truth, tmp_path / "s.parquet", "consumer", sequences=1, seed=1, route="other")
+    m = simulate_shard(
+        truth, tmp_path / "s.parquet", "consumer", sequences=1, seed=1, route="other"
+    )
     assert m["route"] == "other" and m["route_id"] == tshard.route_id("other")
     with pytest.raises(InputError, match="--route"):
         S.simulate(None, "consumer", route=3, **KW)

@@ -15,6 +15,8 @@ from imugen.tables import SEQUENCE
 from imugen.tables import shard as tshard
 from imugen.tables import truth as col
 
+from helpers import simulate_shard
+
 KW = {"static_s": 3.0, "rate_hz": 100.0}
 
 
@@ -23,8 +25,12 @@ def data_of(path):
 
 
 def test_two_runs_are_bit_identical(tmp_path):
-    a = S.run(None, tmp_path / "a.parquet", "consumer", sequences=3, seed=11, shard=2, **KW)
-    b = S.run(None, tmp_path / "b.parquet", "consumer", sequences=3, seed=11, shard=2, **KW)
+    a = simulate_shard(
+        None, tmp_path / "a.parquet", "consumer", sequences=3, seed=11, shard=2, **KW
+    )
+    b = simulate_shard(
+        None, tmp_path / "b.parquet", "consumer", sequences=3, seed=11, shard=2, **KW
+    )
     assert data_of(tmp_path / "a.parquet").equals(data_of(tmp_path / "b.parquet"))
     assert data_of(tmp_path / "a.labels.parquet").equals(data_of(tmp_path / "b.labels.parquet"))
     a.pop("labels_file"), b.pop("labels_file")
@@ -79,7 +85,9 @@ def test_switching_a_term_keeps_other_realizations():
 def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
     monkeypatch.setattr(tshard, "ROW_GROUP", 200)
     out = tmp_path / "shard_0001.parquet"
-    S.run(None, out, "navigation", sequences=3, seed=7, shard=1, outputs="both", series=True, **KW)
+    simulate_shard(
+        None, out, "navigation", sequences=3, seed=7, shard=1, outputs="both", series=True, **KW
+    )
     pf = pq.ParquetFile(out)
     assert pf.metadata.num_rows == 3 * 301
     assert pf.metadata.num_row_groups == 5  # written as it goes, in bounded row groups
@@ -137,7 +145,7 @@ def test_parquet_layout_metadata_and_labels(tmp_path, monkeypatch):
 
 def test_float64_option(tmp_path):
     out = tmp_path / "s.parquet"
-    S.run(None, out, "consumer", sequences=1, seed=1, dtype="float64", **KW)
+    simulate_shard(None, out, "consumer", sequences=1, seed=1, dtype="float64", **KW)
     mem = S.simulate(None, "consumer", sequences=1, seed=1, **KW)
     got = pq.read_table(out).to_pandas()[list(col.DTHETA)].to_numpy()
     np.testing.assert_array_equal(got, mem.data["dtheta"][0])
@@ -170,12 +178,12 @@ def test_truth_file_input(tmp_path):
     df.loc[0, list(col.DTHETA) + list(col.DV)] = 0.0
     p = tmp_path / "truth.parquet"
     df.to_parquet(p)
-    meta = S.run(p, tmp_path / "o.parquet", "tactical", sequences=2, seed=1)
+    meta = simulate_shard(p, tmp_path / "o.parquet", "tactical", sequences=2, seed=1)
     assert meta["rate_hz"] == pytest.approx(50.0) and meta["truth"]["file"] == "truth.parquet"
     assert "path" not in meta["truth"] and len(meta["truth"]["sha256"]) == 64
     df.drop(columns=[col.DV[0]]).to_parquet(p)
     with pytest.raises(InputError, match="missing column"):
-        S.run(p, tmp_path / "o2.parquet", "tactical")
+        simulate_shard(p, tmp_path / "o2.parquet", "tactical")
     assert not (tmp_path / "o2.parquet").exists()
 
 
@@ -194,7 +202,7 @@ def test_truth_file_input(tmp_path):
 def test_input_errors(tmp_path, kw, match):
     args = {"grade": "consumer", "static_s": 1.0, **kw}
     with pytest.raises(InputError, match=match):
-        S.run(None, tmp_path / "x.parquet", **args)
+        simulate_shard(None, tmp_path / "x.parquet", **args)
     assert not list(tmp_path.iterdir())
 
 
@@ -203,7 +211,7 @@ def test_in_memory_and_written_metadata_agree(tmp_path):
     from imugen.core.io import read_meta
 
     mem = S.simulate(None, "consumer", sequences=2, seed=3, shard=1, static_s=2.0, rate_hz=10.0)
-    S.run(None, tmp_path / "s.parquet", "consumer", 2, 3, 1, static_s=2.0, rate_hz=10.0)
+    simulate_shard(None, tmp_path / "s.parquet", "consumer", 2, 3, 1, static_s=2.0, rate_hz=10.0)
     disk = read_meta(tmp_path / "s.parquet")
     assert mem.meta["preset_sha"] is not None and mem.meta["preset_sha"] == disk["preset_sha"]
     for key in ("grade", "seed", "shard", "sequence_ids", "spawn_key", "samples_per_sequence"):

@@ -1,14 +1,14 @@
-"""Code inputs derived from the imports: editing a module of a stage reruns that stage and what
-follows, and nothing else.
+"""Code tracking derived from the imports: editing a module of a stage reruns that stage and
+what follows, and nothing else.
 
 A complete run of a tiny config (one route, one grade, the aid stage, the Allan check, a
 .mat and a TUM export) with a copy of the workflow and the package source; then one module
 of each stage is edited in the copy and the dry run must schedule exactly the rules whose
-command runs that module (``code_inputs`` in workflow/rules/common.smk) and those downstream.
+command runs that module (``code_files`` in workflow/rules/common.smk) and those downstream.
 The jobs run this checkout's code (``PYTHONPATH``, warm numba caches): only the copy's files
-are the rules' code inputs. Snakemake records the checksums of these small inputs, so the
-edit is a change of content (an appended comment): restoring the content undoes it, and a
-mere touch reruns nothing.
+enter the rules' code digests (``params: code=``, ``code_digest``). Snakemake reruns a job
+whose params changed, so the edit is a change of content (an appended comment): restoring
+the content undoes it, and a mere touch reruns nothing.
 """
 
 import shutil

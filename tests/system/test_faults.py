@@ -23,12 +23,16 @@ import pytest
 
 from imugen import cli
 from imugen.core.errors import InputError
+from imugen.evaluate.options import EvaluateOptions
 from imugen.ingest.stage import run as ingest_run
 from imugen.navigate.stage import run as navigate_run
 from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
-from imugen.truth import run as truth_run
+from imugen.truth.options import TruthOptions
+from imugen.truth.stage import run as truth_run
+
+from helpers import simulate_shard
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "resources" / "example_route.kml"
@@ -61,9 +65,9 @@ def route(tmp_path_factory):
     enu = d / "enu.parquet"
     ingest_run(EXAMPLE, enu)
     truth = d / "truth.parquet"
-    truth_run(enu, truth, rate_hz=10.0)
+    truth_run(enu, truth, TruthOptions(rate_hz=10.0, earth="flat"))
     shard = d / "shard-000.parquet"
-    S.run(truth, shard, "industrial", sequences=2, seed=1)
+    simulate_shard(truth, shard, "industrial", sequences=2, seed=1)
     navigate_run(truth, shard, d / "nav.parquet")
     return {"enu": enu, "truth": truth, "shard": shard}
 
@@ -111,7 +115,9 @@ def test_killed_shard_job_leaves_no_output_and_rerun_is_bit_identical(route, tmp
     b = tmp_path / "clean"
     b.mkdir()
     ref = b / out.name
-    S.run(None, ref, "industrial", sequences=50, seed=7, shard=3, static_s=600.0, rate_hz=100.0)
+    simulate_shard(
+        None, ref, "industrial", sequences=50, seed=7, shard=3, static_s=600.0, rate_hz=100.0
+    )
     assert sha(out) == sha(ref)
     assert sha(tshard.labels_path(out)) == sha(tshard.labels_path(ref))
 
@@ -269,13 +275,15 @@ def test_evaluate_streams_files_and_refuses_repeated_ids(route, tmp_path):
     frames = [_nav_table([4, 5, 6]), _nav_table([0, 1], offset=1.0), _nav_table([2, 3])]
     paths = [write_parquet(f, {"stage": "navigate"}, tmp_path / f"n{i}.parquet") for i, f in
              enumerate(frames)]  # fmt: skip
-    out = evaluate_run(route["truth"], paths, tmp_path / "m.parquet", grade="g")
+    out = evaluate_run(route["truth"], paths, tmp_path / "m.parquet", EvaluateOptions(grade="g"))
     got = pd.read_parquet(out).set_index("sequence")
     want = sequence_metrics(pd.concat(frames), horizontal_distance_m(route["truth"]))
     pd.testing.assert_frame_equal(got, want, check_index_type=False)
     dup = write_parquet(_nav_table([6, 7]), {"stage": "navigate"}, tmp_path / "dup.parquet")
     with pytest.raises(InputError, match="sequence 6 appears in more than one"):
-        evaluate_run(route["truth"], [*paths, dup], tmp_path / "m2.parquet", grade="g")
+        evaluate_run(
+            route["truth"], [*paths, dup], tmp_path / "m2.parquet", EvaluateOptions(grade="g")
+        )
     assert not (tmp_path / "m2.parquet").exists()
 
 
@@ -290,7 +298,7 @@ def test_navigate_reader_is_independent_of_batching(route, tmp_path, monkeypatch
     from imugen.navigate.navigator import BATCH_BYTES, batch_size
 
     shard = tmp_path / "shard-000.parquet"
-    S.run(route["truth"], shard, "consumer", sequences=5, seed=3)
+    simulate_shard(route["truth"], shard, "consumer", sequences=5, seed=3)
     ref = N.navigate(route["truth"], shard)
     monkeypatch.setattr(tshard, "READ_ROWS", 777)  # not a divisor of the samples per sequence
     for b in (1, 2, 5, 64):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import shutil
 import threading
 import time
@@ -18,7 +19,7 @@ flask = pytest.importorskip("flask")
 
 from imugen.web import form as fm  # noqa: E402
 from imugen.web.app import create_app  # noqa: E402
-from imugen.web.runs import safe_name  # noqa: E402
+from imugen.web.runs import Run, safe_name  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 ROUTE = REPO / "resources" / "example_route.kml"
@@ -42,8 +43,14 @@ def client(tmp_path):
     return app.test_client(), tmp_path
 
 
+def _token(client) -> str:
+    """The form token the page embeds (every POST must carry it)."""
+    html = client.get("/").get_data(as_text=True)
+    return re.search(r'name="csrf_token" value="([^"]+)"', html).group(1)
+
+
 def _post(client, data, name="example.kml", content=None):
-    body = dict(data)
+    body = {"csrf_token": _token(client), **data}
     body["route"] = (io.BytesIO(content if content is not None else ROUTE.read_bytes()), name)
     return client.post("/runs", data=body, content_type="multipart/form-data")
 
@@ -151,21 +158,68 @@ def _chromium():
     return webdriver.Chrome(service=Service(driver), options=opts)
 
 
+def _snakemakes(root: Path) -> list[int]:
+    """Pids of the Snakemake processes working in run folder ``root`` (not --unlock)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        try:
+            argv = (d / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if b"snakemake" in argv and str(root).encode() in argv and b"--unlock" not in argv:
+            if not argv[0].endswith(b"sh"):
+                out.append(int(d.name))
+    return out
+
+
+EVIL = """<!doctype html><html><body>
+<form id="a" method="post" action="{target}" enctype="text/plain"><input name="x" value="1"></form>
+<form id="b" method="post" action="{target}" target="sink"><input name="csrf_token" value="guess"></form>
+<iframe name="sink"></iframe>
+<script>document.getElementById("b").submit(); setTimeout(() => document.getElementById("a").submit(), 500);</script>
+</body></html>"""
+
+
+def _evil_site(target: str) -> tuple[str, object]:
+    """Another site (another port: another origin) whose page posts forms to ``target``."""
+    import http.server
+
+    page = EVIL.format(target=target).encode()
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html")
+            self.end_headers()
+            self.wfile.write(page)
+
+        def log_message(self, *a):
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return f"http://127.0.0.1:{server.server_port}/", server
+
+
 def test_browser_end_to_end_on_the_shipped_example(tmp_path):
     from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
+    from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support import expected_conditions as ec
     from selenium.webdriver.support.ui import WebDriverWait
     from werkzeug.serving import make_server
 
-    app = create_app(tmp_path, REPO)
+    app = create_app(tmp_path, REPO, access_token="browser-test-token")
     server = make_server("127.0.0.1", 0, app, threaded=True)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     base = f"http://127.0.0.1:{server.server_port}"
     shots = os.environ.get("IMUGEN_SCREENSHOTS")
     browser = _chromium()
+    evil_server = None
     try:
-        browser.get(base + "/")
+        browser.get(base + "/")  # without the printed address's token: refused
+        assert "open the address" in browser.find_element(By.TAG_NAME, "body").text
+        browser.get(base + "/?token=browser-test-token")
         browser.find_element(By.ID, "route").send_keys(str(ROUTE))
         for g in browser.find_elements(By.NAME, "grades"):
             if g.is_selected() != (g.get_attribute("value") == "consumer"):
@@ -190,8 +244,18 @@ def test_browser_end_to_end_on_the_shipped_example(tmp_path):
         wait = WebDriverWait(browser, 120)
         facts = wait.until(ec.presence_of_element_located((By.ID, "route-facts"))).text
         assert "points" in facts and " m," in facts, facts
-        browser.find_element(By.ID, "start").click()
+        run_root = tmp_path / "runs" / browser.current_url.rstrip("/").rsplit("/", 1)[1]
+        # a double click on Start starts one Snakemake
+        ActionChains(browser).double_click(browser.find_element(By.ID, "start")).perform()
         wait.until(ec.presence_of_element_located((By.ID, "status")))
+        time.sleep(3)
+        assert len(_snakemakes(run_root)) == 1, _snakemakes(run_root)
+        # another site's page posting to the running run's Cancel changes nothing
+        evil, evil_server = _evil_site(base + f"/runs/{run_root.name}/cancel")
+        browser.get(evil)
+        time.sleep(2)
+        assert Run(run_root).state()["status"] == "running"
+        browser.get(base + f"/runs/{run_root.name}")
         deadline, status = time.time() + 600, ""
         while time.time() < deadline:
             try:
@@ -206,19 +270,36 @@ def test_browser_end_to_end_on_the_shipped_example(tmp_path):
         )[-3000:]
         table = browser.find_element(By.ID, "rmse").text
         assert "consumer" in table
+        # the RMSE table fits the page; the truth's facts are a table with words and units
+        right, main_right, page_w, view_w = browser.execute_script(
+            "const t = document.querySelector('#rmse table').getBoundingClientRect();"
+            "const m = document.querySelector('main').getBoundingClientRect();"
+            "return [t.right, m.right, document.documentElement.scrollWidth, window.innerWidth];"
+        )
+        assert right <= main_right + 1 and page_w <= view_w, (right, main_right, page_w, view_w)
+        truth = browser.find_element(By.ID, "truth-facts")
+        assert truth.tag_name == "table"
+        assert "top speed" in truth.text and " m/s" in truth.text and "Earth model" in truth.text
+        assert "_mps" not in truth.text and "max_" not in truth.text
         if shots:
             browser.save_screenshot(str(Path(shots) / "web_run.png"))
+        cookie = "; ".join(f"{c['name']}={c['value']}" for c in browser.get_cookies())
+
+        def fetch(url):
+            return urllib.request.urlopen(urllib.request.Request(url, headers={"Cookie": cookie}))
+
         link = next(
             a.get_attribute("href")
             for a in browser.find_elements(By.CSS_SELECTOR, "#files a")
             if a.text.endswith("rmse.csv")
         )
-        csv = urllib.request.urlopen(link).read().decode()
+        csv = fetch(link).read().decode()
         assert csv.startswith("grade,east_m,north_m,up_m,total_m") and "consumer" in csv
-        z = urllib.request.urlopen(
-            browser.find_element(By.ID, "download-zip").get_attribute("href")
-        )
+        z = fetch(browser.find_element(By.ID, "download-zip").get_attribute("href"))
         assert z.read(2) == b"PK"
+        assert [p.name for p in (tmp_path / "runs").iterdir() if p.is_dir()] == [run_root.name]
     finally:
         browser.quit()
         server.shutdown()
+        if evil_server is not None:
+            evil_server.shutdown()

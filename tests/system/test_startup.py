@@ -6,7 +6,9 @@ import sys
 CODE = """
 import sys
 from imugen.simulate import stage as S
-S.run(None, sys.argv[1], "industrial", sequences=1, seed=1, static_s=2.0)
+from imugen.simulate.options import SimulateOptions
+opts = SimulateOptions(grade="industrial", sequences=1, seed=1, shard=0, static_s=2.0)
+S.run(None, sys.argv[1], opts)
 import imugen.navigate.stage  # noqa: F401  (the navigation: navigator, mechanize, kernel)
 names = ("pandas", "scipy.linalg", "pyproj", "matplotlib", "jsonschema")
 heavy = [m for m in names if m in sys.modules]

@@ -293,8 +293,8 @@ def test_export_formats_pass_the_split_and_the_companions(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     out = (proc.stdout + proc.stderr).splitlines()
     (cmd,) = [ln for ln in out if ln.startswith("Shell command: imugen export ")]
-    assert "--split-by route --split-seed 0 --val-fraction 0.2 --test-fraction 0.1" in cmd
-    assert "--holdout-routes paper" in cmd
+    assert "--split-by=route --split-seed=0 --val-fraction=0.2 --test-fraction=0.1" in cmd
+    assert "--holdout-routes=paper" in cmd
     shards = [f"results/example/companions/consumer/shard-{k:03d}.parquet" for k in (0, 1)]
     assert "--companions " + " ".join(shards) in cmd
     cfg["exports"]["split"]["holdout_routes"] = ["nowhere"]

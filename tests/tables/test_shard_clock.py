@@ -6,9 +6,10 @@ import pyarrow.parquet as pq
 import pytest
 
 from imugen.core.errors import InputError
-from imugen.simulate import stage as S
 from imugen.tables import shard as tshard
 from imugen.tables import truth as col
+
+from helpers import simulate_shard
 
 SEQ = tshard.SEQUENCE
 
@@ -51,8 +52,8 @@ def test_simulated_shard_stores_the_clock_once(tmp_path, monkeypatch):
     monkeypatch.setattr(tshard, "ROW_GROUP", 250)  # sequences straddle row groups
     truth, t = _truth(tmp_path)
     out, full = tmp_path / "s.parquet", tmp_path / "f.parquet"
-    meta = S.run(truth, out, "consumer", sequences=3, seed=2)
-    S.run(truth, full, "consumer", sequences=3, seed=2, explicit_time=True)
+    meta = simulate_shard(truth, out, "consumer", sequences=3, seed=2)
+    simulate_shard(truth, full, "consumer", sequences=3, seed=2, explicit_time=True)
     assert col.TIME not in pq.ParquetFile(out).schema_arrow.names
     assert col.TIME in pq.ParquetFile(full).schema_arrow.names
     assert meta["clock"] == {"t0_s": 3.0, "dt_s": meta["clock"]["dt_s"], "samples": len(t)}
@@ -85,7 +86,7 @@ def test_old_shards_with_a_time_column_still_read(tmp_path):
     """A format-2 shard (time_s in every row, no clock in the metadata) reads as before."""
     truth, t = _truth(tmp_path)
     out = tmp_path / "s.parquet"
-    S.run(truth, out, "consumer", sequences=2, seed=5, explicit_time=True)
+    simulate_shard(truth, out, "consumer", sequences=2, seed=5, explicit_time=True)
     tbl = pq.read_table(out)
     meta = tshard.read_meta(out)
     del meta["clock"]
@@ -106,7 +107,7 @@ def test_old_shards_with_a_time_column_still_read(tmp_path):
 def test_derived_shard_keeps_the_clock(tmp_path):
     truth, t = _truth(tmp_path)
     out, der = tmp_path / "s.parquet", tmp_path / "d.parquet"
-    S.run(truth, out, "consumer", sequences=2, seed=5)
+    simulate_shard(truth, out, "consumer", sequences=2, seed=5)
     x = tshard.read(out)
     K = len(t)
     dth = np.stack([x.column(c).to_numpy().reshape(2, K) for c in col.DTHETA], -1)
@@ -119,7 +120,7 @@ def test_derived_shard_keeps_the_clock(tmp_path):
 def test_a_shard_without_time_or_clock_is_refused(tmp_path):
     truth, _ = _truth(tmp_path)
     out = tmp_path / "s.parquet"
-    S.run(truth, out, "consumer", sequences=1, seed=5)
+    simulate_shard(truth, out, "consumer", sequences=1, seed=5)
     meta = tshard.read_meta(out)
     meta["clock"] = None
     from imugen.core.io import write_parquet

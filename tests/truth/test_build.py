@@ -473,7 +473,7 @@ def test_run_writes_parquet_atomically(tmp_path):
     enu_path = tmp_path / "enu.parquet"
     tenu.write(df, meta, enu_path)
     out = tmp_path / "sub" / "truth.parquet"
-    m = truth.run(enu_path, out, rate_hz=20, earth="auto", vehicle="car")
+    m = truth.run(enu_path, out, truth.TruthOptions(rate_hz=20, earth="auto", vehicle="car"))
     tbl = pq.read_table(out)
     assert tbl.column_names == list(col.COLUMNS)
     import json

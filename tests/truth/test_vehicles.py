@@ -18,6 +18,7 @@ import pytest
 
 from imugen import truth
 from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
@@ -248,7 +249,7 @@ def test_cli_prints_the_report_after_writing_and_stores_it(tmp_path, cli):
     t, enu = _reversal_route(90.0)
     df, meta = truth.enu_table(enu, t, ORIGIN)
     src = tmp_path / "enu.parquet"
-    truth.write_parquet(df, meta, src)
+    write_parquet(df, meta, src)
     out = tmp_path / "truth.parquet"
     proc = cli(
         "truth", src, "-o", out, "--rate-hz", 10, "--vehicle", "bicycle",

@@ -9,7 +9,6 @@ rule aid:
         truth=rules.truth.output[0],
         shard=layout.shard("imu"),
         grade=grade_files,
-        code=code_inputs("imugen.aid.stage"),
     output:
         gnss=layout.shard("gnss"),
         labels=layout.sidecar(layout.shard("gnss"), "labels"),
@@ -18,12 +17,13 @@ rule aid:
         companions=layout.shard("companions"),
         companion_labels=layout.sidecar(layout.shard("companions"), "labels"),
     params:
+        code=code_digest("imugen.aid.stage"),
         opts=aid_opts,
         grade=grade_arg,
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
     log:
         "logs/{route}/aid/{grade}/shard-{shard}.log",
     shell:
-        "imugen aid {input.truth:q} {input.shard:q} --gnss-out {output.gnss:q} -o {output.aided:q} "
-        "--companions-out {output.companions:q} --grade {params.grade:q} "
-        "--eval-rate-hz {params.eval_rate_hz} {params.opts} > {log:q} 2>&1"
+        "imugen aid {input.truth:q} {input.shard:q} --gnss-out={output.gnss:q} --output={output.aided:q} "
+        "--companions-out={output.companions:q} --grade={params.grade:q} "
+        "--eval-rate-hz={params.eval_rate_hz} {params.opts} > {log:q} 2>&1"

@@ -5,11 +5,11 @@
 rule allan_static:
     input:
         grade=grade_files,
-        code=code_inputs("imugen.simulate.stage"),
         presets=PRESETS,
     output:
         layout.allan_static(),
     params:
+        code=code_digest("imugen.simulate.stage"),
         grade=grade_arg,
         spec=lambda wc: config["grades"][wc.grade],
         static_s=config["allan"]["static_s"],
@@ -19,15 +19,14 @@ rule allan_static:
     log:
         "logs/allan/{grade}/static.log",
     shell:
-        "imugen simulate --static {params.static_s} --rate-hz {params.rate_hz} "
-        "-o {output:q} --grade {params.grade:q} --sequences {params.sequences} "
-        "--seed {params.seed} --shard 0 --draw nominal > {log:q} 2>&1"
+        "imugen simulate --static={params.static_s} --rate-hz={params.rate_hz} "
+        "--output={output:q} --grade={params.grade:q} --sequences={params.sequences} "
+        "--seed={params.seed} --shard=0 --draw=nominal > {log:q} 2>&1"
 
 
 rule allan:
     input:
         static=rules.allan_static.output[0],
-        code=code_inputs("imugen.allan.stage"),
     output:
         json=layout.allan(ext="json"),
         plot=report(
@@ -36,7 +35,9 @@ rule allan:
             category="Allan deviation",
             labels={"grade": "{grade}"},
         ),
+    params:
+        code=code_digest("imugen.allan.stage"),
     log:
         "logs/allan/{grade}/allan.log",
     shell:
-        "imugen allan {input.static:q} --plot {output.plot:q} -o {output.json:q} > {log:q} 2>&1"
+        "imugen allan {input.static:q} --plot={output.plot:q} --output={output.json:q} > {log:q} 2>&1"

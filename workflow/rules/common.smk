@@ -1,12 +1,14 @@
 # Helpers for every stage: config validation, routes/grades/shards, code tracking.
 import ast
 import functools
+import hashlib
 import json
 import math
 import shlex
 import sys
 from pathlib import Path
 
+import yaml
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
@@ -17,14 +19,24 @@ from imugen.core.errors import InputError
 from imugen.tables import layout
 
 
+# The schema first, one line per problem naming the key (Snakemake's `validate` would print
+# the first problem with its whole sub-schema); then `validate` fills the defaults.
+_problems = preflight.schema_problems(
+    config, yaml.safe_load((Path(workflow.basedir) / "workflow/schemas/config.schema.yaml").read_text())
+)
+if _problems:
+    raise WorkflowError("\n".join(f"imugen: error: {p}" for p in _problems))
 validate(config, "../schemas/config.schema.yaml")
-# Before any job: no NaN/inf, custom grades valid, the run within the memory and disk budgets
-# (estimates in the message; see src/imugen/preflight.py). Jobs re-reading this file on a
+# Before any job: no NaN/inf, custom grades valid (not named like a preset), the run within
+# the memory and disk budgets (estimates in the message; see src/imugen/preflight.py). The
+# budget is checked in dry runs too, which is what we want: `snakemake -n` refuses a run that
+# would not fit (Snakemake 9 cannot tell a dry run at parse time: `workflow.dryrun` is False
+# until the executor is set up, after this file is read). Jobs re-reading this file on a
 # cluster node skip the budget (it was checked where the run was started).
 try:
     preflight.check_values(config)
-    if workflow.is_main_process and not workflow.dryrun:
-        preflight.check_budget(config)
+    if workflow.is_main_process:
+        preflight.check_budget(config, Path(layout.RESULTS))
 except InputError as exc:
     raise WorkflowError(f"imugen: error: {exc}") from None
 
@@ -38,7 +50,7 @@ SHARDS = [layout.shard_label(k) for k in range(math.ceil(N_SEQ / PER_SHARD))]
 WRITE_IMU = SIM["write_imu"]
 MOUNTING = config.get("mounting", {})
 MOUNTING_ARG = (
-    f"--mounting {shlex.quote(json.dumps(MOUNTING))}" if MOUNTING.get("enabled") else ""
+    f"--mounting={shlex.quote(json.dumps(MOUNTING))}" if MOUNTING.get("enabled") else ""
 )
 """`imugen simulate --mounting JSON` when the config's mounting is enabled (else nothing)."""
 # the IMU shard and its labels, when written (simulate.write_imu); without them the rules that
@@ -119,23 +131,40 @@ def _closure(name):
     return frozenset(seen)
 
 
-def code_inputs(*modules):
-    """Source files of the code a rule's command runs, as its inputs: editing one reruns it.
+def code_files(*modules):
+    """Source files of the code a rule's command runs (sorted paths under ``SRC``).
 
     The transitive closure, computed from the code with ``ast``, of the imugen modules the
     command's modules import (``modules``: the stage's ``stage.py`` face, or whichever module
-    the command dispatches to), anywhere in them, function-level imports included, plus what
-    ``imugen.cli`` imports when it starts (it imports each command's module inside its
-    dispatch, so one stage's closure holds no other stage). Computed once per rule when the
-    workflow is parsed (cached per module). Snakemake does not track imported code itself;
-    these files are small, so their checksums are recorded and a mere timestamp change (a git
-    checkout) reruns nothing. tests/system/test_code_inputs.py edits a module of each stage
-    and checks the jobs a dry run schedules.
+    the command dispatches to; each imports its command's options module), anywhere in them,
+    function-level imports included, plus what ``imugen.cli`` imports when it starts (it loads
+    the one command's options module by name, so one stage's closure holds no other stage).
     """
     names = {"imugen.cli"}
     for m in (*_imports("imugen.cli", top_level_only=True), *modules):
         names |= _closure(m)
     return sorted(str(_module_file(m)) for m in names)
+
+
+@functools.cache
+def code_digest(*modules):
+    """A digest of the contents of :func:`code_files`, a param of the rule (``code=``):
+    editing one of its files reruns the rule's jobs, and what follows.
+
+    Snakemake does not track imported code itself. A changed param reruns its jobs
+    (Snakemake's ``params`` rerun trigger), and a mere timestamp change (a git checkout)
+    reruns nothing. Computed once per rule when the workflow is parsed (closures cached per
+    module); a static param costs a job nothing, where the same files as inputs of every shard
+    job cost a fifth of a 10,000-shard dry run (benchmarks/bench_dryrun.py). Files are keyed
+    by their path under ``SRC``, so a moved checkout reruns nothing.
+    tests/system/test_code_inputs.py edits a module of each stage and checks the jobs a dry
+    run schedules.
+    """
+    h = hashlib.sha256()
+    for f in code_files(*modules):
+        h.update(Path(f).relative_to(SRC).as_posix().encode() + b"\0")
+        h.update(Path(f).read_bytes() + b"\0")
+    return h.hexdigest()[:16]
 
 
 PRESETS = str(Path(workflow.basedir) / "src" / "imugen" / "data" / "grades.yaml")
@@ -165,27 +194,31 @@ def shard_sequences(wildcards):
 
 
 def ingest_opts(wildcards):
-    """Command-line options of `imugen ingest` for this route (path, origin, dt, extent)."""
+    """Command-line options of `imugen ingest` for this route (path, origin, dt, extent).
+
+    Every value is written `--name=value`: a southern latitude (`--origin=-33.9,...`) or a
+    path name starting with `-` would otherwise be taken for an option.
+    """
     r = config["routes"][wildcards.route]
     opts = []
     if r.get("path") is not None:
-        opts += ["--path", shlex.quote(str(r["path"]))]
+        opts.append(f"--path={shlex.quote(str(r['path']))}")
     if r.get("origin") is not None:
-        opts += ["--origin", ",".join(repr(float(x)) for x in r["origin"])]
+        opts.append("--origin=" + ",".join(repr(float(x)) for x in r["origin"]))
     if r.get("dt_s") is not None:
-        opts += ["--dt", repr(float(r["dt_s"]))]
+        opts.append(f"--dt={float(r['dt_s'])!r}")
     if r.get("max_extent_km") is not None:
-        opts += ["--max-extent-km", repr(float(r["max_extent_km"]))]
+        opts.append(f"--max-extent-km={float(r['max_extent_km'])!r}")
     return " ".join(opts)
 
 
 def ingest_clean_opts(wildcards):
     """`imugen ingest` options of the cleaning and gap rules for this route."""
     r = config["routes"][wildcards.route]
-    opts = ["--vehicle", shlex.quote(str(r.get("vehicle", "car")))]
+    opts = [f"--vehicle={shlex.quote(str(r.get('vehicle', 'car')))}"]
     if r.get("max_gap_s") is not None:
-        opts += ["--max-gap-s", repr(float(r["max_gap_s"]))]
-    opts += ["--gaps", shlex.quote(str(r.get("gaps", "split")))]
+        opts.append(f"--max-gap-s={float(r['max_gap_s'])!r}")
+    opts.append(f"--gaps={shlex.quote(str(r.get('gaps', 'split')))}")
     return " ".join(opts)
 
 
@@ -193,7 +226,7 @@ def auto_grades():
     """`--grade` options of the truth: every configured grade (presets by name, custom grades
     as FILE.yaml:NAME) takes part in the `--earth auto` budget."""
     return " ".join(
-        f"--grade {shlex.quote(f'{layout.grade_file(g)}:{g}' if is_custom(g) else g)}"
+        f"--grade={shlex.quote(f'{layout.grade_file(g)}:{g}' if is_custom(g) else g)}"
         for g in GRADES
     )
 
@@ -223,7 +256,7 @@ def grade_pairs(kind):
         files = input[kind]
         per = len(files) // len(GRADES)
         return " ".join(
-            f"--{kind} {g}={shlex.quote(f)}"
+            f"--{kind}={shlex.quote(f'{g}={f}')}"
             for i, g in enumerate(GRADES)
             for f in files[i * per : (i + 1) * per]
         )
@@ -253,6 +286,66 @@ def run_summary():
         print(f"  {r}: {layout.route_dir(r)}/ (rmse.csv, figures/); Earth model {m.get('earth')} ({why})")
 
 
+def check_executor():
+    """Before the first job of a SLURM run: refuse, in one line, a run that would wait for
+    ever (a cluster without accounting; src/imugen/preflight.py, slurm_status_problem)."""
+    plugin = workflow.executor_plugin
+    if plugin is None or plugin.name != "slurm":
+        return
+    settings = workflow.executor_settings
+    problem = preflight.slurm_status_problem(
+        getattr(settings, "status_command", None),
+        float(getattr(settings, "init_seconds_before_status_checks", None) or 40),
+    )
+    if problem:
+        print(f"imugen: error: {problem}", file=sys.stderr)
+        sys.exit(1)
+
+
+ERROR_IN_RULE = "Error in rule "
+"""How Snakemake's log starts the block of a failed job."""
+
+
+def failed_job_reasons(snakemake_logs):
+    """(rule, log file, reason) of each failed job in Snakemake's log files (a path or a
+    list): the job's last line `imugen: error: ...` (without the prefix), else its log's
+    last line, else Snakemake's message (a failed submission: `SLURM sbatch failed ...`)."""
+    if isinstance(snakemake_logs, (str, Path)):
+        snakemake_logs = [snakemake_logs]
+    text = "\n".join(
+        Path(f).read_text(errors="replace") for f in snakemake_logs or [] if Path(f).is_file()
+    )
+    out, failed, message = [], None, None
+    for line in text.splitlines():
+        s = line.strip()
+        if line.startswith(ERROR_IN_RULE):
+            failed, message = line[len(ERROR_IN_RULE) :].rstrip(":"), None
+        elif failed and s.startswith("message: ") and s != "message: None":
+            message = s[len("message: ") :]
+        elif failed and s.startswith("log: ") and "(check log file" in s:
+            for f in s[5:].split(" (check log file")[0].split(", "):
+                out.append((failed, f, _last_reason(Path(f)) or message or "(no log written)"))
+            failed = None
+    return out
+
+
+def _last_reason(path):
+    try:
+        lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return None
+    errors = [ln for ln in lines if ln.startswith("imugen: error: ")]
+    if errors:
+        return errors[-1][len("imugen: error: ") :]
+    return lines[-1][:300] if lines else None
+
+
+def report_failures(snakemake_logs):
+    """On a failed run: each failed job's one-line reason, on the terminal (not only in its log)."""
+    for name, f, reason in failed_job_reasons(snakemake_logs):
+        print(f"imugen: error: {name} failed: {reason} ({f})", file=sys.stderr)
+
+
 # --- aid stage (GNSS-denied scenarios, aided baseline): workflow/rules/aid.smk ---
 GNSS = config["gnss"]
 SCEN = config["scenarios"]
@@ -263,20 +356,20 @@ AID_ON = bool(GNSS["enabled"])
 
 def aid_opts(wildcards):
     """`imugen aid` options from the gnss, scenarios and aided config blocks."""
-    opts = [f"--receiver {GNSS['receiver']}", f"--gnss-draw {GNSS['draw']}"]
+    opts = [f"--receiver={GNSS['receiver']}", f"--gnss-draw={GNSS['draw']}"]
     if GNSS["rate_hz"] is not None:
-        opts.append(f"--gnss-rate-hz {GNSS['rate_hz']!r}")
-    opts.append("--lever-arm " + ",".join(repr(float(x)) for x in GNSS["lever_arm_b_m"]))
-    opts.append(f"--lever-arm-sd {float(GNSS['lever_arm_sd_m'])!r}")
+        opts.append(f"--gnss-rate-hz={GNSS['rate_hz']!r}")
+    opts.append("--lever-arm=" + ",".join(repr(float(x)) for x in GNSS["lever_arm_b_m"]))
+    opts.append(f"--lever-arm-sd={float(GNSS['lever_arm_sd_m'])!r}")
     specs = [f"outage:{float(T)!r}" for T in SCEN["outages_s"]] + list(SCEN["draw"])
     for iv in SCEN["intervals"]:
         extra = "".join(
             f",{k}={float(v)!r}" for k, v in iv.items() if k not in ("kind", "start_s", "duration_s")
         )
         specs.append(f"{iv['kind']}:{float(iv['duration_s'])!r}@{float(iv['start_s'])!r}{extra}")
-    opts += [f"--scenario {shlex.quote(s)}" for s in specs]
-    opts.append(f"--settle-s {float(SCEN['settle_s'])!r}")
-    opts.append(f"--tuning-level {AIDED['tuning_level']}")
+    opts += [f"--scenario={shlex.quote(s)}" for s in specs]
+    opts.append(f"--settle-s={float(SCEN['settle_s'])!r}")
+    opts.append(f"--tuning-level={AIDED['tuning_level']}")
     if not AIDED["gnss_bias_states"]:
         opts.append("--no-gnss-bias-states")
     if AIDED["scale_factors"]:
@@ -288,22 +381,22 @@ def aid_opts(wildcards):
     slip = AIDED["nhc_slip_sd_mps"]
     if slip is not None:
         slip = slip if isinstance(slip, list) else [slip]
-        opts.append("--nhc-slip-sd " + ",".join(repr(float(x)) for x in slip))
+        opts.append("--nhc-slip-sd=" + ",".join(repr(float(x)) for x in slip))
     if not AIDED["zupt"]:
         opts.append("--no-zupt")
-    opts.append(f"--gate-sigma {float(AIDED['gate_sigma'])!r}")
-    opts.append(f"--align-speed {float(AIDED['align_speed_mps'])!r}")
-    opts.append(f"--companion-draw {COMP['draw']}")
+    opts.append(f"--gate-sigma={float(AIDED['gate_sigma'])!r}")
+    opts.append(f"--align-speed={float(AIDED['align_speed_mps'])!r}")
+    opts.append(f"--companion-draw={COMP['draw']}")
     if COMP["odometer"] is not None:
-        opts.append(f"--odometer {COMP['odometer']}")
+        opts.append(f"--odometer={COMP['odometer']}")
         if COMP["odometer_rate_hz"] is not None:
-            opts.append(f"--odometer-rate-hz {float(COMP['odometer_rate_hz'])!r}")
+            opts.append(f"--odometer-rate-hz={float(COMP['odometer_rate_hz'])!r}")
         lever = ",".join(repr(float(x)) for x in COMP["odometer_lever_b_m"])
-        opts.append(f"--odometer-lever {lever}")
+        opts.append(f"--odometer-lever={lever}")
         if not COMP["odometer_scale_state"]:
             opts.append("--no-odometer-scale-state")
     if COMP["barometer"] is not None:
-        opts.append(f"--baro {COMP['barometer']}")
+        opts.append(f"--baro={COMP['barometer']}")
         if COMP["barometer_rate_hz"] is not None:
-            opts.append(f"--baro-rate-hz {float(COMP['barometer_rate_hz'])!r}")
+            opts.append(f"--baro-rate-hz={float(COMP['barometer_rate_hz'])!r}")
     return " ".join(opts)

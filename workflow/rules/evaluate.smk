@@ -13,25 +13,24 @@ rule evaluate:
         nav=shard_paths("nav"),
         imu=shard_paths("imu") if SEGMENTS else [],
         aided=shard_paths("aided") if AID_ON else [],
-        code=code_inputs("imugen.evaluate.stage"),
     output:
         layout.metrics(),
     params:
+        code=code_digest("imugen.evaluate.stage"),
         segments=(
-            "--segments " + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
+            "--segments=" + ",".join(f"{T:g}" for T in SEGMENTS) + " --imu" if SEGMENTS else ""
         ),
         aided="--aided" if AID_ON else "",
     log:
         "logs/{route}/evaluate/{grade}.log",
     shell:
-        "imugen evaluate {input.truth:q} {input.nav:q} -o {output:q} --grade {wildcards.grade} "
+        "imugen evaluate {input.truth:q} {input.nav:q} --output={output:q} --grade={wildcards.grade} "
         "{params.segments} {input.imu:q} {params.aided} {input.aided:q} > {log:q} 2>&1"
 
 
 rule rmse_table:
     input:
         metrics=expand(rules.evaluate.output[0], grade=GRADES, allow_missing=True),
-        code=code_inputs("imugen.evaluate.stage"),
     output:
         csv=report(
             layout.rmse(ext="csv"),
@@ -47,7 +46,9 @@ rule rmse_table:
             category="RMSE",
             labels={"route": "{route}", "format": "table"},
         ),
+    params:
+        code=code_digest("imugen.evaluate.stage"),
     log:
         "logs/{route}/rmse_table.log",
     shell:
-        "imugen tables {input.metrics:q} -o {output.csv:q} > {log:q} 2>&1"
+        "imugen tables {input.metrics:q} --output={output.csv:q} > {log:q} 2>&1"

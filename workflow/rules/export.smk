@@ -6,14 +6,15 @@ rule export_mat:
         truth=rules.truth.output[0],
         shards=shard_paths("imu"),
         nav=shard_paths("nav"),
-        code=code_inputs("imugen.export.mat"),
     output:
         layout.dataset_mat(),
+    params:
+        code=code_digest("imugen.export.mat"),
     log:
         "logs/{route}/export_mat/{grade}.log",
     shell:
-        "imugen export-mat --truth {input.truth:q} --shards {input.shards:q} --nav {input.nav:q} "
-        "--grade {wildcards.grade} --route {wildcards.route} -o {output:q} > {log:q} 2>&1"
+        "imugen export-mat --truth={input.truth:q} --shards {input.shards:q} --nav {input.nav:q} "
+        "--grade={wildcards.grade} --route={wildcards.route} --output={output:q} > {log:q} 2>&1"
 
 
 # the companion sensors (aid stage, config `companions`) go to the ROS 2 bags
@@ -35,10 +36,10 @@ if SPLIT["val_fraction"] + SPLIT["test_fraction"] >= 1:
         "imugen: error: exports.split: val_fraction + test_fraction must leave some for train"
     )
 SPLIT_OPTS = (
-    f"--split-by {SPLIT['by']} --split-seed {int(SPLIT['seed'])} "
-    f"--val-fraction {float(SPLIT['val_fraction'])!r} "
-    f"--test-fraction {float(SPLIT['test_fraction'])!r}"
-    + (f" --holdout-routes {shlex.quote(','.join(SPLIT['holdout_routes']))}" if SPLIT["holdout_routes"] else "")
+    f"--split-by={SPLIT['by']} --split-seed={int(SPLIT['seed'])} "
+    f"--val-fraction={float(SPLIT['val_fraction'])!r} "
+    f"--test-fraction={float(SPLIT['test_fraction'])!r}"
+    + (f" --holdout-routes={shlex.quote(','.join(SPLIT['holdout_routes']))}" if SPLIT["holdout_routes"] else "")
 )
 """`imugen export` options of the split lists (config `exports.split`)."""
 
@@ -50,10 +51,10 @@ rule export_formats:
         gnss=shard_paths("gnss") if AID_ON else [],
         aided=shard_paths("aided") if AID_ON and "tum" in config["exports"]["formats"] else [],
         companions=shard_paths("companions") if COMPANION_EXPORT else [],
-        code=code_inputs("imugen.export.stage"),
     output:
         directory(layout.datasets_dir()),
     params:
+        code=code_digest("imugen.export.stage"),
         formats=",".join(config["exports"]["formats"]),
         nav_rate_hz=config["exports"]["nav_rate_hz"],
         split=SPLIT_OPTS,
@@ -65,7 +66,7 @@ rule export_formats:
     log:
         "logs/{route}/export_formats/{grade}.log",
     shell:
-        "imugen export {input.truth:q} {input.shards:q} -o {output:q} --format {params.formats} "
-        "--route {wildcards.route} --grade {wildcards.grade} --nav-rate-hz {params.nav_rate_hz} "
+        "imugen export {input.truth:q} {input.shards:q} --output={output:q} --format={params.formats} "
+        "--route={wildcards.route} --grade={wildcards.grade} --nav-rate-hz={params.nav_rate_hz} "
         "{params.split} "
         "--overwrite {params.gnss} {params.aided} {params.companions} > {log:q} 2>&1"

@@ -7,7 +7,6 @@ rule figures:
         nav=route_shards("nav"),
         metrics=expand(layout.metrics(grade="{grade}"), grade=GRADES, allow_missing=True),
         imu=[layout.shard("imu", grade=g, shard=layout.shard_label(0)) for g in IMU_GRADES],
-        code=code_inputs("imugen.figures.stage"),
     output:
         report(
             [layout.figure("figure8", ext) for ext in FIG["formats"]],
@@ -34,6 +33,7 @@ rule figures:
             labels={"route": "{route}", "figure": "IMU signals"},
         ),
     params:
+        code=code_digest("imugen.figures.stage"),
         outdir=lambda wc: layout.figures_dir(wc.route),
         nav=grade_pairs("nav"),
         metrics=grade_pairs("metrics"),
@@ -45,16 +45,15 @@ rule figures:
     log:
         "logs/{route}/figures.log",
     shell:
-        "imugen figures {input.truth:q} -o {params.outdir:q} "
-        "{params.nav} {params.metrics} {params.imu} --formats {params.formats} --dpi {params.dpi} "
-        "--zoom-fraction {params.zoom} --representative {params.representative} > {log:q} 2>&1"
+        "imugen figures {input.truth:q} --outdir={params.outdir:q} "
+        "{params.nav} {params.metrics} {params.imu} --formats {params.formats} --dpi={params.dpi} "
+        "--zoom-fraction={params.zoom} --representative={params.representative} > {log:q} 2>&1"
 
 
 rule outage_figure:
     input:
         aided=route_shards("aided"),
         nav=route_shards("nav"),
-        code=code_inputs("imugen.figures.outage"),
     output:
         report(
             [layout.figure("outage_growth", ext) for ext in FIG["formats"]],
@@ -63,6 +62,7 @@ rule outage_figure:
             labels={"route": "{route}", "figure": "error growth during GNSS outages"},
         ),
     params:
+        code=code_digest("imugen.figures.outage"),
         stem=lambda wc: layout.figure("outage_growth", "", wc.route).removesuffix("."),
         aided=grade_pairs("aided"),
         nav=grade_pairs("nav"),
@@ -71,5 +71,5 @@ rule outage_figure:
     log:
         "logs/{route}/outage_figure.log",
     shell:
-        "imugen outage-figure -o {params.stem:q} "
-        "{params.aided} {params.nav} --formats {params.formats} --dpi {params.dpi} > {log:q} 2>&1"
+        "imugen outage-figure --output={params.stem:q} "
+        "{params.aided} {params.nav} --formats {params.formats} --dpi={params.dpi} > {log:q} 2>&1"

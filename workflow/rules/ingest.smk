@@ -6,24 +6,25 @@
 rule ingest_csv:
     input:
         src=lambda wc: config["routes"][wc.route]["file"],
-        code=code_inputs("imugen.ingest.stage"),
     output:
         layout.route_csv(),
     params:
+        code=code_digest("imugen.ingest.stage"),
         opts=lambda wc: f"{ingest_opts(wc)} {ingest_clean_opts(wc)}",
     log:
         "logs/{route}/ingest_csv.log",
     shell:
-        "imugen ingest {input.src:q} -o {output:q} {params.opts} > {log:q} 2>&1"
+        "imugen ingest --output={output:q} {params.opts} -- {input.src:q} > {log:q} 2>&1"
 
 
 rule ingest_enu:
     input:
         csv=rules.ingest_csv.output[0],
-        code=code_inputs("imugen.ingest.stage"),
     output:
         layout.enu(),
+    params:
+        code=code_digest("imugen.ingest.stage"),
     log:
         "logs/{route}/ingest_enu.log",
     shell:
-        "imugen ingest {input.csv:q} -o {output:q} > {log:q} 2>&1"
+        "imugen ingest {input.csv:q} --output={output:q} > {log:q} 2>&1"

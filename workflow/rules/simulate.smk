@@ -18,14 +18,15 @@ rule simulate:
     input:
         truth=rules.truth.output[0],
         grade=grade_files,
-        code=code_inputs("imugen.simulate.stage"),
         presets=PRESETS,
     output:
         nav=layout.shard("nav"),
         imu=IMU_OUTPUTS,
+    # few function params: Snakemake calls each one for each job; the grade's definition
+    # reaches the job through its file (input grade), the shard number through its wildcard
     params:
+        code=code_digest("imugen.simulate.stage"),
         grade=grade_arg,
-        spec=lambda wc: config["grades"][wc.grade],
         sequences=shard_sequences,
         shard_size=PER_SHARD,
         seed=SIM["seed"],
@@ -36,16 +37,15 @@ rule simulate:
         increments=SIM["increments"],
         vibration=SIM["vibration"] or "off",
         mounting=MOUNTING_ARG,
-        shard=lambda wc: int(wc.shard),
-        imu=lambda wc, output: f"-o {shlex.quote(output.imu[0])}" if WRITE_IMU else "",
+        imu=lambda wc, output: f"--output={shlex.quote(output.imu[0])}" if WRITE_IMU else "",
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
         "IMUGEN_CONSOLE_FD=3 "
-        "imugen simulate {input.truth:q} {params.imu} --navigate {output.nav:q} "
-        "--eval-rate-hz {params.eval_rate_hz} --route {wildcards.route:q} --grade {params.grade:q} "
-        "--sequences {params.sequences} --shard-size {params.shard_size} --seed {params.seed} "
-        "--shard {params.shard} --draw {params.draw} --dtype {params.dtype} --outputs {params.outputs} --increments {params.increments} {params.series} "
-        "--vibration {params.vibration} {params.mounting} "
+        "imugen simulate {input.truth:q} {params.imu} --navigate={output.nav:q} "
+        "--eval-rate-hz={params.eval_rate_hz} --route={wildcards.route:q} --grade={params.grade:q} "
+        "--sequences={params.sequences} --shard-size={params.shard_size} --seed={params.seed} "
+        "--shard={wildcards.shard} --draw={params.draw} --dtype={params.dtype} --outputs={params.outputs} --increments={params.increments} {params.series} "
+        "--vibration={params.vibration} {params.mounting} "
         "3>&2 > {log:q} 2>&1"

@@ -4,7 +4,6 @@
 rule truth:
     input:
         enu=rules.ingest_enu.output[0],
-        code=code_inputs("imugen.truth.stage"),
         # the grades feed only the `earth: auto` budget: with an explicit Earth model the truth
         # does not depend on them (editing a grade then reruns only that grade's jobs)
         grade_files=custom_grade_files() if AUTO_EARTH else [],
@@ -12,6 +11,7 @@ rule truth:
     output:
         layout.truth(),
     params:
+        code=code_digest("imugen.truth.stage"),
         rate_hz=config["truth"]["rate_hz"],
         earth=config["truth"]["earth"],
         vehicle=lambda wc: config["routes"][wc.route]["vehicle"],
@@ -19,5 +19,5 @@ rule truth:
     log:
         "logs/{route}/truth.log",
     shell:
-        "imugen truth {input.enu:q} -o {output:q} --rate-hz {params.rate_hz} "
-        "--earth {params.earth} --vehicle {params.vehicle} {params.grades} > {log:q} 2>&1"
+        "imugen truth {input.enu:q} --output={output:q} --rate-hz={params.rate_hz} "
+        "--earth={params.earth} --vehicle={params.vehicle} {params.grades} > {log:q} 2>&1"

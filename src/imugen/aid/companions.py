@@ -363,7 +363,7 @@ def filter_input(
     counted since the previous mark, ``(N(k_j) - N(k_prev)) c``, with the variance of its white
     part ``n (s_w T_o)^2`` (``n`` odometer epochs of white speed noise) and the tick length
     ``c``: the quantization of the two counts, residuals of ``c^2 / 12`` each shared by
-    consecutive windows, is modelled by the filter's states (:mod:`imugen.aid.filter.ekf`).
+    consecutive windows, is modelled by the filter's states (:mod:`imugen.aid.filter.odometer`).
     Barometer: the altitude minus ``h0_m`` (the origin's height) at the epochs that are
     barometer epochs, variance ``s_w^2``. The noise figures and the drift /
     scale-factor priors are the preset's top of range (``level="upper"``) or nominal

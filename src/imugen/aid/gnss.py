@@ -24,7 +24,7 @@ figures, Up the vertical ones)
     as the origin's ENU axes (n itself, within the Earth budget's tilt); in ``geodetic`` (n =
     ECEF) the errors are drawn along East, North, Up at the true antenna position and rotated
     to n, ``e_n = C_ln^T e_l``, so the reported sigmas stay per local-level axis (what the
-    aided filter rotates back, :mod:`imugen.aid.filter.ekf`).
+    aided filter rotates back, :mod:`imugen.aid.filter.gnss`).
 
 Randomness
 ----------

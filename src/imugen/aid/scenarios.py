@@ -347,3 +347,44 @@ def apply(gnss: GnssData, intervals, seed=0, shard=0, first=None, frame=None) ->
         *sorted({k for ks in PARAMS.values() for k in ks}),
     ]
     return ScenarioResult(out, state, ap, av, pd.DataFrame(rows, columns=cols))
+
+
+def parse_scenarios(specs) -> dict:
+    """``--scenario`` specs -> ``{"intervals": [...], "draw_kinds": [...], "outage_durations_s": [...]}``.
+
+    ``KIND:DURATION@START[,param=value...]`` declares an interval (same for every sequence,
+    seconds from the first sample); ``outage:DURATION`` without ``@START`` draws, per sequence,
+    an outage whose duration is chosen uniformly among those given (start uniform after
+    ``settle_s``); a bare ``KIND`` draws one interval of that kind with the documented
+    distributions (this module).
+    """
+    intervals, kinds, durs = [], [], []
+    for spec in specs or ():
+        head, *extra = str(spec).split(",")
+        kind, _, rest = head.partition(":")
+        kind = kind.strip()
+        if kind not in KINDS:
+            raise InputError("--scenario", f"{spec!r}: kind must be one of {', '.join(KINDS)}")
+        try:
+            prm = {k.strip(): float(v) for k, v in (e.split("=", 1) for e in extra)}
+            if not rest:
+                if prm:
+                    raise ValueError("parameters need KIND:DURATION@START")
+                kinds.append(kind)
+            elif "@" in rest:
+                dur, start = rest.split("@", 1)
+                iv = {"kind": kind, "start_s": float(start), "duration_s": float(dur), **prm}
+                intervals.append(iv)
+            elif kind == "outage" and not prm:
+                durs.append(float(rest))
+                kinds.append(kind)
+            else:
+                raise ValueError("only outage:DURATION may omit @START")
+        except ValueError as exc:
+            raise InputError("--scenario", f"{spec!r}: {exc}") from None
+    out = {"intervals": intervals, "draw_kinds": list(dict.fromkeys(kinds))}
+    if durs:
+        if any(not d > 0 for d in durs):
+            raise InputError("--scenario", "outage durations must be > 0 s")
+        out["outage_durations_s"] = sorted(set(durs))
+    return out

@@ -6,10 +6,10 @@ For every sequence of the shard (streamed in batches, memory bounded as in
 1. GNSS fixes are drawn (:func:`imugen.aid.gnss.simulate_gnss`) from the truth, then the
    configured scenario intervals (declared, and/or drawn per sequence) are applied
    (:func:`imugen.aid.scenarios.apply`);
-2. the loosely-coupled error-state filter (:func:`imugen.aid.filter.ekf.run`) runs on the shard's
+2. the loosely-coupled error-state filter (:func:`imugen.aid.filter.run`) runs on the shard's
    increments (raw ones get navigation's coning/sculling correction; rates are integrated as
    navigation does) with its tuning from the grade's figures (``tuning_level``) and the
-   receiver's nominal figures, aligned by :func:`imugen.aid.filter.ekf.align` (moving starts at
+   receiver's nominal figures, aligned by :func:`imugen.aid.filter.align` (moving starts at
    ``align_speed_mps``);
 3. the GNSS epochs (:mod:`imugen.tables.gnss`, with the receiver and scenario labels) and the
    aided errors and filter state at the evaluation epochs (:mod:`imugen.tables.aided`) are
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -39,9 +39,10 @@ import pandas as pd
 
 from imugen import __version__
 from imugen.aid import companions as CP
+from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
-from imugen.aid.filter import ekf as A
+from imugen.aid.options import AidOptions
 from imugen.core.earth import earth_rate_n
 from imugen.core.errors import InputError
 from imugen.core.rotations import quat_to_dcm
@@ -60,113 +61,40 @@ from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 AID_TRUTH_COLUMNS = [TIME, *ttruth.POS, *ttruth.VEL, *ttruth.QUAT, *ttruth.GYRO]
 
 
-@dataclass(frozen=True)
-class AidParams:
-    """Receiver, scenarios and filter settings of the stage (config keys ``gnss``,
-    ``scenarios``, ``aided``; see config/README.md).
-
-    ``nhc=None`` turns the non-holonomic constraint on for a ``car`` truth;
-    ``nhc_slip_sd_mps`` (lateral, vertical) [m/s] the vehicle's residual slip NHC must cover,
-    None: the truth's own (:func:`truth_slip_sd`); ``seed=None`` takes the shard's simulation
-    seed.
-    """
-
-    receiver: str = "standalone"
-    rate_hz: float | None = None
-    draw: str = "ranges"
-    lever_arm_b_m: tuple = (0.0, 0.0, 0.0)
-    lever_arm_sd_m: float = 0.0
-    intervals: tuple = ()
-    draw_kinds: tuple = ()
-    outage_durations_s: tuple = SC.OUTAGE_PRESETS_S
-    settle_s: float = 60.0
-    tuning_level: str = "upper"
-    gnss_bias_states: bool = True
-    scale_factors: bool = False
-    gyro_cross_coupling: bool = True
-    nhc: bool | None = None
-    nhc_slip_sd_mps: tuple | None = None
-    zupt: bool = True
-    gate_sigma: float = 0.0
-    align_speed_mps: float = 5.0
-    eval_rate_hz: float = 1.0
-    seed: int | None = None
-    grade: str | None = None
-    odometer: str | None = None
-    odometer_rate_hz: float | None = None
-    odometer_lever_b_m: tuple = (0.0, 0.0, 0.0)
-    odometer_scale_state: bool = True
-    barometer: str | None = None
-    barometer_rate_hz: float | None = None
-    companion_draw: str = "ranges"
-    intervals_parsed: tuple = field(default=(), repr=False)
-
-    def __post_init__(self):
-        ivs = tuple(
-            iv if isinstance(iv, SC.Interval) else SC.Interval.from_config(iv, f"scenario[{n}]")
-            for n, iv in enumerate(self.intervals)
-        )
-        object.__setattr__(self, "intervals_parsed", ivs)
-        object.__setattr__(self, "outage_durations_s", tuple(self.outage_durations_s))
-        object.__setattr__(self, "draw_kinds", tuple(self.draw_kinds))
-        object.__setattr__(self, "lever_arm_b_m", tuple(float(x) for x in self.lever_arm_b_m))
-        for k in self.draw_kinds:
-            if k not in SC.KINDS:
-                raise InputError(
-                    "scenarios.draw", f"unknown kind {k!r}; one of {', '.join(SC.KINDS)}"
-                )
-        if not self.align_speed_mps > 0:
-            raise InputError("--align-speed", "must be > 0 m/s")
-        if self.eval_rate_hz <= 0:
-            raise InputError("--eval-rate-hz", "must be > 0")
-        object.__setattr__(
-            self, "odometer_lever_b_m", tuple(float(x) for x in self.odometer_lever_b_m)
-        )
-        if self.odometer is not None:
-            CP.get_sensor("odometer", self.odometer)
-        if self.barometer is not None:
-            CP.get_sensor("barometer", self.barometer)
-        if self.companion_draw not in ("ranges", "nominal"):
-            raise InputError("--companion-draw", "must be ranges or nominal")
-        if self.nhc_slip_sd_mps is not None:
-            slip = np.atleast_1d(np.asarray(self.nhc_slip_sd_mps, float))
-            if slip.shape not in ((1,), (2,)) or not np.all(np.isfinite(slip) & (slip >= 0)):
-                raise InputError(
-                    "--nhc-slip-sd", "expected LATERAL[,VERTICAL] m/s, finite and >= 0"
-                )
-            object.__setattr__(
-                self, "nhc_slip_sd_mps", tuple(float(x) for x in np.broadcast_to(slip, (2,)))
-            )
-
-    def options(
-        self, vehicle: str | None, mounting: dict | None = None, plausibility: dict | None = None
-    ) -> A.Options:
-        """Filter options; ``mounting`` (the shard metadata's, :mod:`imugen.sensors.mounting`) gives
-        NHC its nominal lever arm and the misalignment sigmas its noise must cover;
-        ``plausibility`` (the truth's report) the vehicle's residual slip, unless
-        ``nhc_slip_sd_mps`` is set."""
-        nhc = (vehicle == "car") if self.nhc is None else bool(self.nhc)
-        slip = self.nhc_slip_sd_mps
-        mount = {"nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip}
-        if mounting:
-            sd = np.radians(mounting["misalignment_sd_deg"])
-            mount |= {
-                "nhc_lever_arm_m": tuple(mounting["lever_arm_m"]),
-                "nhc_misalignment_sd_rad": (float(sd[1]), float(sd[2])),
-                "nhc_lever_arm_sd_m": tuple(mounting["lever_arm_sd_m"]),
-            }
-        return A.Options(
-            scale_factors=self.scale_factors,
-            gyro_cross_coupling=self.gyro_cross_coupling,
-            gnss_bias=self.gnss_bias_states,
-            nhc=nhc,
-            zupt=self.zupt,
-            gate_sigma=self.gate_sigma,
-            odometer=self.odometer is not None,
-            odo_scale_state=self.odometer_scale_state,
-            baro=self.barometer is not None,
-            **mount,
-        )
+def filter_options(
+    params: AidOptions,
+    vehicle: str | None,
+    mounting: dict | None = None,
+    plausibility: dict | None = None,
+) -> A.Options:
+    """The filter's options from the stage's; ``vehicle`` (the truth's) decides NHC when
+    ``params.nhc`` is None; ``mounting`` (the shard metadata's, :mod:`imugen.sensors.mounting`)
+    gives NHC its nominal lever arm and the misalignment sigmas its noise must cover;
+    ``plausibility`` (the truth's report) the vehicle's residual slip, unless
+    ``params.nhc_slip_sd_mps`` is set."""
+    p = params
+    nhc = (vehicle == "car") if p.nhc is None else bool(p.nhc)
+    slip = p.nhc_slip_sd_mps
+    mount = {"nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip}
+    if mounting:
+        sd = np.radians(mounting["misalignment_sd_deg"])
+        mount |= {
+            "nhc_lever_arm_m": tuple(mounting["lever_arm_m"]),
+            "nhc_misalignment_sd_rad": (float(sd[1]), float(sd[2])),
+            "nhc_lever_arm_sd_m": tuple(mounting["lever_arm_sd_m"]),
+        }
+    return A.Options(
+        scale_factors=p.scale_factors,
+        gyro_cross_coupling=p.gyro_cross_coupling,
+        gnss_bias=p.gnss_bias_states,
+        nhc=nhc,
+        zupt=p.zupt,
+        gate_sigma=p.gate_sigma,
+        odometer=p.odometer is not None,
+        odo_scale_state=p.odometer_scale_state,
+        baro=p.barometer is not None,
+        **mount,
+    )
 
 
 def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:
@@ -189,47 +117,6 @@ def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:
 
 SLIP_FALLBACK_MPS = 0.1
 """NHC slip sigma [m/s] of a truth whose report gives no body speeds (the former constant)."""
-
-
-def parse_scenarios(specs) -> dict:
-    """``--scenario`` specs -> ``{"intervals": [...], "draw_kinds": [...], "outage_durations_s": [...]}``.
-
-    ``KIND:DURATION@START[,param=value...]`` declares an interval (same for every sequence,
-    seconds from the first sample); ``outage:DURATION`` without ``@START`` draws, per sequence,
-    an outage whose duration is chosen uniformly among those given (start uniform after
-    ``settle_s``); a bare ``KIND`` draws one interval of that kind with the documented
-    distributions (:mod:`imugen.aid.scenarios`).
-    """
-    intervals, kinds, durs = [], [], []
-    for spec in specs or ():
-        head, *extra = str(spec).split(",")
-        kind, _, rest = head.partition(":")
-        kind = kind.strip()
-        if kind not in SC.KINDS:
-            raise InputError("--scenario", f"{spec!r}: kind must be one of {', '.join(SC.KINDS)}")
-        try:
-            prm = {k.strip(): float(v) for k, v in (e.split("=", 1) for e in extra)}
-            if not rest:
-                if prm:
-                    raise ValueError("parameters need KIND:DURATION@START")
-                kinds.append(kind)
-            elif "@" in rest:
-                dur, start = rest.split("@", 1)
-                iv = {"kind": kind, "start_s": float(start), "duration_s": float(dur), **prm}
-                intervals.append(iv)
-            elif kind == "outage" and not prm:
-                durs.append(float(rest))
-                kinds.append(kind)
-            else:
-                raise ValueError("only outage:DURATION may omit @START")
-        except ValueError as exc:
-            raise InputError("--scenario", f"{spec!r}: {exc}") from None
-    out = {"intervals": intervals, "draw_kinds": list(dict.fromkeys(kinds))}
-    if durs:
-        if any(not d > 0 for d in durs):
-            raise InputError("--scenario", "outage durations must be > 0 s")
-        out["outage_durations_s"] = sorted(set(durs))
-    return out
 
 
 def entropy_of(seed: int, sequence_id: int) -> list[int]:
@@ -266,7 +153,7 @@ def _stack(parts: list[SC.ScenarioResult]) -> SC.ScenarioResult:
     )
 
 
-def gnss_for(truth: ttruth.Truth, ids, params: AidParams, seed: int, mount=None):
+def gnss_for(truth: ttruth.Truth, ids, params: AidOptions, seed: int, mount=None):
     """GNSS fixes after the scenarios of the sequences ``ids`` (global ids) of a truth (a
     :class:`imugen.aid.scenarios.ScenarioResult`). ``mount``: the sequences' ``(angles, lever)``
     (:func:`imugen.tables.shard.mounting`) when the IMU is mounted: the antenna lever arm is
@@ -307,7 +194,7 @@ def _stack_companion(parts: list[CP.CompanionData]) -> CP.CompanionData:
     return replace(p0, **cat, params=params, labels=labels)
 
 
-def companions_for(truth: ttruth.Truth, ids, params: AidParams, seed: int):
+def companions_for(truth: ttruth.Truth, ids, params: AidOptions, seed: int):
     """``(odometer, barometer)`` :class:`imugen.aid.companions.CompanionData` of the sequences
     ``ids`` (global ids), each None when not configured."""
     t = truth.time_s
@@ -400,7 +287,7 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
     S, J = keep.shape
     since = _since_fix(t, valid)
     geo = truth.origin_frame().model == "geodetic"  # the filter's sigmas are local there
-    sd = res.sd[..., A.I_P : A.I_P + 3] if geo else lerr.local_sd(C, res.sd[..., A.I_P : A.I_P + 3])
+    sd = res.sd_of("p") if geo else lerr.local_sd(C, res.sd_of("p"))
     rows = {SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[keep.ravel()]}
     rows[TIME] = np.tile(t, S)[keep.ravel()]
     rows[ERR_ATT] = att[keep]
@@ -415,10 +302,10 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
         (ttruth.QUAT, res.q_nb),
         (taided.GYRO_BIAS, res.gyro_bias),
         (taided.ACCEL_BIAS, res.accel_bias),
-        (taided.SD_VEL, res.sd[..., A.I_V : A.I_V + 3]),
-        (taided.SD_ATT, res.sd[..., A.I_PSI : A.I_PSI + 3]),
-        (taided.SD_GYRO_BIAS, res.sd[..., A.I_BG : A.I_BG + 3]),
-        (taided.SD_ACCEL_BIAS, res.sd[..., A.I_BA : A.I_BA + 3]),
+        (taided.SD_VEL, res.sd_of("v")),
+        (taided.SD_ATT, res.sd_of("att")),
+        (taided.SD_GYRO_BIAS, res.sd_of("bg")),
+        (taided.SD_ACCEL_BIAS, res.sd_of("ba")),
     ):
         for i, c in enumerate(cols):
             rows[c] = arr[..., i][keep]
@@ -426,7 +313,7 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
 
 
 def aid(
-    truth_path, shard_path, params: AidParams, *, batch: int | None = None, sink=None,
+    truth_path, shard_path, params: AidOptions, *, batch: int | None = None, sink=None,
     aided_sink=None, companion_sink=None,
 ):  # fmt: skip
     """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
@@ -455,8 +342,8 @@ def aid(
     if not grade:
         raise InputError(shard_path, "records no grade: pass --grade")
     tun = A.Tuning.from_grade(grade, params.tuning_level)
-    opts = params.options(
-        truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility")
+    opts = filter_options(
+        params, truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility")
     )
     mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
     frame = truth.origin_frame()
@@ -543,14 +430,14 @@ def aid(
 
 
 def run(
-    truth, shard, out_gnss, out_nav, params: AidParams | None = None, *, batch=None,
+    truth, shard, out_gnss, out_nav, params: AidOptions | None = None, *, batch=None,
     out_companions=None,
 ):  # fmt: skip
     """Run the stage on one shard and write the GNSS table (with sidecars), the aided table
     (both streamed batch by batch) and, when ``out_companions`` is given, the companion table
     (with its labels; no rows when no companion is configured) atomically. Returns
     ``(out_gnss, out_nav)`` paths."""
-    params = params or AidParams()
+    params = params or AidOptions()
     if out_companions is None and (params.odometer or params.barometer):
         raise InputError("--companions-out", "needed with an odometer or a barometer")
     crow, clab = [], []
@@ -595,4 +482,12 @@ def _rate(kind, preset, rate):
     return float(rate or CP.get_sensor(kind, preset).rate_hz)
 
 
-__all__ = ["AidParams", "aid", "aided_errors", "companions_for", "eval_mask", "gnss_for", "run"]
+def main(options: AidOptions, truth, shard, gnss_out, output, companions_out) -> None:
+    """``imugen aid``."""
+    run(truth, shard, gnss_out, output, options, out_companions=companions_out)
+
+
+__all__ = [
+    "AidOptions", "aid", "aided_errors", "companions_for", "eval_mask", "filter_options",
+    "gnss_for", "run",
+]  # fmt: skip

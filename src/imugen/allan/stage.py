@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import nnls
 
+from imugen.allan.options import AllanOptions
 from imugen.core import units
 from imugen.core.errors import InputError
 from imugen.sensors.model import avar_bias_instability, avar_quantization, avar_rrw, avar_white
@@ -295,9 +296,10 @@ def plot_allan(curves: dict, out, report: dict | None = None, dpi: float = 150) 
         return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
 
 
-def run(shard, plot=None, max_sequences: int = 16, out=None) -> dict:
-    """CLI entry: report (and optionally plot) the Allan check of a static shard; ``out``: also
+def run(shard, plot=None, options: AllanOptions | None = None, out=None) -> dict:
+    """Report (and optionally ``plot``) the Allan check of a static shard; ``out``: also
     write the report as one line of JSON, atomically (:func:`imugen.core.io.atomic_output`)."""
+    max_sequences = (options or AllanOptions()).max_sequences
     cv = allan_curves(shard, max_sequences)
     rep = allan_report(shard, max_sequences, curves=cv)
     if plot:
@@ -310,3 +312,12 @@ def run(shard, plot=None, max_sequences: int = 16, out=None) -> dict:
         with atomic_output(out) as tmp:
             tmp.write_text(json.dumps(rep) + "\n")
     return rep
+
+
+def main(options: AllanOptions, shard, plot, output) -> None:
+    """``imugen allan``: the report to ``output``, else as JSON on stdout."""
+    import json
+
+    rep = run(shard, plot, options, out=output)
+    if output is None:
+        print(json.dumps(rep))

@@ -23,3 +23,11 @@ class InputError(Exception):
 
     def __str__(self) -> str:
         return f"{self.source}: {self.message}" if self.source else self.message
+
+
+def printable(text: str) -> str:
+    """``text`` with non-printable characters escaped (``\\x1b``), so that a message a file
+    could smuggle terminal escapes or line breaks into stays one line."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)

@@ -60,12 +60,14 @@ Per grade: the median over sequences of each value (``east_m``, ``north_m``, ``u
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from imugen.evaluate.options import EvaluateOptions, TablesOptions
 from imugen.tables import metrics as tmetrics
 from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
@@ -474,14 +476,17 @@ def extent_m(truth_path) -> float:
     return float(np.sqrt(np.sum((hi - lo) ** 2))) if np.isfinite(lo).all() else 0.0
 
 
-def run(truth, nav_paths, out, *, grade: str, segments_s=(), imu_paths=(), aided_paths=()) -> Path:
+def run(truth, nav_paths, out, options: EvaluateOptions, *, imu_paths=(), aided_paths=()) -> Path:
     """Per-sequence metrics of one grade's navigation shards -> Parquet (index ``sequence``).
 
-    With ``segments_s``, the relative drift of every sequence of ``imu_paths`` (the grade's IMU
-    shards, which must hold the same sequences as the navigation files) is added; with
-    ``aided_paths`` (the grade's aided error tables), the aided figures (module docstring).
+    With ``options.segments_s``, the relative drift of every sequence of ``imu_paths`` (the
+    grade's IMU shards, which must hold the same sequences as the navigation files) is added;
+    with ``aided_paths`` (the grade's aided error tables), the aided figures (module
+    docstring).
     """
     from imugen.core.errors import InputError
+
+    grade, segments_s = options.grade, options.segments_s
 
     distance = horizontal_distance_m(truth)
     # one navigation file at a time (a sequence lives in one shard): memory stays at one
@@ -551,6 +556,17 @@ def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
         )
         rows.append(row)
     return write_tables(grade_table(rows), out_csv)
+
+
+def main(options: EvaluateOptions, truth, nav, output, imu, aided) -> None:
+    """``imugen evaluate``."""
+    run(truth, nav, output, options, imu_paths=imu, aided_paths=aided)
+
+
+def main_tables(options: TablesOptions, metrics, output) -> None:
+    """``imugen tables``: :func:`run_tables`, then the Markdown table on stderr."""
+    paths = run_tables(metrics, output)
+    print(paths["md"].read_text(), file=sys.stderr)
 
 
 def warn_meaningless(grade: str, final_3d_m: float, extent: float | None, aided: bool) -> bool:

@@ -193,9 +193,9 @@ def imunoise(labels: dict, grade) -> dict:
 def init_error_std(grade, terms=None) -> dict:
     """``initbgstd``, ``initbastd`` [deg/h, mGal], ``initsgstd``, ``initsastd`` [ppm]: the
     initial sigmas of the filter's bias and scale states, those of imugen's own filter
-    (:meth:`imugen.aid.filter.ekf.Tuning.from_grade` at the top of the grade's ranges: turn-on, in-run
+    (:meth:`imugen.aid.filter.Tuning.from_grade` at the top of the grade's ranges: turn-on, in-run
     and the static error on gravity KF-GINS sees as a bias)."""
-    from imugen.aid.filter.ekf import Tuning
+    from imugen.aid.filter import Tuning
 
     tun = Tuning.from_grade(grade, "upper", terms=terms)
     return {

@@ -94,6 +94,7 @@ import pandas as pd
 from imugen import __version__
 from imugen.core.errors import InputError
 from imugen.core.io import atomic_output, read_meta
+from imugen.export.options import ExportMatOptions
 from imugen.tables import SEQUENCE
 from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
@@ -537,3 +538,11 @@ def export_mat(
     if nav is not None:
         variables += ["nav_time_s", "nav_err_enu_m", "nav_err_att_rad"]
     return {"version": version, "sequences": S, "samples": K, "epochs": E, "variables": variables}
+
+
+def main(options: ExportMatOptions, truth, shards, nav, output) -> None:
+    """``imugen export-mat``."""
+    o = options
+    export_mat(
+        truth, shards, output, grade=o.grade, nav_paths=nav, version=o.mat_version, route=o.route
+    )

@@ -39,6 +39,7 @@ import numpy as np
 from imugen.core.errors import InputError
 from imugen.export import euroc, kfgins, ronin, ros2, tlio, tum
 from imugen.export.common import split_parts, write_split_lists
+from imugen.export.options import ExportOptions
 from imugen.export.source import (
     INCREMENT_COLUMNS,
     RATE_COLUMNS,
@@ -120,45 +121,43 @@ def _navigator(truth, nav_rate_hz: float):
 
 
 def export(
-    formats,
-    truth_path,
-    shard_paths,
-    out_dir,
-    *,
-    route: str | None = None,
-    grade: str | None = None,
-    nav_rate_hz: float = 10.0,
-    split_seed: int = 0,
-    split_by: str = "sequence",
-    holdout_routes=None,
-    val_fraction: float = 0.1,
-    test_fraction: float = 0.1,
-    sequences=None,
-    storage: str = "sqlite3",
-    overwrite: bool = False,
-    gnss_paths=None,
-    aided_paths=None,
-    companion_paths=None,
-    log=None,
-) -> dict:
-    """Write the sequences of ``shard_paths`` in each of ``formats`` under ``out_dir``.
+    formats, truth_path, shard_paths, out_dir, *, gnss_paths=None, aided_paths=None,
+    companion_paths=None, log=None, **options,
+) -> dict:  # fmt: skip
+    """:func:`run` with the options as keywords: ``formats`` (names, or ``"euroc,tum"``) and
+    the other fields of :class:`~imugen.export.options.ExportOptions`."""
+    return run(
+        truth_path, shard_paths, out_dir, ExportOptions(formats=formats, **options),
+        gnss_paths=gnss_paths, aided_paths=aided_paths, companion_paths=companion_paths, log=log,
+    )  # fmt: skip
+
+
+def run(
+    truth_path, shard_paths, out_dir, options: ExportOptions, *, gnss_paths=None,
+    aided_paths=None, companion_paths=None, log=None,
+) -> dict:  # fmt: skip
+    """Write the sequences of ``shard_paths`` in each of ``options.formats`` under ``out_dir``.
 
     ``gnss_paths``: the GNSS epoch tables of ``imugen aid`` for these shards (optional): KF-GINS
     then gets ``gnss.pos`` and ROS 2 bags a ``/gnss/fix`` topic. ``aided_paths``: the aided
     navigation tables of ``imugen aid`` (optional): TUM then gets ``<seq>.aided.tum``.
     ``companion_paths``: the companion-sensor tables of ``imugen aid`` (optional): ROS 2 bags
-    then get ``/wheel/odometry`` and ``/baro/pressure`` for the sensors they hold. Returns
-    ``split_*``, ``holdout_routes``, ``val_fraction``, ``test_fraction``: the train/val/test
-    lists (:func:`imugen.export.common.split_parts`; consistent across the exports of the
-    routes of a dataset). Returns ``{format: number of files written}`` and prints one line per
-    format to ``log``.
+    then get ``/wheel/odometry`` and ``/baro/pressure`` for the sensors they hold. The
+    train/val/test lists of ``split_*``, ``holdout_routes``, ``val_fraction``,
+    ``test_fraction`` (:func:`imugen.export.common.split_parts`) are consistent across the
+    exports of the routes of a dataset. Returns ``{format: number of files written}`` and
+    prints one line per format to ``log``.
     """
+    o = options
+    route, grade, nav_rate_hz, storage = o.route, o.grade, o.nav_rate_hz, o.storage
+    split_seed, split_by, holdout_routes = o.split_seed, o.split_by, list(o.holdout_routes)
+    val_fraction, test_fraction, sequences = o.val_fraction, o.test_fraction, o.sequences
     log = log or (lambda msg: print(msg, file=sys.stderr))
-    formats = parse_formats(formats)
+    formats = parse_formats(o.formats)
     out_dir = Path(out_dir)
     if not shard_paths:
         raise InputError(out_dir, "no IMU shards to export")
-    if out_dir.exists() and not overwrite:
+    if out_dir.exists() and not o.overwrite:
         raise InputError(out_dir, "exists; remove it, choose another folder or pass --overwrite")
     if not (nav_rate_hz > 0 and np.isfinite(nav_rate_hz)):
         raise InputError("--nav-rate-hz", f"must be a positive number, got {nav_rate_hz!r}")
@@ -233,3 +232,11 @@ def export(
             f"{out_dir / fmt}: {fmt}, {len(keys)} sequences, {counts[fmt]} files, {size / 1e6:.1f} MB"
         )
     return counts
+
+
+def main(options: ExportOptions, truth, shards, output, gnss, aided, companions) -> None:
+    """``imugen export``."""
+    run(
+        truth, shards, output, options, gnss_paths=gnss, aided_paths=aided,
+        companion_paths=companions,
+    )  # fmt: skip

@@ -21,10 +21,12 @@ import numpy as np
 import pandas as pd
 
 from imugen.core.errors import InputError
+from imugen.core.options import pairs
 from imugen.core.plotting import figure as _figure
 from imugen.core.plotting import save as _save
 from imugen.core.plotting import style as _style
 from imugen.figures.common import error_bands, grade_errors, grade_styles
+from imugen.figures.options import OutageFigureOptions
 from imugen.tables import SEQUENCE, TIME
 from imugen.tables import aided as taided
 
@@ -149,6 +151,14 @@ def outage_growth(
     with _style():
         fig = outage_growth_figure(aided_paths_by_grade, nav_paths_by_grade, step_s=step_s)
         return _save(fig, out_stem, formats, dpi)
+
+
+def main(options: OutageFigureOptions, output, aided, nav) -> None:
+    """``imugen outage-figure``."""
+    outage_growth(
+        pairs(aided, "--aided"), pairs(nav, "--nav"), output, formats=options.formats,
+        dpi=options.dpi,
+    )  # fmt: skip
 
 
 __all__ = ["outage_curves", "outage_growth", "outage_growth_figure"]

@@ -30,12 +30,14 @@ import pandas as pd
 
 from imugen.core.earth import OriginFrame
 from imugen.core.errors import InputError
+from imugen.core.options import pairs
 from imugen.core.plotting import figure as _figure
 from imugen.core.plotting import format_length
 from imugen.core.plotting import save as _save
 from imugen.core.plotting import style as _style
 from imugen.figures import mapview
 from imugen.figures.common import error_bands, grade_colours, grade_errors, grade_styles
+from imugen.figures.options import REPRESENTATIVE, FiguresOptions
 from imugen.tables import SEQUENCE
 from imugen.tables import metrics as tmetrics
 from imugen.tables import nav as tnav
@@ -61,8 +63,6 @@ __all__ = [
 ERR = tnav.ERR_POS
 TRACK = tnav.ERR_TRACK
 RMSE_TOTAL = tmetrics.RMSE_TOTAL
-#: accepted values of the ``representative`` option
-REPRESENTATIVE = ("median", "best", "worst")
 #: at most this many points of a densely sampled line are drawn (every k-th sample)
 MAX_POINTS = 20_000
 
@@ -675,3 +675,29 @@ def imu_signals(
         fig.suptitle(f"IMU signals, {grade}, sequence {sequence}")
         fig.supxlabel(note, fontsize=8)
         return _save(fig, out_stem, formats, dpi)
+
+
+def run(truth_path, outdir, options: FiguresOptions, *, nav, metrics, imu) -> None:
+    """Every route figure into ``outdir``: Figure 8, the 3-D trajectories, the errors against
+    time and, per grade of ``imu`` (``{grade: shard}``), its IMU signals. ``nav``:
+    ``{grade: [navigation error tables]}``; ``metrics``: ``{grade: metrics table}``."""
+    o = options
+    out = Path(outdir)
+    kw = {"formats": o.formats, "dpi": o.dpi}
+    figure8(
+        truth_path, nav, metrics, out / "figure8", zoom_fraction=o.zoom_fraction,
+        representative=o.representative, **kw,
+    )  # fmt: skip
+    trajectories_3d(
+        truth_path, nav, metrics, out / "trajectories_3d", representative=o.representative, **kw
+    )
+    error_vs_time(nav, out / "error_vs_time", **kw)
+    for grade, shard in imu.items():
+        imu_signals(truth_path, shard, out / f"imu_{grade}", **kw)
+
+
+def main(options: FiguresOptions, truth, outdir, nav, metrics, imu) -> None:
+    """``imugen figures`` (``GRADE=PATH`` inputs)."""
+    first = {g: p[0] for g, p in pairs(metrics, "--metrics").items()}
+    shards = {g: p[0] for g, p in pairs(imu, "--imu").items()}
+    run(truth, outdir, options, nav=pairs(nav, "--nav"), metrics=first, imu=shards)

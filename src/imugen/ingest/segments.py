@@ -186,6 +186,12 @@ def choose_path(
         if len(parts) > 1:
             groups[p.name] = parts
         expanded += parts
+    if not expanded:
+        raise InputError(
+            source,
+            f"no path is left after splitting at time gaps longer than {limit:g} s: every part "
+            "has a single point (raise --max-gap-s, or keep the gaps with --gaps=bridge)",
+        )
     if spec_s is not None and spec_s.casefold() == "longest":
         chosen = _longest(expanded, "--path longest", warnings)
         group = next((g for g in groups.values() if any(q is chosen for q in g)), [chosen])

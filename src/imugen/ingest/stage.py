@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,14 +54,15 @@ import pandas as pd
 from pyproj import Geod
 
 from imugen import __version__
-from imugen.core.errors import InputError
+from imugen.core.errors import InputError, printable
 from imugen.core.frames import LocalFrame, Origin, to_utm, utm_crs
 from imugen.core.geodesic import GEODESIC_STEP_M, densify, sagitta_m
 from imugen.core.io import atomic_output
 from imugen.ingest import limits
 from imugen.ingest.clean import clean_path
+from imugen.ingest.options import IngestOptions
 from imugen.ingest.readers import read_route_file
-from imugen.ingest.route import RoutePath, iso_utc
+from imugen.ingest.route import TIME_RANGE_S, RoutePath, iso_utc
 from imugen.ingest.segments import choose_path
 from imugen.tables import enu as tenu
 
@@ -245,6 +247,15 @@ def _clock(p: RoutePath, pos: np.ndarray, dt: float | None, warnings: list[str],
     if t is not None:
         if dt is not None:
             warnings.append("the file has a clock: the dt option is ignored")
+        if p.time_is_absolute:
+            out = ~((t >= TIME_RANGE_S[0]) & (t <= TIME_RANGE_S[1]))
+            if out.any():
+                i = _first_bad(out)
+                raise InputError(
+                    source,
+                    f"point {i + 1}: time {float(t[i]):.6g} s (POSIX) is outside the years 1 "
+                    "to 9999",
+                )
         start = iso_utc(float(t[0])) if p.time_is_absolute else None
         rel = t - t[0]
         if not np.isfinite(rel).all():  # differences of finite huge values may overflow
@@ -293,41 +304,22 @@ def _dedupe(table: dict, timed: bool, source, warnings: list[str]) -> dict:
     return table
 
 
-def ingest(
-    src: str | Path,
-    *,
-    path: str | int | None = None,
-    origin: Origin | str | None = None,
-    dt: float | None = None,
-    utm: bool = False,
-    max_speed_kmh: float = 1200.0,
-    max_extent_km: float | None = None,
-    gap_warn_s: float = 60.0,
-    vehicle: str = "car",
-    max_gap_s: float | None = None,
-    gaps: str = "split",
-) -> Ingested:
+def ingest(src: str | Path, **options) -> Ingested:
     """Read, select, validate and convert one path of a route file.
 
     Parameters
     ----------
     src : path-like
-        KML, KMZ, GPX, CSV (with a header) or E N U text file.
-    path : str or int, optional
-        Candidate path name, or 1-based index.
-    origin : Origin or "LAT,LON,H", optional
-        ENU origin; default the origin carried from a previous stage, else the first point.
-    dt : float, optional
-        Uniform sample interval (s) given to an untimed path.
-    utm : bool
-        Also output UTM easting/northing in the zone of the origin.
-    max_speed_kmh, max_extent_km, gap_warn_s : float
-        Validation limits (see the module docstring); ``max_extent_km`` None: no limit.
-    vehicle : str
-        Vehicle class whose limits decide what is an outlier (:mod:`imugen.ingest.clean`).
-    max_gap_s, gaps : float or None, {"split", "bridge"}
-        Time gaps longer than ``max_gap_s`` split the path, or are bridged when asked
-        (:mod:`imugen.ingest.segments`); ``path`` may then be ``"longest"``.
+        Any route file of :data:`imugen.ingest.formats.FORMATS`.
+    **options
+        Fields of :class:`~imugen.ingest.options.IngestOptions`: ``path`` (candidate name or
+        1-based index; ``"longest"`` after a gap split), ``origin`` (an
+        :class:`~imugen.core.frames.Origin` or ``"LAT,LON,H"``; default the origin carried from
+        a previous stage, else the first point), ``dt`` (uniform clock of an untimed path, s),
+        ``utm``, the validation limits ``max_speed_kmh``, ``max_extent_km`` (None: no limit),
+        ``gap_warn_s`` (see the module docstring), ``vehicle`` (whose limits decide what is an
+        outlier, :mod:`imugen.ingest.clean`), ``max_gap_s`` and ``gaps`` (time gaps longer
+        than ``max_gap_s`` split the path, or are bridged: :mod:`imugen.ingest.segments`).
 
     Returns
     -------
@@ -335,10 +327,16 @@ def ingest(
         ``table`` columns: ``time_s`` (timed paths only), ``lat_deg``, ``lon_deg``, ``alt_m``,
         ``e_m``, ``n_m``, ``u_m`` (and ``utm_e_m``, ``utm_n_m``); ``meta`` dict for the file.
     """
+    return read(src, IngestOptions(**options))
+
+
+def read(src: str | Path, options: IngestOptions) -> Ingested:
+    """:func:`ingest` with its options object."""
+    o = options
     with np.errstate(over="ignore", invalid="ignore"):  # overflows are refused, not printed
         return _ingest(
-            src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s,
-            vehicle, max_gap_s, gaps,
+            src, o.path, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km, o.gap_warn_s,
+            o.vehicle, o.max_gap_s, o.gaps,
         )  # fmt: skip
 
 
@@ -410,7 +408,7 @@ def _ingest(
         if origin is None:
             raise InputError(
                 src,
-                "E N U rows need an origin to be placed on the Earth: pass --origin LAT,LON,H "
+                "E N U rows need an origin to be placed on the Earth: pass --origin=LAT,LON,H "
                 "(the geodetic position of the first row)",
             )
         enu_first = p.enu_m - p.enu_m[0]
@@ -567,8 +565,23 @@ def write(ing: Ingested, out: str | Path) -> Path:
     return out
 
 
-def run(src: str | Path, out: str | Path, **kwargs) -> Ingested:
-    """Ingest ``src`` and write ``out``; returns the result (for the CLI's summary)."""
-    ing = ingest(src, **kwargs)
+def run(src: str | Path, out: str | Path, options: IngestOptions | None = None) -> Ingested:
+    """Ingest ``src`` with ``options`` and write ``out``; returns the result."""
+    ing = read(src, options or IngestOptions())
     write(ing, out)
     return ing
+
+
+def main(options: IngestOptions, src, output) -> None:
+    """``imugen ingest``: :func:`run`, then its warnings and a summary line on stderr."""
+    ing = run(src, output, options)
+    for w in ing.warnings:
+        print(printable(f"imugen: warning: {src}: {w}"), file=sys.stderr)
+    m = ing.meta
+    clock = f"timed {m['duration_s']:.1f} s" if m["timed"] else "untimed"
+    o = m["origin"]
+    print(
+        f"{output}: path {m['path']!r}, {m['points_out']} points, {m['length_3d_m']:.1f} m, "
+        f"{clock}, origin {o['lat_deg']:.7f},{o['lon_deg']:.7f},{o['alt_m']:.2f}",
+        file=sys.stderr,
+    )

@@ -32,6 +32,7 @@ import numpy as np
 from imugen.core.errors import InputError
 from imugen.navigate.mechanize import compensate_raw
 from imugen.navigate.navigator import NAV_TRUTH_COLUMNS, Navigator, batch_size, table_meta
+from imugen.navigate.options import NavigateOptions
 from imugen.tables import SEQUENCE
 from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
@@ -169,9 +170,13 @@ def navigate_arrays(
     return nav.errors(ids, dth, dv, mount)
 
 
-def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = None) -> Path:
+def run(
+    truth, shard, out, options: NavigateOptions | None = None, *, batch: int | None = None
+) -> Path:
     """Navigate a shard and stream its error table to ``out`` atomically (one row group per
-    batch: memory stays flat in the shard's size)."""
+    batch of ``batch`` sequences, default :func:`~imugen.navigate.navigator.batch_size`: memory
+    stays flat in the shard's size)."""
+    eval_rate_hz = (options or NavigateOptions()).eval_rate_hz
     out = Path(out)
     smeta = tshard.read_meta(shard)
     meta = table_meta(
@@ -183,3 +188,8 @@ def run(truth, shard, out, *, eval_rate_hz: float = 1.0, batch: int | None = Non
         if w.rows == 0:
             raise InputError(shard, "holds no sequences")
     return out
+
+
+def main(options: NavigateOptions, truth, shard, output) -> None:
+    """``imugen navigate``."""
+    run(truth, shard, output, options)

@@ -79,6 +79,7 @@ Caveats (stated in every imported and exported file):
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from pathlib import Path
 
@@ -86,8 +87,9 @@ import numpy as np
 import yaml
 
 from imugen.core import units
-from imugen.core.errors import InputError
+from imugen.core.errors import InputError, printable
 from imugen.sensors.grades import FIXED_TERMS, SENSORS, Grade, get_grade, grade_from_config
+from imugen.sensors.options import GradeExportOptions, GradeImportOptions
 
 KALIBR_KEYS = (
     "gyroscope_noise_density",
@@ -464,6 +466,8 @@ def import_grade(path, name: str | None = None, grade_id: int | None = None) -> 
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML: {str(exc).splitlines()[0]}") from None
+    except RecursionError:
+        raise InputError(path, "is nested too deeply to be an IMU description") from None
     try:
         fmt = detect_format(doc)
     except InputError as exc:
@@ -598,3 +602,29 @@ def write_text(out, text: str) -> Path:
     with atomic_output(out) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(out)
+
+
+def main_import(options: GradeImportOptions, file, output) -> None:
+    """``imugen grade import``: the grades document to ``output``, else to stdout; the
+    reading's warnings as ``imugen: warning: FILE: ...`` lines."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        name, cfg = import_grade(file, name=options.name, grade_id=options.grade_id)
+    for w in caught:
+        print(printable(f"imugen: warning: {file}: {w.message}"), file=sys.stderr)
+    text = grades_document(name, cfg)
+    if output:
+        write_text(output, text)
+        print(f"{output}: grade {name!r} (id {cfg.get('id')})", file=sys.stderr)
+    else:
+        print(text, end="")
+
+
+def main_export(options: GradeExportOptions, grade, output) -> None:
+    """``imugen grade export``: the Kalibr file to ``output``, else to stdout."""
+    g = get_grade(grade, options.grades_file)
+    text = to_kalibr(g, rate_hz=options.rate_hz, topic=options.topic)
+    if output:
+        write_text(output, text)
+    else:
+        print(text, end="")

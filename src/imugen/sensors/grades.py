@@ -641,6 +641,8 @@ def load_grades(path) -> dict[str, Grade]:
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     except yaml.YAMLError as exc:
         raise InputError(path, f"not valid YAML: {str(exc).splitlines()[0]}") from None
+    except RecursionError:
+        raise InputError(path, "is nested too deeply to be a grades file") from None
     out = grades_from_document(doc, str(path))
     pre = presets()
     pre_ids = {g.id: n for n, g in pre.items()}

@@ -19,6 +19,7 @@ import numpy as np
 
 from imugen import __version__
 from imugen.core.errors import InputError
+from imugen.core.options import DRAWS
 from imugen.core.seeding import BIT_GENERATOR, SENSOR_STREAMS, sensor_rng
 from imugen.sensors.grades import TERMS, Grade, get_grade, preset_text
 from imugen.sensors.ideal import CHUNK, TruthSource
@@ -26,12 +27,12 @@ from imugen.sensors.model import SensorParams, draw_sensor
 from imugen.sensors.mounting import MountingSpec
 from imugen.sensors.mounting import setup as setup_mounting
 from imugen.sensors.vibration import setup_vibration
-from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN, resolve_truth, route_name
+from imugen.simulate.options import SimulateOptions
+from imugen.simulate.sources import resolve_truth, route_name
 from imugen.tables import shard as tshard
 from imugen.tables.shard import SEQUENCE
 
 OUTPUTS = tshard.OUTPUTS
-DRAWS = ("ranges", "nominal")
 
 
 def temperature_profile(spec):
@@ -180,37 +181,21 @@ class Plan:
         return d
 
 
-def plan_shard(
-    truth,
-    grade,
-    sequences,
-    seed,
-    shard,
-    *,
-    outputs="increments",
-    draw="ranges",
-    terms=None,
-    temperature=None,
-    series=False,
-    static_s=None,
-    rate_hz=100.0,
-    static_earth="flat",
-    static_origin=DEFAULT_STATIC_ORIGIN,
-    grades_file=None,
-    shard_size=None,
-    route=None,
-    increments="compensated",
-    dtype="float32",
-    vibration=None,
-    mounting=None,
-) -> Plan:
-    tr = resolve_truth(truth, static_s, rate_hz, static_earth, static_origin)
-    route = route_name(truth, tr, route)
+def plan_shard(truth, options: SimulateOptions, dtype=None) -> Plan:
+    """Resolve the truth and the grade, check ``options``, draw every sequence's parameters.
+
+    ``truth`` is what :func:`imugen.simulate.stage.simulate` takes; ``dtype`` overrides
+    ``options.dtype`` (the in-memory shard is float64)."""
+    o = options
+    dtype = o.dtype if dtype is None else dtype
+    tr = resolve_truth(truth, o.static_s, o.rate_hz, o.static_earth)
+    route = route_name(truth, tr, o.route)
     rid = tshard.route_id(route)
-    grade = get_grade(grade, grades_file)
-    M = check_int("--sequences", sequences, 1)
-    seed = check_int("--seed", seed, 0)
-    shard = check_int("--shard", shard, 0)
+    grade = get_grade(o.grade, o.grades_file)
+    M = check_int("--sequences", o.sequences, 1)
+    seed = check_int("--seed", o.seed, 0)
+    shard = check_int("--shard", o.shard, 0)
+    outputs, draw, increments, series = o.outputs, o.draw, o.increments, o.series
     if outputs not in OUTPUTS:
         raise InputError("--outputs", f"must be one of {', '.join(OUTPUTS)}, got {outputs!r}")
     if draw not in DRAWS:
@@ -218,9 +203,9 @@ def plan_shard(
     if increments not in tshard.INCREMENT_KINDS:
         kinds = ", ".join(tshard.INCREMENT_KINDS)
         raise InputError("--increments", f"must be one of {kinds}, got {increments!r}")
-    first = first_index(shard, M, shard_size)
-    enabled = enabled_terms(grade, terms)
-    temp = temperature_profile(temperature)
+    first = first_index(shard, M, o.shard_size)
+    enabled = enabled_terms(grade, o.terms)
+    temp = temperature_profile(o.temperature)
     nominal = draw == "nominal"
     gp, ap = [], []
     for j in range(M):
@@ -270,15 +255,15 @@ def plan_shard(
         "dt_s": tr.dt,
         "samples_per_sequence": tr.K,
         "truth": tr.meta,
-        "temperature": temperature,
+        "temperature": o.temperature,
         "vibration": None,
         "rows": "sorted by sequence then time; increments on row k are the interval ending at "
         "t_k; row 0 of each sequence is zero",
         "derived": None,
     }
     names = tshard.groups(outputs, series)
-    vib, meta["vibration"] = _vibrations(tr, vibration, seed, rid, grade, shard, M)
-    spec = MountingSpec.from_option(mounting, "--mounting")
+    vib, meta["vibration"] = _vibrations(tr, o.vibration, seed, rid, grade, shard, M)
+    spec = MountingSpec.from_option(o.mounting, "--mounting")
     meta["mounting"] = None if spec is None else spec.as_dict()
     mount = None
     if spec is not None:

@@ -135,13 +135,14 @@ def route_name(truth, tr: TruthSource, route=None) -> str:
     return ""
 
 
-def resolve_truth(truth, static_s, rate_hz, static_earth, static_origin) -> TruthSource:
+def resolve_truth(truth, static_s, rate_hz, static_earth) -> TruthSource:
+    """The truth source of ``truth`` (or of a still IMU of ``static_s`` seconds)."""
     if isinstance(truth, TruthSource):
         return truth
     if truth is None:
         if static_s is None:
             raise InputError("simulate", "give a truth table or --static SECONDS")
-        return StaticTruth(float(static_s), rate_hz, static_earth, static_origin)
+        return StaticTruth(float(static_s), rate_hz, static_earth)
     if static_s is not None:
         raise InputError("--static", "give either a truth table or --static, not both")
     pd = sys.modules.get("pandas")  # a DataFrame can only exist once pandas is imported

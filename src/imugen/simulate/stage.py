@@ -45,6 +45,7 @@ Row groups are written as time chunks are produced (bounded buffer, never the wh
 from __future__ import annotations
 
 import math
+import sys
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,9 +56,9 @@ from imugen.core.errors import InputError
 from imugen.core.seeding import sensor_rng
 from imugen.sensors.ideal import CHUNK, TruthSource
 from imugen.sensors.model import SensorModel, SensorParams
+from imugen.simulate.options import SimulateOptions
 from imugen.simulate.plan import Plan, plan_shard
 from imugen.simulate.sinks import MemorySink, WriterSink, navigation_sink
-from imugen.simulate.sources import DEFAULT_STATIC_ORIGIN
 from imugen.tables import shard as tshard
 
 
@@ -177,29 +178,11 @@ def _loop(plan: Plan, sink, progress=None):
     return normals / M if M else 0
 
 
-def simulate(
-    truth,
-    grade,
-    sequences=1,
-    seed=0,
-    shard=0,
-    *,
-    outputs="increments",
-    draw="ranges",
-    terms=None,
-    temperature=None,
-    series=False,
-    static_s=None,
-    rate_hz=100.0,
-    static_earth="flat",
-    static_origin=DEFAULT_STATIC_ORIGIN,
-    grades_file=None,
-    shard_size=None,
-    route=None,
-    increments="compensated",
-    vibration=None,
-    mounting=None,
-) -> Shard:
+FILE_ONLY = ("dtype", "explicit_time", "eval_rate_hz")
+"""Fields of :class:`SimulateOptions` that concern the written shard only, not :func:`simulate`."""
+
+
+def simulate(truth, grade, sequences=1, seed=0, shard=0, **options) -> Shard:
     """Generate a shard in memory (float64 arrays ``(M, K, 3)``); same numbers as :func:`run`.
 
     Parameters
@@ -212,40 +195,29 @@ def simulate(
         Preset name, ``file.yaml:name``, or a :class:`~imugen.sensors.grades.Grade`.
     sequences, seed, shard : int
         ``M`` sequences; root seed; shard index.
-    outputs : {"increments", "rates", "both"}
-    draw : {"ranges", "nominal"}
-        Draw levels in the grade's ranges, or use the nominal values for every sequence.
-    terms : iterable of str, optional
-        Apply only these terms (see :func:`imugen.simulate.plan.enabled_terms`).
-    temperature : dict or str, optional
-        Temperature profile (:func:`imugen.simulate.plan.temperature_profile`).
-    series : bool
-        Also return the true slow-bias, scale-factor and effective-error series.
-    static_s, rate_hz, static_earth, static_origin
-        Still IMU instead of a truth table.
-    shard_size : int, optional
-        Sequences per shard of the experiment (``>= sequences``): indices are
-        ``shard * shard_size + j``. Default ``sequences``; give it for a short last shard.
-    route : str, optional
-        Route name; its :func:`~imugen.tables.shard.route_id` enters every spawn key and the
-        sequence ids. Default :func:`imugen.simulate.sources.route_name`.
-    increments : {"compensated", "raw"}
-        Increment semantics (:mod:`imugen.tables.shard`): the truth's compensated increments,
-        or plain integrals of rate and specific force (``TruthSource.raw_chunk``).
-    vibration : {"off", "car", "aircraft", "vehicle"}, optional
-        Vibration of the IMU case (:mod:`imugen.sensors.vibration`; ``vehicle``: the truth's class).
-    mounting : dict, optional
-        IMU misalignment and lever arm drawn per sequence (:mod:`imugen.sensors.mounting`; keys of
-        :meth:`~imugen.sensors.mounting.MountingSpec.from_option`); None: the IMU is the vehicle frame
-        at its reference point.
+    **options
+        Further fields of :class:`~imugen.simulate.options.SimulateOptions` (defaults there),
+        except those of the written file (:data:`FILE_ONLY`): ``outputs`` ({"increments",
+        "rates", "both"}), ``draw`` (levels drawn in the grade's ranges, or ``"nominal"`` for
+        every sequence), ``terms`` (apply only these: :func:`imugen.simulate.plan.enabled_terms`),
+        ``temperature`` (:func:`imugen.simulate.plan.temperature_profile`), ``series`` (also
+        the true slow-bias, scale-factor and effective-error series), ``static_s``,
+        ``rate_hz``, ``static_earth`` (a still IMU instead of a truth table), ``grades_file``,
+        ``shard_size`` (sequences per shard of the experiment, ``>= sequences``: indices are
+        ``shard * shard_size + j``), ``route`` (its :func:`~imugen.tables.shard.route_id`
+        enters every spawn key and the sequence ids; default
+        :func:`imugen.simulate.sources.route_name`), ``increments`` ({"compensated", "raw"}:
+        the truth's compensated increments, or plain integrals of rate and specific force),
+        ``vibration`` ({"off", "car", "aircraft", "vehicle"}: :mod:`imugen.sensors.vibration`),
+        ``mounting`` (IMU misalignment and lever arm drawn per sequence,
+        :meth:`~imugen.sensors.mounting.MountingSpec.from_option`; None: the IMU is the vehicle
+        frame at its reference point).
     """
-    plan = plan_shard(
-        truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
-        temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
-        static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
-        shard_size=shard_size, route=route, increments=increments, dtype=np.float64,
-        vibration=vibration, mounting=mounting,
-    )  # fmt: skip
+    unknown = set(options) & set(FILE_ONLY)
+    if unknown:
+        raise TypeError(f"simulate() got options of the written file only: {sorted(unknown)}")
+    opts = SimulateOptions(grade=grade, sequences=sequences, seed=seed, shard=shard, **options)
+    plan = plan_shard(truth, opts, dtype=np.float64)
     tr = plan.truth
     sink = MemorySink(plan.M, tr.K, plan.names)
     _loop(plan, sink)
@@ -255,73 +227,44 @@ def simulate(
     return Shard(time_s, sink.data, plan.labels(), gpar, apar, meta)
 
 
-def run(
-    truth=None,
-    out=None,
-    grade="consumer",
-    sequences=1,
-    seed=0,
-    shard=0,
-    static_s=None,
-    rate_hz=100.0,
-    *,
-    outputs="increments",
-    draw="ranges",
-    terms=None,
-    temperature=None,
-    series=False,
-    dtype="float32",
-    compression="none",
-    explicit_time=False,
-    grades_file=None,
-    static_earth="flat",
-    static_origin=DEFAULT_STATIC_ORIGIN,
-    shard_size=None,
-    route=None,
-    increments="compensated",
-    vibration=None,
-    mounting=None,
-    navigate=None,
-    eval_rate_hz=1.0,
-) -> dict:
+def run(truth, out, options: SimulateOptions, *, navigate=None) -> dict:
     """Generate one shard and write it (Parquet + labels sidecar) atomically; optionally
     navigate it in the same pass.
 
-    Parameters are those of :func:`simulate`, plus ``out`` (the shard path; the sidecar is
-    :func:`~imugen.tables.shard.labels_path`), ``dtype`` of the measurement columns
-    (``"float32"`` or ``"float64"``) and the Parquet ``compression`` (``"none"`` default:
-    noise-like floats do not compress, see benchmarks/README.md). ``rate_hz`` and ``static_*``
-    only apply to ``static_s`` (a truth table has its own rate). The truth's uniform clock is
-    stored once in the shard metadata (``clock``), not in every row, unless ``explicit_time``
-    (:func:`imugen.tables.shard.writer`).
-
-    ``navigate`` (a path) also writes the navigation error table of the shard
-    (:mod:`imugen.tables.nav`), computed from the sequences as they are generated -- the
-    shard is never re-read -- at ``eval_rate_hz`` epochs per second: the same table, bit for
-    bit, as :func:`imugen.navigate.stage.run` on the written shard. ``out=None`` with ``navigate``
-    writes the errors only (no IMU shard). Needs a truth file.
+    Parameters
+    ----------
+    truth
+        As :func:`simulate` takes it.
+    out : path or None
+        The shard; its labels sidecar is :func:`~imugen.tables.shard.labels_path`.
+    options : SimulateOptions
+        ``dtype`` is the storage type of the measurement columns; ``rate_hz`` and
+        ``static_earth`` only apply to ``static_s`` (a truth table has its own rate). The
+        truth's uniform clock is stored once in the shard metadata (``clock``), not in every
+        row, unless ``explicit_time`` (:func:`imugen.tables.shard.writer`).
+    navigate : path, optional
+        Also write the navigation error table of the shard (:mod:`imugen.tables.nav`),
+        computed from the sequences as they are generated -- the shard is never re-read --
+        at ``options.eval_rate_hz`` epochs per second: the same table, bit for bit, as
+        :func:`imugen.navigate.stage.run` on the written shard. ``out=None`` with
+        ``navigate`` writes the errors only (no IMU shard). Needs a truth file.
 
     Returns
     -------
     dict
         The shard's metadata (as written when ``out`` is given).
     """
+    o = options
     if out is None and navigate is None:
         raise InputError("-o", "give an output shard (-o) and/or --navigate NAV.parquet")
     if navigate is not None:
         if not isinstance(truth, str | Path):
             raise InputError("--navigate", "needs a truth file (not --static or arrays)")
-        if not (isinstance(eval_rate_hz, int | float) and 0 < eval_rate_hz < math.inf):
-            raise InputError("--eval-rate-hz", f"must be > 0, got {eval_rate_hz!r}")
-    if dtype not in ("float32", "float64"):
-        raise InputError("--dtype", f"must be float32 or float64, got {dtype!r}")
-    plan = plan_shard(
-        truth, grade, sequences, seed, shard, outputs=outputs, draw=draw, terms=terms,
-        temperature=temperature, series=series, static_s=static_s, rate_hz=rate_hz,
-        static_earth=static_earth, static_origin=static_origin, grades_file=grades_file,
-        shard_size=shard_size, route=route, increments=increments, dtype=dtype,
-        vibration=vibration, mounting=mounting,
-    )  # fmt: skip
+        if not (isinstance(o.eval_rate_hz, int | float) and 0 < o.eval_rate_hz < math.inf):
+            raise InputError("--eval-rate-hz", f"must be > 0, got {o.eval_rate_hz!r}")
+    if o.dtype not in ("float32", "float64"):
+        raise InputError("--dtype", f"must be float32 or float64, got {o.dtype!r}")
+    plan = plan_shard(truth, o)
     from imugen.core.progress import Progress
 
     label = f"simulate {Path(out).parent.name}/{Path(out).name}" if out else "simulate"
@@ -334,22 +277,36 @@ def run(
                     out,
                     plan.meta,
                     plan.names,
-                    dtype,
-                    compression=compression,
+                    o.dtype,
                     time_s=plan.truth.times(),
                     dt=_nominal_dt(plan.truth),
-                    explicit_time=explicit_time,
+                    explicit_time=o.explicit_time,
                 )
             )
             sink = WriterSink(w, plan.ids)
         if navigate is not None:
-            sink = navigation_sink(stack, sink, plan, truth, out, navigate, eval_rate_hz, dtype)
+            sink = navigation_sink(stack, sink, plan, truth, out, navigate, o.eval_rate_hz, o.dtype)
         _loop(plan, sink, progress)
         if navigate is not None:
             sink.flush()
         if w is not None:
             w.labels = plan.label_columns()
     return tshard.read_meta(out) if out is not None else plan.meta
+
+
+def main(options: SimulateOptions, truth, output, navigate) -> None:
+    """``imugen simulate``: :func:`run`, then a summary line on stderr."""
+    if truth is None and options.static_s is None:
+        raise InputError("imugen simulate", "give a TRUTH.parquet or --static SECONDS")
+    if truth is not None and options.static_s is not None:
+        raise InputError("imugen simulate", "give either a TRUTH.parquet or --static, not both")
+    meta = run(truth, output, options, navigate=navigate)
+    written = " + ".join(p for p in (output, navigate) if p is not None)
+    print(
+        f"{written}: grade {meta['grade']['name']!r}, {options.sequences} sequences, "
+        f"shard {options.shard}, seed {options.seed}",
+        file=sys.stderr,
+    )
 
 
 def _nominal_dt(truth: TruthSource) -> float | None:

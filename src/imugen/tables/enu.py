@@ -41,7 +41,8 @@ def write(df: pd.DataFrame, meta: dict, out) -> Path:
     return write_parquet(df, meta, out)
 
 
-def read(path) -> tuple[pd.DataFrame, dict]:
-    """The table and its metadata (InputError if unreadable or not written by imugen)."""
+def read(path, columns=None) -> tuple[pd.DataFrame, dict]:
+    """The table (``columns``, default all) and its metadata (InputError if unreadable, not
+    written by imugen or without a requested column)."""
     meta = read_meta(path)
-    return read_table(path, what=WHAT).to_pandas(), meta
+    return read_table(path, columns, what=WHAT).to_pandas(), meta

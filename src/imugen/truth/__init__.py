@@ -72,30 +72,40 @@ gravitation integral by 4-node Gauss-Legendre quadrature on the continuous truth
 
 from __future__ import annotations
 
-from imugen.core.io import write_parquet
-from imugen.truth.budget import earth_budget
-from imugen.truth.build import CHUNK, TruthOptions, build_motion, build_truth, enu_table
-from imugen.truth.fit import TimedMotion, fit_path, fit_timed, noise_estimate
-from imugen.truth.profile import PathMotion, speed_profile
-from imugen.truth.stage import read_enu, run
-from imugen.truth.vehicles import VEHICLES, VehicleParams
+import importlib
 
-__all__ = [
-    "CHUNK",
-    "VEHICLES",
-    "PathMotion",
-    "TimedMotion",
-    "TruthOptions",
-    "VehicleParams",
-    "build_motion",
-    "build_truth",
-    "earth_budget",
-    "enu_table",
-    "fit_path",
-    "fit_timed",
-    "noise_estimate",
-    "read_enu",
-    "run",
-    "speed_profile",
-    "write_parquet",
-]
+_LAZY = {
+    "CHUNK": "build",
+    "BuildOptions": "build",
+    "build_motion": "build",
+    "build_truth": "build",
+    "enu_table": "build",
+    "earth_budget": "budget",
+    "TimedMotion": "fit",
+    "fit_path": "fit",
+    "fit_timed": "fit",
+    "noise_estimate": "fit",
+    "PathMotion": "profile",
+    "speed_profile": "profile",
+    "read_enu": "stage",
+    "run": "stage",
+    "TruthOptions": "options",
+    "VEHICLES": "vehicles",
+    "VehicleParams": "vehicles",
+}
+"""Names of the package's modules, loaded on first use: ``imugen.truth.options`` (what the
+command line's parser reads) loads no numerical code."""
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted({*globals(), *_LAZY})

@@ -28,7 +28,7 @@ CHUNK = 1 << 16  # samples per evaluation chunk
 
 
 @dataclass
-class TruthOptions:
+class BuildOptions:
     """Options of :func:`build_truth` beyond rate, Earth model and vehicle (None: defaults)."""
 
     grade: object = None  # name, FILE.yaml:NAME, Grade, GradeFigures, or a list of them
@@ -83,7 +83,7 @@ def enu_table(enu_m, time_s=None, origin=(0.0, 0.0, 0.0)) -> tuple[pd.DataFrame,
     return pd.DataFrame(data), meta
 
 
-def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: TruthOptions, E=None):
+def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOptions, E=None):
     """Fit the route: returns (motion, fit report, timing report).
 
     With ``E`` (the :class:`EarthField` of the truth), an untimed ground route's geometry
@@ -306,7 +306,7 @@ def build_truth(
     verbose : bool
         Print the ``auto`` budget and the plausibility report to stderr.
     **options
-        Fields of :class:`TruthOptions` (``fit_tol_m``, ``stops``, ``corner_m``,
+        Fields of :class:`BuildOptions` (``fit_tol_m``, ``stops``, ``corner_m``,
         ``cruise_mps``, ``accel_mps2``, ``lat_accel_mps2``, ``jerk_mps3``, ``hold_speed_mps``).
 
     Returns
@@ -318,10 +318,10 @@ def build_truth(
         raise InputError("--earth", f"unknown Earth model {earth!r}; flat, wgs84, geodetic or auto")
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InputError("--rate-hz", f"IMU rate must be a positive number, got {rate_hz}")
-    unknown = set(options) - set(TruthOptions.__dataclass_fields__)
+    unknown = set(options) - set(BuildOptions.__dataclass_fields__)
     if unknown:
         raise TypeError(f"unknown options {sorted(unknown)}")
-    opts = TruthOptions(grade=grade, **options)
+    opts = BuildOptions(grade=grade, **options)
     vp = vehicle_params(vehicle, opts.vehicle_params)
     if opts.hold_speed_mps is not None:
         vp = replace(vp, hold_speed_mps=tuple(opts.hold_speed_mps))

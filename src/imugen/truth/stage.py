@@ -10,6 +10,7 @@ from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as ttable
 from imugen.truth.build import build_truth, messages
+from imugen.truth.options import TruthOptions
 
 
 def read_enu(path) -> tuple[pd.DataFrame, dict]:
@@ -17,15 +18,17 @@ def read_enu(path) -> tuple[pd.DataFrame, dict]:
     return tenu.read(path)
 
 
-def run(
-    enu_path, out_path, *, rate_hz: float = 100.0, earth: str = "flat", vehicle: str = "car", **kw
-) -> dict:
-    """Read the ENU Parquet, build the truth, write it atomically, then print the Earth
+def run(enu_path, out_path, options: TruthOptions | None = None, **build) -> dict:
+    """Read the ENU Parquet, build the truth with ``options`` (and ``build``: further keywords
+    of :func:`~imugen.truth.build.build_truth`), write it atomically, then print the Earth
     budget and the plausibility report (stderr); returns the metadata."""
+    o = options or TruthOptions()
     enu, meta = read_enu(enu_path)
-    kw["verbose"] = False
     try:
-        df, tmeta = build_truth(enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, **kw)
+        df, tmeta = build_truth(
+            enu, meta, rate_hz=o.rate_hz, earth=o.earth, vehicle=o.vehicle,
+            grade=list(o.grade) or None, vehicle_params=o.vehicle_params, verbose=False, **build,
+        )  # fmt: skip
     except InputError as exc:
         if exc.source is None:
             raise InputError(enu_path, exc.message) from None
@@ -36,3 +39,8 @@ def run(
     for line in messages(tmeta):
         print(line, file=sys.stderr)
     return tmeta
+
+
+def main(options: TruthOptions, enu, output) -> None:
+    """``imugen truth``."""
+    run(enu, output, options)

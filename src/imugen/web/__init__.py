@@ -8,5 +8,17 @@ then sees the RMSE table, figures and Allan checks and downloads the data and th
 
 Every run lives in its own folder ``WORKDIR/runs/<id>/`` (``input/`` the uploaded file under a
 sanitized name, ``config/config.yaml``, ``results/``, ``logs/``, ``run.log``, ``state.json``);
-the workflow runs there with ``snakemake -s <repo>/Snakefile -d <run folder>``.
+the workflow runs there with ``snakemake -s <repo>/Snakefile -d <run folder>``. The page obeys
+only the user who started it, from their own browser tab: :mod:`imugen.web.security`.
 """
+
+
+def main(options) -> None:
+    """``imugen serve`` (:class:`~imugen.web.options.ServeOptions`); needs Flask."""
+    from imugen.core.errors import InputError
+
+    try:
+        from imugen.web.app import serve
+    except ImportError:
+        raise InputError("imugen serve", "needs Flask: pip install -e '.[web]'") from None
+    serve(options.workdir, host=options.host, port=options.port, repo=options.repo)

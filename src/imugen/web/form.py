@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,7 +55,11 @@ def _field(name: str, spec: dict) -> Field | None:
             name, "multi", name.split(".")[-1], help_, list(d or []), spec["items"]["enum"]
         )
     items = spec.get("items", {})
-    if "array" in types and items.get("type") in ("number", "integer"):  # e.g. origin, outages
+    tuple_items = spec.get("prefixItems") or []
+    numeric = items.get("type") in ("number", "integer") or (
+        tuple_items and all(t.get("type") in ("number", "integer") for t in tuple_items)
+    )
+    if "array" in types and numeric:  # e.g. origin (a [lat, lon, h] tuple), outages
         return Field(name, "numbers", name.split(".")[-1], help_ + " (comma-separated)", d)
     return None  # arrays of objects (declared scenario intervals): config files only
 
@@ -88,18 +93,25 @@ def _coerce(f: Field, form) -> object:
         if f.kind == "integer":
             return int(raw)
         if f.kind == "number":
-            return float(raw)
+            return _finite(float(raw))
         if f.kind == "numbers":
-            return [float(x) for x in raw.split(",") if x.strip()]
+            return [_finite(float(x)) for x in raw.split(",") if x.strip()]
         if f.name == "route.path" and raw.isdigit():
             return int(raw)
     except ValueError:
-        raise InputError(
-            f.name, f"{raw!r} is not a {f.kind if f.kind != 'text' else 'list of numbers'}"
-        ) from None
+        what = {"integer": "an integer", "number": "a finite number"}.get(
+            f.kind, "a comma-separated list of finite numbers"
+        )
+        raise InputError(f.name, f"{raw[:40]!r} is not {what}") from None
     if f.kind == "select" and raw not in map(str, f.choices):
         raise InputError(f.name, f"{raw!r} is not one of {', '.join(map(str, f.choices))}")
     return raw
+
+
+def _finite(x: float) -> float:
+    if not math.isfinite(x):
+        raise ValueError(x)
+    return x
 
 
 def config_from_form(schema: dict, form, route_file: str, grades: dict) -> dict:
@@ -124,14 +136,19 @@ def config_from_form(schema: dict, form, route_file: str, grades: dict) -> dict:
 
 
 def validate(cfg: dict, repo: Path) -> None:
-    """Validate with the workflow's own schema; one-line InputError naming the key."""
+    """Refuse what the workflow would refuse before its first job: the schema (NaN and values
+    out of range included) and the pre-flight's checks (custom grades, names of presets);
+    one-line InputError naming the key."""
     import jsonschema
+
+    from imugen import preflight
 
     schema = load_schema(repo)
     err = jsonschema.exceptions.best_match(jsonschema.Draft202012Validator(schema).iter_errors(cfg))
     if err is not None:
         where = ".".join(str(p) for p in err.absolute_path) or "configuration"
         raise InputError(where, " ".join(err.message.split())[:300])
+    preflight.check_values(cfg)
 
 
 def form_values(schema: dict, form) -> dict:

@@ -10,90 +10,12 @@ on name length are checked here for every reader.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from imugen.core.errors import InputError
 from imugen.ingest import limits
-from imugen.ingest.readers import babel
-
-if TYPE_CHECKING:  # the command line lists FORMATS without importing numpy
-    from imugen.ingest.route import RoutePath
-
-
-@dataclass(frozen=True)
-class Format:
-    """One route-file format that ingestion reads."""
-
-    name: str
-    """Short name (``imugen ingest --help`` lists them)."""
-    what: str
-    """What of it is read."""
-    suffixes: tuple[str, ...]
-    """File names it is usually found under; the content decides (:func:`read_route_file`),
-    except for the GPSBabel formats, which the suffix names."""
-    module: str
-    """Its reader, a module of :mod:`imugen.ingest.readers`."""
-
-
-_BABEL_NAMES = {".fit": "FIT", ".tcx": "TCX", ".gdb": "GDB", ".plt": "OziExplorer PLT"}
-
-FORMATS: tuple[Format, ...] = (
-    Format(
-        "KML",
-        "Google Earth KML 2.0-2.3 or without namespace: LineString, gx:Track, OGC 2.3 Track, "
-        "gx:MultiTrack, MultiGeometry; each path a candidate",
-        (".kml",),
-        "kml",
-    ),
-    Format("KMZ", "zipped KML: doc.kml, else the first .kml at the root", (".kmz",), "kml"),
-    Format("GPX", "GPX 1.0 and 1.1: each track segment and each route", (".gpx",), "gpx"),
-    Format(
-        "NMEA",
-        "NMEA 0183 GGA and RMC sentences of any talker, merged per epoch",
-        (".nmea",),
-        "nmea",
-    ),
-    Format("IGC", "IGC flight logs: B records, date from HFDTE", (".igc",), "igc"),
-    Format(
-        "GeoJSON",
-        "LineString, MultiLineString, Feature, FeatureCollection, GeometryCollection; times "
-        "from a coordTimes property",
-        (".geojson", ".json"),
-        "geojson",
-    ),
-    Format(
-        "ROS NavSatFix CSV",
-        "rostopic echo -p dumps of sensor_msgs/NavSatFix, CSV with hemisphere letters "
-        "(30.2N, 097.6W) or NUL-padded fields",
-        (".csv",),
-        "gnsscsv",
-    ),
-    Format(
-        "CSV",
-        "a header naming latitude and longitude (height and time optional); , ; or TAB",
-        (".csv", ".txt"),
-        "text",
-    ),
-    Format(
-        "E N U text",
-        "East North Up rows without a header, optional leading time column, placed on the "
-        "Earth by --origin",
-        (".txt", ".enu"),
-        "text",
-    ),
-    *(
-        Format(
-            _BABEL_NAMES.get(suffix, suffix[1:].upper()),
-            f"converted to GPX by GPSBabel (input format {fmt}) when it is installed",
-            (suffix,),
-            "babel",
-        )
-        for suffix, fmt in babel.FORMATS.items()
-    ),
-)
-"""Every format ingestion reads, in the order of :func:`_dispatch`'s checks."""
+from imugen.ingest.formats import GPSBABEL
+from imugen.ingest.route import RoutePath
 
 _SNIFF_BYTES = 4096
 _WIDE_BOMS = (
@@ -109,7 +31,7 @@ def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePa
 
     KMZ is recognised by its zip signature, KML and GPX by their XML root element, NMEA by
     ``$GP``/``$GN``/... sentences, IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
-    suffixes of :data:`imugen.ingest.readers.babel.FORMATS` go through GPSBabel; NUL bytes, ROS
+    suffixes of :data:`imugen.ingest.formats.GPSBABEL` go through GPSBabel; NUL bytes, ROS
     NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.ingest.readers.gnsscsv`; anything else is
     read as delimited text (CSV with a header, or E N U rows). ``data`` is
     the file's content when the caller has already read it with
@@ -126,7 +48,7 @@ def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePa
 
 
 def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
-    from imugen.ingest.readers import geojson, gnsscsv, gpx, igc, kml, nmea, text
+    from imugen.ingest.readers import babel, geojson, gnsscsv, gpx, igc, kml, nmea, text
 
     head = data[:_SNIFF_BYTES]
     if not head:
@@ -134,7 +56,7 @@ def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
     suffix = path.suffix.lower()
     if head.startswith(b"PK\x03\x04") or suffix == ".kmz":
         return kml.read_kmz(path, data)
-    if suffix in babel.FORMATS:
+    if suffix in GPSBABEL:
         return babel.read_with_gpsbabel(path)
     wide = next((enc for bom, enc in _WIDE_BOMS if head.startswith(bom)), None)
     if wide:

@@ -1,6 +1,6 @@
 """Formats imugen does not read itself, converted to GPX by GPSBabel when it is installed.
 
-The file name's suffix names the GPSBabel input format (:data:`FORMATS`). ``gpsbabel -t -r
+The file name's suffix names the GPSBabel input format (:data:`imugen.ingest.formats.GPSBABEL`). ``gpsbabel -t -r
 -i FORMAT -f FILE -o gpx -F TMP.gpx`` runs in a temporary directory with a timeout
 (:data:`TIMEOUT_S`), and the GPX reader reads the result; every path gets a note naming the
 conversion. Without ``gpsbabel`` on the ``PATH`` the file is refused with the command to run.
@@ -12,22 +12,11 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from imugen.core.errors import InputError
+from imugen.ingest.formats import GPSBABEL
+from imugen.ingest.route import RoutePath
 
-if TYPE_CHECKING:
-    from imugen.ingest.route import RoutePath
-
-#: File suffix -> GPSBabel input format.
-FORMATS = {
-    ".fit": "garmin_fit",
-    ".tcx": "gtrcrs",
-    ".gdb": "gdb",
-    ".plt": "ozi",
-    ".sbp": "sbp",
-    ".sbn": "sbn",
-}
 #: Longest a conversion may run (s).
 TIMEOUT_S = 120.0
 
@@ -37,7 +26,7 @@ def read_with_gpsbabel(path: str | Path) -> list[RoutePath]:
     from imugen.ingest.readers.gpx import read_gpx
 
     path = Path(path)
-    fmt = FORMATS[path.suffix.lower()]
+    fmt = GPSBABEL[path.suffix.lower()]
     exe = shutil.which("gpsbabel")
     if exe is None:
         raise InputError(

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from imugen.core.errors import InputError
-from imugen.ingest.route import RoutePath, parse_iso_time, parse_number
+from imugen.ingest.route import TIME_RANGE_S, RoutePath, parse_iso_time, parse_number
 
 _LAT = ("field.latitude", "latitude", "lat", "lat_deg")
 _LON = ("field.longitude", "longitude", "lon", "lng", "long", "lon_deg")
@@ -175,7 +175,7 @@ def read_gnss_csv(path: str | Path, data: bytes | None = None) -> list[RoutePath
                 parse_number(a) if a and a.strip().lower() not in ("nan", "-nan") else np.nan
             )
             if its_ns is not None:
-                t.append(parse_number(cells[its_ns]) * 1e-9)
+                t.append(_stamp_s(cells[its_ns]))
             elif its is not None:
                 tok = cells[its]
                 try:
@@ -209,6 +209,14 @@ def read_gnss_csv(path: str | Path, data: bytes | None = None) -> list[RoutePath
             warnings=warnings,
         )
     ]
+
+
+def _stamp_s(cell: str) -> float:
+    """A ROS stamp in nanoseconds -> POSIX seconds; ValueError outside years 1 to 9999."""
+    t = parse_number(cell) * 1e-9
+    if not TIME_RANGE_S[0] <= t <= TIME_RANGE_S[1]:
+        raise ValueError(f"stamp {cell.strip()!r} ns is outside the years 1 to 9999")
+    return t
 
 
 def _numeric_time(rows, its: int, delim: str | None) -> bool:

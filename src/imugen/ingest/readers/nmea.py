@@ -129,7 +129,7 @@ def read_nmea(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
                     "rlon": _angle(f[5], f[6], 3, "E", "W"),
                     "date": _date_unix(f[9]),
                 }
-        except ValueError:
+        except (ValueError, IndexError):  # IndexError: a sentence without its fields
             unparsable += 1
             continue
         last = epochs[-1] if epochs else None

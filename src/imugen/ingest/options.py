@@ -1,0 +1,61 @@
+"""Options of ``imugen ingest`` (:class:`IngestOptions`); imports nothing of the stage."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from imugen.core.options import VEHICLES, Command, argument, option
+from imugen.ingest.formats import listing
+
+
+@dataclass(frozen=True, kw_only=True)
+class IngestOptions:
+    """How one path of a route file is chosen, cleaned and converted (:func:`imugen.ingest.stage.ingest`)."""
+
+    path: str | int | None = option(
+        None, help="candidate path name, or 1-based index, when the file has several",
+        config="routes.*.path",
+    )  # fmt: skip
+    origin: str | None = option(
+        None, metavar="LAT,LON,H", help="ENU origin, degrees and metres", shown="first point",
+        config="routes.*.origin",
+    )  # fmt: skip
+    dt: float | None = option(
+        None, metavar="SECONDS", unit="s", help="uniform clock for an untimed path",
+        config="routes.*.dt_s",
+    )  # fmt: skip
+    utm: bool = option(False, help="also write UTM easting/northing columns")
+    max_speed_kmh: float = option(1200.0, unit="km/h", help="refuse faster implied speeds")
+    max_extent_km: float | None = option(
+        None, unit="km", config="routes.*.max_extent_km", shown="none: routes of any length, "
+        "simulated in ECEF when long",
+        help="refuse points farther than this from the origin, measured along the WGS-84 "
+        "geodesic between the origin and the point (heights ignored); a sanity limit of your own",
+    )  # fmt: skip
+    gap_warn_s: float = option(60.0, unit="s", help="warn about longer time gaps")
+    vehicle: str = option(
+        "car", choices=VEHICLES, config="routes.*.vehicle",
+        help="vehicle class whose limits decide what is an outlier",
+    )  # fmt: skip
+    max_gap_s: float | None = option(
+        None, metavar="SECONDS", unit="s", shown="60", config="routes.*.max_gap_s",
+        help="time gaps longer than this split the path (see --gaps)",
+    )  # fmt: skip
+    gaps: str = option(
+        "split", choices=("split", "bridge"), config="routes.*.gaps",
+        help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
+    )  # fmt: skip
+
+
+COMMANDS = {
+    "ingest": Command(
+        IngestOptions,
+        "imugen.ingest.stage:main",
+        (
+            argument("src", help=f"route file: {listing()}"),
+            argument(
+                "-o", "--output", required=True, help="output file ending in .parquet or .csv"
+            ),
+        ),
+    )
+}

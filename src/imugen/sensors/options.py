@@ -1,0 +1,53 @@
+"""Options of ``imugen grade import`` and ``imugen grade export``; imports nothing else."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from imugen.core.options import Command, argument, option
+
+
+@dataclass(frozen=True, kw_only=True)
+class GradeImportOptions:
+    """Name and id of an imported grade (:func:`imugen.sensors.grade_io.import_grade`)."""
+
+    name: str | None = option(
+        None, shown="the grade's own, the datasheet part, the file name", help="grade name"
+    )
+    grade_id: int | None = option(
+        None, flag="--id", shown="the grade's own, else 1000", help="stable grade id >= 100"
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class GradeExportOptions:
+    """What the Kalibr file holds (:func:`imugen.sensors.grade_io.to_kalibr`)."""
+
+    grades_file: str | None = option(None, help="YAML file with custom grades")
+    rate_hz: float = option(100.0, unit="Hz", help="update_rate")
+    topic: str = option("/imu0", help="rostopic")
+
+
+_OUT = "-o", "--output"
+COMMANDS = {
+    "grade import": Command(
+        GradeImportOptions,
+        "imugen.sensors.grade_io:main_import",
+        (
+            argument(
+                "file",
+                help="Kalibr/EuRoC imu.yaml, VINS config, i2Nav/KF-GINS config, datasheet "
+                "figures (a 'datasheet:' YAML) or an imugen grades file",
+            ),
+            argument(*_OUT, help="grades YAML to write (default: print)"),
+        ),
+    ),
+    "grade export": Command(
+        GradeExportOptions,
+        "imugen.sensors.grade_io:main_export",
+        (
+            argument("grade", help="preset name, or FILE.yaml:NAME"),
+            argument(*_OUT, help="imu.yaml to write (default: print)"),
+        ),
+    ),
+}

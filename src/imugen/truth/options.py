@@ -1,0 +1,58 @@
+"""Options of ``imugen truth`` (:class:`TruthOptions`); imports nothing of the stage."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from imugen.core.options import VEHICLES, Command, argument, option
+
+EARTH_MODELS = ("flat", "wgs84", "geodetic", "auto")
+"""Earth models of the truth (:mod:`imugen.core.earth`; ``auto`` chooses one)."""
+
+
+def _name_values(items: tuple[str, ...]) -> dict:
+    """``("NAME=VALUE", "NAME=A,B")`` -> ``{"NAME": "VALUE", "NAME": ["A", "B"]}``."""
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name or not value:
+            raise ValueError(f"{item!r} is not NAME=VALUE")
+        out[name] = value.split(",") if "," in value else value
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class TruthOptions:
+    """Rate, Earth model and vehicle of a truth (:func:`imugen.truth.build.build_truth`)."""
+
+    rate_hz: float = option(100.0, unit="Hz", help="IMU rate", config="truth.rate_hz")
+    earth: str = option(
+        "auto", choices=EARTH_MODELS, config="truth.earth",
+        help="Earth model; auto picks flat when every term it drops stays below 10 % of the "
+        "grades' error effect, geodetic (ECEF, any distance) when the route reaches beyond "
+        "64 km from its origin (as the workflow does)",
+    )  # fmt: skip
+    vehicle: str = option(
+        "car", choices=VEHICLES, config="routes.*.vehicle", help="vehicle model of the truth motion"
+    )
+    grade: tuple[str, ...] = option(
+        (), many="append", shown="consumer",
+        help="sensor grade, preset name or FILE.yaml:NAME, whose error budget `--earth auto` "
+        "compares the dropped terms with (repeat for several: the most demanding decides)",
+    )  # fmt: skip
+    vehicle_params: dict | None = option(
+        None, flag="--vehicle-param", many="append", metavar="NAME=VALUE", parse=_name_values,
+        help="override a vehicle model parameter or limit (SI units, e.g. max_curvature_1pm=0.1)",
+    )  # fmt: skip
+
+
+COMMANDS = {
+    "truth": Command(
+        TruthOptions,
+        "imugen.truth.stage:main",
+        (
+            argument("enu", help="ENU Parquet written by `imugen ingest`"),
+            argument("-o", "--output", required=True, help="truth Parquet"),
+        ),
+    )
+}
