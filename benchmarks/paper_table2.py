@@ -2,7 +2,10 @@
 
 1. Runs ``snakemake -j2 --configfile config/paper.yaml`` (unless ``--no-run``: then the results
    already in ``--results`` are read), recording its wall and CPU seconds (of every child
-   process) and the load average before and after.
+   process) and the load average before and after. ``--sequences=N`` runs N sequences per grade
+   instead of the configuration's 300 (the first N of the full run: seeds name the sequence, not
+   the shard count), in its own working folder ``benchmarks/results/paper-N/`` (its results in
+   ``results/`` there), never in the user's ``results/``; the table states the number.
 2. Closed loop (imugen's mechanization, the physics a real INS obeys): the workflow's own RMSE
    table, ``results/paper/rmse.csv``, for every grade of the run.
 3. Open loop, as the paper's published code does it: the SAME shards
@@ -15,7 +18,8 @@ paper's definition), as median [5th-95th percentile] over the sequences.
 
 Usage::
 
-    python benchmarks/paper_table2.py [--no-run] [--results results] [--write-docs | --out FILE]
+    python benchmarks/paper_table2.py [--no-run] [--results=results] [--sequences=N]
+                                      [--write-docs | --out=FILE]
 
 ``--write-docs`` writes ``docs/data/paper_table2.md``, the one copy the documentation includes
 (Validation page); without it the table goes to ``benchmarks/results/paper_table2.md``.
@@ -54,18 +58,38 @@ BATCH = 50
 """Sequences integrated at once (memory: about 50 x 62,000 x 3 x 8 x 3 bytes = 220 MB)."""
 
 
-def run_workflow(cores: int) -> dict:
-    """Run the paper's workflow; its cost: wall and CPU seconds, load average before/after."""
+def workdir_of(sequences: int | None) -> Path:
+    """The working folder of a run: the project's, or ``benchmarks/results/paper-N`` for
+    ``--sequences=N`` (the configuration and route files linked into it)."""
+    if sequences is None:
+        return REPO
+    work = REPO / "benchmarks" / "results" / f"paper-{sequences}"
+    work.mkdir(parents=True, exist_ok=True)
+    for name in ("config", "resources"):
+        if not (work / name).exists():
+            (work / name).symlink_to(REPO / name)
+    (work / "sequences.yaml").write_text(f"simulate:\n  sequences: {sequences}\n")
+    return work
+
+
+def run_workflow(cores: int, sequences: int | None = None) -> dict:
+    """Run the paper's workflow (``sequences`` per grade, default the configuration's); its
+    cost: wall and CPU seconds, load average before/after."""
+    work = workdir_of(sequences)
     load0 = os.getloadavg()
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     cmd = ["snakemake", f"-j{cores}", "--configfile", CONFIG]
-    subprocess.run(cmd, cwd=REPO, check=True)
+    if sequences is not None:  # the Snakefile of this checkout, run in the scratch folder
+        cmd = ["snakemake", "-s", str(REPO / "Snakefile"), "-d", str(work), f"-j{cores}"]
+        cmd += ["--configfile", CONFIG, "sequences.yaml"]
+    subprocess.run(cmd, cwd=work, check=True)
     wall = time.perf_counter() - t0
     ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    shown = " ".join(cmd).replace(str(REPO) + "/", "").replace(str(REPO), ".")
     return {
-        "command": " ".join(cmd),
+        "command": shown,
         "wall_s": wall,
         "cpu_s": cpu,
         "load": (load0, os.getloadavg()),
@@ -190,27 +214,45 @@ def _git_version() -> str:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-run", action="store_true", help="read the results already there")
-    ap.add_argument("--results", type=Path, default=REPO / layout.RESULTS)
+    ap.add_argument(
+        "--results", type=Path, help="results folder to read (default: the run's results/)"
+    )
     ap.add_argument("--cores", type=int, default=2, help="snakemake -j (default 2)")
+    ap.add_argument(
+        "--sequences",
+        type=int,
+        help="sequences per grade instead of the configuration's, run in "
+        "benchmarks/results/paper-N/ (default: the configuration's, in results/)",
+    )
     ap.add_argument(
         "--write-docs", action="store_true", help=f"write {DOCS_FILE.relative_to(REPO)}"
     )
     ap.add_argument("--out", type=Path, help="write the table here instead")
     a = ap.parse_args(argv)
-    cost = None if a.no_run else run_workflow(a.cores)
+    if a.sequences is not None and a.sequences < 1:
+        ap.error("--sequences must be at least 1")
+    if a.results is None:
+        a.results = workdir_of(a.sequences) / layout.RESULTS
+    cost = None if a.no_run else run_workflow(a.cores, a.sequences)
     t0, c0 = time.perf_counter(), time.process_time()
     load0 = os.getloadavg()
     closed, n = closed_loop_table(a.results / ROUTE / "rmse.csv")
     opened = open_loop_table(a.results)
     own = (time.perf_counter() - t0, time.process_time() - c0, load0, os.getloadavg())
     when = dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    command = "python benchmarks/paper_table2.py" + "".join(
+        f" {arg}" for arg in sys.argv[1:] if not arg.startswith("--out")
+    )
     lines = [
-        f"<!-- written by `python benchmarks/paper_table2.py{' --no-run' if a.no_run else ''}"
-        " --write-docs`; do not edit by hand -->",
+        f"<!-- written by `{command}`; do not edit by hand -->",
         "",
-        f"Generated {when} by `python benchmarks/paper_table2.py --write-docs` at commit "
-        f"`{_git_version()}`, {os.cpu_count()} CPUs.",
+        f"Generated {when} by `{command}` at commit `{_git_version()}`, {os.cpu_count()} CPUs.",
     ]
+    if a.sequences is not None:
+        lines.append(
+            f"**{a.sequences} sequences per grade** (`--sequences={a.sequences}`: the first "
+            f"{a.sequences} of `{CONFIG}`'s 300, run in `benchmarks/results/paper-{a.sequences}/`)."
+        )
     if cost is not None:
         l0, l1 = cost["load"]
         lines.append(
