@@ -3,7 +3,8 @@
 A page asks for a part with a line ``<!-- generated: NAME -->``; the hook replaces the line with
 the part, so the documentation cannot drift from the code:
 
-- ``cli``: every ``imugen`` command's usage and options, from ``imugen.cli.build_parser()``;
+- ``cli``: every ``imugen`` command's usage and options, from ``imugen.cli.build_parser()`` and
+  the options dataclasses it is made from (meaning, unit, default and config key of each);
 - ``config``: every configuration key (path, type, default, bounds, description), from
   ``workflow/schemas/config.schema.yaml``;
 - ``files``: every file that passes between stages, its columns and units, from ``imugen.tables``;
