@@ -310,6 +310,9 @@ def main(argv=None):
         help="timing repeats (x3 at <= 10 Hz, at most 3 at >= 1 kHz)",
     )
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
+    ap.add_argument(
+        "--write-docs", action="store_true", help="also write docs/data/bench_accuracy_full.md"
+    )
     a = ap.parse_args(argv)
     if not PAPER.exists():
         sys.exit(f"paper trajectory not found: {PAPER}")
@@ -352,6 +355,10 @@ def main(argv=None):
     df.to_csv(a.out / "accuracy.csv", index=False)
     md = markdown(df)
     (a.out / "accuracy.md").write_text(md + "\n")
+    if a.write_docs:
+        import docs_data
+
+        docs_data.write("bench_accuracy_full", md)
     chart(df, a.out)
     info = {
         "scene": str(PAPER.name),

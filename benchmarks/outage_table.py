@@ -1,13 +1,15 @@
 """Outage table of a workflow run: aided error at the end of each outage length, time to
 exceed 10 m, and free inertial beside it (README "GNSS-denied scenarios and the aided baseline").
 
-    python benchmarks/outage_table.py RESULTS_DIR ROUTE [--grades consumer industrial tactical]
+    python benchmarks/outage_table.py RESULTS_DIR ROUTE [--grades consumer industrial tactical] \
+        [--write-docs]
 
 Reads ``RESULTS_DIR/ROUTE/rmse.csv`` (``imugen tables``: ``outage_<D>s_end_m`` and the
 free-inertial ``drift_<D>s_m`` with their 5-95 %) and the route's aided tables
 (``aided/<grade>/shard-*.parquet``) for the time to exceed 10 m of horizontal error within each
 outage (per outage run: the first epoch above 10 m, time since the last epoch with GNSS;
-"never" when the run ends below it). Prints one Markdown table: median [5-95 %] over outages.
+"never" when the run ends below it). Prints one Markdown table: median [5-95 %] over outages;
+``--write-docs`` also writes it to ``docs/data/outage_<ROUTE>.md`` (the Validation page).
 """
 
 from __future__ import annotations
@@ -51,13 +53,15 @@ def main(argv=None) -> None:
     ap.add_argument("route")
     ap.add_argument("--grades", nargs="+", default=["consumer", "industrial", "tactical"])
     ap.add_argument("--durations", nargs="+", type=float, default=[30, 60, 120, 180])
+    ap.add_argument("--write-docs", action="store_true", help="write docs/data/outage_ROUTE.md")
     a = ap.parse_args(argv)
+    lines = []
     rmse = pd.read_csv(a.results / a.route / "rmse.csv").set_index("grade")
     head = ["grade", "sequences"]
     for d in a.durations:
         head += [f"{d:g} s: aided end", "free inertial", "aided > 10 m after"]
-    print("| " + " | ".join(head) + " |")
-    print("|" + "---|" * len(head))
+    lines.append("| " + " | ".join(head) + " |")
+    lines.append("|" + "---|" * len(head))
     for g in a.grades:
         r = rmse.loc[g]
         ttl = time_to_limit(a.results, a.route, g)
@@ -74,7 +78,12 @@ def main(argv=None) -> None:
                 cells.append(_fmt(*q) + f" ({len(v)})")
             else:
                 cells.append("-")
-        print("| " + " | ".join(cells) + " |")
+        lines.append("| " + " | ".join(cells) + " |")
+    print("\n".join(lines))
+    if a.write_docs:
+        import docs_data
+
+        docs_data.write(f"outage_{a.route}", "\n".join(lines))
 
 
 if __name__ == "__main__":

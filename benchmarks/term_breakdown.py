@@ -155,6 +155,9 @@ def main(argv=None):
     ap.add_argument("--grades", default=",".join(GRADES))
     ap.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results")
     ap.add_argument(
+        "--write-docs", action="store_true", help="also write docs/data/term_breakdown.md"
+    )
+    ap.add_argument(
         "--vibration",
         default="car",
         help="also rows for this vibration alone and with every term (off: none)",
@@ -209,6 +212,12 @@ def main(argv=None):
     a.out.mkdir(parents=True, exist_ok=True)
     df.to_csv(a.out / "term_breakdown.csv", index=False)
     (a.out / "term_breakdown.md").write_text(text)
+    if a.write_docs:
+        import docs_data
+
+        docs_data.write(
+            "term_breakdown", "\n".join(markdown(df, g) + "\n" for g in (uncal, cal) if g)
+        )
     print(text)
     print(f"({time.perf_counter() - t0:.1f} s)")
 
