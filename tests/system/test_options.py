@@ -102,9 +102,9 @@ def _minimal_argv(name: str) -> list[str]:
     """``name``'s command line with its required inputs and options only."""
     sub = build_parser([name])
     for word in name.split():
-        sub = next(a for a in sub._actions if isinstance(a, argparse._SubParsersAction)).choices[
-            word
-        ]
+        sub = next(
+            a for a in sub._actions if isinstance(a, argparse._SubParsersAction)
+        ).choices[word]
     argv = name.split()
     for a in sub._actions:
         if a.required or (not a.option_strings and a.nargs != "?"):
@@ -142,7 +142,7 @@ def test_every_schema_key_is_an_option_or_the_workflows():
         if f.metadata.get("config")
     }
     leaves = set(_leaves(SCHEMA))
-    assert leaves == mapped | set(WORKFLOW_ONLY), leaves - mapped - set(WORKFLOW_ONLY)
+    assert leaves == mapped | set(WORKFLOW_ONLY), (leaves - mapped - set(WORKFLOW_ONLY))
     assert not mapped & set(WORKFLOW_ONLY)
     for name, field in DIFFERENT:
         assert field in {f.name for f in dataclasses.fields(dict(_commands())[name].options)}
