@@ -12,7 +12,13 @@ from imugen.sensors.ideal import ArrayTruth, TruthSource
 from imugen.simulate.plan import enabled_terms, temperature_profile
 from imugen.simulate.sources import resolve_truth, route_name
 from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0, batch_keys, worker_batches
-from imugen.stream.windows import draw_params, exact_sequence, window_batch, window_rngs
+from imugen.stream.windows import (
+    Scratch,
+    draw_params,
+    exact_sequence,
+    window_batch,
+    window_rngs,
+)
 from imugen.tables import shard as tshard
 
 INPUTS = ("increments", "rates")
@@ -132,6 +138,7 @@ class Stream:
         else:
             raise InputError("weights", f"must be length or uniform, got {weights!r}")
         self._concat()
+        self._scratch = Scratch()
 
     def _concat(self):
         """The routes' truths back to back (window mode reads rows of one array)."""
@@ -213,7 +220,7 @@ class Stream:
             "err_inc": not rate and "effective_error" in self.targets,
             "bias": "bias" in self.targets,
         }
-        outs = {n: np.empty((B, W, 6)) for n, v in want.items() if v}
+        outs = {n: self._scratch.get(n, B, W, 6) for n, v in want.items() if v}
         seq_start = np.flatnonzero(
             np.concatenate(
                 [
@@ -241,7 +248,8 @@ class Stream:
                 sel = np.flatnonzero(sk["grade"] == gi)
                 remap = np.full(len(seq_start), -1)
                 remap[seqs] = np.arange(len(seqs))
-                sub = {n: np.empty((len(sel), W, 6)) for n in outs}
+                one = len(sel) == B  # a single grade: write in place
+                sub = outs if one else {n: np.empty((len(sel), W, 6)) for n in outs}
                 rngs = [
                     window_rngs(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                                 self.grades[gi].id, int(sk["shard"][seq_start[s]]),
@@ -250,9 +258,10 @@ class Stream:
                 ]  # fmt: skip
                 rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
                 window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
-                             sk["k0"][sel], W, rows, want, sub)  # fmt: skip
-                for n in outs:
-                    outs[n][sel] = sub[n]
+                             sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
+                if not one:
+                    for n in outs:
+                        outs[n][sel] = sub[n]
         inv = np.empty(B, np.int64)
         inv[order] = np.arange(B)
         dt = self.dtype

@@ -138,7 +138,7 @@ def _pack(p: SensorParams, dt: float) -> tuple:
     ), flags  # fmt: skip
 
 
-def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs):
+def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=None):
     """Window-mode generation of one grade's windows (the module docstring's law).
 
     Parameters
@@ -163,6 +163,8 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs):
         ``{"rate", "inc", "bias", "sf", "err_rate", "err_inc"}`` -> bool.
     outs : dict
         ``name -> (B, W, 6)`` float64 output buffers (gyro columns, then accel).
+    scratch : Scratch, optional
+        Reused memory for the normals (fresh pages cost more than the draws).
     """
     B = len(k0)
     dt = tr[5]
@@ -175,7 +177,7 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs):
     )
     nwin = np.bincount(seqs, minlength=len(draws))
     counts = per * nwin
-    z = np.empty(int(counts.sum()))
+    z = np.empty(int(counts.sum())) if scratch is None else scratch.get("z", int(counts.sum()))
     starts = np.concatenate([[0], np.cumsum(counts)])
     for s, rng in enumerate(rngs):
         rng.standard_normal(out=z[starts[s] : starts[s + 1]])
@@ -193,6 +195,20 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs):
         Pg, Pa, tr[0], tr[1], tr[2], tr[3], tr[4] if use_t else np.zeros(1), use_t,
         o["rate"], o["inc"], o["bias"], o["sf"], o["err_rate"], o["err_inc"],
     )  # fmt: skip
+
+
+class Scratch:
+    """Flat float64 buffers reused from call to call, by name (grown when too small)."""
+
+    def __init__(self):
+        self._a = {}
+
+    def get(self, name: str, *shape) -> np.ndarray:
+        n = int(np.prod(shape))
+        a = self._a.get(name)
+        if a is None or len(a) < n:
+            a = self._a[name] = np.empty(max(n, 2 * len(a) if a is not None else n))
+        return a[:n].reshape(shape)
 
 
 def window_rngs(seed, rid, gid, shard, j):
