@@ -119,6 +119,36 @@ def test_worker_split_gives_the_same_batches(truth):
     assert not np.array_equal(stream(truth, seed=SEED + 1).batch(0)["x"], one[0])
 
 
+def test_temperature_terms_in_both_modes(truth):
+    """Turn-on and temperature bias only: bias = b_on + k_b dT(t_k) exactly, in both modes."""
+    from imugen.sensors.grade_io import grade_from_config
+
+    tb = {"value": 10, "unit": "ug_per_K"}
+    g = grade_from_config(
+        "t",
+        {
+            "id": 5001,
+            "gyro": {},
+            "accel": {
+                "turn_on_bias": {"value": 1, "unit": "mg", "kind": "one_sigma"},
+                "temperature_bias": tb,
+            },
+        },
+    )
+    prof = {"kind": "warmup", "delta_K": 20.0, "tau_s": 0.5}
+    kw = {"window": W, "batch_size": 8, "windows_per_sequence": 4, "seed": SEED,
+          "temperature": prof, "targets": ["bias", "labels"]}  # fmt: skip
+    for exact in (False, True):
+        s = Stream({ROUTE: truth}, g, exact=exact, **kw)
+        b = s.batch(0)
+        on = b["labels"][:, s.label_names.index("accel_turn_on_bias_x_mps2")]
+        kb = b["labels"][:, s.label_names.index("accel_temperature_bias_x_mps2_per_K")]
+        k = b["keys"]["k0"][:, None] + np.arange(W)
+        dT = 20.0 * (1 - np.exp(-k * s.dt / 0.5))
+        np.testing.assert_allclose(b["bias"][..., 3], on[:, None] + kb[:, None] * dT, rtol=1e-6)
+        assert np.all(kb != 0)
+
+
 def test_bad_input_is_refused(truth):
     with pytest.raises(InputError):
         stream(truth, batch_size=6)

@@ -34,7 +34,7 @@ class Stream:
         Truth tables (``truth.parquet`` paths, DataFrames, :class:`~imugen.sensors.ideal.TruthSource`);
         a path's route name is its folder's (as the simulate stage names it). All routes share
         one sample rate.
-    grade : str or list of str
+    grade : str, Grade, or list of them
         Grade preset(s) (or ``FILE.yaml:NAME``); each sequence draws one uniformly.
     window : int
         Rows per window (``W``).
@@ -108,7 +108,7 @@ class Stream:
             raise InputError("draw", f"must be ranges or nominal, got {draw!r}")
         self.nominal = draw == "nominal"
         self.first_batch = int(first_batch)
-        grades = [grade] if isinstance(grade, str) else list(grade)
+        grades = list(grade) if isinstance(grade, list | tuple) else [grade]
         self.grades = [get_grade(g, grades_file) for g in grades]
         self.enabled = [enabled_terms(g, terms) for g in self.grades]
         self.temp = temperature_profile(temperature)
