@@ -119,6 +119,12 @@ def normals_per_window(p: SensorParams, W: int) -> int:
     return 3 * C + 9 + 3 * W * (use_w + use_r + C * use_b)
 
 
+def _per_window(flags: np.ndarray, C: int, W: int) -> np.ndarray:
+    """:func:`normals_per_window` of each sequence from :func:`_pack`'s flags, ``(S,)`` int64."""
+    f = flags.astype(np.int64)
+    return 3 * C + 9 + 3 * W * (f[:, 0] + f[:, 1] + C * f[:, 2])
+
+
 def _pack(p: SensorParams, dt: float) -> tuple:
     """The kernel's per-sequence arrays of a stacked parameter set, and the terms' flags."""
     phi = np.exp(-dt / p.bi_tau)
@@ -172,9 +178,7 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     ap = SensorParams.stack([d.accel for d in draws])
     Pg, fg = _pack(gp, dt)
     Pa, fa = _pack(ap, dt)
-    per = np.array(
-        [normals_per_window(d.gyro, W) + normals_per_window(d.accel, W) for d in draws], np.int64
-    )
+    per = _per_window(fg, gp.components, W) + _per_window(fa, ap.components, W)
     nwin = np.bincount(seqs, minlength=len(draws))
     counts = per * nwin
     z = np.empty(int(counts.sum())) if scratch is None else scratch.get("z", int(counts.sum()))
