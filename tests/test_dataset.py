@@ -185,6 +185,23 @@ def test_split_named_routes():
         ds.split(keys, {"a": 0.5, "b": 0.5}, holdout_routes=["r1"])
 
 
+def test_split_with_a_held_out_route_tests_unseen_draws_of_seen_routes():
+    keys = [(f"r{r}", 100 * r + s) for r in range(6) for s in range(50)]
+    parts = ds.split(keys, seed=0, holdout_routes=["r2"])
+    assert list(parts) == ["train", "val", "test", ds.SEEN_TEST]
+    assert {r for r, _ in parts["test"]} == {"r2"} and len(parts["test"]) == 50
+    seen = parts[ds.SEEN_TEST]
+    assert 10 <= len(seen) <= 40  # ~10 % of the 250 draws of the other routes
+    assert {r for r, _ in seen} <= {r for r, _ in parts["train"]}  # trajectories trained on
+    assert not {s for _, s in seen} & {s for n in ("train", "val") for _, s in parts[n]}
+    # a draw's part depends on the draw only: holding out r3 too only moves r3's draws
+    more = ds.split(keys, seed=0, holdout_routes=["r2", "r3"])[ds.SEEN_TEST]
+    assert more == [k for k in seen if k[0] != "r3"]
+    off = ds.split(keys, seed=0, holdout_routes=["r2"], seen_test=False)
+    assert list(off) == ["train", "val", "test"]
+    assert ds.SEEN_TEST not in ds.split(keys, seed=0, by="route", holdout_routes=["r2"])
+
+
 def test_split_warns_on_draws_shared_across_routes():
     keys = [(f"r{r}", s) for r in range(6) for s in range(3)]  # legacy: same ids on every route
     with pytest.warns(UserWarning, match="share those error draws"):
@@ -213,6 +230,9 @@ def test_split_properties(routes, nseq, seed, by, hold, fr):
     holdout = routes[:1] if hold and len(routes) > 1 and (fr is None or "test" in fr) else None
     names = list(fr or ds.DEFAULT_FRACTIONS)
     free = [n for n in names if not (holdout and n == "test")]
+    if holdout and by == "sequence":  # the test share of the other routes: unseen draws
+        names.append(ds.SEEN_TEST)
+        free.append(ds.SEEN_TEST)
     rest = [k for k in keys if not holdout or k[0] not in holdout]
     units = {k[0] if by == "route" else k[1] for k in rest}
     if len(units) < len(free):
@@ -390,6 +410,20 @@ def test_label_target_is_the_sequence_scalar(tmp_path):
     assert frames
     with pytest.raises(InputError, match="no label column"):
         ds.WindowDataset(routes, window=50, target="nope")
+
+
+def test_one_cache_dir_serves_every_route(results, tmp_path):
+    """Every route's first shard is shard-000: their caches must not replace each other."""
+    root, _ = results
+    routes = ds.find_routes(root, "consumer")
+    cache = tmp_path / "shared-cache"
+    d = ds.WindowDataset(routes, window=10, cache_dir=cache)
+    assert len(list(cache.glob("*.npy"))) == 4  # 2 routes x 2 shards
+    ds.WindowDataset(routes[1:], window=10, cache_dir=cache)  # another user of the folder
+    e = pickle.loads(pickle.dumps(d))  # a DataLoader worker: reopens the caches
+    x, _ = e.get_batch(np.arange(len(e)))
+    np.testing.assert_array_equal(x, ds.WindowDataset(routes, window=10, in_memory=True)[
+        np.arange(len(e))][0])  # fmt: skip
 
 
 def test_pickles_without_the_maps(results):

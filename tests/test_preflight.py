@@ -168,3 +168,18 @@ def test_untimed_path_memory_term(tmp_path):
         path_b = 1600.0 * 10.0 / vp.corner_m * length
         assert est["route_durations_s"]["ex"] == pytest.approx(dur)
         assert est["memory_b"] == pytest.approx(300e6 + 700 * (dur * 10 + 1) + path_b)
+
+
+def test_disk_estimate_counts_the_stored_columns(tmp_path):
+    """Bytes per sample-sequence: 4 per float32 column stored + 8.4 (measured 24.1 / 96.1)."""
+    samples = 619 * 10 + 1
+    allan = 1 * 1 * (60 * 10 + 1) * 32.4
+    for edits, per in (
+        ({}, 8.4 + 4 * 6),
+        ({"simulate__series": True}, 8.4 + 4 * 24),
+        ({"simulate__outputs": "both", "simulate__series": True}, 8.4 + 4 * 36),
+        ({"simulate__dtype": "float64"}, 8.4 + 8 * 6),
+        ({"simulate__write_imu": False}, 0.0),
+    ):
+        est = preflight.estimate(config(**edits), tmp_path / "results")
+        assert est["disk_b"] == pytest.approx(samples * (2 * 1 * per + 200) + allan), edits

@@ -73,7 +73,10 @@ Splits
 sequence id, globally unique, with ``by="sequence"``; the route with ``by="route"``) with the
 seed to a number in ``[0, 1)`` and cutting ``[0, 1)`` by the fractions; a part the cut leaves
 empty borrows the nearest unit (see :func:`split`), and too few units for the parts is refused.
-``holdout_routes`` (test) and ``val_routes`` name whole routes. Whole sequences (or routes) land
+``holdout_routes`` (test) and ``val_routes`` name whole routes; with ``holdout_routes`` and
+``by="sequence"`` the test fraction of the other routes forms the part ``"test_seen"``
+(:data:`SEEN_TEST`: unseen error draws on seen trajectories), so one split measures both
+generalizations: to new draws (``test_seen``) and to new routes (``test``). Whole sequences (or routes) land
 in one part: no window and no error draw crosses a split, and adding units never moves existing
 ones (except the at most one borrowed per otherwise empty part). With ``by="sequence"`` all parts
 share the routes' trajectories; hold routes out to test generalization to unseen trajectories.
@@ -85,7 +88,8 @@ Example
     from imugen.dataset import WindowDataset, find_routes, sequence_keys, split
 
     routes = find_routes("results", grade="consumer")
-    parts = split(sequence_keys(routes), seed=0, by="route", holdout_routes=["city"])
+    parts = split(sequence_keys(routes), seed=0, holdout_routes=["city"])
+    # parts: train, val, test (the city route, unseen), test_seen (unseen draws, seen routes)
     train = WindowDataset(routes, window=200, stride=100, keys=parts["train"],
                           target="effective_error", in_memory=True)
     x, y = train.get_batch(train.batches(64, seed=0)[0])   # float32 (64, 200, 6) each
@@ -130,6 +134,8 @@ TARGETS = ("increments", "effective_error", "bias", "delta_vel_pos")
 CACHE_DIR = ".imugen-cache"
 CACHE_FORMAT = 1  # bump when the cache layout changes
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
+SEEN_TEST = "test_seen"
+"""Part of :func:`split` with ``holdout_routes``: unseen draws on the routes not held out."""
 
 
 @dataclass(frozen=True)
@@ -290,6 +296,7 @@ def split(
     by: str = "sequence",
     holdout_routes: Iterable[str] | None = None,
     val_routes: Iterable[str] | None = None,
+    seen_test: bool = True,
 ) -> dict[str, list[tuple[str, int]]]:
     """Assign ``(route, sequence)`` keys to parts, deterministically and leakage-free.
 
@@ -315,12 +322,16 @@ def split(
         Hash each sequence, or each route (every sequence of a route in one part).
     holdout_routes, val_routes : iterable of str, optional
         Routes that form the ``"test"`` (``"val"``) part exactly, whole; the other routes are cut
-        among the remaining parts by their renormalized fractions.
+        among the remaining parts by their renormalized fractions, except that with
+        ``holdout_routes``, ``by="sequence"`` and ``seen_test`` the test fraction of those
+        routes forms the part :data:`SEEN_TEST` (``"test_seen"``: unseen draws of seen routes).
+    seen_test : bool
+        Make the ``"test_seen"`` part (above); False gives its share to the other parts.
 
     Returns
     -------
     dict
-        ``{name: [keys in input order]}`` for every part.
+        ``{name: [keys in input order]}`` for every part (and ``"test_seen"``, above).
 
     Raises
     ------
@@ -349,6 +360,14 @@ def split(
             raise InputError("split", f"route(s) {', '.join(twice)} given for test and val")
         fixed.update(dict.fromkeys(given, name))
     free = {n: (0.0 if n in fixed.values() else f) for n, f in fr.items()}
+    if (
+        seen_test
+        and by == "sequence"
+        and "test" in fixed.values()
+        and fr.get("test", 0) > 0
+        and SEEN_TEST not in fr
+    ):
+        free[SEEN_TEST] = fr["test"]
     rest = [k for k in keys if k[0] not in fixed]
     if rest and sum(free.values()) == 0:
         raise InputError(
@@ -357,7 +376,7 @@ def split(
     unit = (lambda k: k[0]) if by == "route" else (lambda k: k[1])
     units = sorted({unit(k) for k in rest})
     part = _cut(units, free, seed, by)
-    out = {name: [] for name in fr}
+    out = {name: [] for name in free}
     where: dict[int, set] = {}
     for k in keys:
         name = fixed[k[0]] if k[0] in fixed else part[unit(k)]
@@ -391,12 +410,18 @@ def sequence_keys(routes: Iterable[RouteFiles]) -> list[tuple[str, int]]:
 
 
 def _cache_path(path: Path, columns, dtype, cache_dir) -> Path:
-    """Cache file of ``columns`` of ``path``: named by the columns, keyed by size and mtime."""
+    """Cache file of ``columns`` of ``path``: named by the shard (route, grade, file name and
+    a hash of its absolute folder, so caches of several routes or results folders can share
+    ``cache_dir``) and the columns, keyed by size and mtime."""
     st = path.stat()
     group = hashlib.sha256(f"{CACHE_FORMAT}\0{list(columns)}\0{dtype.str}".encode()).hexdigest()
     key = hashlib.sha256(f"{st.st_size}\0{st.st_mtime_ns}".encode()).hexdigest()
+    folder = path.resolve().parent
+    where = hashlib.sha256(str(folder).encode()).hexdigest()[:8]
+    # results/<route>/imu/<grade>/shard-K.parquet: route and grade for a readable name
+    name = f"{folder.parent.parent.name}-{folder.name}-{path.stem}-{where}"
     root = Path(cache_dir) if cache_dir is not None else path.parent / CACHE_DIR
-    return root / f"{path.stem}.{group[:12]}.{key[:12]}.npy"
+    return root / f"{name}.{group[:12]}.{key[:12]}.npy"
 
 
 def shard_cache(path, columns, samples: int, dtype=np.float32, cache_dir=None) -> np.ndarray:
@@ -405,7 +430,8 @@ def shard_cache(path, columns, samples: int, dtype=np.float32, cache_dir=None) -
     ``samples`` rows per sequence. Converted once, streaming sequences into ``.npy`` (in ``cache_dir``, default
     ``.imugen-cache/`` beside the file), named ``STEM.COLUMNS.KEY.npy`` with ``KEY`` from the
     file's size and modification time: a rewritten shard gets a new cache and the stale one of
-    the same columns is deleted. Written under a temporary name and renamed, so a reader never
+    the same shard and columns is deleted (``STEM`` names the shard's route, grade, file and
+    folder, so one ``cache_dir`` serves many routes). Written under a temporary name and renamed, so a reader never
     sees a partial cache and concurrent builders (one per DataLoader worker or rank) only
     duplicate work.
     """

@@ -15,8 +15,12 @@ Estimates (measured, README "Security and limits")
     12.87 GB at 20 Hz (10.9 M samples, ``/usr/bin/time``): ~1,355 bytes per metre + ~234 per
     sample; a synthetic 500 km road at 2 / 20 Hz (71,974 / 719,737 samples) peaks at 948 /
     1,236 MB (``flat``: 916 MB + 445 B per sample) and 1,075 / 1,285 MB (``geodetic``:
-    1,051 MB + 325 B per sample). Disk: 32.4 bytes per sample-sequence of IMU shard, 24 more for the MAT
-    export, 200 per truth sample. The duration of a route is that of its truth when already
+    1,051 MB + 325 B per sample). Disk: per sample-sequence of IMU shard, 4 bytes (8 with
+    ``simulate.dtype: float64``) per stored column (:func:`imugen.tables.shard.groups` of
+    ``simulate.outputs`` and ``simulate.series``: 6 for increments, 24 with the series) plus
+    8.4 for the sequence ids and an explicit time column (measured with the implicit clock:
+    24.1 bytes increments, 96.1 with ``series``, 48.1 / 144.1 for ``both``; none without
+    ``write_imu``), 24 more for the MAT export, 200 per truth sample. The duration of a route is that of its truth when already
     computed, else the time span of the file, else its length at 80 % of the vehicle's cruise
     speed (untimed paths; the speed profile slows in corners).
 """
@@ -32,12 +36,14 @@ from pathlib import Path
 
 from imugen.core.errors import InputError
 from imugen.tables import layout
+from imugen.tables.shard import groups
 
 TRUTH_BASE_B = 300e6
 TRUTH_PER_SAMPLE_B = 700.0
 TRUTH_PATH_PER_M_B = 1600.0  # untimed path of a vehicle of corner_m = TRUTH_PATH_CORNER_M
 TRUTH_PATH_CORNER_M = 10.0
-SHARD_PER_SAMPLE_SEQUENCE_B = 32.4
+SHARD_PER_SAMPLE_SEQUENCE_B = 32.4  # increments only, float32 (the Allan stage's shards)
+SHARD_ROW_OVERHEAD_B = 8.4
 MAT_PER_SAMPLE_SEQUENCE_B = 24.0
 TRUTH_FILE_PER_SAMPLE_B = 200.0
 
@@ -188,12 +194,21 @@ def _tree_bytes(root: Path) -> int:
     return total
 
 
+def shard_bytes(simulate: dict) -> float:
+    """Disk bytes per sample-sequence of the IMU shards of a ``simulate`` config section."""
+    if not simulate.get("write_imu", True):
+        return 0.0
+    width = 8 if simulate.get("dtype", "float32") == "float64" else 4
+    cols = 3 * len(groups(simulate.get("outputs", "increments"), bool(simulate.get("series"))))
+    return SHARD_ROW_OVERHEAD_B + width * cols
+
+
 def estimate(config: dict, results: Path = Path(layout.RESULTS)) -> dict:
     """Largest job memory and total disk (bytes) of a run, with the terms behind them."""
     rate = float(config["truth"]["rate_hz"])
     n_seq = int(config["simulate"]["sequences"])
     n_grades = len(config["grades"])
-    per_ss = SHARD_PER_SAMPLE_SEQUENCE_B + (
+    per_ss = shard_bytes(config["simulate"]) + (
         MAT_PER_SAMPLE_SEQUENCE_B if config["exports"]["mat"] else 0.0
     )
     memory = 0.0

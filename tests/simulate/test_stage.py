@@ -216,3 +216,12 @@ def test_in_memory_and_written_metadata_agree(tmp_path):
     assert mem.meta["preset_sha"] is not None and mem.meta["preset_sha"] == disk["preset_sha"]
     for key in ("grade", "seed", "shard", "sequence_ids", "spawn_key", "samples_per_sequence"):
         assert mem.meta[key] == disk[key], key
+
+
+def test_labels_index_is_the_sequence_index_in_the_route():
+    """``index`` of the labels = the low 31 bits of ``sequence`` = shard * shard_size + j."""
+    kw = {"static_s": 1.0, "rate_hz": 10.0, "seed": 5}
+    last = S.simulate(None, "consumer", sequences=2, shard=1, shard_size=3, **kw)
+    assert last.labels["index"].tolist() == [3, 4]
+    assert (last.labels["sequence"] & (2**31 - 1)).tolist() == [3, 4]
+    assert last.labels["shard"].tolist() == [1, 1]

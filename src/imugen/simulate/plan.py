@@ -167,7 +167,7 @@ class Plan:
             SEQUENCE: self.ids,
             "route_id": np.full(M, self.rid, np.int64),
             "shard": np.full(M, self.shard, np.int32),
-            "index": np.arange(M, dtype=np.int32),
+            "index": (self.ids & ((1 << tshard.ROUTE_SHIFT) - 1)).astype(np.int32),
             "seed": np.full(M, self.seed, np.int64),
             "grade_id": np.full(M, self.grade.id, np.int32),
         }

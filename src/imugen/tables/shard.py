@@ -33,7 +33,10 @@ navigation applies the two-sample coning/sculling correction). A file without th
 compensated.
 
 The labels sidecar holds one row per sequence: ``sequence``, ``route_id``, ``shard``,
-``index``, ``seed``, ``grade_id`` and every drawn parameter (SI unit in each name), among them,
+``index`` (the sequence's index in its route, ``shard * shard_size + j``: the low 31 bits of
+``sequence``, the ``index`` of :func:`sequence_ids`; ``j``, the position in the shard, is
+``index - first_index`` of the metadata), ``seed``, ``grade_id`` and every drawn parameter
+(SI unit in each name), among them,
 when the shard was simulated with a mounting (metadata ``mounting``, :mod:`imugen.sensors.mounting`),
 the IMU's misalignment from the vehicle ``mount_roll_rad``, ``mount_pitch_rad``,
 ``mount_yaw_rad`` (``C_vb = Rz(yaw) Ry(-pitch) Rx(roll)``, IMU axes ``b`` from vehicle axes

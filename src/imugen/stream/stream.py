@@ -1,0 +1,326 @@
+"""The stream: batches of (IMU window, targets) generated on demand, no disk (package docstring)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from imugen.core.errors import InputError
+from imugen.sensors.grades import get_grade
+from imugen.sensors.ideal import ArrayTruth, TruthSource
+from imugen.simulate.plan import enabled_terms, temperature_profile
+from imugen.simulate.sources import resolve_truth, route_name
+from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0, batch_keys, worker_batches
+from imugen.stream.windows import (
+    Scratch,
+    draw_params,
+    exact_sequence,
+    window_batch,
+    window_rngs,
+)
+from imugen.tables import shard as tshard
+
+INPUTS = ("increments", "rates")
+TARGETS = ("effective_error", "increments", "bias", "labels")
+
+
+class Stream:
+    """Batches of measured IMU windows and their targets, drawn fresh and generated in memory.
+
+    Parameters
+    ----------
+    routes : mapping name -> truth, or iterable of truth paths
+        Truth tables (``truth.parquet`` paths, DataFrames, :class:`~imugen.sensors.ideal.TruthSource`);
+        a path's route name is its folder's (as the simulate stage names it). All routes share
+        one sample rate.
+    grade : str, Grade, or list of them
+        Grade preset(s) (or ``FILE.yaml:NAME``); each sequence draws one uniformly.
+    window : int
+        Rows per window (``W``).
+    stride : int, optional
+        Grid of window starts ``k0 = 1 + i * stride`` (the loader's; default ``window``).
+    batch_size : int
+        Windows per batch; a multiple of ``windows_per_sequence``.
+    windows_per_sequence : int
+        Windows cut from each fresh sequence (its parameter draw is shared by them).
+    seed : int
+        Root seed: with the same seed, a key gives the numbers of the simulate stage.
+    inputs : {"increments", "rates"}
+        ``x``: measured ``dtheta, dv`` or ``gyro, accel`` rows ``(B, W, 6)``.
+    targets : iterable of {"effective_error", "increments", "bias", "labels"}
+        As :class:`imugen.dataset.WindowDataset` gives them: the effective error of the
+        inputs, the true increments, the true slow bias (``(B, W, 6)`` each), the sequence's
+        drawn parameters ``(B, L)`` (names in :attr:`label_names`).
+    exact : bool
+        Generate each sequence from its turn-on (the shard's numbers, bit for bit) instead of
+        drawing the slow states at each window's start (:mod:`imugen.stream.windows`).
+    dtype : numpy dtype
+        Of the arrays returned (float32; generation is float64).
+    terms, draw, temperature, grades_file
+        As the simulate stage's options (:class:`imugen.simulate.options.SimulateOptions`).
+    weights : {"length", "uniform"}
+        A route's probability: proportional to its windows, or equal.
+    first_batch : int
+        Number of the first batch (to resume a run).
+    """
+
+    def __init__(
+        self,
+        routes,
+        grade,
+        *,
+        window: int = 200,
+        stride: int | None = None,
+        batch_size: int = 256,
+        windows_per_sequence: int = 16,
+        seed: int = 0,
+        inputs: str = "increments",
+        targets: Iterable[str] = ("effective_error",),
+        exact: bool = False,
+        dtype=np.float32,
+        terms=None,
+        draw: str = "ranges",
+        temperature=None,
+        grades_file=None,
+        weights: str = "length",
+        first_batch: int = 0,
+    ):
+        self.window = int(window)
+        self.stride = int(stride if stride is not None else window)
+        if self.window < 1 or self.stride < 1:
+            raise InputError("window", "window and stride must be >= 1 sample")
+        if inputs not in INPUTS:
+            raise InputError("inputs", f"must be one of {', '.join(INPUTS)}, got {inputs!r}")
+        self.inputs = inputs
+        self.targets = [targets] if isinstance(targets, str) else list(targets)
+        bad = [t for t in self.targets if t not in TARGETS]
+        if bad:
+            raise InputError("targets", f"unknown {bad}; one of {', '.join(TARGETS)}")
+        self.per_seq = int(windows_per_sequence)
+        self.batch_size = int(batch_size)
+        if self.per_seq < 1 or self.batch_size < 1 or self.batch_size % self.per_seq:
+            raise InputError("batch_size", "must be a positive multiple of windows_per_sequence")
+        self.seed = int(seed)
+        self.exact = bool(exact)
+        self.dtype = np.dtype(dtype)
+        if draw not in ("ranges", "nominal"):
+            raise InputError("draw", f"must be ranges or nominal, got {draw!r}")
+        self.nominal = draw == "nominal"
+        self.first_batch = int(first_batch)
+        grades = list(grade) if isinstance(grade, list | tuple) else [grade]
+        self.grades = [get_grade(g, grades_file) for g in grades]
+        self.enabled = [enabled_terms(g, terms) for g in self.grades]
+        self.temp = temperature_profile(temperature)
+        items = routes.items() if isinstance(routes, Mapping) else ((None, r) for r in routes)
+        self.truths: list[TruthSource] = []
+        self.route_names: list[str] = []
+        for name, t in items:
+            tr = resolve_truth(t, None, 100.0, "flat")
+            self.truths.append(tr)
+            self.route_names.append(route_name(t, tr, name))
+        if not self.truths:
+            raise InputError("routes", "give at least one route")
+        self.route_ids = [tshard.route_id(n) for n in self.route_names]
+        dts = np.array([t.dt for t in self.truths])
+        if np.ptp(dts) > 1e-9 * dts[0]:
+            raise InputError("routes", f"routes differ in sample rate ({sorted(set(1 / dts))} Hz)")
+        self.dt = float(dts[0])
+        self.windows = np.array(
+            [max((t.K - 1 - self.window) // self.stride + 1, 0) for t in self.truths], np.int64
+        )
+        if not self.windows.any():
+            raise InputError("routes", f"no route holds a window of {self.window} samples")
+        if weights == "length":
+            self.weights = self.windows / self.windows.sum()
+        elif weights == "uniform":
+            self.weights = (self.windows > 0) / np.count_nonzero(self.windows)
+        else:
+            raise InputError("weights", f"must be length or uniform, got {weights!r}")
+        self._concat()
+        self._scratch = Scratch()
+
+    def _concat(self):
+        """The routes' truths back to back (window mode reads rows of one array)."""
+        arrs = [t.chunk(0, t.K) for t in self.truths]
+        self._row0 = np.concatenate([[0], np.cumsum([t.K for t in self.truths])[:-1]])
+        w, f, dth, dv = (
+            np.ascontiguousarray(np.concatenate([a[i] for a in arrs])) for i in (1, 2, 3, 4)
+        )
+        dT = np.zeros(0)
+        if self.temp is not None:
+            dT = np.concatenate(
+                [np.asarray(self.temp(np.arange(t.K) * self.dt), float) for t in self.truths]
+            )
+        self._tr = (w, f, dth, dv, dT, self.dt)
+
+    # --- what a batch holds
+    @property
+    def label_names(self) -> list[str]:
+        """Columns of the ``labels`` target (those of the shard's labels sidecar)."""
+        g = self.grades[0]
+        d = draw_params(self.seed, 0, g, self.enabled[0], True, STREAM_SHARD0, 0)
+        return [*d.gyro.labels("gyro", "radps"), *d.accel.labels("accel", "mps2")]
+
+    def batch(self, n: int) -> dict:
+        """Batch number ``n``: ``{"x": (B, W, 6), <target>: ..., "keys": (B,) KEY_DTYPE}``."""
+        keys, grid = batch_keys(
+            self.seed, n, self.batch_size // self.per_seq, self.per_seq, self.windows,
+            self.weights, len(self.grades),
+        )  # fmt: skip
+        keys["k0"] = 1 + grid * self.stride
+        return self.generate(keys)
+
+    def batches(self, worker: int = 0, workers: int = 1):
+        """Endless batches of worker ``worker`` of ``workers`` (:func:`~imugen.stream.keys.worker_batches`)."""
+        for n in worker_batches(self.first_batch, worker, workers):
+            yield self.batch(n)
+
+    def __iter__(self):
+        return self.batches()
+
+    # --- generation
+    def keys(self, route, grade, shard, j, k0) -> np.ndarray:
+        """Window keys from names (route, grade) or indices and integers (broadcast)."""
+        route = np.atleast_1d(route)
+        grade = np.atleast_1d(grade)
+        if route.dtype.kind in "US":
+            route = np.array([self.route_names.index(str(r)) for r in route])
+        if grade.dtype.kind in "US":
+            names = [g.name for g in self.grades]
+            grade = np.array([names.index(str(g)) for g in grade])
+        b = np.broadcast_arrays(
+            route, grade, np.atleast_1d(shard), np.atleast_1d(j), np.atleast_1d(k0)
+        )
+        out = np.empty(b[0].shape, KEY_DTYPE).ravel()
+        for name, a in zip(KEY_DTYPE.names, b, strict=True):
+            out[name] = a.ravel()
+        return out
+
+    def generate(self, keys, exact: bool | None = None) -> dict:
+        """The windows of ``keys`` (KEY_DTYPE; any order): ``{"x", targets..., "keys"}``.
+
+        ``exact`` (default: the stream's) generates each sequence from its turn-on: with a
+        written shard's key (``shard < 2^31``) and the stream's seed this returns the shard's
+        rows ``k0 .. k0 + W - 1``, bit for bit after the cast to float32.
+        """
+        keys = np.asarray(keys, KEY_DTYPE)
+        exact = self.exact if exact is None else exact
+        W, B = self.window, len(keys)
+        K = np.array([t.K for t in self.truths])[keys["route"]]
+        if np.any(keys["k0"] < 1) or np.any(keys["k0"] + W > K):
+            raise InputError("keys", f"window starts must lie in [1, K - {W}]")
+        order = np.lexsort((keys["k0"], keys["j"], keys["shard"], keys["grade"], keys["route"]))
+        sk = keys[order]
+        rate = self.inputs == "rates"
+        want = {
+            "rate": rate,
+            "inc": not rate,
+            "err_rate": rate and "effective_error" in self.targets,
+            "err_inc": not rate and "effective_error" in self.targets,
+            "bias": "bias" in self.targets,
+        }
+        outs = {n: self._scratch.get(n, B, W, 6) for n, v in want.items() if v}
+        seq_start = np.flatnonzero(
+            np.concatenate(
+                [
+                    [True],
+                    np.any(
+                        [sk[f][1:] != sk[f][:-1] for f in ("route", "grade", "shard", "j")], axis=0
+                    ),
+                ]
+            )
+        )
+        seq_of = np.cumsum(np.isin(np.arange(B), seq_start)) - 1
+        draws = []
+        for i in seq_start:
+            k = sk[i]
+            g = self.grades[k["grade"]]
+            draws.append(
+                draw_params(self.seed, self.route_ids[k["route"]], g, self.enabled[k["grade"]],
+                            self.nominal, int(k["shard"]), int(k["j"]))
+            )  # fmt: skip
+        if exact:
+            self._exact(sk, seq_start, draws, want, outs)
+        else:
+            for gi in np.unique(sk["grade"]):
+                seqs = np.flatnonzero(sk["grade"][seq_start] == gi)
+                sel = np.flatnonzero(sk["grade"] == gi)
+                remap = np.full(len(seq_start), -1)
+                remap[seqs] = np.arange(len(seqs))
+                one = len(sel) == B  # a single grade: write in place
+                sub = outs if one else {n: np.empty((len(sel), W, 6)) for n in outs}
+                rngs = [
+                    window_rngs(self.seed, self.route_ids[sk["route"][seq_start[s]]],
+                                self.grades[gi].id, int(sk["shard"][seq_start[s]]),
+                                int(sk["j"][seq_start[s]]))
+                    for s in seqs
+                ]  # fmt: skip
+                rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
+                window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
+                             sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
+                if not one:
+                    for n in outs:
+                        outs[n][sel] = sub[n]
+        inv = np.empty(B, np.int64)
+        inv[order] = np.arange(B)
+        dt = self.dtype
+        out = {"x": outs["rate" if rate else "inc"][inv].astype(dt)}
+        for t in self.targets:
+            if t == "effective_error":
+                out[t] = outs["err_rate" if rate else "err_inc"][inv].astype(dt)
+            elif t == "bias":
+                out[t] = outs["bias"][inv].astype(dt)
+            elif t == "increments":
+                rows = self._row0[keys["route"]] + keys["k0"]
+                idx = rows[:, None] + np.arange(W)
+                out[t] = np.concatenate([self._tr[2][idx], self._tr[3][idx]], axis=2).astype(dt)
+            elif t == "labels":
+                out[t] = self._labels(draws, seq_of)[inv].astype(dt)
+        out["keys"] = keys
+        return out
+
+    def _labels(self, draws, seq_of) -> np.ndarray:
+        """Per-window label rows ``(B, L)`` in :attr:`label_names` order."""
+        cols = None
+        rows = []
+        for d in draws:
+            lab = {**d.gyro.labels("gyro", "radps"), **d.accel.labels("accel", "mps2")}
+            if cols is None:
+                cols = list(lab)
+            elif list(lab) != cols:
+                raise InputError("targets", "labels need grades with the same label columns")
+            rows.append([float(lab[c][0]) for c in cols])
+        return np.asarray(rows)[seq_of]
+
+    def _exact(self, sk, seq_start, draws, want, outs):
+        names = {
+            "rate": ("gyro", "accel"), "inc": ("dtheta", "dv"), "bias": ("gyro_bias", "accel_bias"),
+            "err_rate": ("err_gyro", "err_accel"), "err_inc": ("err_dtheta", "err_dv"),
+        }  # fmt: skip
+        groups = [g for n in outs for g in names[n]]
+        W = self.window
+        ends = [*seq_start[1:], len(sk)]
+        for s, (a, b) in enumerate(zip(seq_start, ends, strict=True)):
+            k = sk[a]
+            kmax = int(sk["k0"][a:b].max()) + W
+            tr = self.truths[k["route"]]
+            data = exact_sequence(
+                tr, draws[s], self.seed, self.route_ids[k["route"]], self.grades[k["grade"]].id,
+                int(k["shard"]), int(k["j"]), kmax, self.temp, groups,
+            )  # fmt: skip
+            for i in range(a, b):
+                k0 = int(sk["k0"][i])
+                for n in outs:
+                    g0, g1 = names[n]
+                    outs[n][i, :, :3] = data[g0][k0 : k0 + W]
+                    outs[n][i, :, 3:] = data[g1][k0 : k0 + W]
+
+
+def load_truths(paths: Iterable) -> dict[str, ArrayTruth]:
+    """``{route name: truth}`` of truth files (the folder name, as the simulate stage names it)."""
+    out = {}
+    for p in paths:
+        tr = ArrayTruth.read(p)
+        out[route_name(p, tr)] = tr
+    return out
