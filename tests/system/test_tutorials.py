@@ -12,12 +12,16 @@ the route and results of the first). A page's fenced code blocks are taken in or
 - a block titled "Not run: ..." is shown on the page and skipped here (its title says why);
 - any other block (``text``: an output shown) is skipped.
 
+A page that needs an optional extra says so in a comment ``<!-- needs: torch -->``; it is
+skipped where that module is missing (CI installs every extra).
+
 The tutorials use tiny configurations (a few sequences at 20 Hz), so that all six pages run
 in a couple of minutes.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import resource
@@ -119,6 +123,9 @@ def scratch(tmp_path_factory):
 def test_tutorial_runs(page, scratch):
     """The page runs after the pages before it (run here first when selected alone)."""
     tmp, env, done = scratch
+    for module in re.findall(r"<!-- needs: ([\w.]+) -->", page.read_text()):
+        if importlib.util.find_spec(module) is None:  # an optional extra (CI installs them)
+            pytest.skip(f"{page.name} needs {module}")
     for earlier in PAGES[: PAGES.index(page) + 1]:
         if earlier not in done:
             run_page(earlier, tmp, env)
