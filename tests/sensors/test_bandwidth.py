@@ -238,3 +238,36 @@ def test_round_quantization_adds_white_lsb2_over_12():
     assert np.allclose(y / qs, np.round(y / qs), atol=1e-9)  # on the grid
     N = g.gyro.white_noise.value[0]
     assert np.var(y) == pytest.approx(N**2 * 100.0 + qs**2 / 12, rel=0.03)
+
+
+def test_datasheet_import_and_kalibr_export_carry_the_bandwidth(tmp_path):
+    from imugen.sensors import grade_io
+    from imugen.sensors.grades import grade_from_config
+
+    ds = tmp_path / "ds.yaml"
+    ds.write_text(
+        "datasheet:\n  part: Test IMU\n  rate_hz: 1000\n  bandwidth_hz: 98\n"
+        "  gyro:\n    noise_density_deg_per_s_per_sqrt_hz: 0.005\n"
+        "  accel:\n    noise_density_ug_per_sqrt_hz: 400\n"
+    )
+    with pytest.warns(UserWarning, match="Butterworth"):
+        name, cfg = grade_io.import_grade(ds, grade_id=3001)
+    g = grade_from_config(name, cfg)
+    f = g.gyro.bandwidth.output_filter("gyro", 200.0)
+    assert (f.kind, f.order, f.internal_rate_hz) == ("butterworth", 2, 1000.0)
+    assert f.cutoff_3db_hz() == pytest.approx(98.0, rel=0.02)
+    # a named part's filter
+    ds.write_text(
+        "datasheet:\n  part: MPU\n  filter: {filter: mpu6050_dlpf, setting: 3}\n"
+        "  gyro:\n    noise_density_deg_per_s_per_sqrt_hz: 0.005\n"
+    )
+    name, cfg = grade_io.import_grade(ds, grade_id=3002)
+    g2 = grade_from_config(name, cfg)
+    assert g2.gyro.bandwidth.filter == "mpu6050_dlpf"
+    # Kalibr: the output's white line at the export rate, and the filter said
+    text = grade_io.to_kalibr(g, rate_hz=200.0)
+    N = g.gyro.white_noise.value[0]
+    assert "gyro output bandwidth: Butterworth order 2" in text
+    k = grade_io.kalibr_figures(g, 200.0)["gyroscope_noise_density"]
+    assert k == pytest.approx(N * math.sqrt(f.alias_gain()))
+    assert k != pytest.approx(N, rel=1e-3)
