@@ -48,6 +48,7 @@ import numpy as np
 from scipy import signal
 from scipy.optimize import nnls
 
+from imugen.core.errors import InputError
 from imugen.sensors import bandwidth as bw
 from imugen.sensors.noise_terms import (
     GM_PEAK,
@@ -700,7 +701,9 @@ def sensor_config(sf: SensorFit, source: str) -> dict:
         }
         if sf.bi_kind == "flicker":
             lo, hi = sf.bi_par
-            bi["flicker_band"] = {"min": _fmt(lo, 3), "max": _fmt(hi, 3), "unit": "s"}
+            lo_s, hi_s = _fmt(lo, 4), _fmt(hi, 4)
+            hi_s = max(hi_s, 100.0 * lo_s)  # printed figures keep max >= 100 min
+            bi["flicker_band"] = {"min": lo_s, "max": hi_s, "unit": "s"}
             bi["components"] = int(flicker_components(lo, hi))
         else:
             bi["correlation_time"] = {"value": _fmt(sf.bi_par, 3), "unit": "s"}
@@ -716,46 +719,50 @@ def sensor_config(sf: SensorFit, source: str) -> dict:
         cfg["quantization"] = {
             "value": _vals(list(sf.lsb), u["quantization"]),
             "unit": u["quantization"],
-            "mode": ms[0].quant_mode,  # NEW key: round (rate register) | carry (imugen today)
+            "mode": ms[0].quant_mode,
             "source": f"{source}: step between logged values (every sample on the grid)",
         }
     d = sf.filt.describe()
-    cfg["bandwidth"] = {  # NEW term
-        "filter": {k: d[k] for k in ("kind", "taps", "order") if d[k] or k == "kind"},
-        "internal_rate": {"value": _fmt(sf.filt.internal_rate_hz, 6), "unit": "hz"},
-        "source": f"{source}: short-tau Allan departure below the white line; "
-        f"-3 dB {d['cutoff_3db_hz']:.3g} Hz, ENBW {d['enbw_hz']:.3g} Hz, delay "
-        f"{d['group_delay_ms']:.3g} ms, ADEV(1/rate) = {d['adev_ratio_tau0']:.3f} x white line",
-    }
+    band = {"filter": sf.filt.kind}
+    if sf.filt.kind != "ideal":
+        band["internal_rate"] = {"value": _fmt(sf.filt.internal_rate_hz, 6), "unit": "hz"}
+    if sf.filt.kind in ("moving_average", "bartlett"):
+        band["taps"] = int(sf.filt.taps)
     if sf.filt.kind == "butterworth":
-        cfg["bandwidth"]["filter"]["cutoff"] = {"value": _fmt(sf.filt.cutoff_hz, 4), "unit": "hz"}
-    if any(x.slow_peak > 0 for x in ms):
-        cfg["slow_bias"] = {  # NEW term: a second Gauss-Markov bias (environment / thermal)
-            "value": _vals([x.slow_peak for x in ms], u["bias_instability"]),
-            "unit": u["bias_instability"],
-            "kind": "allan_floor",
-            "model": "gauss_markov",
-            "correlation_time": {"value": _fmt(sf.slow_T, 3), "unit": "s"},
-            "source": f"{source}: Allan hump beyond the floor (lab temperature cycling "
-            f"or other environment); 1-sigma {pm('slow_gm')}",
-        }
-    lines = []
-    for a, am in enumerate(ms):
-        for ln in am.lines:
-            lines.append(
-                {
-                    "axis": "xyz"[a],
-                    "center": {"value": _fmt(ln["fc"], 5), "unit": "hz"},
-                    "width": {"value": _fmt(ln["width"], 3), "unit": "hz"},
-                    "rms": {
-                        "value": _fmt(math.sqrt(ln["power"]) / UNITS[u["line"]], 4),
-                        "unit": u["line"],
-                    },
-                }
-            )
-    if lines:
-        cfg["narrowband"] = lines  # NEW term
+        band["order"] = int(sf.filt.order)
+        band["cutoff"] = {"value": _fmt(sf.filt.cutoff_hz, 4), "unit": "hz"}
+    band["source"] = (
+        f"{source}: short-tau Allan departure below the white line (an equivalent filter); "
+        f"-3 dB {d['cutoff_3db_hz']:.3g} Hz, ENBW {d['enbw_hz']:.3g} Hz, delay "
+        f"{d['group_delay_ms']:.3g} ms, ADEV(1/rate) = {d['adev_ratio_tau0']:.3f} x white line"
+    )
+    cfg["bandwidth"] = band
     return cfg
+
+
+def environment_note(sf: SensorFit) -> str:
+    """The fitted terms the grade format does not hold (narrowband lines, a slow second
+    Gauss-Markov hump): said in the grade's notes, not simulated."""
+    u = SENSOR_UNITS[sf.sensor]
+    parts = []
+    for a, am in enumerate(sf.models):
+        for ln in am.lines:
+            parts.append(
+                f"{'xyz'[a]} line {ln['fc']:.3g} Hz (width {ln['width']:.2g} Hz, "
+                f"{math.sqrt(ln['power']) / UNITS[u['line']]:.3g} {u['line']} rms)"
+            )
+        if am.slow_peak > 0:
+            pk = am.slow_peak / UNITS[u["bias_instability"]]
+            parts.append(
+                f"{'xyz'[a]} slow Gauss-Markov hump {pk:.3g} {u['bias_instability']} "
+                f"at T {sf.slow_T:.3g} s"
+            )
+    if not parts:
+        return ""
+    return (
+        f"{sf.sensor}: fitted but not simulated (environment, not the part: lines and humps "
+        "a grade does not hold): " + "; ".join(parts)
+    )
 
 
 def fit_grade(
@@ -769,7 +776,7 @@ def fit_grade(
     source: str = "still log",
     lines: bool = True,
     bi_model: str | None = None,
-    slow_gm: bool = True,
+    slow_gm: bool = False,
 ) -> dict:
     """Fit a grade from a still log.
 
@@ -817,8 +824,10 @@ def fit_grade(
         "id": int(grade_id),
         "description": f"fitted from {source} ({fits['gyro'].K} samples at {rate_hz:g} Hz, "
         f"{fits['gyro'].K / rate_hz / 3600:.2f} h)",
-        "source": f"{source}; fitted by imugen grade fit (prototype)",
-        "notes": frame["note"],
+        "source": f"{source}; fitted by imugen grade fit",
+        "notes": "; ".join(
+            x for x in (frame["note"], *(environment_note(f) for f in fits.values())) if x
+        ),
         "gyro": sensor_config(fits["gyro"], source),
         "accel": sensor_config(fits["accel"], source),
     }
@@ -828,3 +837,89 @@ def fit_grade(
         "frame": frame,
         "static": static,
     }
+
+
+# --- the command ------------------------------------------------------------------------------
+def plot_fit(result: dict, out, title: str = "", dpi: float = 150):
+    """Measured (dots, 95 % band) and fitted (lines) Allan deviation per axis, gyro and
+    accelerometer, written atomically (format from the extension)."""
+    from pathlib import Path
+
+    from imugen.core.plotting import figure, save, style
+
+    out = Path(out)
+    fmt = out.suffix.lstrip(".").lower() or "png"
+    with style():
+        fig = figure(figsize=(11, 4.8), layout="constrained")
+        axes = fig.subplots(1, 2)
+        for ax, (s, sf) in zip(axes, result["sensors"].items(), strict=True):
+            unit = SENSOR_UNITS[s]["bias_instability"]
+            f = UNITS[unit]
+            tau = sf.m / sf.rate_hz
+            for a, am in enumerate(sf.models):
+                meas = np.sqrt(sf.avar[a])
+                lo, hi = adev_ci(meas, sf.edf[a])
+                (ln,) = ax.loglog(tau, meas / f, ".", ms=3, label=f"{'xyz'[a]} measured")
+                ax.fill_between(tau, lo / f, hi / f, color=ln.get_color(), alpha=0.15, lw=0)
+                ax.loglog(tau, np.sqrt(am.avar(sf.m, sf.K)) / f, "-", color=ln.get_color(),
+                          lw=1, label=f"{'xyz'[a]} fitted")  # fmt: skip
+            ax.set_xlabel("averaging time tau [s]")
+            ax.set_ylabel(f"Allan deviation [{unit.replace('_per_', '/')}]")
+            ax.set_title(f"{s}: {sf.bi_kind}, filter {sf.filt.kind} {title}".strip())
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7, ncols=2)
+        return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
+
+
+def run(log, out, options) -> dict:
+    """Read a still log, fit a grade, write it (YAML) and the Allan figure; return the result.
+
+    Parameters
+    ----------
+    log : path
+        A still IMU log (:func:`imugen.sensors.imu_log.read_log`).
+    out : path
+        The grade document to write (atomically).
+    options : GradeFitOptions
+    """
+    from pathlib import Path
+
+    import yaml
+
+    from imugen.sensors.grade_io import write_text
+    from imugen.sensors.grades import grades_from_document
+    from imugen.sensors.imu_log import read_log
+
+    if options.grade_id < 100:
+        raise InputError(
+            "--id", f"must be >= 100 (ids below are the presets'), got {options.grade_id}"
+        )
+    lg = read_log(log, options.rate_hz)
+    r = fit_grade(
+        {"gyro": lg.gyro, "accel": lg.accel},
+        lg.rate_hz,
+        name=options.name,
+        grade_id=options.grade_id,
+        internal_rate_hz=options.internal_rate_hz,
+        source=Path(str(log)).name,
+        bi_model=None if options.bias_model == "auto" else options.bias_model,
+    )
+    doc = r["document"]
+    if lg.notes:
+        cfg = doc["grades"][options.name]
+        cfg["notes"] = "; ".join([cfg["notes"], *lg.notes])
+    grades_from_document(doc, str(out))  # the document must load as it is written
+    text = yaml.safe_dump(doc, sort_keys=False, allow_unicode=False)
+    write_text(out, text)
+    plot = options.plot or Path(out).with_suffix(".png")
+    plot_fit(r, plot, title=f"({Path(str(log)).name})")
+    r["plot"] = str(plot)
+    return r
+
+
+def main(options, log, output) -> None:
+    """``imugen grade fit LOG -o grade.yaml``: fit, write, and say what was chosen."""
+    r = run(log, output, options)
+    for s, sf in r["sensors"].items():
+        print(f"{s}: {sf.choice}")
+    print(f"wrote {output} and {r['plot']}")
