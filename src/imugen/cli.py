@@ -66,9 +66,7 @@ COMMANDS = {
     "allan": ("imugen.allan.options", "Allan deviation of a static shard against its grade"),
 }
 """Command -> (module declaring it in its ``COMMANDS``, one-line help)."""
-GROUPS = {
-    "grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr; fit a log"
-}
+GROUPS = {"grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr; fit a log"}
 """Commands of two words: the first word's help."""
 
 

@@ -1,6 +1,5 @@
 """grade fit: recovers known models from simulated logs; the real-data oracle on the ADIS16405."""
 
-
 import numpy as np
 import pytest
 

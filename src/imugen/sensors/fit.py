@@ -61,6 +61,7 @@ from imugen.sensors.noise_terms import (
     quant_avar,
     rrw_avar,
 )
+from imugen.sensors.options import GradeFitOptions
 
 G0 = 9.80665
 DEG = math.pi / 180
@@ -871,7 +872,7 @@ def plot_fit(result: dict, out, title: str = "", dpi: float = 150):
         return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
 
 
-def run(log, out, options) -> dict:
+def run(log, out, options: GradeFitOptions) -> dict:
     """Read a still log, fit a grade, write it (YAML) and the Allan figure; return the result.
 
     Parameters
@@ -917,7 +918,7 @@ def run(log, out, options) -> dict:
     return r
 
 
-def main(options, log, output) -> None:
+def main(options: GradeFitOptions, log, output) -> None:
     """``imugen grade fit LOG -o grade.yaml``: fit, write, and say what was chosen."""
     r = run(log, output, options)
     for s, sf in r["sensors"].items():
