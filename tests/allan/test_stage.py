@@ -159,3 +159,21 @@ def test_bias_instability_check_uses_the_records_confidence_interval():
     e2 = allan.allan_report(sh, curves=cv_wrong)["gyro_bias_instability"]
     assert e2["ratio"] == pytest.approx(1.5 * e["ratio"], rel=1e-6)
     assert not e2["within"]
+
+
+def test_check_of_a_grade_with_output_bandwidth_and_rounding():
+    """A filtered part reads below the N^2 / tau line at short tau (0.82x at 10 ms for the
+    ADIS16405's filter) and rounds its rate register: the check's bases are the filtered
+    white noise's and white rounding, so the configured density is read back (the plain
+    N^2 / tau basis read 0.90x of it)."""
+    g = grade(
+        {
+            "white_noise": {"value": 2.3, "unit": "deg_per_sqrt_h"},
+            "quantization": {"value": 0.05, "unit": "deg_per_s", "mode": "round"},
+            "bandwidth": {"filter": "moving_average", "taps": 10,
+                          "internal_rate": {"value": 819.2, "unit": "hz"}},
+        }
+    )  # fmt: skip
+    sh = S.simulate(None, g, sequences=4, seed=3, static_s=300.0, rate_hz=100.0, outputs="rates")
+    e = allan.allan_report(sh, curves=allan.allan_curves(sh, 4, sensors=("gyro",)))["arw"]
+    assert e["ratio"] == pytest.approx(1.0, abs=0.02) and e["within"], e
