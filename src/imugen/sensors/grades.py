@@ -56,7 +56,9 @@ Grade keys besides the sensors: ``variant`` (``uncalibrated``, default: the part
 figures; or ``calibrated``: residuals after a calibration, which ``calibration`` names with its
 source) and ``calibrated_at_rest`` (calibrated grades: the bias was measured at rest and level,
 so it also removed the static error on gravity: the gyro g-sensitivity's ``G (0, 0, g0)``
-and the accelerometer scale factor and cross-coupling's ``E (0, 0, g0)``).
+and the accelerometer scale factor and cross-coupling's ``E (0, 0, g0)``; ``true`` for both
+sensors, or a list of the sensors whose bias was so calibrated, e.g. ``[gyro]`` for a phone
+whose OS estimates the gyro bias at rest and leaves the accelerometer alone).
 
 Every entry: ``value`` (scalar or three per-axis values), optional ``range: [lo, hi]`` (same
 unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate.stage`), ``unit``,
@@ -608,10 +610,21 @@ def grade_from_config(name: str, cfg: dict, origin: str = "<config>") -> Grade:
             origin, where, "a calibrated grade needs 'calibration': which one, and its source"
         )
     at_rest = cfg.get("calibrated_at_rest", False)
-    if not isinstance(at_rest, bool) or (at_rest and variant != "calibrated"):
-        raise _err(origin, where, "calibrated_at_rest is true or false, and only for calibrated")
-    if at_rest:
+    if at_rest is True:
+        at_rest = list(SENSORS)
+    ok = at_rest is False or (
+        isinstance(at_rest, list) and all(x in SENSORS for x in at_rest) and at_rest
+    )
+    if not ok or (at_rest and variant != "calibrated"):
+        raise _err(
+            origin,
+            where,
+            "calibrated_at_rest is true, false or a list of sensors (gyro, accel), and only "
+            "for calibrated",
+        )
+    if at_rest and "gyro" in at_rest:
         gyro = dataclasses.replace(gyro, static_g_removed=True)
+    if at_rest and "accel" in at_rest:
         accel = dataclasses.replace(accel, static_g_removed=True)
     return Grade(
         name,
