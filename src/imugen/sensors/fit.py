@@ -28,7 +28,7 @@ imugen's grade format requires; amplitudes are per axis):
 6. flicker or Gauss-Markov: the width of the floor -- the widest tau range over which the bias
    part of the measured Allan deviation (measured AVAR minus the fitted white, quantization and
    line parts) varies by less than +-25 % -- against the widest a single GM makes
-   (:func:`noise.gm_flat_decades` = 1.58 decades): wider by more than ``WIDTH_MARGIN`` (0.3
+   (:func:`imugen.sensors.noise_terms.gm_flat_decades` = 1.58 decades): wider by more than ``WIDTH_MARGIN`` (0.3
    decades) -> flicker band, narrower by more -> one GM, in between the width cannot tell and the
    better weighted chi-square of the two decides; a second, slower GM (environment, e.g. lab
    temperature cycling) is added beyond the floor only where it lowers chi-square by > 5 %; the
@@ -664,7 +664,9 @@ def _vals(xs, unit):
 
 
 def sensor_config(sf: SensorFit, source: str) -> dict:
-    """imugen grade-document mapping of one sensor (datasheet units, NEW keys marked)."""
+    """imugen grade-document mapping of one sensor (datasheet units; every figure with its
+    source and record-length uncertainty; lines and a slow hump go to the grade's notes,
+    :func:`environment_note`)."""
     u = SENSOR_UNITS[sf.sensor]
     ms = sf.models
     unc = sf.uncertainty
