@@ -59,10 +59,14 @@ COMMANDS = {
         "imugen.sensors.options",
         "grade -> Kalibr imu.yaml (white noise + random walk)",
     ),
+    "grade fit": (
+        "imugen.sensors.options",
+        "still IMU log -> fitted grade (YAML) + Allan figure",
+    ),
     "allan": ("imugen.allan.options", "Allan deviation of a static shard against its grade"),
 }
 """Command -> (module declaring it in its ``COMMANDS``, one-line help)."""
-GROUPS = {"grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr"}
+GROUPS = {"grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr; fit a log"}
 """Commands of two words: the first word's help."""
 
 

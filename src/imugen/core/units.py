@@ -39,6 +39,7 @@ SI dimension names and their SI units (``SI_UNIT``)::
     angular_rate_per_K      rad/s/K
     acceleration_per_K      m/s^2/K
     dimensionless_per_K     1/K
+    frequency               Hz             (internal sample rate, filter cut-off)
 """
 
 from __future__ import annotations
@@ -74,6 +75,7 @@ SI_UNIT = {
     "angular_rate_per_K": "rad/s/K",
     "acceleration_per_K": "m/s^2/K",
     "dimensionless_per_K": "1/K",
+    "frequency": "Hz",
 }
 """SI unit of each dimension."""
 
@@ -170,6 +172,9 @@ _UNITS = [
     _u("ppm_per_K", "dimensionless_per_K", 1e-6, "ppm/K"),
     _u("percent_per_K", "dimensionless_per_K", 1e-2, "%/K"),
     _u("per_K", "dimensionless_per_K", 1.0, "1/K"),
+    # frequency (sensor internal rate, filter cut-off)
+    _u("hz", "frequency", 1.0, "Hz"),
+    _u("khz", "frequency", 1e3, "kHz"),
 ]
 
 UNITS: dict[str, Unit] = {u.name: u for u in _UNITS}

@@ -329,3 +329,21 @@ def kernel_increments(k0, dt, du, da, zw, zr, zb, use_w, use_r, use_b, b_on, bi_
         r[s, 0], r[s, 1], r[s, 2] = r0, r1, r2
         s_prev[s, 0], s_prev[s, 1], s_prev[s, 2] = p0, p1, p2
         q_inc[s, 0], q_inc[s, 1], q_inc[s, 2] = qi0, qi1, qi2
+
+
+@njit(cache=True)
+def quantize_series(y, q, rounding, res):
+    """Quantize ``y`` ``(S, L, 3)`` in place to the step ``q`` (0: off): each sample rounded
+    on its own (``rounding``) or with the residual ``res`` ``(S, 3)`` carried (:func:`quantize`)."""
+    if q <= 0.0:
+        return
+    S, L = y.shape[0], y.shape[1]
+    for s in range(S):
+        for i in range(3):
+            r = res[s, i]
+            for j in range(L):
+                if rounding:
+                    y[s, j, i] = q * math.floor(y[s, j, i] / q + 0.5)
+                else:
+                    r, y[s, j, i] = quantize(r, y[s, j, i], q)
+            res[s, i] = r

@@ -26,8 +26,12 @@ Datasheet figures (a YAML file with a top-level ``datasheet:`` mapping; example 
     datasheet:
       part: InvenSense MPU-6050          # optional; the default grade name
       source: PS-MPU-6000A-00 rev 3.4    # optional
-      rate_hz: 1000                      # optional: output rate and bandwidth (notes; a
-      bandwidth_hz: 260                  #   bandwidth below rate/2 is warned about)
+      rate_hz: 1000                      # optional: output data rate and -3 dB bandwidth;
+      bandwidth_hz: 260                  #   together (bandwidth < rate/2) a bandwidth entry
+                                         #   per sensor: Butterworth-2 at bandwidth_hz on a
+                                         #   rate_hz internal grid
+      filter: {filter: mpu6050_dlpf, setting: 3}   # optional instead: the part's own filter
+                                         #   (a grade ``bandwidth`` entry, both sensors)
       density_sides: 2                   # optional: 1 if densities are one-sided ASDs
       spread: 1.5                        # optional: every drawn figure gets [v/1.5, v*1.5]
       gyro:
@@ -78,6 +82,7 @@ Caveats (stated in every imported and exported file):
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
 import warnings
@@ -88,6 +93,7 @@ import yaml
 
 from imugen.core import units
 from imugen.core.errors import InputError, printable
+from imugen.sensors.bandwidth import spec_from_config
 from imugen.sensors.grades import FIXED_TERMS, SENSORS, Grade, get_grade, grade_from_config
 from imugen.sensors.options import GradeExportOptions, GradeImportOptions
 
@@ -129,7 +135,15 @@ DATASHEET_FIGURES: dict[str, dict[str, str]] = {
     "accel": {"vrw": "white_noise", **_DATASHEET_COMMON},
 }
 """Datasheet figure names per sensor -> imugen term (a key is ``<figure>_<unit name>``)."""
-DATASHEET_KEYS = {"part", "source", "rate_hz", "bandwidth_hz", "density_sides", "spread"}
+DATASHEET_KEYS = {
+    "part",
+    "source",
+    "rate_hz",
+    "bandwidth_hz",
+    "filter",
+    "density_sides",
+    "spread",
+}
 _ONE_SIGMA_TERMS = (
     "turn_on_bias",
     "scale_factor",
@@ -414,16 +428,34 @@ def _datasheet_config(ds: dict, origin) -> tuple[dict, list[str]]:
         raise InputError(origin, "datasheet: no gyro or accel figures")
     rate = _number(ds, "rate_hz", origin) if "rate_hz" in ds else None
     bw = _number(ds, "bandwidth_hz", origin) if "bandwidth_hz" in ds else None
-    if rate or bw:
-        cfg["notes"] = (
-            f"output rate {rate or '?'} Hz, bandwidth {bw or '?'} Hz ({src}); imugen samples "
-            "white noise as N / sqrt(dt), i.e. a bandwidth of rate / 2"
-        )
-    if rate and bw and bw < rate / 2:
+    band = None
+    if ds.get("filter") is not None:
+        band = dict(ds["filter"]) if isinstance(ds["filter"], dict) else ds["filter"]
+        if isinstance(band, dict):
+            band.setdefault("source", src)
+        spec_from_config(band, origin, "datasheet.filter")
+    elif rate and bw and bw < rate / 2:
+        band = {
+            "filter": "butterworth",
+            "order": 2,
+            "cutoff": {"value": bw, "unit": "hz"},
+            "internal_rate": {"value": rate, "unit": "hz"},
+            "source": f"{src}: output data rate {rate:g} Hz, bandwidth {bw:g} Hz; filter "
+            "shape not given, read as a second-order Butterworth (imported by imugen)",
+        }
         warn.append(
-            f"bandwidth {bw:g} Hz < rate/2 = {rate / 2:g} Hz: the part's per-sample noise is "
-            f"lower than N / sqrt(dt) at {rate:g} Hz (imugen assumes an ideal filter at rate/2)"
+            f"bandwidth {bw:g} Hz < rate/2 = {rate / 2:g} Hz: read as a second-order "
+            f"Butterworth at {bw:g} Hz on a {rate:g} Hz grid (the datasheet gives no shape)"
         )
+    elif rate or bw:
+        cfg["notes"] = (
+            f"output rate {rate or '?'} Hz, bandwidth {bw or '?'} Hz ({src}); no filter "
+            "below rate/2: white noise N / sqrt(dt) per sample"
+        )
+    if band is not None:
+        for sensor in SENSORS:
+            if cfg.get(sensor):
+                cfg[sensor]["bandwidth"] = copy.deepcopy(band)
     return cfg, warn
 
 
@@ -518,10 +550,13 @@ def grades_document(name: str, cfg: dict) -> str:
     return head + yaml.safe_dump({"grades": {name: cfg}}, sort_keys=False)
 
 
-def kalibr_figures(grade: Grade | str) -> dict[str, float]:
+def kalibr_figures(grade: Grade | str, rate_hz: float | None = None) -> dict[str, float]:
     """The four Kalibr numbers that best represent a grade (SI, axis means).
 
-    ``*_noise_density`` is the white-noise density. ``*_random_walk`` is the rate random walk
+    ``*_noise_density`` is the white-noise density; for a sensor with an output bandwidth
+    read at ``rate_hz``, the density of the output's Allan white line ``N sqrt(g)``
+    (:meth:`~imugen.sensors.bandwidth.OutputFilter.output_density`: what Kalibr's white-noise
+    model, which assumes ideal sampling, sees at long times). ``*_random_walk`` is the rate random walk
     combined with the driving noise of the in-run Gauss-Markov bias: a GM state of sigma
     ``s`` and correlation time ``T`` walks like a random walk of density ``s sqrt(2 / T)``
     over times short against ``T`` (the regime a calibration filter's bias state sees), so
@@ -538,6 +573,8 @@ def kalibr_figures(grade: Grade | str) -> dict[str, float]:
     out = {}
     for sensor, prefix in ((g.gyro, "gyroscope"), (g.accel, "accelerometer")):
         w = 0.0 if sensor.white_noise is None else float(np.mean(sensor.white_noise.value))
+        if sensor.bandwidth is not None and rate_hz is not None:
+            w = sensor.bandwidth.output_filter(sensor.sensor, rate_hz).output_density(w)
         k2 = (
             0.0
             if sensor.rate_random_walk is None
@@ -563,7 +600,17 @@ def to_kalibr(grade: Grade | str, rate_hz: float = 100.0, topic: str = "/imu0") 
     g = get_grade(grade)
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise InputError("--rate-hz", f"must be a positive number, got {rate_hz!r}")
-    fig = kalibr_figures(g)
+    fig = kalibr_figures(g, rate_hz)
+    band = []
+    for sp in (g.gyro, g.accel):
+        if sp.bandwidth is not None:
+            f = sp.bandwidth.output_filter(sp.sensor, rate_hz)
+            band.append(
+                f"# {sp.sensor} output bandwidth: {f.label}, -3 dB {f.cutoff_3db_hz():.4g} Hz, "
+                f"read at {rate_hz:g} Hz; noise_density is the output's white line N sqrt(g), "
+                f"g = {f.alias_gain():.4g} (sensor density "
+                f"{float(np.mean(sp.white_noise.value)) if sp.white_noise else 0.0:.6e})."
+            )
     dropped = [
         t
         for s in (g.gyro, g.accel)
@@ -585,6 +632,7 @@ def to_kalibr(grade: Grade | str, rate_hz: float = 100.0, topic: str = "/imu0") 
         "# a heuristic: a bias-instability floor is not a rate random walk).",
         f"# Dropped terms (no Kalibr field): {', '.join(sorted(set(dropped))) or 'none'}.",
         *([f"# Per-axis values averaged: {', '.join(axes)}."] if axes else []),
+        *band,
         f"# {CAVEAT}.",
     ]
     body = {

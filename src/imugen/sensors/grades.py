@@ -38,16 +38,27 @@ Terms (per sensor; all optional; an absent term is off)
 ``cross_coupling``     1-sigma of each off-diagonal element of the 3x3 misalignment /
                        cross-coupling matrix (angle or dimensionless).
 ``g_sensitivity``      gyro only: 1-sigma of each element of the 3x3 g-sensitivity matrix.
-``quantization``       LSB of the rate output (increments use LSB * dt), fixed.
+``quantization``       LSB of the rate output (increments use LSB * dt), fixed; ``mode: carry``
+                       (default: the residual is carried to the next sample, so integrated
+                       outputs do not accumulate it) or ``mode: round`` (each sample rounded
+                       on its own, as a rate register is: white ``LSB^2 / 12`` per sample).
 ``range``              full-scale of the rate output (saturation), fixed.
 ``temperature_bias``   1-sigma per axis of the bias temperature coefficient.
 ``temperature_scale_factor``  1-sigma per axis of the scale-factor temperature coefficient.
+
+Besides the terms, a sensor may give its output ``bandwidth`` (not an error term: the part's
+internal sample rate and digital low-pass, :func:`imugen.sensors.bandwidth.spec_from_config`):
+the whole sensed signal -- motion, vibration and noise -- goes through it before
+quantization, and ``white_noise`` is then the sensor's own (passband) density. Without it the
+output is ideal: white noise ``N / sqrt(dt)`` per sample (a bandwidth of half the rate).
 
 Grade keys besides the sensors: ``variant`` (``uncalibrated``, default: the part's turn-on
 figures; or ``calibrated``: residuals after a calibration, which ``calibration`` names with its
 source) and ``calibrated_at_rest`` (calibrated grades: the bias was measured at rest and level,
 so it also removed the static error on gravity: the gyro g-sensitivity's ``G (0, 0, g0)``
-and the accelerometer scale factor and cross-coupling's ``E (0, 0, g0)``).
+and the accelerometer scale factor and cross-coupling's ``E (0, 0, g0)``; ``true`` for both
+sensors, or a list of the sensors whose bias was so calibrated, e.g. ``[gyro]`` for a phone
+whose OS estimates the gyro bias at rest and leaves the accelerometer alone).
 
 Every entry: ``value`` (scalar or three per-axis values), optional ``range: [lo, hi]`` (same
 unit; sequences draw a level log-uniformly inside it, see :mod:`imugen.simulate.stage`), ``unit``,
@@ -74,6 +85,7 @@ import yaml
 from imugen.core import units
 from imugen.core.earth import GradeFigures
 from imugen.core.errors import InputError
+from imugen.sensors.bandwidth import BandwidthSpec, spec_from_config
 
 SENSORS = ("gyro", "accel")
 
@@ -139,6 +151,8 @@ FIXED_TERMS = ("quantization", "range")
 """Terms that are device constants (no Monte-Carlo range)."""
 
 _ENTRY_KEYS = {"value", "range", "unit", "kind", "source", "note"}
+QUANTIZATION_MODES = ("carry", "round")
+"""How the rate output is quantized (``quantization.mode``)."""
 _BI_KEYS = _ENTRY_KEYS | {"model", "correlation_time", "flicker_band", "components", "start"}
 _GRADE_KEYS = {
     "id",
@@ -328,6 +342,10 @@ class SensorSpec:
     range: Param | None = None
     temperature_bias: Param | None = None
     temperature_scale_factor: Param | None = None
+    bandwidth: BandwidthSpec | None = None
+    """Output bandwidth (None: ideal, white noise ``N / sqrt(dt)`` per sample)."""
+    quantization_mode: str = "carry"
+    """``"carry"`` or ``"round"`` (see ``quantization``)."""
     static_g_removed: bool = False
     """Sensor of a grade calibrated at rest and level: the bias estimate also absorbed the
     static error on gravity -- ``G (0, 0, g0)`` for a gyro's g-sensitivity, ``E (0, 0, g0)``
@@ -515,7 +533,7 @@ def _sensor(cfg, sensor, origin, where) -> SensorSpec:
         return SensorSpec(sensor)
     if not isinstance(cfg, dict):
         raise _err(origin, where, f"expected a mapping of error terms, got {cfg!r}")
-    known = [t for t in TERMS if sensor in _TERMS[t][0]]
+    known = [t for t in TERMS if sensor in _TERMS[t][0]] + ["bandwidth"]
     extra = set(cfg) - set(known)
     if extra:
         raise _err(origin, where, f"unknown term(s) {sorted(extra)}; known: {', '.join(known)}")
@@ -524,7 +542,19 @@ def _sensor(cfg, sensor, origin, where) -> SensorSpec:
         if entry is None:
             continue
         w = f"{where}.{t}"
-        if t == "bias_instability":
+        if t == "bandwidth":
+            kw[t] = spec_from_config(entry, origin, w)
+        elif t == "quantization" and isinstance(entry, dict) and "mode" in entry:
+            mode = entry["mode"]
+            if mode not in QUANTIZATION_MODES:
+                raise _err(origin, w, f"mode: one of {', '.join(QUANTIZATION_MODES)}, got {mode!r}")
+            dims, kinds, dk = _TERMS[t]
+            rest = {k: v for k, v in entry.items() if k != "mode"}
+            kw[t] = _param(rest, dims[sensor], kinds, dk, origin, w, fixed=True)
+            kw["quantization_mode"] = mode
+            if min(kw[t].value) <= 0:
+                raise _err(origin, w, "must be > 0")
+        elif t == "bias_instability":
             kw[t] = _bias_instability(entry, sensor, origin, w, cfg.get("turn_on_bias") is not None)
         else:
             dims, kinds, dk = _TERMS[t]
@@ -580,10 +610,21 @@ def grade_from_config(name: str, cfg: dict, origin: str = "<config>") -> Grade:
             origin, where, "a calibrated grade needs 'calibration': which one, and its source"
         )
     at_rest = cfg.get("calibrated_at_rest", False)
-    if not isinstance(at_rest, bool) or (at_rest and variant != "calibrated"):
-        raise _err(origin, where, "calibrated_at_rest is true or false, and only for calibrated")
-    if at_rest:
+    if at_rest is True:
+        at_rest = list(SENSORS)
+    ok = at_rest is False or (
+        isinstance(at_rest, list) and all(x in SENSORS for x in at_rest) and at_rest
+    )
+    if not ok or (at_rest and variant != "calibrated"):
+        raise _err(
+            origin,
+            where,
+            "calibrated_at_rest is true, false or a list of sensors (gyro, accel), and only "
+            "for calibrated",
+        )
+    if at_rest and "gyro" in at_rest:
         gyro = dataclasses.replace(gyro, static_g_removed=True)
+    if at_rest and "accel" in at_rest:
         accel = dataclasses.replace(accel, static_g_removed=True)
     return Grade(
         name,

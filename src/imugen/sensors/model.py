@@ -63,7 +63,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from imugen.core import units
-from imugen.sensors._kernel import kernel, kernel_increments
+from imugen.sensors._kernel import kernel, kernel_increments, quantize_series
+from imugen.sensors.bandwidth import Stream
 from imugen.sensors.grades import TERMS, SensorSpec
 
 # Layout of one sequence's parameter draw for one sensor (always drawn in full, whatever is
@@ -119,6 +120,9 @@ class SensorParams:
     lsb: float
     full_scale: float
     bi_x0: np.ndarray | None = None
+    q_round: bool = False
+    """Quantize each rate sample on its own (``quantization.mode: round``) instead of
+    carrying the residual."""
 
     def __post_init__(self):
         if self.bi_x0 is None:
@@ -149,7 +153,7 @@ class SensorParams:
             "bi_x0",
         ):
             kw[name] = np.concatenate([getattr(p, name) for p in items])
-        return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale)
+        return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale, q_round=f.q_round)
 
     def labels(self, prefix: str, unit: str) -> dict[str, np.ndarray]:
         """Flat label columns ``{name: (S,) array}`` with the SI unit in each name."""
@@ -297,6 +301,7 @@ def draw_sensor(
         lsb=float(lsb),
         full_scale=float(full_scale),
         bi_x0=bi_x0[None],
+        q_round=spec.quantization_mode == "round",
     )
 
 
@@ -333,9 +338,15 @@ class SensorModel:
         Drawn parameters (leading axis ``S``).
     dt : float
         Sample interval [s].
+    band : OutputFilter, optional
+        The sensor's output bandwidth read at ``1 / dt`` (:mod:`imugen.sensors.bandwidth`):
+        the whole sensed signal goes through it before quantization, and the white noise is
+        generated at its internal rate from ``band_rngs`` instead of ``zw``.
+    band_rngs : list of numpy.random.Generator
+        One stream per sequence (with ``band``).
     """
 
-    def __init__(self, params: SensorParams, dt: float):
+    def __init__(self, params: SensorParams, dt: float, band=None, band_rngs=None):
         self.p = params
         self.dt = float(dt)
         phi = np.exp(-self.dt / params.bi_tau)  # (S, C)
@@ -348,6 +359,12 @@ class SensorModel:
         self.use_t = bool(np.any(params.tb != 0) or np.any(params.ts != 0))
         self.state = SensorState(len(params.b_on), params.components)
         self._slow = np.empty((0, 3))  # scratch of the kernel's slow-bias pass, reused
+        self.stream = None
+        if band is not None:
+            if band_rngs is None or len(band_rngs) != len(params.b_on):
+                raise ValueError("a bandwidth needs one noise stream per sequence")
+            self.stream = Stream(band, params.white, band_rngs)
+            self.use_w = False  # the stream generates the white noise at the internal rate
 
     @property
     def normals_per_sample(self) -> int:
@@ -396,6 +413,60 @@ class SensorModel:
             g-sensitivity, temperature, saturation excess), so that output = true + error +
             white noise + quantization error.
         """
+        if self.stream is not None or self.p.q_round:
+            self._step_post(k0, u, du, a, da, dT, zw, zr, zb, out_rate, out_inc, out_bias,
+                            out_sf, out_err_rate, out_err_inc)  # fmt: skip
+            return
+        self._step(k0, u, du, a, da, dT, zw, zr, zb, out_rate, out_inc, out_bias, out_sf,
+                   out_err_rate, out_err_inc, self.p.lsb)  # fmt: skip
+
+    def _step_post(self, k0, u, du, a, da, dT, zw, zr, zb, out_rate, out_inc, out_bias, out_sf,
+                   out_err_rate, out_err_inc):  # fmt: skip
+        """Bandwidth and/or rounding quantization: the kernel without quantization (and,
+        with a bandwidth, without white noise) into float64 scratch, then the output filter
+        with its internal-rate noise, saturation, and quantization here."""
+        p, dt, L = self.p, self.dt, len(u)
+        S = len(p.b_on)
+        band = self.stream
+        r64 = np.empty((S, L, 3)) if out_rate is not None else None
+        i64 = np.empty((S, L, 3)) if out_inc is not None else None
+        er = np.empty((S, L, 3)) if out_err_rate is not None and band is None else None
+        ei = np.empty((S, L, 3)) if out_err_inc is not None and band is None else None
+        self._step(k0, u, du, a, da, dT, zw, zr, zb, r64, i64, out_bias, out_sf, er, ei, 0.0)
+        noise = band.noise(k0, L) if band is not None else None
+        st = self.state
+        if r64 is not None:
+            if band is not None:
+                r64 = band.motion("rate", k0, r64)
+                if out_err_rate is not None:
+                    out_err_rate[...] = r64 - u[None]
+                np.clip(r64 + noise, -p.full_scale, p.full_scale, out=r64)
+            elif er is not None:
+                out_err_rate[...] = er
+            quantize_series(r64, p.lsb, p.q_round, st.q_rate)
+            out_rate[...] = r64
+        if i64 is not None:
+            if band is not None:
+                if k0 == 0 and L > 1:  # sample 0 has no interval: start the filter at sample 1
+                    i64[:, 0] = i64[:, 1]
+                i64 = band.motion("increments", k0, i64 / dt) * dt
+                if k0 == 0:
+                    i64[:, 0] = 0.0
+                if out_err_inc is not None:
+                    out_err_inc[...] = i64 - du[None]
+                    if k0 == 0:
+                        out_err_inc[:, 0] = 0.0
+                fs = p.full_scale * dt
+                np.clip(i64 + noise * dt, -fs, fs, out=i64)
+                if k0 == 0:
+                    i64[:, 0] = 0.0
+            elif ei is not None:
+                out_err_inc[...] = ei
+            quantize_series(i64, p.lsb * dt, p.q_round, st.q_inc)
+            out_inc[...] = i64
+
+    def _step(self, k0, u, du, a, da, dT, zw, zr, zb, out_rate, out_inc, out_bias, out_sf,
+              out_err_rate, out_err_inc, lsb):  # fmt: skip
         p = self.p
         st = self.state
         if len(self._slow) < len(u):
@@ -416,7 +487,7 @@ class SensorModel:
                               _EMPTY3 if zb is None else zb, self.use_w and zw is not None,
                               self.use_r and zr is not None, self.use_b and zb is not None, p.b_on,
                               p.bi_x0, self.phi, self.drv, p.white, p.rrw, p.sf, p.cc, p.gs, use_g,
-                              p.ts, p.lsb, p.full_scale, st.x, st.r, st.s_prev, st.q_inc,
+                              p.ts, lsb, p.full_scale, st.x, st.r, st.s_prev, st.q_inc,
                               out_inc)  # fmt: skip
             return
         kernel(
@@ -446,7 +517,7 @@ class SensorModel:
             use_g,
             p.tb,
             p.ts,
-            p.lsb,
+            lsb,
             p.full_scale,
             st.x,
             st.r,

@@ -1,4 +1,4 @@
-"""Options of ``imugen grade import`` and ``imugen grade export``; imports nothing else."""
+"""Options of ``imugen grade import``, ``grade export`` and ``grade fit``; imports nothing else."""
 
 from __future__ import annotations
 
@@ -28,6 +28,31 @@ class GradeExportOptions:
     topic: str = option("/imu0", help="rostopic")
 
 
+@dataclass(frozen=True, kw_only=True)
+class GradeFitOptions:
+    """How a still log is read and fitted (:func:`imugen.sensors.fit.run`)."""
+
+    rate_hz: float | None = option(
+        None, unit="Hz", shown="from the log's time stamps", help="sample rate of the log"
+    )
+    name: str = option("fitted", help="grade name")
+    grade_id: int = option(1000, flag="--id", help="stable grade id >= 100")
+    internal_rate_hz: float | None = option(
+        None,
+        unit="Hz",
+        shown="16 x the rate",
+        help="the part's internal sample rate, if known (ADIS16405: 819.2)",
+    )
+    bias_model: str = option(
+        "auto",
+        choices=("auto", "flicker", "gauss_markov"),
+        help="in-run bias: auto chooses by the width of the Allan floor (and says why)",
+    )
+    plot: str | None = option(
+        None, shown="beside the grade, .png", help="figure of the measured and fitted Allan curves"
+    )
+
+
 _OUT = "-o", "--output"
 COMMANDS = {
     "grade import": Command(
@@ -48,6 +73,18 @@ COMMANDS = {
         (
             argument("grade", help="preset name, or FILE.yaml:NAME"),
             argument(*_OUT, help="imu.yaml to write (default: print)"),
+        ),
+    ),
+    "grade fit": Command(
+        GradeFitOptions,
+        "imugen.sensors.fit:main",
+        (
+            argument(
+                "log",
+                help="still IMU log: CSV with named columns, Parquet, EuRoC imu0/data.csv, "
+                "ROS 2 bag (sensor_msgs/Imu)",
+            ),
+            argument(*_OUT, required=True, help="grade YAML to write"),
         ),
     ),
 }

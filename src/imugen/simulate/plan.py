@@ -171,8 +171,12 @@ class Plan:
             "seed": np.full(M, self.seed, np.int64),
             "grade_id": np.full(M, self.grade.id, np.int32),
         }
-        d.update(SensorParams.stack(self.gp).labels("gyro", "radps"))
-        d.update(SensorParams.stack(self.ap).labels("accel", "mps2"))
+        gp, ap = SensorParams.stack(self.gp), SensorParams.stack(self.ap)
+        d.update(gp.labels("gyro", "radps"))
+        d.update(ap.labels("accel", "mps2"))
+        eye = np.eye(3)[None]
+        d.update(tshard.static_labels("gyro", gp.b_on, gp.cc + gp.sf[:, :, None] * eye, gp.gs))
+        d.update(tshard.static_labels("accel", ap.b_on, ap.cc + ap.sf[:, :, None] * eye))
         if self.mount is not None:
             d.update(tshard.mounting_labels(*(np.array(x) for x in zip(*self.mount, strict=True))))
         if self.vib is not None:

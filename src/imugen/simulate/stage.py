@@ -88,6 +88,13 @@ class Shard:
     meta: dict
 
 
+def _band(spec, sensor, dt, rng):
+    """``(filter, [rng])`` of a sensor with an output bandwidth read every ``dt``, else ``()``."""
+    if spec.bandwidth is None:
+        return ()
+    return spec.bandwidth.output_filter(sensor, 1.0 / dt), [rng]
+
+
 def _loop(plan: Plan, sink, progress=None):
     """Generate every sequence in time chunks and hand each chunk to ``sink.put``.
 
@@ -109,7 +116,16 @@ def _loop(plan: Plan, sink, progress=None):
     nz = {}
     normals = 0
     for j in range(M):
-        models = {"gyro": SensorModel(gp[j], dt), "accel": SensorModel(ap[j], dt)}
+        models = {
+            s: SensorModel(
+                par,
+                dt,
+                *_band(
+                    grade.sensor(s), s, dt, sensor_rng(seed, rid, grade.id, shard, j, f"{s}_band")
+                ),
+            )
+            for s, par in (("gyro", gp[j]), ("accel", ap[j]))
+        }
         rngs = {}
         for s, m in models.items():
             normals += m.normals_per_sample

@@ -42,7 +42,14 @@ the IMU's misalignment from the vehicle ``mount_roll_rad``, ``mount_pitch_rad``,
 ``mount_yaw_rad`` (``C_vb = Rz(yaw) Ry(-pitch) Rx(roll)``, IMU axes ``b`` from vehicle axes
 ``v``) and its lever arm from the vehicle reference point ``lever_arm_{x,y,z}_m`` (vehicle
 axes): the IMU measures at that point in those axes, and its truth is the vehicle's moved there
-(:func:`imugen.sensors.mounting.imu_states`; :func:`mounting` reads them back). Both
+(:func:`imugen.sensors.mounting.imu_states`; :func:`mounting` reads them back), and the
+static terms a user would fit, named apart (:func:`static_labels`): the additive bias
+``{gyro,accel}_turn_on_bias_{x,y,z}_{radps,mps2}`` (for a grade calibrated at rest, the
+calibration's residual minus the static gravity error it absorbed), the gyro g-sensitivity on
+gravity ``gyro_g_sensitivity_gravity_{x,y,z}_radps`` (``G (0, 0, g0)``), the accelerometer
+scale factor and cross-coupling on gravity ``accel_scale_factor_gravity_{x,y,z}_mps2``
+(``E (0, 0, g0)``), and their sum, what the still, level sensor reads beyond the truth at
+turn-on: ``{gyro,accel}_bias_at_rest_{x,y,z}_{radps,mps2}``. Both
 files carry the shard metadata (JSON under ``b"imugen"``; :data:`FORMAT`); a shard written
 from corrected data by :func:`imugen.write_shard` has ``derived`` set.
 """
@@ -507,6 +514,39 @@ def read_labels(path, meta: dict | None = None) -> pd.DataFrame:
     if not lp.exists():
         raise InputError(lp, "labels sidecar missing (incomplete shard?)")
     return read_table(lp, what="shard labels table").to_pandas()
+
+
+G0 = 9.80665
+"""Standard gravity [m/s^2] of the static labels (:data:`imugen.core.units.G0`)."""
+
+
+def static_labels(sensor: str, b_on, E, G=None) -> dict:
+    """The static terms of one triad, named apart (see the module docstring).
+
+    Parameters
+    ----------
+    sensor : {"gyro", "accel"}
+    b_on : (S, 3)
+        Additive turn-on bias [rad/s | m/s^2].
+    E : (S, 3, 3)
+        Scale factor (diagonal) and cross-coupling.
+    G : (S, 3, 3), optional
+        Gyro g-sensitivity [rad/s per m/s^2].
+    """
+    unit = "radps" if sensor == "gyro" else "mps2"
+    b = np.asarray(b_on, float)
+    out = {}
+    if sensor == "gyro":
+        grav = np.asarray(G, float)[:, :, 2] * G0
+        name = "gyro_g_sensitivity_gravity"
+    else:
+        grav = np.asarray(E, float)[:, :, 2] * G0
+        name = "accel_scale_factor_gravity"
+    for i, a in enumerate("xyz"):
+        out[f"{name}_{a}_{unit}"] = grav[:, i]
+    for i, a in enumerate("xyz"):
+        out[f"{sensor}_bias_at_rest_{a}_{unit}"] = b[:, i] + grav[:, i]
+    return out
 
 
 def mounting_labels(angles, lever) -> dict:
