@@ -41,6 +41,10 @@ FORMATS = (
     Format("NMEA 0183", (".nmea",), "nmea"),
     Format("IGC", (".igc",), "igc"),
     Format("GeoJSON", (".geojson", ".json"), "geojson"),
+    Format("TUM pose trajectory (t x y z qx qy qz qw)", (".txt", ".tum"), "pose"),
+    Format("EuRoC ground truth CSV (state_groundtruth_estimate0)", (".csv",), "pose"),
+    Format("CSV with named pose columns (time, x y z, qw qx qy qz)", (".csv",), "pose"),
+    Format("ROS 2 bag poses (PoseStamped, Odometry; .db3, .mcap)", (".db3", ".mcap"), "pose"),
     Format("GPSBabel conversions (FIT, TCX, GDB, OziExplorer, SBP, SBN)", tuple(GPSBABEL), "babel"),
 )
 """Every format ingestion reads."""
