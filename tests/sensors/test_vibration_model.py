@@ -92,3 +92,37 @@ def test_white_noise_has_no_vibration():
 def test_alias():
     assert alias(367.0, 410.0) == pytest.approx(43.0)
     assert alias(100.0, 410.0) == pytest.approx(100.0)
+
+
+def test_cli_fits_a_recording_against_its_truth(tmp_path):
+    """`imugen vibration fit`: a hovering multirotor's record = truth + vibration + noise."""
+    import pandas as pd
+    import yaml
+
+    from imugen.cli import main
+    from imugen.tables import truth as ttable
+    from imugen.truth.build import build_truth, enu_table
+
+    t = np.arange(0.0, 40.0, 0.5)
+    p = np.column_stack([0.05 * np.sin(0.2 * t), 0 * t, 1.0 + 0 * t])
+    df, meta = enu_table(p, t, (47.4, 8.5, 400.0))
+    tr, tm = build_truth(df, meta, rate_hz=500.0, earth="flat", vehicle="multirotor", verbose=False)
+    ttable.write(tr, tm, tmp_path / "truth.parquet")
+    rng = np.random.default_rng(11)
+    m = preset("quadrotor")
+    gyro, accel = simulate(m, 500.0, len(tr), rng)
+    rec = pd.DataFrame({"time_s": tr[ttable.TIME]})
+    for i, ax in enumerate("xyz"):
+        rec[f"gyro_{ax}_radps"] = (
+            tr[ttable.GYRO[i]] + gyro[:, i] + 1e-2 * rng.standard_normal(len(tr))
+        )
+        rec[f"accel_{ax}_mps2"] = (
+            tr[ttable.ACCEL[i]] + accel[:, i] + 0.05 * rng.standard_normal(len(tr))
+        )
+    rec.to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "vib.yaml"
+    main(["vibration", "fit", str(tmp_path / "rec.csv"), f"--truth={tmp_path / 'truth.parquet'}",
+          f"--rotation-hz={m.rotation_hz}", f"--output={out}"])  # fmt: skip
+    fit = VibrationModel.from_dict(yaml.safe_load(out.read_text())["vibration"])
+    assert [h.order for h in fit.harmonics] == [1.0, 2.0, 4.0]
+    np.testing.assert_allclose(fit.variance("accel"), m.variance("accel"), rtol=0.1)
