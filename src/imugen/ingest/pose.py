@@ -31,6 +31,8 @@ from imugen.ingest.route import RoutePath
 WORLDS = ("enu", "ned", "flu", "ecef")
 """World frames of a pose file (``--pose-world``)."""
 _C_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+ECEF_RADIUS_M = (6_356_752.0 - 11_000.0, 6_378_137.0 + 100_000.0)
+"""Distances from the Earth's centre of ECEF poses accepted (the heights ingestion accepts)."""
 MAX_NORM_ERROR = 0.1
 """Quaternions whose norm differs from 1 by more than this are not attitudes (dropped)."""
 
@@ -90,6 +92,15 @@ def on_the_earth(p: RoutePath, world: str, yaw_deg: float, source) -> RoutePath:
         return p
     if world == "ecef":
         r = p.enu_m
+        radius = np.linalg.norm(r, axis=1)
+        far = ~((radius > ECEF_RADIUS_M[0]) & (radius < ECEF_RADIUS_M[1]))
+        if far.any():
+            i = int(np.flatnonzero(far)[0])
+            raise InputError(
+                source,
+                f"pose {i + 1} lies {radius[i]:.6g} m from the Earth's centre: not an ECEF "
+                "position near the Earth (--pose-world=ecef takes ECEF metres)",
+            )
         lat, lon, h = ea.geodetic_from_ecef(r)
         C_le = ea.C_en_from_geodetic(lat, lon)
         q = rot.quat_mul(rot.dcm_to_quat(C_le), p.attitude)

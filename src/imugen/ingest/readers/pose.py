@@ -186,6 +186,12 @@ def _csv_rows(data: bytes, path: Path):
     return names, rows
 
 
+def _raw_header(data: bytes, path: Path) -> list[str]:
+    """Header fields as written (case and units kept)."""
+    first = next(ln for ln in _decode(data, path).splitlines() if ln.strip())
+    return first.split(",")
+
+
 def _integer_clock(rows, j: int, path: Path) -> tuple[np.ndarray, int] | None:
     """Integer times of column ``j`` relative to the first (exact), or None if not integers."""
     try:
@@ -215,7 +221,7 @@ def read_pose_csv(path: str | Path, data: bytes) -> list[RoutePath]:
     a = _numbers(rows, path, len(names))
     it = next(names.index(n) for n in _TIME if n in names)
     ip, iq = _group(names, _POS), _group(names, _QUAT)
-    raw_name = _decode(data, path).splitlines()[0].split(",")[it].lower()
+    raw_name = _raw_header(data, path)[it].lower()
     unit = next((u for u in ("ns", "us", "ms") if f"_{u}" in raw_name or f"[{u}]" in raw_name), "s")
     scale = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[unit]
     note = f"time column {names[it]!r} in {unit}"
