@@ -126,3 +126,48 @@ def test_cli_fits_a_recording_against_its_truth(tmp_path):
     fit = VibrationModel.from_dict(yaml.safe_load(out.read_text())["vibration"])
     assert [h.order for h in fit.harmonics] == [1.0, 2.0, 4.0]
     np.testing.assert_allclose(fit.variance("accel"), m.variance("accel"), rtol=0.1)
+
+
+def test_multirotor_vibration_is_locked_to_the_truths_rotors(tmp_path):
+    """`simulate.vibration: vehicle` on a multirotor truth: the quadrotor preset, its
+    harmonics at the truth's rotor speed; a fitted model's YAML runs through the same kernel."""
+    import yaml
+
+    from imugen.sensors.ideal import ArrayTruth
+    from imugen.sensors.vibration import setup_vibration
+    from imugen.sensors.vibration_model import kernel_profile
+    from imugen.tables import truth as ttable
+    from imugen.truth.build import build_truth, enu_table
+
+    t = np.arange(0.0, 12.0, 0.5)
+    df, meta = enu_table(np.tile([0.0, 0.0, 1.0], (len(t), 1)), t, (47.4, 8.5, 400.0))
+    tr, tm = build_truth(
+        df, meta, rate_hz=1000.0, earth="flat", vehicle="multirotor", verbose=False
+    )
+    ttable.write(tr, tm, tmp_path / "truth.parquet")
+    truth = ArrayTruth.read(tmp_path / "truth.parquet")
+    rpm = tr[list(ttable.ROTORS[:4])].to_numpy().mean(axis=1)
+    np.testing.assert_allclose(truth.rotor_rpm, rpm)
+    vib = setup_vibration(truth, "vehicle")
+    assert vib.profile.name == "quadrotor" and vib.profile.rotation == "rotor"
+    np.testing.assert_allclose(vib.shaft_radps, 2 * math.pi * rpm / 60.0)
+    seq = vib.draw(np.random.default_rng(1))
+    z = np.zeros((truth.K, 3))
+    _, f_c, _, _ = seq.apply(0, z, z, z, z)
+    f, P = signal.welch(f_c[:, 2], fs=1000.0, nperseg=4096)
+    blade_pass = 2 * rpm.mean() / 60.0  # two-blade props
+    assert abs(f[np.argmax(P)] - blade_pass) < 2 * (f[1] - f[0])
+    # a fitted model's YAML, as `imugen vibration fit` writes it
+    m = preset("quadrotor")
+    (tmp_path / "vib.yaml").write_text(yaml.safe_dump({"vibration": _plain(m.as_dict())}))
+    prof = kernel_profile(str(tmp_path / "vib.yaml"))
+    assert prof.orders == (1.0, 2.0, 4.0) and "gyro broadband" in prof.source
+    np.testing.assert_allclose(
+        np.asarray(prof.accel_g) * 9.80665, [h.accel_mps2 for h in m.harmonics]
+    )
+
+
+def _plain(x):
+    from imugen.sensors.vibration_fit import _plain as plain
+
+    return plain(x)

@@ -172,6 +172,69 @@ def quadrotor_preset(hover_rpm=5500.0, blades=2):
     )
 
 
+def load(path) -> VibrationModel:
+    """The model of a YAML written by ``imugen vibration fit`` (its ``vibration:`` mapping), or
+    of a YAML holding the model's mapping itself."""
+    from pathlib import Path
+
+    import yaml
+
+    from imugen.core.errors import InputError
+
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise InputError(path, f"is not a readable YAML file ({type(exc).__name__})") from None
+    doc = doc.get("vibration", doc) if isinstance(doc, dict) else doc
+    try:
+        return VibrationModel.from_dict(doc)
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise InputError(path, f"is not a vibration model ({exc})") from None
+
+
+def kernel_profile(option, lines_per_axis: int = 24):
+    """The case-motion kernel's :class:`imugen.sensors.vibration.Profile` of ``"quadrotor"``
+    or of a model's YAML file: harmonics (linear amplitudes, and angular ones
+    ``gyro / (2 pi o f_rot)``) locked to the truth's rotor speed when it has one (``rotation =
+    "rotor"``, else the model's constant rotation), the accelerometer broadband as
+    ``lines_per_axis`` lines per axis at a constant level. The kernel has no gyro broadband
+    and no fixed-frequency lines: a model's are left out (named in the profile's ``source``)."""
+    from imugen.core.errors import InputError
+    from imugen.sensors.vibration import Profile
+
+    model = quadrotor_preset() if option == "quadrotor" else load(option)
+    f_rot = model.rotation_hz
+    if not f_rot > 0 and model.harmonics:
+        raise InputError(option, "a model with harmonics needs its rotation_hz")
+    dropped = []
+    if any(model.gyro_rms_radps):
+        dropped.append("gyro broadband")
+    if model.lines:
+        dropped.append(f"{len(model.lines)} fixed-frequency lines")
+    note = f"; left out by the kernel: {', '.join(dropped)}" if dropped else ""
+    return Profile(
+        name=model.name,
+        orders=tuple(h.order for h in model.harmonics),
+        accel_g=tuple(tuple(a / G0 for a in h.accel_mps2) for h in model.harmonics),
+        angle_rad=tuple(
+            tuple(g / (2.0 * math.pi * h.order * f_rot) for g in h.gyro_radps)
+            for h in model.harmonics
+        ),
+        idle_rpm=f_rot * 60.0,
+        shift_rpm=f_rot * 60.0,
+        lag_s=0.0,
+        band_hz=tuple(model.band_hz),
+        noise_g=tuple(a / G0 for a in model.accel_rms_mps2),
+        lines=lines_per_axis,
+        gain_range=tuple(model.gain_range),
+        source=(model.source or model.name) + note,
+        rotation="rotor",
+    )
+
+
 # ===========================================================================================
 # simulation
 # ===========================================================================================

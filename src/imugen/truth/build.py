@@ -416,8 +416,8 @@ def build_truth(
     stats["speed_max_mps"] = float(np.linalg.norm(out[:, ci["vel"]], axis=1).max())
     y_in = enu[list(tenu.ENU)].to_numpy(dtype=float)  # its length is frame-independent
     t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
-    if pose and opts.pose is not None:
-        t_in = t_in + opts.pose.time_offset_s
+    if pose:  # the fit report gives the distances to the poses; dense poses: no arcs
+        t_in = None
     plaus = plausibility(
         df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne, frame=E.frame
     )

@@ -473,7 +473,8 @@ def pose_pass(out, ci, motion, times, E, chunk):
     f_n : ndarray, shape (K, 3)
         Specific force in n [m/s^2].
     stats : dict
-        Acceleration and jerk figures; ``airborne`` (K,) all False.
+        Acceleration and jerk figures; ``airborne`` (K,) all True (the ground-vehicle
+        limits of :func:`imugen.truth.report.plausibility` do not apply to a given attitude).
     """
     K = len(times)
     f_n_all = np.empty((K, 3))
@@ -496,7 +497,8 @@ def pose_pass(out, ci, motion, times, E, chunk):
         "accel_max_mps2": acc_max,
         "jerk_max_mps3": jerk_max,
         "attitude": "given (pose trajectory)",
-        "airborne": np.zeros(K, dtype=bool),
+        # the ground-vehicle limits (roll, slip, heading) do not apply to a given attitude
+        "airborne": np.ones(K, dtype=bool),
     }
     return f_n_all, stats
 
