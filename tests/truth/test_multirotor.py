@@ -80,3 +80,13 @@ def test_closure_wgs84():
     res = closure_of_truth(tr, tm)
     assert res["final_position_error_m"] < 1e-6
     assert res["max_attitude_error_rad"] < 1e-9
+
+
+def test_untimed_waypoints_are_flown():
+    """An untimed multirotor route: speed profile, flatness attitude, plausible, closes."""
+    p = np.array([[0, 0, 2], [20, 0, 2], [20, 20, 5], [0, 20, 5], [0, 0, 2.0]])
+    df, meta = enu_table(p, None, (47.4, 8.5, 400.0))
+    tr, tm = build_truth(df, meta, rate_hz=100.0, earth="flat", vehicle="multirotor", verbose=False)
+    assert not tm["plausibility"]["warnings"]
+    assert tm["plausibility"]["multirotor"]["rotor_saturated_high"] == 0
+    assert closure_of_truth(tr, tm)["final_position_error_m"] < 1e-6

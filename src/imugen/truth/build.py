@@ -464,4 +464,25 @@ def build_truth(
 def messages(tmeta: dict) -> list[str]:
     """Lines for stderr of a truth's metadata: its Earth budget and plausibility report."""
     budget = tmeta.get("earth_budget")
-    return (budget["lines"] if budget else []) + report_lines(tmeta["plausibility"])
+    lines = (budget["lines"] if budget else []) + report_lines(tmeta["plausibility"])
+    fit = tmeta.get("fit") or {}
+    if "attitude_residual_rms_rad" in fit:  # a pose truth (imugen.truth.pose)
+        lines.insert(
+            len(budget["lines"]) if budget else 0,
+            f"pose fit: residual RMS {1e3 * fit['position_residual_rms_m']:.3g} mm, "
+            f"{1e3 * fit['attitude_residual_rms_rad']:.3g} mrad (noise "
+            f"{1e3 * max(fit['position_noise_m']):.3g} mm, "
+            f"{1e3 * fit['attitude_noise_rad']:.3g} mrad per axis, {fit['attitude_noise_source']}); "
+            f"cutoffs {', '.join(f'{f:.3g}' for f in fit['position_cutoff_hz'])} Hz, attitude "
+            f"{fit['attitude_cutoff_hz']:.3g} Hz; outliers {fit['position_outliers']} + "
+            f"{fit['attitude_outliers']}, gaps {fit['gaps']} (max {fit['max_gap_s']:.3g} s)",
+        )
+    mr = tmeta["plausibility"].get("multirotor")
+    if mr:
+        lines.append(
+            f"multirotor: tilt <= {math.degrees(mr['max_tilt_rad']):.1f} deg, rotors "
+            f"{mr['rotor_rpm_min']:.0f}-{mr['rotor_rpm_max']:.0f} rpm (blade pass "
+            f"{mr['blade_pass_hz'][0]:.0f}-{mr['blade_pass_hz'][1]:.0f} Hz), T/W <= "
+            f"{mr['thrust_to_weight_max']:.2f}"
+        )
+    return lines
