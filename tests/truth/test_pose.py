@@ -14,6 +14,8 @@ from imugen.tables import truth as col
 from imugen.truth.build import build_truth, enu_table
 from imugen.truth.pose import PoseSettings
 
+from helpers import SHARED
+
 G = 9.80665
 
 
@@ -126,3 +128,41 @@ def test_extrinsics_and_time_offset_give_the_imu():
     dq = rot.log_quat(rot.quat_mul(rot.quat_conj(qa), tr[list(col.QUAT)].to_numpy()))
     assert np.linalg.norm(dq, axis=1)[inner].max() < 1e-4
     assert np.abs(tr[list(col.GYRO)].to_numpy() - wa)[inner].max() < 5e-3
+
+
+COMMA = SHARED / "data" / "imu" / "comma2k19_segment"
+
+
+@pytest.mark.shared
+@pytest.mark.skipif(not COMMA.is_dir(), reason="../shared comma2k19 segment absent")
+def test_real_ins_pose_through_ingest(tmp_path):
+    """comma2k19's 20 Hz INS/GNSS poses (ECEF, device FRD) as a pose CSV through `imugen
+    ingest` and the truth: small residuals, closure in wgs84, and body rates that follow the
+    phone's own gyro."""
+    from imugen.ingest.stage import ingest
+
+    def load(name):
+        return np.load(COMMA / name)
+
+    t = load("global_pose/frame_times")
+    r, q = load("global_pose/frame_positions"), load("global_pose/frame_orientations")
+    rows = [f"{t[i] - t[0]:.6f},{r[i, 0]:.4f},{r[i, 1]:.4f},{r[i, 2]:.4f},{q[i, 0]:.12f},"
+            f"{q[i, 1]:.12f},{q[i, 2]:.12f},{q[i, 3]:.12f}" for i in range(len(t))]  # fmt: skip
+    src = tmp_path / "poses.csv"
+    src.write_text("t,x,y,z,qw,qx,qy,qz\n" + "\n".join(rows) + "\n")
+    ing = ingest(src, pose_world="ecef", vehicle="car")
+    tr, tm = build_truth(
+        ing.table, ing.meta, rate_hz=100.0, earth="wgs84", vehicle="car",
+        pose=PoseSettings(pose_body="frd"), verbose=False,
+    )  # fmt: skip
+    fit = tm["fit"]
+    assert fit["position_residual_rms_m"] < 1e-3 and fit["attitude_residual_rms_rad"] < 1e-3
+    res = closure_of_truth(tr, tm)
+    assert res["final_position_error_m"] < 1e-6 and res["max_attitude_error_rad"] < 1e-9
+    tg = load("processed_log/IMU/gyro/t") - t[0]
+    g = load("processed_log/IMU/gyro/value") * [1.0, -1.0, -1.0]  # the phone's FRD -> FLU
+    ts = tr[col.TIME].to_numpy()
+    ok = (tg > ts[0] + 1) & (tg < ts[-1] - 1)
+    gyro = tr[list(col.GYRO)].to_numpy()
+    corr = [np.corrcoef(g[ok, i], np.interp(tg[ok], ts, gyro[:, i]))[0, 1] for i in range(3)]
+    assert min(corr) > 0.7
