@@ -382,6 +382,8 @@ def _ingest(
             raise InputError(name, f"{value!r} must be a positive number")
     if isinstance(origin, str):
         origin = parse_origin(origin)
+    if src.is_dir() and (src / "metadata.yaml").is_file():  # a ROS 2 bag's folder
+        src = src / "metadata.yaml"
     raw = limits.read_input(src)
     cands = read_route_file(src, raw)
     warnings: list[str] = []

@@ -151,7 +151,10 @@ def test_ros2_bag_of_the_exporter(tmp_path):
             wr.write(con, ns, ts.serialize_cdr(msg, Odom.__msgtype__))
     (db,) = bag.glob("*.db3")
     (path,) = read_route_file(db)
+    assert path.name == "/ground_truth/odom"  # a candidate per pose topic
     np.testing.assert_allclose(path.time_unix_s - path.time_unix_s[0], t, atol=1e-6)
     np.testing.assert_allclose(path.enu_m, p)
     assert _angle(path.attitude, q).max() < 1e-12
     assert math.isclose(path.time_unix_s[0], 1.7e9)
+    ing = ingest(bag, origin=ORIGIN, vehicle="multirotor")  # the bag's folder
+    np.testing.assert_allclose(ing.table[list(tenu.ENU)].to_numpy(), p, atol=1e-6)

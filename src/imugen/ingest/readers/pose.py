@@ -16,10 +16,10 @@ CSV with named pose columns
     ``_us``, ``_ms`` suffix or ``[ns]`` gives its unit), a position (``x y z``, ``px py pz``,
     ``p_x ..``, ``pos_x ..``, ``tx ty tz``, ``position_x ..``) and a quaternion (``qw qx qy
     qz``, ``q_w ..``, ``quat_w ..``, ``orientation_w ..``), in any order.
-ROS 2 bag (sqlite3 ``.db3`` or ``.mcap`` file in its bag folder, or its ``metadata.yaml``)
-    The one topic of ``geometry_msgs/msg/PoseStamped``, ``PoseWithCovarianceStamped``,
-    ``nav_msgs/msg/Odometry`` or ``TransformStamped``, else ``/ground_truth/odom`` (what
-    ``imugen export --format=ros2`` writes); header stamps (read with ``rosbags``).
+ROS 2 bag (its folder, its ``metadata.yaml``, or the sqlite3 ``.db3`` / ``.mcap`` file in it)
+    Every topic of ``geometry_msgs/msg/PoseStamped``, ``PoseWithCovarianceStamped``,
+    ``nav_msgs/msg/Odometry`` or ``TransformStamped`` is a candidate named by its topic
+    (``--path=/ground_truth/odom`` chooses one); header stamps (read with ``rosbags``).
 """
 
 from __future__ import annotations
@@ -241,7 +241,7 @@ def is_bag(path: Path, head: bytes) -> bool:
 
 
 def read_ros2_bag(path: str | Path) -> list[RoutePath]:
-    """The poses of a ROS 2 bag's pose topic (module docstring)."""
+    """The poses of each of a ROS 2 bag's pose topics (module docstring)."""
     path = Path(path)
     folder = path.parent
     try:
@@ -249,18 +249,13 @@ def read_ros2_bag(path: str | Path) -> list[RoutePath]:
         from rosbags.typesys import Stores, get_typestore
     except ImportError:  # pragma: no cover - rosbags is a dependency
         raise InputError(path, "reading ROS 2 bags needs the rosbags package") from None
+    per_topic: dict[str, tuple[list, list, list]] = {}
     try:
         with AnyReader([folder], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as rd:
             cons = [c for c in rd.connections if c.msgtype in BAG_KINDS]
-            topics = sorted({c.topic for c in cons})
-            if len(topics) > 1 and "/ground_truth/odom" in topics:
-                topics = ["/ground_truth/odom"]
-            if not topics:
+            if not cons:
                 raise InputError(path, f"the bag has no pose topic ({', '.join(BAG_KINDS)})")
-            if len(topics) > 1:
-                raise InputError(path, f"the bag has several pose topics: {', '.join(topics)}")
-            cons = [c for c in cons if c.topic == topics[0]]
-            ns, pos, quat = [], [], []
+            count = 0
             for con, _t, raw in rd.messages(connections=cons):
                 m = rd.deserialize(raw, con.msgtype)
                 if con.msgtype.endswith("TransformStamped"):
@@ -268,11 +263,13 @@ def read_ros2_bag(path: str | Path) -> list[RoutePath]:
                 else:
                     pose = m.pose.pose if hasattr(m.pose, "pose") else m.pose
                     tr, r = pose.position, pose.orientation
+                ns, pos, quat = per_topic.setdefault(con.topic, ([], [], []))
                 ns.append(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
                 pos.append((tr.x, tr.y, tr.z))
                 quat.append((r.w, r.x, r.y, r.z))
-                if len(ns) > limits.current().points:
-                    limits.check(path, "points", len(ns), f"topic {topics[0]}")
+                count += 1
+                if count > limits.current().points:
+                    limits.check(path, "points", count, f"topic {con.topic}")
     except InputError:
         raise
     except Exception as exc:  # rosbags raises its own errors for broken bags
@@ -280,8 +277,13 @@ def read_ros2_bag(path: str | Path) -> list[RoutePath]:
         raise InputError(
             path, f"is not a readable ROS 2 bag ({limits.shorten(msg, 120)})"
         ) from None
-    if not ns:
-        raise InputError(path, f"topic {topics[0]} holds no messages")
-    ticks = np.asarray(ns, np.int64)
-    note = f"topic {topics[0]}"
-    return [_path(path, "ROS 2 bag", ticks - ticks[0], pos, quat, [note], 1e-9, int(ticks[0]))]
+    out = []
+    for topic, (ns, pos, quat) in sorted(per_topic.items()):
+        ticks = np.asarray(ns, np.int64)
+        c = _path(path, "ROS 2 bag", ticks - ticks[0], pos, quat, [f"topic {topic}"], 1e-9,
+                  int(ticks[0]))  # fmt: skip
+        c.name = topic
+        out.append(c)
+    if not out:
+        raise InputError(path, "the bag's pose topics hold no messages")
+    return out
