@@ -64,9 +64,16 @@ COMMANDS = {
         "still IMU log -> fitted grade (YAML) + Allan figure",
     ),
     "allan": ("imugen.allan.options", "Allan deviation of a static shard against its grade"),
+    "vibration fit": (
+        "imugen.sensors.options",
+        "IMU recording (minus its truth) -> vibration model: broadband + rotation harmonics",
+    ),
 }
 """Command -> (module declaring it in its ``COMMANDS``, one-line help)."""
-GROUPS = {"grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr; fit a log"}
+GROUPS = {
+    "grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr; fit a log",
+    "vibration": "fit a vibration model to a recording",
+}
 """Commands of two words: the first word's help."""
 
 

@@ -1,7 +1,8 @@
 """Structure-aware fuzzing of every reader through ``imugen ingest`` (issues 16 and 22).
 
 Hypothesis builds KML, KMZ, GPX, CSV, E N U, NMEA, IGC, GeoJSON, ROS NavSatFix, hemisphere
-lettered and NUL-padded CSV files, and the GPSBabel formats (FIT, TCX, OziExplorer PLT) from
+lettered and NUL-padded CSV files, pose trajectories (TUM, EuRoC ground truth, CSV with named
+pose columns; issue 28), and the GPSBabel formats (FIT, TCX, OziExplorer PLT) from
 their grammar with hostile leaves (non-finite and overflowing numbers, times at the ends of the
 calendar, stray separators, short records, deep nesting, odd encodings, malformed ``# imugen:``
 comments). Oracle for every case: the command either succeeds with a table of finite numbers,
@@ -732,6 +733,45 @@ def test_fuzz_navsatfix(data):
 @given(lettered_csv_doc())
 def test_fuzz_lettered_and_nul_padded_csv(data):
     check_ingest(data, "log.csv")
+
+
+# --- pose trajectories: TUM, EuRoC ground truth, CSV with named pose columns (issue 28) -------
+POSE_HEADERS = {
+    "tum": "# timestamp tx ty tz qx qy qz qw",
+    "euroc": "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],"
+    "q_RS_y [],q_RS_z []",
+    "csv": "t,x,y,z,qw,qx,qy,qz",
+}
+
+
+@st.composite
+def pose_doc(draw) -> bytes:
+    kind = draw(st.sampled_from(sorted(POSE_HEADERS)))
+    hostile = draw(st.booleans())
+    sep = " " if kind == "tum" else ","
+    lines = [POSE_HEADERS[kind]]
+    for k in range(draw(mostly(st.integers(2, 12), st.integers(0, 14)))):
+        t = str(1403636579758555392 + k * 5_000_000) if kind == "euroc" else repr(0.01 * k)
+        p = [draw(mostly(st.floats(-5, 5).map(repr), numbers)) if hostile else repr(0.1 * k)
+             for _ in range(3)]  # fmt: skip
+        q = [draw(numbers) for _ in range(4)] if hostile else ["1", "0", "0", "0"]
+        if kind == "tum":
+            q = q[1:] + q[:1]
+        cells = [draw(mostly(st.just(t), numbers)) if hostile else t, *p, *q]
+        lines.append(sep.join(cells[: draw(mostly(st.just(8), st.integers(1, 9)))]))
+    return "\n".join(lines).encode()
+
+
+@FUZZ
+@given(
+    pose_doc(),
+    mostly(
+        st.sampled_from([["--origin=40,-105,1600"], ["--origin=40,-105,1600", "--pose-world=ned"]]),
+        st.sampled_from([[], ["--pose-world=ecef"], ["--origin=40,-105,1600", "--pose-world=flu"]]),
+    ),
+)
+def test_fuzz_pose(data, options):
+    check_ingest(data, "poses.txt", *options)
 
 
 @FUZZ

@@ -209,6 +209,19 @@ def ingest_opts(wildcards):
         opts.append(f"--dt={float(r['dt_s'])!r}")
     if r.get("max_extent_km") is not None:
         opts.append(f"--max-extent-km={float(r['max_extent_km'])!r}")
+    opts.append(f"--pose-world={shlex.quote(str(r.get('pose_world', 'enu')))}")
+    opts.append(f"--pose-world-yaw-deg={float(r.get('pose_world_yaw_deg', 0.0))!r}")
+    return " ".join(opts)
+
+
+def truth_pose_opts(wildcards):
+    """`imugen truth` options of a pose trajectory's frames and clock for this route."""
+    r = config["routes"][wildcards.route]
+    opts = [f"--pose-body={shlex.quote(str(r.get('pose_body', 'flu')))}"]
+    for key in ("imu_rotation_deg", "lever_arm_m", "marker_offset_m"):
+        xyz = ",".join(repr(float(x)) for x in r.get(key, (0.0, 0.0, 0.0)))
+        opts.append(f"--{key.replace('_', '-')}={xyz}")
+    opts.append(f"--time-offset-s={float(r.get('time_offset_s', 0.0))!r}")
     return " ".join(opts)
 
 

@@ -19,6 +19,7 @@ rule simulate:
         truth=rules.truth.output[0],
         grade=grade_files,
         presets=PRESETS,
+        vibration=[SIM["vibration"]] if str(SIM["vibration"]).endswith((".yaml", ".yml")) else [],
     output:
         nav=layout.shard("nav"),
         imu=IMU_OUTPUTS,

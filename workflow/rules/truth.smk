@@ -16,8 +16,10 @@ rule truth:
         earth=config["truth"]["earth"],
         vehicle=lambda wc: config["routes"][wc.route]["vehicle"],
         grades=auto_grades() if AUTO_EARTH else "",
+        pose=truth_pose_opts,
     log:
         "logs/{route}/truth.log",
     shell:
         "imugen truth {input.enu:q} --output={output:q} --rate-hz={params.rate_hz} "
-        "--earth={params.earth} --vehicle={params.vehicle} {params.grades} > {log:q} 2>&1"
+        "--earth={params.earth} --vehicle={params.vehicle} {params.pose} {params.grades} "
+        "> {log:q} 2>&1"

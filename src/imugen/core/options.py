@@ -36,7 +36,7 @@ from collections.abc import Callable
 
 from imugen.core.errors import InputError
 
-VEHICLES = ("car", "bicycle", "pedestrian", "aircraft", "airliner")
+VEHICLES = ("car", "bicycle", "pedestrian", "aircraft", "airliner", "multirotor")
 """Vehicle classes: the cleaning limits of ``ingest`` and the motion models of ``truth``
 (tests/system/test_cli.py checks that both stages define exactly these)."""
 DRAWS = ("ranges", "nominal")

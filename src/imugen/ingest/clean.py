@@ -78,6 +78,7 @@ VEHICLE_LIMITS = {
     "pedestrian": Limits(6.0, 4.0),
     "aircraft": Limits(30.0, 30.0),
     "airliner": Limits(30.0, 30.0),
+    "multirotor": Limits(30.0, 30.0),
 }
 #: Outlier threshold in noise standard deviations (a 2-D Gaussian exceeds 5 sigma with
 #: probability 4e-6).

@@ -69,6 +69,22 @@ FORMATS = (
         "from a coordTimes property",
     ),
     Format(
+        "TUM pose trajectory", (".txt", ".tum"), "pose",
+        "t x y z qx qy qz qw rows (6-DoF truth with its attitude)",
+    ),
+    Format(
+        "EuRoC ground truth CSV", (".csv",), "pose",
+        "state_groundtruth_estimate0/data.csv (position and attitude)",
+    ),
+    Format(
+        "CSV with named pose columns", (".csv",), "pose",
+        "a header naming time, x y z and qw qx qy qz (a pose trajectory)",
+    ),
+    Format(
+        "ROS 2 bag poses", (".db3", ".mcap"), "pose",
+        "PoseStamped, PoseWithCovarianceStamped, Odometry, TransformStamped topics; each a candidate",
+    ),
+    Format(
         "GPSBabel conversions (FIT, TCX, GDB, OziExplorer, SBP, SBN)", tuple(GPSBABEL), "babel",
         "converted to GPX by GPSBabel when it is installed; the suffix names its input format: "
         + ", ".join(f"{suffix} ({fmt})" for suffix, fmt in GPSBABEL.items()),

@@ -45,6 +45,15 @@ class IngestOptions:
         "split", choices=("split", "bridge"), config="routes.*.gaps",
         help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
     )  # fmt: skip
+    pose_world: str = option(
+        "enu", choices=("enu", "ned", "flu", "ecef"), config="routes.*.pose_world",
+        help="world frame of a pose trajectory (TUM, EuRoC, pose CSV, ROS 2 bag): local ENU, "
+        "NED or z-up FLU axes with their origin at --origin, or ECEF",
+    )  # fmt: skip
+    pose_world_yaw_deg: float = option(
+        0.0, unit="deg", config="routes.*.pose_world_yaw_deg",
+        help="heading of a flu pose world's x axis, from East towards North",
+    )  # fmt: skip
 
 
 COMMANDS = {

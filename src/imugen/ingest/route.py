@@ -45,6 +45,11 @@ class RoutePath:
         placeholder); None when every point has one or none has. Ingestion interpolates them.
     warnings : list of str
         What the reader did that the user must be told on the command line (printed).
+    attitude : ndarray, shape (n, 4), or None
+        Pose trajectories only: attitude quaternions (scalar first) of the pose body.
+    attitude_frame : str or None
+        What ``attitude`` is relative to: ``"world"`` (the file's world axes, put on the Earth
+        by ``--pose-world``) or ``"level"`` (the local ENU at each point).
     """
 
     name: str
@@ -61,6 +66,8 @@ class RoutePath:
     carried: dict = field(default_factory=dict)
     alt_missing: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
+    attitude: np.ndarray | None = None
+    attitude_frame: str | None = None
 
     @property
     def n_points(self) -> int:

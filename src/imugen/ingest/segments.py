@@ -73,6 +73,7 @@ def _slice(p: RoutePath, sl: slice, name: str, note: str) -> RoutePath:
         enu_m=cut(p.enu_m),
         time_unix_s=cut(p.time_unix_s),
         alt_missing=cut(p.alt_missing),
+        attitude=cut(p.attitude),
         notes=[*p.notes, note],
         warnings=list(p.warnings),
     )

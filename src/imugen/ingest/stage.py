@@ -59,6 +59,7 @@ from imugen.core.frames import LocalFrame, Origin, to_utm, utm_crs
 from imugen.core.geodesic import GEODESIC_STEP_M, densify, sagitta_m
 from imugen.core.io import atomic_output
 from imugen.ingest import limits
+from imugen.ingest import pose as ipose
 from imugen.ingest.clean import clean_path
 from imugen.ingest.options import IngestOptions
 from imugen.ingest.readers import read_route_file
@@ -72,6 +73,7 @@ UNITS = {
     tenu.LON: "deg (WGS-84)",
     tenu.ALT: "m (ellipsoidal height as given by the file)",
     **dict.fromkeys((*tenu.ENU, *tenu.UTM), "m"),
+    **dict.fromkeys(tenu.ATTITUDE, "1 (quaternion, pose body -> local ENU at the point)"),
 }
 _GEOD = Geod(ellps="WGS84")
 ENU_SPAN_M = 2.0 * 6378137.0 + 200e3
@@ -336,7 +338,7 @@ def read(src: str | Path, options: IngestOptions) -> Ingested:
     with np.errstate(over="ignore", invalid="ignore"):  # overflows are refused, not printed
         return _ingest(
             src, o.path, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km, o.gap_warn_s,
-            o.vehicle, o.max_gap_s, o.gaps,
+            o.vehicle, o.max_gap_s, o.gaps, o.pose_world, o.pose_world_yaw_deg,
         )  # fmt: skip
 
 
@@ -367,8 +369,9 @@ def _densify_untimed(lat, lon, alt):
 
 
 def _ingest(
-    src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s, vehicle, max_gap_s, gaps
-) -> Ingested:
+    src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s, vehicle, max_gap_s, gaps,
+    pose_world="enu", pose_world_yaw_deg=0.0,
+) -> Ingested:  # fmt: skip
     src = Path(src)
     for name, value in (
         ("--max-speed-kmh", max_speed_kmh),
@@ -379,6 +382,8 @@ def _ingest(
             raise InputError(name, f"{value!r} must be a positive number")
     if isinstance(origin, str):
         origin = parse_origin(origin)
+    if src.is_dir() and (src / "metadata.yaml").is_file():  # a ROS 2 bag's folder
+        src = src / "metadata.yaml"
     raw = limits.read_input(src)
     cands = read_route_file(src, raw)
     warnings: list[str] = []
@@ -393,7 +398,11 @@ def _ingest(
     )
     warnings += p.warnings
     n_in = p.n_points
-    if n_in < 2:
+    pose_cleaning = None
+    if p.attitude is not None:  # a pose trajectory (imugen.ingest.pose)
+        p, pose_cleaning = ipose.clean_attitude(p, src, warnings)
+        p = ipose.on_the_earth(p, pose_world, pose_world_yaw_deg, src)
+    if p.n_points < 2:
         raise InputError(src, f"path {p.name!r} has {n_in} point(s): a path needs at least two")
 
     origin_from = "option" if origin is not None else None
@@ -411,7 +420,8 @@ def _ingest(
                 "E N U rows need an origin to be placed on the Earth: pass --origin=LAT,LON,H "
                 "(the geodetic position of the first row)",
             )
-        enu_first = p.enu_m - p.enu_m[0]
+        # E N U rows start at the origin; a pose file's world has its origin there
+        enu_first = p.enu_m if p.attitude is not None else p.enu_m - p.enu_m[0]
         _check_enu(enu_first, src)  # differences of finite huge values may overflow
         far = ~(np.linalg.norm(enu_first, axis=1) <= ENU_SPAN_M)
         if far.any():
@@ -433,7 +443,11 @@ def _ingest(
     time_s, time_source, start_utc = _clock(p, pos, dt, warnings, src)
     timed = time_s is not None
     cols = {"pos": pos, "lat": lat, "lon": lon, "alt": alt}
-    cols["alt_missing"] = np.zeros(n_in, bool) if p.alt_missing is None else p.alt_missing
+    cols["alt_missing"] = np.zeros(p.n_points, bool) if p.alt_missing is None else p.alt_missing
+    if p.attitude is not None:
+        if time_s is None:
+            raise InputError(src, "a pose trajectory needs its times (no usable clock)")
+        cols["att"] = p.attitude
     if timed:
         cols["time"] = time_s
     cols = _dedupe(cols, timed, src, warnings)
@@ -505,6 +519,9 @@ def _ingest(
         data[tenu.TIME] = cols["time"]
     data.update({tenu.LAT: lat, tenu.LON: lon, tenu.ALT: alt})
     data.update({c: enu[:, i] for i, c in enumerate(tenu.ENU)})
+    if p.attitude is not None:
+        q = ipose.level_attitude(cols["att"], p.attitude_frame, origin, enu)
+        data.update({c: q[:, i] for i, c in enumerate(tenu.ATTITUDE)})
     utm_meta = None
     if utm:
         try:
@@ -545,6 +562,9 @@ def _ingest(
         "geodesic": geodesic,
         "segments": segments,
         "utm": utm_meta,
+        "pose": None
+        if p.attitude is None
+        else ipose.report(p, pose_world, pose_world_yaw_deg, pose_cleaning or {}),
         "notes": list(p.notes),
         "warnings": warnings,
     }

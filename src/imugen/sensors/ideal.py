@@ -87,6 +87,7 @@ class ArrayTruth(TruthSource):
         self.meta = dict(meta or {})
         self._raw = None
         self.speed_mps = None  # vehicle speed per sample when known (vibration model)
+        self.rotor_rpm = None  # mean rotor speed per sample of a multirotor (vibration model)
 
     def chunk(self, k0, L):
         s = slice(k0, k0 + L)
@@ -125,8 +126,10 @@ class ArrayTruth(TruthSource):
     @classmethod
     def read(cls, path) -> ArrayTruth:
         """Read a truth file; the provenance kept names it by file name and checksum only."""
-        has_vel = set(VEL) <= set(ttruth.column_names(path))
-        cols = [TIME, *GYRO, *ACCEL, *DTHETA, *DV, *(VEL if has_vel else ())]
+        names = set(ttruth.column_names(path))
+        has_vel = set(VEL) <= names
+        rotors = ttruth.ROTORS[:4] if set(ttruth.ROTORS[:4]) <= names else ()
+        cols = [TIME, *GYRO, *ACCEL, *DTHETA, *DV, *(VEL if has_vel else ()), *rotors]
         tr = ttruth.read(path, columns=cols, need_meta=False, arrow=True)
         keep = {
             k: tr.meta[k]
@@ -140,6 +143,8 @@ class ArrayTruth(TruthSource):
         out = cls(tr.time_s, tr.omega_ib_b, tr.f_b, tr.dtheta, tr.dv, keep, str(path))
         if has_vel:
             out.speed_mps = np.linalg.norm(tr.v_n, axis=1)
+        if rotors:
+            out.rotor_rpm = tr._cols(rotors).mean(axis=1)
         return out
 
 

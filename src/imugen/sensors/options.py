@@ -1,4 +1,5 @@
-"""Options of ``imugen grade import``, ``grade export`` and ``grade fit``; imports nothing else."""
+"""Options of ``imugen grade import``, ``grade export``, ``grade fit`` and
+``imugen vibration fit``; imports nothing else."""
 
 from __future__ import annotations
 
@@ -53,6 +54,36 @@ class GradeFitOptions:
     )
 
 
+def _positive(text: str) -> float:
+    value = float(text)
+    if not value > 0 or value == float("inf"):
+        raise ValueError(f"{text!r} is not a positive number")
+    return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class VibrationFitOptions:
+    """What the recording's residual is taken against (:mod:`imugen.sensors.vibration_fit`)."""
+
+    truth: str | None = option(
+        None, metavar="TRUTH", shown="none: a still record (minus its mean)",
+        help="imugen truth table on the recording's clock (the residual is recording - truth)",
+    )  # fmt: skip
+    rotation_hz: float | None = option(
+        None, unit="Hz", parse=_positive, shown="estimated from the lines",
+        help="rotation (rotor, shaft) the harmonics are locked to",
+    )  # fmt: skip
+    rpm_column: str | None = option(
+        None, metavar="COL[,COL...]", help="recording columns of rotor speeds [rpm] (their mean "
+        "is the rotation; a varying rotation is order-tracked)",
+    )  # fmt: skip
+    reference: str | None = option(
+        None, metavar="STILL", help="recording of the same IMU without vibration (motors off): "
+        "its spectrum is the sensor's own noise floor",
+    )  # fmt: skip
+    f_min_hz: float = option(2.0, unit="Hz", help="lowest frequency taken as vibration")
+
+
 _OUT = "-o", "--output"
 COMMANDS = {
     "grade import": Command(
@@ -85,6 +116,14 @@ COMMANDS = {
                 "ROS 2 bag (sensor_msgs/Imu)",
             ),
             argument(*_OUT, required=True, help="grade YAML to write"),
+        ),
+    ),
+    "vibration fit": Command(
+        VibrationFitOptions,
+        "imugen.sensors.vibration_fit:main",
+        (
+            argument("record", help="IMU recording: CSV or Parquet (imugen or EuRoC columns)"),
+            argument(*_OUT, required=True, help="YAML of the fitted vibration model"),
         ),
     ),
 }

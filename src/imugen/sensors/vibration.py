@@ -1,9 +1,12 @@
 """Vibration of the IMU case: a vehicle-class spectrum added to the ideal IMU as a real motion.
 
 A car's or an aircraft's IMU shakes: engine (or propeller) harmonics and broadband road (or
-airframe) noise. Networks trained on clean synthetic IMU data must learn to ignore it, so a
-shard can carry it (``simulate(..., vibration="car" | "aircraft" | "vehicle")``, CLI
-``--vibration``, config ``simulate.vibration``). It is drawn per sequence from its own random
+airframe) noise; a multirotor's: rotor harmonics locked to the rotor speed. Networks trained
+on clean synthetic IMU data must learn to ignore it, so a shard can carry it
+(``simulate(..., vibration="car" | "aircraft" | "quadrotor" | "vehicle" | FILE.yaml)``, CLI
+``--vibration``, config ``simulate.vibration``; ``quadrotor`` and a model fitted by
+``imugen vibration fit`` come from :mod:`imugen.sensors.vibration_model`, whose
+:func:`~imugen.sensors.vibration_model.kernel_profile` gives their :class:`Profile`). It is drawn per sequence from its own random
 stream and is the same whatever error terms are on.
 
 Motion
@@ -55,9 +58,10 @@ from imugen.core.errors import InputError
 from imugen.core.jit import njit
 
 G0 = 9.80665
-KINDS = ("off", "car", "aircraft", "vehicle")
-"""Values of the ``vibration`` option (``vehicle``: the truth's vehicle class decides)."""
-VEHICLE_PROFILE = {"car": "car", "aircraft": "aircraft"}
+KINDS = ("off", "car", "aircraft", "quadrotor", "vehicle")
+"""Values of the ``vibration`` option (``vehicle``: the truth's vehicle class decides), besides
+a fitted model's YAML file (``*.yaml``, ``*.yml``)."""
+VEHICLE_PROFILE = {"car": "car", "aircraft": "aircraft", "multirotor": "quadrotor"}
 """Vehicle class -> profile for ``vibration="vehicle"`` (pedestrians and bicycles: none)."""
 
 
@@ -113,6 +117,11 @@ class Profile:
     lines: int = 24
     gain_range: tuple = (0.5, 2.0)
     source: str = ""
+    rotation: str = "speed"
+    """What drives the harmonics: ``"speed"`` (the shaft-speed law of the vehicle speed; the
+    broadband scales with the speed), ``"rotor"`` (the truth's rotor speed, its
+    ``rotor_*_rpm`` columns, else ``idle_rpm``; broadband at its level) or ``"constant"``
+    (``idle_rpm``; broadband at its level)."""
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -181,12 +190,19 @@ def profile_for(option, vehicle: str | None = None) -> Profile | None:
     """
     if option is None or option == "off" or option is False:
         return None
-    if option not in KINDS:
-        raise InputError("--vibration", f"must be one of {', '.join(KINDS)}, got {option!r}")
     if option == "vehicle":
-        name = VEHICLE_PROFILE.get(vehicle or "")
-        return None if name is None else PROFILES[name]
-    return PROFILES[option]
+        option = VEHICLE_PROFILE.get(vehicle or "")
+        if option is None:
+            return None
+    if option in PROFILES:
+        return PROFILES[option]
+    if option == "quadrotor" or str(option).endswith((".yaml", ".yml")):
+        from imugen.sensors.vibration_model import kernel_profile  # (imports this module)
+
+        return kernel_profile(option)
+    raise InputError(
+        "--vibration", f"must be one of {', '.join(KINDS)} or a model's .yaml, got {option!r}"
+    )
 
 
 def shaft_rpm(speed_mps, profile: Profile, dt: float) -> np.ndarray:
@@ -517,17 +533,26 @@ class Vibration:
         Sample interval [s].
     """
 
-    def __init__(self, profile: Profile, speed_mps, dt: float):
+    def __init__(self, profile: Profile, speed_mps, dt: float, rotor_rpm=None):
         self.profile = profile
         self.dt = float(dt)
         speed = np.asarray(speed_mps, dtype=float)
         self.K = len(speed)
-        rpm = shaft_rpm(speed, profile, self.dt)
+        if profile.rotation == "speed":
+            rpm = shaft_rpm(speed, profile, self.dt)
+        elif profile.rotation == "rotor" and rotor_rpm is not None:
+            rpm = np.asarray(rotor_rpm, dtype=float)
+        else:
+            rpm = np.full(self.K, float(profile.idle_rpm))
         # shaft rate held over interval k (ending at sample k); sample 0 takes interval 1's
         omega = 2.0 * math.pi * rpm / 60.0
         self.shaft_radps = omega
         self.shaft_angle = np.concatenate([[0.0], np.cumsum(omega[1:] * self.dt)])
-        self.noise_scale = np.minimum(speed / profile.ref_mps, 2.0)
+        self.noise_scale = (
+            np.minimum(speed / profile.ref_mps, 2.0)
+            if profile.rotation == "speed"
+            else np.ones(self.K)
+        )
 
     def draw(self, rng: np.random.Generator) -> SequenceVibration:
         """One sequence's vibration (a fixed number of variates, whatever the profile)."""
@@ -693,4 +718,4 @@ def setup_vibration(truth, option) -> Vibration | None:
     profile = profile_for(option, vehicle)
     if profile is None:
         return None
-    return Vibration(profile, truth_speed(truth), truth.dt)
+    return Vibration(profile, truth_speed(truth), truth.dt, getattr(truth, "rotor_rpm", None))

@@ -11,8 +11,14 @@ OUTPUTS = ("increments", "rates", "both")
 """IMU columns a shard holds (:data:`imugen.tables.shard.OUTPUTS`)."""
 INCREMENTS = ("compensated", "raw")
 """Increment semantics (:data:`imugen.tables.shard.INCREMENT_KINDS`)."""
-VIBRATIONS = ("off", "car", "aircraft", "vehicle")
-"""Vibration of the IMU case (:mod:`imugen.sensors.vibration`)."""
+VIBRATIONS = ("off", "car", "aircraft", "quadrotor", "vehicle")
+"""Vibration of the IMU case (:mod:`imugen.sensors.vibration`), besides a model's YAML."""
+
+
+def _vibration(text: str) -> str:
+    if text in VIBRATIONS or text.endswith((".yaml", ".yml")):
+        return text
+    raise ValueError(f"expected one of {', '.join(VIBRATIONS)} or a model's .yaml, got {text!r}")
 
 
 def _terms(text: str) -> tuple[str, ...]:
@@ -60,8 +66,9 @@ class SimulateOptions:
         None, parse=_terms, shown="all", help="comma-separated error terms to keep"
     )
     vibration: str | None = option(
-        "off", choices=VIBRATIONS, config="simulate.vibration",
-        help="vibration of the IMU case (vehicle: the truth's vehicle class)",
+        "off", parse=_vibration, metavar="KIND|FILE.yaml", config="simulate.vibration",
+        help=f"vibration of the IMU case: {', '.join(VIBRATIONS)} (vehicle: the truth's vehicle "
+        "class) or the YAML of `imugen vibration fit`",
     )  # fmt: skip
     temperature: dict | str | None = option(
         None, metavar="JSON", parse=_json, help="temperature profile (see docs)"

@@ -6,7 +6,9 @@ coordinates ``e_m``, ``n_m``, ``u_m`` (m) in the topocentric frame of the origin
 transform of ECEF: exact Cartesian coordinates at any distance and across the antimeridian, but
 their axes are the origin's: far from it ``u_m`` is no height and the geodetic columns are the
 position at the vehicle; the truth's ``geodetic`` model uses them so); optionally
-``utm_e_m``, ``utm_n_m`` (``--utm``). Metadata (JSON under ``b"imugen"``): ``origin``
+``utm_e_m``, ``utm_n_m`` (``--utm``); for a pose trajectory the attitude ``q_w``, ``q_x``,
+``q_y``, ``q_z`` of the pose body relative to the local ENU at the point (scalar first;
+:mod:`imugen.ingest.pose`, metadata ``pose``). Metadata (JSON under ``b"imugen"``): ``origin``
 {lat_deg, lon_deg, alt_m}, ``timed``, ``source`` and the ingestion report.
 """
 
@@ -28,8 +30,16 @@ N = "n_m"
 U = "u_m"
 ENU = (E, N, U)
 UTM = ("utm_e_m", "utm_n_m")
+ATTITUDE = ("q_w", "q_x", "q_y", "q_z")
 COLUMNS = (TIME, LAT, LON, ALT, E, N, U)
-UNITS = {TIME: "s", LAT: "deg", LON: "deg", ALT: "m", **dict.fromkeys((*ENU, *UTM), "m")}
+UNITS = {
+    TIME: "s",
+    LAT: "deg",
+    LON: "deg",
+    ALT: "m",
+    **dict.fromkeys((*ENU, *UTM), "m"),
+    **dict.fromkeys(ATTITUDE, "1"),
+}
 WHAT = "ENU route table"
 
 if TYPE_CHECKING:  # pandas is imported by the readers' to_pandas only when used

@@ -12,6 +12,9 @@ instantaneous ``gyro_{x,y,z}_radps`` (``omega_ib_b``) and ``accel_{x,y,z}_mps2``
 exact compensated increments ``dtheta_{x,y,z}_rad`` (rotation vector of the attitude change of
 the interval) and ``dv_{x,y,z}_mps`` (velocity change in the body frame frozen at the interval
 start, sculling included). Increments on row ``k`` belong to ``[t_{k-1}, t_k]``; row 0 is zero.
+A multirotor's truth (``vehicle: multirotor``) also carries the companion signal
+:data:`ROTORS`: ``rotor_{1..4}_rpm`` (X quadrotor: front-left, rear-left, rear-right,
+front-right) and ``thrust_n`` (collective thrust, N), at every sample.
 
 Metadata (JSON under ``b"imugen"``): ``origin`` {lat_deg, lon_deg, alt_m}, ``earth``
 (``flat``/``wgs84``/``geodetic``), ``nav_frame`` (``"ENU of the origin"`` or ``"ECEF"``;
@@ -51,6 +54,8 @@ DV = ("dv_x_mps", "dv_y_mps", "dv_z_mps")
 COLUMNS = (TIME, *POS, *VEL, *QUAT, *EULER, *GYRO, *ACCEL, *DTHETA, *DV)
 GEODETIC = (LAT, LON, ALT)
 """Optional columns (``geodetic`` truths): position of the vehicle in degrees and metres."""
+ROTORS = ("rotor_1_rpm", "rotor_2_rpm", "rotor_3_rpm", "rotor_4_rpm", "thrust_n")
+"""Optional columns (multirotor truths): rotor speeds [rpm] and collective thrust [N]."""
 NAV_FRAMES = {"flat": "ENU of the origin", "wgs84": "ENU of the origin", "geodetic": "ECEF"}
 """The ``nav_frame`` of each Earth model: what the position, velocity and quaternion hold."""
 UNITS = {
@@ -66,6 +71,8 @@ UNITS = {
     **dict.fromkeys(ACCEL, "m/s^2"),
     **dict.fromkeys(DTHETA, "rad"),
     **dict.fromkeys(DV, "m/s"),
+    **dict.fromkeys(ROTORS[:4], "rpm"),
+    ROTORS[4]: "N",
 }
 WHAT = "truth table"
 

@@ -59,6 +59,15 @@ height: see ``airborne_speed_mps``, ``airborne_height_m``) the attitudes are ble
 way, with the exact rate of the blend; ground limits are checked where the ground attitude is
 used alone. Untimed ``airliner`` routes are flown in phases (:mod:`imugen.truth.flight`).
 
+*Multirotors* (``vehicle: multirotor``): attitude by differential flatness (thrust along body
+z, yaw along the path or constant, optional linear rotor drag) and rotor speeds from thrust and
+the hover figures (:mod:`imugen.truth.multirotor`).
+
+*Pose trajectories* (an ENU table with the attitude columns ``q_w .. q_z``: TUM, EuRoC ground
+truth, pose CSV, ROS 2 bags): the given attitude, fitted jointly with the position on
+SO(3) x R^3 (:mod:`imugen.truth.pose`), whatever the vehicle class (which then only sets the
+plausibility limits).
+
 Every truth carries a plausibility report (:mod:`imugen.truth.report`).
 
 Ideal IMU (per :mod:`imugen.core.earth` and the issue-3 spec)
@@ -92,6 +101,8 @@ _LAZY = {
     "TruthOptions": "options",
     "VEHICLES": "vehicles",
     "VehicleParams": "vehicles",
+    "PoseSettings": "pose",
+    "fit_poses": "pose",
 }
 """Names of the package's modules, loaded on first use: ``imugen.truth.options`` (what the
 command line's parser reads) loads no numerical code."""

@@ -11,14 +11,17 @@ import pandas as pd
 
 from imugen import __version__
 from imugen.core import earth as ea
+from imugen.core import rotations as rot
 from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
+from imugen.truth import multirotor
 from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.flight import flight_geometry
 from imugen.truth.increments import imu_pass
+from imugen.truth.pose import PoseSettings, fit_poses, motion_figures, pose_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
 from imugen.truth.road import motion_on_road, path_on_road
@@ -42,6 +45,7 @@ class BuildOptions:
     hold_speed_mps: tuple | None = None
     vehicle_params: dict | None = None  # VehicleParams fields to override
     auto_fraction: float = 0.1
+    pose: PoseSettings | None = None  # frames, time offset, smoothing of a pose truth
     extra: dict = field(default_factory=dict)
 
 
@@ -83,15 +87,38 @@ def enu_table(enu_m, time_s=None, origin=(0.0, 0.0, 0.0)) -> tuple[pd.DataFrame,
     return pd.DataFrame(data), meta
 
 
+def is_pose(enu: pd.DataFrame) -> bool:
+    """Whether the ENU table is a pose trajectory's (attitude columns)."""
+    return all(c in enu.columns for c in tenu.ATTITUDE)
+
+
+def pose_motion(enu: pd.DataFrame, meta: dict, settings: PoseSettings | None):
+    """The IMU's motion of a pose trajectory (:func:`imugen.truth.pose.fit_poses`) in the
+    origin's ENU: attitudes turned from the local ENU at each pose to the origin's axes."""
+    if tenu.TIME not in enu.columns:
+        raise InputError(None, "a pose trajectory needs its times (time_s)")
+    y = enu[list(tenu.ENU)].to_numpy(dtype=float)
+    q_l = enu[list(tenu.ATTITUDE)].to_numpy(dtype=float)
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(q_l))):
+        raise InputError(None, "ENU table holds non-finite poses")
+    frame = ea.OriginFrame.from_deg(*_origin(meta), "wgs84")
+    q_n = rot.quat_mul(rot.dcm_to_quat(np.swapaxes(frame.C_ln(y), -1, -2)), q_l)
+    return fit_poses(enu[tenu.TIME].to_numpy(float), y, q_n, settings)
+
+
 def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOptions, E=None):
     """Fit the route: returns (motion, fit report, timing report).
 
     With ``E`` (the :class:`EarthField` of the truth), an untimed ground route's geometry
     takes the vertical of its road profile before its speed profile (:func:`_path_on_road`);
-    the motion's ``profile`` holds it."""
+    the motion's ``profile`` holds it. A pose trajectory's motion carries its attitude
+    (:func:`pose_motion`)."""
     for c in tenu.ENU:
         if c not in enu.columns:
             raise InputError(None, f"ENU table lacks column {c!r}")
+    if is_pose(enu):
+        motion, fit = pose_motion(enu, meta, opts.pose)
+        return motion, fit, {"timed": True, "source": "pose clock", "attitude": "given"}
     y = enu[list(tenu.ENU)].to_numpy(dtype=float)
     if not np.all(np.isfinite(y)):
         raise InputError(None, "ENU table holds non-finite coordinates")
@@ -343,19 +370,29 @@ def build_truth(
             motion, fit, timing = build_motion(enu, meta, vp, opts, E)
             K = _samples(motion, rate_hz)
     times = motion.t0 + np.arange(K) * dt
+    pose = is_pose(enu)
     profile = None
-    if motion.kind == "timed" and vp.attitude == "ground":
+    if not pose and motion.kind == "timed" and vp.attitude == "ground":
         motion, profile = _on_road(motion, E, vp, enu, fit)
     elif motion.kind == "untimed":
         profile = motion.profile
-    if E.ecef:
+    if E.ecef and pose:  # the fit in the origin's ENU, expressed in ECEF (as EcefMotion)
+        enu_frame = E.frame.with_model("wgs84")
+        motion = motion.rigid(enu_frame.C_en.T, enu_frame.r0_e)
+    elif E.ecef:
         motion = EcefMotion(motion, E.frame)
-    ground = _ground(motion, E, vp, enu, fit, profile)
+    thrust = vp.attitude == "thrust"
+    ground = None if pose or thrust else _ground(motion, E, vp, enu, fit, profile)
 
     ci = _column_slices()
     out = np.zeros((K, len(col.COLUMNS)))
     out[:, col.COLUMNS.index(col.TIME)] = times
-    f_n, stats = attitude_pass(out, ci, motion, times, E, vp, chunk, ground)
+    if pose:
+        f_n, stats = pose_pass(out, ci, motion, times, E, chunk)
+    elif thrust:
+        f_n, stats = multirotor.thrust_pass(out, ci, motion, times, E, vp, chunk)
+    else:
+        f_n, stats = attitude_pass(out, ci, motion, times, E, vp, chunk, ground)
     imu_pass(out, ci, f_n, E, motion, times, dt, chunk)
     del f_n
     if not np.all(np.isfinite(out)):
@@ -368,12 +405,32 @@ def build_truth(
         df[col.LAT], df[col.LON], df[col.ALT] = np.degrees(lat), np.degrees(lon), h
         columns += col.GEODETIC
     airborne = stats.pop("airborne")
+    c_thrust = stats.pop("thrust_mps2", None)
+    rotors = None
+    if c_thrust is not None:
+        rpm, rotors = multirotor.rotor_speeds(times, out[:, ci["gyro"]], c_thrust, vp)
+        for i, c in enumerate(col.ROTORS[:4]):
+            df[c] = rpm[:, i]
+        df[col.ROTORS[4]] = vp.mass_kg * c_thrust
+        columns += col.ROTORS
     stats["speed_max_mps"] = float(np.linalg.norm(out[:, ci["vel"]], axis=1).max())
     y_in = enu[list(tenu.ENU)].to_numpy(dtype=float)  # its length is frame-independent
     t_in = enu[col.TIME].to_numpy(float) if motion.kind == "timed" else None
+    if pose:  # the fit report gives the distances to the poses; dense poses: no arcs
+        t_in = None
     plaus = plausibility(
         df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne, frame=E.frame
     )
+    if pose or thrust:
+        plaus.update(
+            motion_figures(times, out[:, ci["vel"]], out[:, ci["gyro"]], out[:, ci["accel"]])
+        )
+    if rotors is not None:
+        e = out[:, ci["euler"]]
+        tilt = np.arccos(np.clip(np.cos(e[:, 0]) * np.cos(e[:, 1]), -1.0, 1.0))
+        mr = multirotor.plausibility(tilt, out[:, ci["gyro"]], c_thrust, rotors, vp)
+        plaus["warnings"] = plaus.get("warnings", []) + mr.pop("warnings")
+        plaus["multirotor"] = mr
     tmeta = {
         "stage": "truth",
         "imugen_version": __version__,
@@ -391,7 +448,7 @@ def build_truth(
         "fit": fit,
         "timing": timing,
         "motion": stats,
-        "ground_attitude": ground.report,
+        "ground_attitude": None if ground is None else ground.report,
         "plausibility": plaus,
         "conventions": f"n = {col.NAV_FRAMES[model]}, b = FLU; l = ENU at the vehicle; "
         "C_lb = C_ln C_nb = Rz(yaw) Ry(-pitch) Rx(roll); quaternion scalar first; increments on "
@@ -407,4 +464,25 @@ def build_truth(
 def messages(tmeta: dict) -> list[str]:
     """Lines for stderr of a truth's metadata: its Earth budget and plausibility report."""
     budget = tmeta.get("earth_budget")
-    return (budget["lines"] if budget else []) + report_lines(tmeta["plausibility"])
+    lines = (budget["lines"] if budget else []) + report_lines(tmeta["plausibility"])
+    fit = tmeta.get("fit") or {}
+    if "attitude_residual_rms_rad" in fit:  # a pose truth (imugen.truth.pose)
+        lines.insert(
+            len(budget["lines"]) if budget else 0,
+            f"pose fit: residual RMS {1e3 * fit['position_residual_rms_m']:.3g} mm, "
+            f"{1e3 * fit['attitude_residual_rms_rad']:.3g} mrad (noise "
+            f"{1e3 * max(fit['position_noise_m']):.3g} mm, "
+            f"{1e3 * fit['attitude_noise_rad']:.3g} mrad per axis, {fit['attitude_noise_source']}); "
+            f"cutoffs {', '.join(f'{f:.3g}' for f in fit['position_cutoff_hz'])} Hz, attitude "
+            f"{fit['attitude_cutoff_hz']:.3g} Hz; outliers {fit['position_outliers']} + "
+            f"{fit['attitude_outliers']}, gaps {fit['gaps']} (max {fit['max_gap_s']:.3g} s)",
+        )
+    mr = tmeta["plausibility"].get("multirotor")
+    if mr:
+        lines.append(
+            f"multirotor: tilt <= {math.degrees(mr['max_tilt_rad']):.1f} deg, rotors "
+            f"{mr['rotor_rpm_min']:.0f}-{mr['rotor_rpm_max']:.0f} rpm (blade pass "
+            f"{mr['blade_pass_hz'][0]:.0f}-{mr['blade_pass_hz'][1]:.0f} Hz), T/W <= "
+            f"{mr['thrust_to_weight_max']:.2f}"
+        )
+    return lines

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from imugen.core.options import VEHICLES, Command, argument, option
+from imugen.core.options import VEHICLES, Command, argument, floats, option
 
 EARTH_MODELS = ("flat", "wgs84", "geodetic", "auto")
 """Earth models of the truth (:mod:`imugen.core.earth`; ``auto`` chooses one)."""
@@ -19,6 +19,10 @@ def _name_values(items: tuple[str, ...]) -> dict:
             raise ValueError(f"{item!r} is not NAME=VALUE")
         out[name] = value.split(",") if "," in value else value
     return out
+
+
+def _xyz(text: str) -> tuple[float, float, float]:
+    return floats(text, 3, "X,Y,Z")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -43,6 +47,38 @@ class TruthOptions:
     vehicle_params: dict | None = option(
         None, flag="--vehicle-param", many="append", metavar="NAME=VALUE", parse=_name_values,
         help="override a vehicle model parameter or limit (SI units, e.g. max_curvature_1pm=0.1)",
+    )  # fmt: skip
+    pose_body: str = option(
+        "flu", choices=("flu", "frd", "rdf"), config="routes.*.pose_body",
+        help="axes of a pose trajectory's body (rdf: a camera, x right, y down, z forward)",
+    )  # fmt: skip
+    imu_rotation_deg: tuple = option(
+        (0.0, 0.0, 0.0), metavar="ROLL,PITCH,YAW", unit="deg", parse=_xyz,
+        config="routes.*.imu_rotation_deg",
+        help="rotation of the IMU's FLU axes in the pose body's (FLU-ordered) axes",
+    )  # fmt: skip
+    lever_arm_m: tuple = option(
+        (0.0, 0.0, 0.0), metavar="X,Y,Z", unit="m", parse=_xyz, config="routes.*.lever_arm_m",
+        help="IMU position in the pose body's axes, from the body's origin",
+    )  # fmt: skip
+    marker_offset_m: tuple = option(
+        (0.0, 0.0, 0.0), metavar="X,Y,Z", unit="m", parse=_xyz,
+        config="routes.*.marker_offset_m",
+        help="tracked point (the poses' position) in the pose body's axes, from its origin",
+    )  # fmt: skip
+    time_offset_s: float = option(
+        0.0, unit="s", config="routes.*.time_offset_s",
+        help="added to a pose trajectory's clock to give the IMU's",
+    )  # fmt: skip
+    pose_sigma_m: float | None = option(
+        None, unit="m", shown="estimated", help="position noise of a pose trajectory, per axis"
+    )
+    pose_sigma_deg: float | None = option(
+        None, unit="deg", shown="estimated", help="attitude noise of a pose trajectory, per axis"
+    )
+    pose_cutoff_hz: float | None = option(
+        None, unit="Hz", shown="from the noise",
+        help="smoothing cutoff of a pose trajectory (instead of the discrepancy principle)",
     )  # fmt: skip
 
 

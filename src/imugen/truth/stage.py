@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 
 import pandas as pd
@@ -11,6 +12,29 @@ from imugen.tables import enu as tenu
 from imugen.tables import truth as ttable
 from imugen.truth.build import build_truth, messages
 from imugen.truth.options import TruthOptions
+from imugen.truth.pose import PoseSettings
+
+
+def pose_settings(o: TruthOptions) -> PoseSettings:
+    """The pose-truth settings of the options (SI units)."""
+    for name, value in (
+        ("--pose-sigma-m", o.pose_sigma_m), ("--pose-sigma-deg", o.pose_sigma_deg),
+        ("--pose-cutoff-hz", o.pose_cutoff_hz),
+    ):  # fmt: skip
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(name, f"{value!r} must be a positive number")
+    if not math.isfinite(o.time_offset_s):
+        raise InputError("--time-offset-s", f"{o.time_offset_s!r} is not a finite number")
+    return PoseSettings(
+        pose_body=o.pose_body,
+        imu_rotation_rad=tuple(math.radians(x) for x in o.imu_rotation_deg),
+        lever_arm_m=tuple(o.lever_arm_m),
+        marker_offset_m=tuple(o.marker_offset_m),
+        time_offset_s=float(o.time_offset_s),
+        sigma_m=o.pose_sigma_m,
+        sigma_rad=None if o.pose_sigma_deg is None else math.radians(o.pose_sigma_deg),
+        cutoff_hz=o.pose_cutoff_hz,
+    )
 
 
 def read_enu(path) -> tuple[pd.DataFrame, dict]:
@@ -27,7 +51,8 @@ def run(enu_path, out_path, options: TruthOptions | None = None, **build) -> dic
     try:
         df, tmeta = build_truth(
             enu, meta, rate_hz=o.rate_hz, earth=o.earth, vehicle=o.vehicle,
-            grade=list(o.grade) or None, vehicle_params=o.vehicle_params, verbose=False, **build,
+            grade=list(o.grade) or None, vehicle_params=o.vehicle_params, pose=pose_settings(o), verbose=False,
+            **build,
         )  # fmt: skip
     except InputError as exc:
         if exc.source is None:

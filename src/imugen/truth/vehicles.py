@@ -3,7 +3,7 @@
 Every field can be overridden per truth (``build_truth(..., vehicle_params={...})``, CLI
 ``imugen truth --vehicle-param NAME=VALUE``). Roles:
 
-* ``attitude``: ``"ground"`` (heading and pitch of the velocity where the path is plausible,
+* ``attitude``: ``"thrust"`` (multirotor: differential flatness), ``"ground"`` (heading and pitch of the velocity where the path is plausible,
   else heading from the horizontal velocity bounded by the curvature limit and pitch from the
   road grade; roll zero or the lean of a coordinated turn) or ``"coordinated"`` (aircraft: ground model
   when slow and low, coordinated flight when fast or high).
@@ -27,6 +27,12 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
 * plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
   ``max_accel_mps2``, the attitude bounds above and, in flight, ``max_pitch_airborne_rad``
   and ``max_yaw_rate_airborne_radps`` (default unbounded).
+* multirotor (``attitude = "thrust"``, :mod:`imugen.truth.multirotor`): ``mass_kg``,
+  ``arm_m``, ``hover_rpm``, ``blades``, ``k_m_m`` (yaw torque per thrust), ``inertia_*_kgm2``,
+  ``drag_x_1ps``, ``drag_y_1ps`` (linear rotor drag, 0: none), the limits
+  ``max_thrust_to_weight``, ``max_tilt_rad``, ``max_rate_rp_radps``, ``max_rate_yaw_radps``,
+  and the yaw: ``yaw_path`` (along the horizontal velocity above ``yaw_speed_mps``, smoothed
+  at ``yaw_cutoff_hz``) or the constant ``yaw_rad``.
 * flight phases of untimed routes (``phases``, :mod:`imugen.truth.flight`): ``taxi_mps``,
   ``taxi_m``, ``rotate_mps``, ``climb_rate_mps``, ``climb_speed_mps``,
   ``speed_limit_alt_m``, ``cruise_alt_m``, ``descent_angle_rad``, ``approach_mps``,
@@ -84,6 +90,24 @@ class VehicleParams:
     descent_angle_rad: float = 0.0524
     approach_mps: float = 70.0
     vertical_accel_mps2: float = 1.0
+    mass_kg: float = 1.0
+    arm_m: float = 0.225
+    hover_rpm: float = 5500.0
+    blades: float = 2.0
+    k_m_m: float = 0.016
+    inertia_x_kgm2: float = 0.011
+    inertia_y_kgm2: float = 0.011
+    inertia_z_kgm2: float = 0.021
+    drag_x_1ps: float = 0.0
+    drag_y_1ps: float = 0.0
+    max_thrust_to_weight: float = 2.5
+    max_tilt_rad: float = 1.05
+    max_rate_rp_radps: float = 6.0
+    max_rate_yaw_radps: float = 3.0
+    yaw_path: bool = True
+    yaw_rad: float = 0.0
+    yaw_speed_mps: float = 0.5
+    yaw_cutoff_hz: float = 1.0
 
 
 VEHICLES = {
@@ -191,10 +215,32 @@ VEHICLES = {
         fit_tol_max_m=20.0,
         phases=True,
     ),
+    # multirotor: a small quadrotor (1 kg, 450 mm class X frame, 5500 rpm hover on two-blade
+    # props); untimed paths flown at 5 m/s, 2 m/s^2, corners over 1 m; plausible up to 20 m/s,
+    # 25 m/s^2, 60 deg tilt, 6 rad/s roll/pitch and 3 rad/s yaw rate, T/W 2.5
+    "multirotor": VehicleParams(
+        "thrust",
+        5.0,
+        2.0,
+        3.0,
+        5.0,
+        1.0,
+        max_curvature_1pm=2.0,
+        max_pitch_rad=1.05,
+        max_roll_rad=1.05,
+        heading_smooth_m=0.5,
+        grade_smooth_m=5.0,
+        max_speed_mps=20.0,
+        max_accel_mps2=25.0,
+        hold_speed_mps=(0.1, 0.5),
+        stop_speed_mps=0.1,
+        stop_radius_m=0.5,
+        fit_tol_max_m=2.0,
+    ),
 }
 
 
-_MAY_BE_ZERO = ("max_roll_rad", "heading_smooth_s")
+_MAY_BE_ZERO = ("max_roll_rad", "heading_smooth_s", "drag_x_1ps", "drag_y_1ps", "yaw_rad")
 
 
 def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams:

@@ -32,7 +32,9 @@ def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePa
     KMZ is recognised by its zip signature, KML and GPX by their XML root element, NMEA by
     ``$GP``/``$GN``/... sentences, IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
     suffixes of :data:`imugen.ingest.formats.GPSBABEL` go through GPSBabel; NUL bytes, ROS
-    NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.ingest.readers.gnsscsv`; anything else is
+    NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.ingest.readers.gnsscsv`; pose
+    trajectories (TUM, EuRoC ground truth, CSV with named pose columns, ROS 2 bags) to
+    :mod:`imugen.ingest.readers.pose`; anything else is
     read as delimited text (CSV with a header, or E N U rows). ``data`` is
     the file's content when the caller has already read it with
     :func:`imugen.ingest.limits.read_input`.
@@ -48,7 +50,7 @@ def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePa
 
 
 def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
-    from imugen.ingest.readers import babel, geojson, gnsscsv, gpx, igc, kml, nmea, text
+    from imugen.ingest.readers import babel, geojson, gnsscsv, gpx, igc, kml, nmea, pose, text
 
     head = data[:_SNIFF_BYTES]
     if not head:
@@ -58,6 +60,8 @@ def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
         return kml.read_kmz(path, data)
     if suffix in GPSBABEL:
         return babel.read_with_gpsbabel(path)
+    if pose.is_bag(path, head):
+        return pose.read_ros2_bag(path)
     wide = next((enc for bom, enc in _WIDE_BOMS if head.startswith(bom)), None)
     if wide:
         head = head.decode(wide, errors="replace").encode("utf-8", errors="replace")
@@ -70,6 +74,11 @@ def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
         return igc.read_igc(path, data)
     if suffix in (".geojson", ".json") or start.startswith(b"{"):
         return geojson.read_geojson(path, data)
+    kind = pose.claims(head)
+    if kind is not None:
+        return {"tum": pose.read_tum, "euroc": pose.read_euroc, "csv": pose.read_pose_csv}[kind](
+            path, data
+        )
     if gnsscsv.claims(head):
         return gnsscsv.read_gnss_csv(path, data)
     lowered = head.lower()

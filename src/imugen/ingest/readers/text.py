@@ -56,6 +56,7 @@ _ALIASES = {
     "n": {"n", "n_m", "north", "north_m"},
     "u": {"u", "u_m", "up", "up_m"},
 }
+_ATTITUDE = ("q_w", "q_x", "q_y", "q_z")  # imugen.tables.enu.ATTITUDE
 _SPLIT_WS = re.compile(r"[\s,]+")
 _BOMS = (
     (b"\xef\xbb\xbf", "utf-8"),
@@ -338,6 +339,10 @@ def _read_csv(rows, path: Path, meta: dict) -> RoutePath:
             time = time + parse_iso_time(meta["start_time_utc"])
             absolute = True
     name = str(meta.get("path", path.stem))
+    attitude = None
+    if all(c in names for c in _ATTITUDE):  # a pose trajectory's CSV stage
+        col.update({c: names.index(c) for c in _ATTITUDE})
+        attitude = np.column_stack([numeric(c, required=True) for c in _ATTITUDE])
     if geodetic:
         alt = numeric("alt", required=False)
         trusted = bool(meta.get("altitude_trusted", True))
@@ -361,6 +366,8 @@ def _read_csv(rows, path: Path, meta: dict) -> RoutePath:
             time_is_absolute=absolute,
             notes=notes,
             carried=meta,
+            attitude=attitude,
+            attitude_frame=None if attitude is None else "level",
         )
     enu_m = np.column_stack([numeric(k, required=True) for k in ("e", "n", "u")])
     if decimal_commas:
@@ -376,6 +383,8 @@ def _read_csv(rows, path: Path, meta: dict) -> RoutePath:
         time_is_absolute=False,
         notes=notes,
         carried=meta,
+        attitude=attitude,
+        attitude_frame=None if attitude is None else "origin",
     )
 
 

@@ -1,0 +1,173 @@
+"""The fitted vibration model (imugen.sensors.vibration_model) against closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from imugen.sensors.vibration import PROFILES, Vibration
+from imugen.sensors.vibration_model import (
+    VibrationModel,
+    alias,
+    fit_vibration,
+    preset,
+    simulate,
+)
+
+
+@pytest.mark.parametrize("rate_hz", [1000.0, 410.0])
+def test_simulated_variance_and_lines_match_the_closed_forms(rate_hz):
+    m = preset("quadrotor")
+    n = int(60 * rate_hz)
+    gyro, accel = simulate(m, rate_hz, n, np.random.default_rng(3))
+    for x, s in ((gyro, "gyro"), (accel, "accel")):
+        np.testing.assert_allclose(x.var(axis=0), m.variance(s), rtol=0.03)
+    f, P = signal.welch(accel, fs=rate_hz, nperseg=4096, axis=0)
+    df = f[1] - f[0]
+    f_true, f_seen = m.line_frequencies(rate_hz)
+    for h, fa in zip(m.harmonics, f_seen, strict=True):
+        k = round(fa / df)
+        assert np.argmax(P[k - 5 : k + 6, 2]) in (4, 5, 6)  # the line at its (aliased) bin
+        power = P[k - 3 : k + 4, 2].sum() * df
+        assert power == pytest.approx(0.5 * h.accel_mps2[2] ** 2, rel=0.1)
+    if rate_hz == 410.0:
+        assert f_true[-1] > rate_hz / 2 > f_seen[-1]  # the 4P line is seen as an alias
+
+
+@pytest.mark.parametrize(("name", "speed"), [("car", 20.0), ("car", 8.0), ("aircraft", 60.0)])
+def test_presets_are_the_kernels_spectra(name, speed):
+    """The car and aircraft presets have the variance of what `simulate.vibration` runs."""
+    dt = 1e-3
+    K = 60_000
+    vib = Vibration(PROFILES[name], np.full(K, speed), dt)
+    p = PROFILES[name]
+    rng = np.random.default_rng(5)
+    seq = type(vib.draw(rng))(
+        vib, np.ones(2), rng.integers(0, 2, size=(len(p.orders) + p.lines, 3)),
+        rng.uniform(0, 2 * math.pi, size=(len(p.orders), 3)),
+        rng.uniform(p.band_hz[0], p.band_hz[1], size=(p.lines, 3)),
+    )  # fmt: skip
+    z = np.zeros((K, 3))
+    w, a, _, _ = seq.apply(0, z, z, z, z)  # the case's rate and specific force, still body
+    m = preset(name, speed)
+    assert m.rotation_hz * 60.0 == pytest.approx(vib.shaft_radps[-1] * 60 / (2 * math.pi))
+    np.testing.assert_allclose(a.var(axis=0), m.variance("accel"), rtol=0.03)
+    g = m.variance("gyro")
+    ok = g > 0
+    np.testing.assert_allclose(w.var(axis=0)[ok], g[ok], rtol=0.03)
+
+
+def test_fit_recovers_the_model():
+    rng = np.random.default_rng(7)
+    m = preset("quadrotor")
+    fs, n = 1000.0, 40_000
+    gyro, accel = simulate(m, fs, n, rng)
+    noise = {"gyro": 5e-4, "accel": 5e-3}  # white sensor noise [unit / sqrt(Hz)]
+    gyro += noise["gyro"] * math.sqrt(fs) * rng.standard_normal(gyro.shape)
+    accel += noise["accel"] * math.sqrt(fs) * rng.standard_normal(accel.shape)
+    fit, rep = fit_vibration({"gyro": gyro, "accel": accel}, fs)
+    assert fit.rotation_hz == pytest.approx(m.rotation_hz, rel=1e-3)
+    assert [h.order for h in fit.harmonics] == [h.order for h in m.harmonics]
+    for h, h0 in zip(fit.harmonics, m.harmonics, strict=True):
+        np.testing.assert_allclose(h.accel_mps2, h0.accel_mps2, rtol=0.08)
+        np.testing.assert_allclose(h.gyro_radps, h0.gyro_radps, rtol=0.08)
+    np.testing.assert_allclose(fit.accel_rms_mps2, m.accel_rms_mps2, rtol=0.1)
+    dens = rep["floor_density"]["accel_mps2_per_sqrt_hz"]
+    np.testing.assert_allclose(dens, noise["accel"], rtol=0.1)
+    back = VibrationModel.from_dict(fit.as_dict())
+    np.testing.assert_allclose(back.variance("gyro"), fit.variance("gyro"))
+
+
+def test_white_noise_has_no_vibration():
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal((30_000, 6))
+    fit, _ = fit_vibration(x, 500.0)
+    assert not fit.harmonics and not fit.lines
+    assert not any(fit.accel_rms_mps2) and not any(fit.gyro_rms_radps)
+
+
+def test_alias():
+    assert alias(367.0, 410.0) == pytest.approx(43.0)
+    assert alias(100.0, 410.0) == pytest.approx(100.0)
+
+
+def test_cli_fits_a_recording_against_its_truth(tmp_path):
+    """`imugen vibration fit`: a hovering multirotor's record = truth + vibration + noise."""
+    import pandas as pd
+    import yaml
+
+    from imugen.cli import main
+    from imugen.tables import truth as ttable
+    from imugen.truth.build import build_truth, enu_table
+
+    t = np.arange(0.0, 40.0, 0.5)
+    p = np.column_stack([0.05 * np.sin(0.2 * t), 0 * t, 1.0 + 0 * t])
+    df, meta = enu_table(p, t, (47.4, 8.5, 400.0))
+    tr, tm = build_truth(df, meta, rate_hz=500.0, earth="flat", vehicle="multirotor", verbose=False)
+    ttable.write(tr, tm, tmp_path / "truth.parquet")
+    rng = np.random.default_rng(11)
+    m = preset("quadrotor")
+    gyro, accel = simulate(m, 500.0, len(tr), rng)
+    rec = pd.DataFrame({"time_s": tr[ttable.TIME]})
+    for i, ax in enumerate("xyz"):
+        rec[f"gyro_{ax}_radps"] = (
+            tr[ttable.GYRO[i]] + gyro[:, i] + 1e-2 * rng.standard_normal(len(tr))
+        )
+        rec[f"accel_{ax}_mps2"] = (
+            tr[ttable.ACCEL[i]] + accel[:, i] + 0.05 * rng.standard_normal(len(tr))
+        )
+    rec.to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "vib.yaml"
+    main(["vibration", "fit", str(tmp_path / "rec.csv"), f"--truth={tmp_path / 'truth.parquet'}",
+          f"--rotation-hz={m.rotation_hz}", f"--output={out}"])  # fmt: skip
+    fit = VibrationModel.from_dict(yaml.safe_load(out.read_text())["vibration"])
+    assert [h.order for h in fit.harmonics] == [1.0, 2.0, 4.0]
+    np.testing.assert_allclose(fit.variance("accel"), m.variance("accel"), rtol=0.1)
+
+
+def test_multirotor_vibration_is_locked_to_the_truths_rotors(tmp_path):
+    """`simulate.vibration: vehicle` on a multirotor truth: the quadrotor preset, its
+    harmonics at the truth's rotor speed; a fitted model's YAML runs through the same kernel."""
+    import yaml
+
+    from imugen.sensors.ideal import ArrayTruth
+    from imugen.sensors.vibration import setup_vibration
+    from imugen.sensors.vibration_model import kernel_profile
+    from imugen.tables import truth as ttable
+    from imugen.truth.build import build_truth, enu_table
+
+    t = np.arange(0.0, 12.0, 0.5)
+    df, meta = enu_table(np.tile([0.0, 0.0, 1.0], (len(t), 1)), t, (47.4, 8.5, 400.0))
+    tr, tm = build_truth(
+        df, meta, rate_hz=1000.0, earth="flat", vehicle="multirotor", verbose=False
+    )
+    ttable.write(tr, tm, tmp_path / "truth.parquet")
+    truth = ArrayTruth.read(tmp_path / "truth.parquet")
+    rpm = tr[list(ttable.ROTORS[:4])].to_numpy().mean(axis=1)
+    np.testing.assert_allclose(truth.rotor_rpm, rpm)
+    vib = setup_vibration(truth, "vehicle")
+    assert vib.profile.name == "quadrotor" and vib.profile.rotation == "rotor"
+    np.testing.assert_allclose(vib.shaft_radps, 2 * math.pi * rpm / 60.0)
+    seq = vib.draw(np.random.default_rng(1))
+    z = np.zeros((truth.K, 3))
+    _, f_c, _, _ = seq.apply(0, z, z, z, z)
+    f, P = signal.welch(f_c[:, 2], fs=1000.0, nperseg=4096)
+    blade_pass = 2 * rpm.mean() / 60.0  # two-blade props
+    assert abs(f[np.argmax(P)] - blade_pass) < 2 * (f[1] - f[0])
+    # a fitted model's YAML, as `imugen vibration fit` writes it
+    m = preset("quadrotor")
+    (tmp_path / "vib.yaml").write_text(yaml.safe_dump({"vibration": _plain(m.as_dict())}))
+    prof = kernel_profile(str(tmp_path / "vib.yaml"))
+    assert prof.orders == (1.0, 2.0, 4.0) and "gyro broadband" in prof.source
+    np.testing.assert_allclose(
+        np.asarray(prof.accel_g) * 9.80665, [h.accel_mps2 for h in m.harmonics]
+    )
+
+
+def _plain(x):
+    from imugen.sensors.vibration_fit import _plain as plain
+
+    return plain(x)
