@@ -113,11 +113,12 @@ def test_outage_end_equals_filter_in_memory(scene):
     from imugen.aid.stage import _stack
 
     scen = _stack(gs)
-    tun = A.Tuning.from_grade("consumer", "upper")
+    tun = A.Tuning.from_grade("consumer", "law")
+    Tm = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver, gnss_level="law")
     # the stage's NHC noise: the truth's own slip (its plausibility report)
     slip = AID.truth_slip_sd(truth.meta.get("plausibility"))
     opts = A.Options(nhc=True, zupt=True, nhc_sd_mps=slip)
-    res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts)
+    res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts, tuning_T=Tm)
     last = np.flatnonzero(scen.gnss.time_s < 110.0 - 1e-9)[-1]  # last epoch without a fix
     err = res.p_n[:, last] - truth.p_n[res.index[last]]
     a = taided.read(scene / "a.parquet")
@@ -172,12 +173,16 @@ def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
     a = taided.read(tmp_path / "a.parquet")
     assert len(a) > 150
     assert np.abs(a[list(taided.ERR_POS)].to_numpy()).max() < 5e-3
-    assert a["err_att_rad"].max() < 1e-3
+    # the alignment's heading transient, inside the filter's own 3 sigma (1.2e-3 rad at 28 s
+    # with the accelerometer cross-coupling states: their prior slows it, r26 study)
+    sd_att = np.linalg.norm(a[list(taided.SD_ATT)].to_numpy(), axis=1)
+    assert np.all(a["err_att_rad"].to_numpy() < 3 * sd_att)
+    assert a["err_att_rad"].max() < 2e-3
     truth = ttruth.read(scene / "truth.parquet")
     k = np.searchsorted(truth.time_s, a["time_s"].to_numpy() - 1e-9)
     np.testing.assert_allclose(a[list(ttruth.VEL)].to_numpy(), truth.v_n[k], atol=5e-3)
     dq = np.abs(np.sum(a[list(ttruth.QUAT)].to_numpy() * truth.q_nb[k], axis=1))
-    assert np.all(dq > np.cos(5e-4))  # same rotation, scalar first (sign free)
+    assert np.all(dq > np.cos(1e-3))  # same rotation (angle < 2e-3), scalar first (sign free)
     # nothing to estimate: the biases stay inside their reported 3-sigma
     b = a[[*taided.GYRO_BIAS, *taided.ACCEL_BIAS]].to_numpy()
     sd = a[[*taided.SD_GYRO_BIAS, *taided.SD_ACCEL_BIAS]].to_numpy()
