@@ -23,7 +23,7 @@ Errors and scenario context:
 Navigation state (the filter's estimate; names as :mod:`imugen.tables.truth` where the truth
 has the quantity; conventions of :mod:`imugen`: ENU navigation frame, FLU body frame):
 
-- ``p_e_m``, ``p_n_m``, ``p_u_m``: IMU position (m, ENU of the route origin);
+- ``e_m``, ``n_m``, ``u_m``: IMU position (m, ENU of the route origin; the truth's names);
 - ``v_e_mps``, ``v_n_mps``, ``v_u_mps``: IMU velocity in n (m/s);
 - ``q_w``, ``q_x``, ``q_y``, ``q_z``: attitude ``q_nb`` (body to navigation), scalar first;
 - ``gyro_bias_{x,y,z}_radps``, ``accel_bias_{x,y,z}_mps2``: estimated sensor biases (body
