@@ -256,3 +256,37 @@ def test_aided_metrics_on_a_constructed_table():
     np.testing.assert_allclose(m.loc[[7, 9], "outage_30s_end_m"], [15.0, 30.0])
     np.testing.assert_allclose(m.loc[[7, 9], "time_to_10m_s"], [21.0, 11.0])  # first > 10 m
     assert [c for c in m.columns if c.startswith("outage_")] == ["outage_30s_end_m"]
+
+
+def test_correction_out_and_in_follow_their_contract(scene, tmp_path):
+    """``--correction-out`` streams what the filter removed from each increment (every sample
+    of every sequence) without changing the aided table; a learner's zero correction through
+    ``--correction-in`` changes nothing; a table missing a sequence is refused in one line."""
+    from imugen.tables import imu_correction as tcorr
+
+    d = scene
+    params = AID.AidOptions(intervals=(OUTAGE,))
+    AID.run(d / "truth.parquet", d / "imu.parquet", tmp_path / "g.parquet",
+            tmp_path / "a.parquet", params, out_correction=tmp_path / "c.parquet")  # fmt: skip
+    ref = taided.read(d / "a.parquet")
+    pd.testing.assert_frame_equal(taided.read(tmp_path / "a.parquet"), ref)
+    c = tcorr.read(tmp_path / "c.parquet")
+    ids = tshard.read_labels(d / "imu.parquet")["sequence"].to_numpy()
+    K = ttruth.read(d / "truth.parquet").K
+    assert list(c.columns) == list(tcorr.COLUMNS) and len(c) == len(ids) * K
+    dth, dv = tcorr.arrays(tmp_path / "c.parquet", ids, K)
+    # the filter's gyro-bias estimate times dt dominates the angle correction (consumer grade;
+    # the cross-coupling's share depends on the rate)
+    late = ref.groupby("sequence")[list(taided.GYRO_BIAS)].last()
+    np.testing.assert_allclose(dth[:, -1], late.loc[ids].to_numpy() * 0.01, rtol=0.3, atol=2e-7)
+    assert np.isfinite(dv).all() and np.abs(dv[:, -1]).max() > 0.0
+    assert np.all(dth[:, 0] == 0.0)  # row 0 unused
+    zeros = tcorr.frame(ids, np.zeros((len(ids), K, 6)))
+    tcorr.write(zeros, {"what": "zeros"}, tmp_path / "z.parquet")
+    AID.run(d / "truth.parquet", d / "imu.parquet", tmp_path / "g2.parquet",
+            tmp_path / "a2.parquet", params, correction_in=tmp_path / "z.parquet")  # fmt: skip
+    pd.testing.assert_frame_equal(taided.read(tmp_path / "a2.parquet"), ref)
+    part = tcorr.frame(ids[:2], np.zeros((2, K, 6)))
+    tcorr.write(part, {}, tmp_path / "p.parquet")
+    with pytest.raises(InputError, match=f"sequence {ids[2]} has 0 samples"):
+        tcorr.arrays(tmp_path / "p.parquet", ids, K)

@@ -189,6 +189,16 @@ COMMANDS = {
             ),
             argument("-o", "--output", required=True, help="aided navigation-error Parquet"),
             argument("--companions-out", help="companion-sensor Parquet (+ .labels)"),
+            argument(
+                "--correction-in",
+                help="a learner's IMU correction Parquet (imugen.tables.imu_correction), "
+                "subtracted from the increments before the filter",
+            ),
+            argument(
+                "--correction-out",
+                help="IMU correction Parquet: what the filter removed from each increment "
+                "(the filter-aware target is the shard's effective error minus it)",
+            ),
         ),
     )
 }

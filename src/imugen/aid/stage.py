@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from contextlib import nullcontext
 from dataclasses import asdict, fields, replace
 from pathlib import Path
 
@@ -54,6 +55,7 @@ from imugen.tables import SEQUENCE, TIME
 from imugen.tables import aided as taided
 from imugen.tables import companions as tcomp
 from imugen.tables import gnss as tgnss
+from imugen.tables import imu_correction as tcorr
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
@@ -321,9 +323,13 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
 
 def aid(
     truth_path, shard_path, params: AidOptions, *, batch: int | None = None, sink=None,
-    aided_sink=None, companion_sink=None,
+    aided_sink=None, companion_sink=None, correction_in=None, correction_sink=None,
 ):  # fmt: skip
     """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
+
+    ``correction_in``: an IMU correction table (:mod:`imugen.tables.imu_correction`, a
+    learner's) subtracted from the increments before the filter; ``correction_sink(cols)``
+    receives, batch by batch, what the filter removed from each increment (the same layout).
 
     ``sink(meta, df)`` and ``aided_sink(meta, df)``, when given, receive the GNSS rows and the
     aided rows batch by batch (and ``gnss rows``, ``aided rows`` are then None), so neither
@@ -401,9 +407,15 @@ def aid(
         init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
                        speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
         never += int(np.sum(init.k0 >= K))
+        learned = None
+        if correction_in is not None:
+            learned = A.LearnedInputs(*tcorr.arrays(correction_in, ids, K))
         res = A.run(
-            dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce
-        )
+            dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce,
+            learned=learned, store_correction=correction_sink is not None,
+        )  # fmt: skip
+        if correction_sink is not None:
+            correction_sink(tcorr.frame(ids, res.correction))
         if companion_sink is not None:
             clab = pd.DataFrame({SEQUENCE: ids})
             for d in (odo, baro):
@@ -444,12 +456,14 @@ def aid(
 
 def run(
     truth, shard, out_gnss, out_nav, params: AidOptions | None = None, *, batch=None,
-    out_companions=None,
+    out_companions=None, correction_in=None, out_correction=None,
 ):  # fmt: skip
     """Run the stage on one shard and write the GNSS table (with sidecars), the aided table
     (both streamed batch by batch) and, when ``out_companions`` is given, the companion table
-    (with its labels; no rows when no companion is configured) atomically. Returns
-    ``(out_gnss, out_nav)`` paths."""
+    (with its labels; no rows when no companion is configured) atomically; ``correction_in``
+    a learner's IMU correction table to apply, ``out_correction`` where to stream what the
+    filter removed (:mod:`imugen.tables.imu_correction`). Returns ``(out_gnss, out_nav)``
+    paths."""
     params = params or AidOptions()
     if out_companions is None and (params.odometer or params.barometer):
         raise InputError("--companions-out", "needed with an odometer or a barometer")
@@ -459,7 +473,15 @@ def run(
         crow.append(rows)
         clab.append(labels)
 
-    with tgnss.writer(out_gnss) as w, taided.writer(out_nav) as wa:
+    with (
+        tgnss.writer(out_gnss) as w,
+        taided.writer(out_nav) as wa,
+        tcorr.writer(out_correction) if out_correction else nullcontext() as wc,
+    ):
+        correction_sink = None
+        if wc is not None:
+            wc.meta = {"stage": "aid-correction", "shard": Path(shard).name, "what": "filter"}
+            correction_sink = wc.put
 
         def sink(meta, df):
             w.meta = {**meta, "stage": "aid-gnss"}
@@ -471,7 +493,7 @@ def run(
 
         _, w.labels, w.intervals, _, meta = aid(
             truth, shard, params, batch=batch, sink=sink, aided_sink=aided_sink,
-            companion_sink=csink,
+            companion_sink=csink, correction_in=correction_in, correction_sink=correction_sink,
         )  # fmt: skip
         if out_companions is not None:
             cmeta = {
@@ -495,9 +517,15 @@ def _rate(kind, preset, rate):
     return float(rate or CP.get_sensor(kind, preset).rate_hz)
 
 
-def main(options: AidOptions, truth, shard, gnss_out, output, companions_out) -> None:
+def main(
+    options: AidOptions, truth, shard, gnss_out, output, companions_out, correction_in=None,
+    correction_out=None,
+) -> None:  # fmt: skip
     """``imugen aid``."""
-    run(truth, shard, gnss_out, output, options, out_companions=companions_out)
+    run(
+        truth, shard, gnss_out, output, options, out_companions=companions_out,
+        correction_in=correction_in, out_correction=correction_out,
+    )  # fmt: skip
 
 
 __all__ = [
