@@ -18,7 +18,7 @@ estimates with it), the fraction of epochs whose Monte-Carlo mean is outside the
 Usage::
 
     python benchmarks/bench_aided_nees.py [--sequences 40] [--grades consumer industrial tactical]
-        [--no-cross-coupling]
+        [--no-cross-coupling] [--draw ranges] [--level law] [--nhc] [--zupt] [--former]
 
 Run it with ``PYTHONPATH`` on another source tree to compare versions of the filter.
 """
@@ -96,7 +96,8 @@ def run_grade(
     if draw == "nominal":
         Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
     else:
-        Tm = A.tuning_matrix(tun, M, gnss_receiver=gn.receiver, gnss_level=level)
+        gl = "law" if level == "law" else "nominal"
+        Tm = A.tuning_matrix(tun, M, gnss_receiver=gn.receiver, gnss_level=gl)
     gb = Tm[:, A.T_GB_SD : A.T_GB_SD + 3]
     sd_p = np.sqrt(gb**2 + Tm[:, A.T_GW : A.T_GW + 3] ** 2)
     P0 = A.initial_covariance(tun, opts, sd_p, 0.05, [0.01, 0.01, 0.02], gb)
@@ -159,13 +160,18 @@ def main(argv=None):
     ap.add_argument("--level", default="nominal", choices=list(A.LEVELS))
     ap.add_argument("--nhc", action="store_true", help="non-holonomic constraint (slip 0.01)")
     ap.add_argument("--zupt", action="store_true", help="zero-velocity updates")
+    ap.add_argument(
+        "--former", action="store_true", help="the rules before issue 26 (aided_digest.FORMER)"
+    )
     a = ap.parse_args(argv)
     df = scene()
     cc = not a.no_cross_coupling
-    opts = A.Options(
-        gyro_cross_coupling=cc, accel_cross_coupling=cc, nhc=a.nhc, zupt=a.zupt,
-        nhc_sd_mps=(0.01, 0.01),
-    )  # fmt: skip
+    kw = {"gyro_cross_coupling": cc, "accel_cross_coupling": cc}
+    if a.former:
+        from aided_digest import FORMER
+
+        kw |= FORMER
+    opts = A.Options(**kw, nhc=a.nhc, zupt=a.zupt, nhc_sd_mps=(0.01, 0.01))
     rows = [run_grade(df, g, a.sequences, opts=opts, draw=a.draw, level=a.level) for g in a.grades]
     print(pd.DataFrame(rows).round(3).to_string(index=False))
 
