@@ -261,6 +261,9 @@ def main():
         if a.compare:
             ref = np.load(Path(a.compare) / f"{name}.npz")
             for k in sorted(out):
+                if k not in ref.files:
+                    print(f"    {k:14s} new")
+                    continue
                 if out[k].dtype.kind in "US":
                     same = np.array_equal(out[k], ref[k])
                     print(f"    {k:14s} {'equal' if same else 'DIFFERENT'}")
