@@ -11,9 +11,14 @@ the outputs: equal digests mean bit-identical outputs. ``--save DIR`` also write
 arrays (``DIR/<case>.npz``) and ``--compare DIR`` prints the largest relative difference per
 array against such a folder.
 
+``--former`` runs every case with the options that give the rules before issue 26 (no
+accelerometer cross-coupling states, no NHC gate or speed rule, the former ZUPT rules) and
+leaves out the arrays added since (``accel_cc``): its digests then equal those of a commit
+before issue 26 when the former code paths are bit-identical.
+
 Usage::
 
-    python benchmarks/aided_digest.py [--save DIR | --compare DIR] [--sequences 3]
+    python benchmarks/aided_digest.py [--save DIR | --compare DIR] [--sequences 3] [--former]
 """
 
 from __future__ import annotations
@@ -52,6 +57,21 @@ POS, VEL, QUAT = (
     ("v_e_mps", "v_n_mps", "v_u_mps"),
     ("q_w", "q_x", "q_y", "q_z"),
 )
+
+
+FORMER = {
+    "accel_cross_coupling": False, "nhc_gate_sigma": 0.0, "nhc_speed_ratio": 0.0,
+    "zupt_min_still_s": 0.0, "zupt_speed_conf": 0.0, "zupt_crawl_mps": 0.0,
+}  # fmt: skip
+"""Options giving the filter's rules before issue 26 (``--former``)."""
+NEW_ARRAYS = ("accel_cc",)
+"""Output arrays added by issue 26 (left out with ``--former``)."""
+_former = False
+
+
+def _options(**kw):
+    """``A.Options(**kw)``, with :data:`FORMER` under ``--former``."""
+    return A.Options(**({**FORMER, **kw} if _former else kw))
 
 
 def car(earth):
@@ -113,19 +133,19 @@ def cases(S):
     }
     mount = dict(nhc_misalignment_sd_rad=(0.02, 0.03), nhc_lever_arm_sd_m=(0.2, 0.1, 0.2),
                  nhc_lever_arm_m=(1.0, 0.1, -0.3))  # fmt: skip
-    full = A.Options(nhc=True, zupt=True, odometer=True, baro=True, **mount)
+    full = _options(nhc=True, zupt=True, odometer=True, baro=True, **mount)
     variants = {
-        "plain": (A.Options(gnss_bias=False, gyro_cross_coupling=False), {}),
-        "default": (A.Options(), {}),
+        "plain": (_options(gnss_bias=False, gyro_cross_coupling=False), {}),
+        "default": (_options(), {}),
         "sf_nhc_zupt_gate": (
-            A.Options(
+            _options(
                 scale_factors=True, nhc=True, zupt=True, gate_sigma=4.0, nhc_sd_mps=(0.01, 0.02)
             ),
             {},
         ),
         "full_P": (full, {"store_P": True}),
         "odo_nosf_novel": (
-            A.Options(
+            _options(
                 odometer=True,
                 odo_scale_state=False,
                 baro=True,
@@ -136,7 +156,7 @@ def cases(S):
             {},
         ),
         "sf_nocc_mount_odo": (
-            A.Options(
+            _options(
                 scale_factors=True, gyro_cross_coupling=False, nhc=True, odometer=True, **mount
             ),
             {},
@@ -164,7 +184,7 @@ def cases(S):
     w = np.broadcast_to(E.earth_rate_n(wgs), (K, 3)).copy()
     gs = G.simulate_gnss(t, pz, vz, q, w, "standalone", M, seed=6, draw="nominal",
                          omega_ie_n=E.earth_rate_n(wgs), frame=wgs)  # fmt: skip
-    opts = A.Options(zupt=True)
+    opts = _options(zupt=True)
     yield (
         "wgs84-static",
         sh.data["dtheta"],
@@ -199,6 +219,8 @@ def run_case(dth, dvb, frame, gn, ce, opts, kw):
     out = {}
     for f in fields(res):
         val = getattr(res, f.name)
+        if _former and f.name in NEW_ARRAYS:
+            continue
         if isinstance(val, np.ndarray):
             out[f.name] = np.ascontiguousarray(val)
     if init is None and "static_s" not in kw:
@@ -219,7 +241,10 @@ def main():
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--save")
     g.add_argument("--compare")
+    ap.add_argument("--former", action="store_true", help="the rules before issue 26")
     a = ap.parse_args()
+    global _former
+    _former = a.former
     bits = {"gnss_p": 1, "gnss_v": 2, "zupt": 4, "nhc": 8, "reject": 16, "odo": 64, "baro": 128}
     for name, dth, dvb, frame, gn, ce, opts, kw in cases(a.sequences):
         out = run_case(dth, dvb, frame, gn, ce, opts, kw)
@@ -236,6 +261,9 @@ def main():
         if a.compare:
             ref = np.load(Path(a.compare) / f"{name}.npz")
             for k in sorted(out):
+                if k not in ref.files:
+                    print(f"    {k:14s} new")
+                    continue
                 if out[k].dtype.kind in "US":
                     same = np.array_equal(out[k], ref[k])
                     print(f"    {k:14s} {'equal' if same else 'DIFFERENT'}")

@@ -18,7 +18,7 @@ estimates with it), the fraction of epochs whose Monte-Carlo mean is outside the
 Usage::
 
     python benchmarks/bench_aided_nees.py [--sequences 40] [--grades consumer industrial tactical]
-        [--no-cross-coupling]
+        [--no-cross-coupling] [--draw ranges] [--level law] [--nhc] [--zupt] [--former]
 
 Run it with ``PYTHONPATH`` on another source tree to compare versions of the filter.
 """
@@ -67,29 +67,37 @@ def nees(e, P):
 
 
 def run_grade(
-    df, grade: str, M: int, seed: int = 11, opts: A.Options | None = None, model_terms=None
-) -> dict:
-    """Monte-Carlo run of one grade: NEES per dof (pos, att, bias), bound misses, RMSE.
+    df, grade: str, M: int, seed: int = 11, opts: A.Options | None = None, model_terms=None,
+    draw: str = "nominal", level: str = "nominal",
+) -> dict:  # fmt: skip
+    """Monte-Carlo run of one grade: NEES per dof (pos, vel, att, bias; with ZUPT also at the
+    ZUPT epochs), bound misses, RMSE.
 
     ``model_terms``: the terms the filter's tuning models (default all; the IMU always has
-    every configured term)."""
+    every configured term). ``draw``: the IMU's and the receiver's figures ``"nominal"`` (the
+    filter's GNSS bias model then is the drawn figures, an oracle) or drawn in their
+    ``"ranges"`` (the filter then knows only the law: ``level="law"``)."""
     t = df["time_s"].to_numpy()
     p = df[["e_m", "n_m", "u_m"]].to_numpy()
     v = df[["v_e_mps", "v_n_mps", "v_u_mps"]].to_numpy()
     q = df[["q_w", "q_x", "q_y", "q_z"]].to_numpy()
     w = df[["gyro_x_radps", "gyro_y_radps", "gyro_z_radps"]].to_numpy()
     frame = OriginFrame.from_deg(*ORIGIN, model="flat")
-    sh = SIM.simulate(df, grade, sequences=M, seed=seed, draw="nominal", series=True)
+    sh = SIM.simulate(df, grade, sequences=M, seed=seed, draw=draw, series=True)
     gn = G.simulate_gnss(
-        t, p, v, q, w, "standalone", sequences=M, seed=seed, draw="nominal", lever_arm_b_m=LEVER
+        t, p, v, q, w, "standalone", sequences=M, seed=seed, draw=draw, lever_arm_b_m=LEVER
     )
     fix = gn.fix.copy()
     tt = np.asarray(gn.time_s)
     fix[:, (tt >= OUTAGE_S[0]) & (tt < OUTAGE_S[1])] = 0
     gn = replace(gn, fix=fix)
-    tun = A.Tuning.from_grade(grade, "nominal", terms=model_terms)
+    tun = A.Tuning.from_grade(grade, level, terms=model_terms)
     opts = opts or A.Options()
-    Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
+    if draw == "nominal":
+        Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
+    else:
+        gl = "law" if level == "law" else "nominal"
+        Tm = A.tuning_matrix(tun, M, gnss_receiver=gn.receiver, gnss_level=gl)
     gb = Tm[:, A.T_GB_SD : A.T_GB_SD + 3]
     sd_p = np.sqrt(gb**2 + Tm[:, A.T_GW : A.T_GW + 3] ** 2)
     P0 = A.initial_covariance(tun, opts, sd_p, 0.05, [0.01, 0.01, 0.02], gb)
@@ -105,9 +113,12 @@ def run_grade(
     idx = res.index
     js = np.flatnonzero(res.time_s >= 15.0)
     ep = res.p_n[:, js] - p[idx[js]]
+    ev = res.v_n[:, js] - v[idx[js]]
     ea = A.attitude_error(res.q_nb[:, js], q[idx[js]])
     g0 = units.G0
-    E_a = sh.accel.cc + np.einsum("si,ij->sij", sh.accel.sf, np.eye(3))
+    E_a = np.einsum("si,ij->sij", sh.accel.sf, np.eye(3))
+    if not opts.accel_cross_coupling:  # else its states carry the error on gravity g0 cc[:, 2]
+        E_a = E_a + sh.accel.cc
     bg = sh.data["gyro_bias"][:, idx[js]] + g0 * sh.gyro.gs[:, None, :, 2]
     ba = sh.data["accel_bias"][:, idx[js]] + g0 * E_a[:, None, :, 2]
     eb = np.concatenate([res.gyro_bias[:, js] - bg, res.accel_bias[:, js] - ba], -1)
@@ -115,6 +126,7 @@ def run_grade(
     out = {"grade": grade}
     for name, e, sl, d in (
         ("pos", ep, slice(0, 3), 3),
+        ("vel", ev, slice(3, 6), 3),
         ("att", ea, slice(6, 9), 3),
         ("bias", eb, slice(9, 15), 6),
     ):
@@ -122,6 +134,12 @@ def run_grade(
         lo, hi = chi2.ppf([0.005, 0.995], d * M) / M
         out[f"nees_{name}"] = float(eps.mean() / d)
         out[f"out_{name}"] = float(np.mean((eps < lo) | (eps > hi)))
+    zu = (res.flags[:, js] & A.F_ZUPT) != 0
+    if zu.any():  # velocity NEES/dof at the ZUPT epochs: mean and 95th percentile
+        nz = nees(ev, P[..., 3:6, 3:6])[zu] / 3
+        out["zupt_epochs"] = int(zu.sum())
+        out["nees_vel_zupt"] = float(nz.mean())
+        out["nees_vel_zupt_p95"] = float(np.percentile(nz, 95))
     tj = res.time_s[js]
     with_fix = (tj < OUTAGE_S[0]) | (tj >= OUTAGE_S[1] + 5.0)
     hz = np.hypot(ep[..., 0], ep[..., 1])
@@ -136,12 +154,25 @@ def main(argv=None):
     ap.add_argument("--sequences", type=int, default=40)
     ap.add_argument("--grades", nargs="+", default=["consumer", "industrial", "tactical"])
     ap.add_argument(
-        "--no-cross-coupling", action="store_true", help="no gyro cross-coupling states"
+        "--no-cross-coupling", action="store_true", help="no gyro/accelerometer cc states"
+    )
+    ap.add_argument("--draw", default="nominal", choices=["nominal", "ranges"])
+    ap.add_argument("--level", default="nominal", choices=list(A.LEVELS))
+    ap.add_argument("--nhc", action="store_true", help="non-holonomic constraint (slip 0.01)")
+    ap.add_argument("--zupt", action="store_true", help="zero-velocity updates")
+    ap.add_argument(
+        "--former", action="store_true", help="the rules before issue 26 (aided_digest.FORMER)"
     )
     a = ap.parse_args(argv)
     df = scene()
-    opts = A.Options(gyro_cross_coupling=not a.no_cross_coupling)
-    rows = [run_grade(df, g, a.sequences, opts=opts) for g in a.grades]
+    cc = not a.no_cross_coupling
+    kw = {"gyro_cross_coupling": cc, "accel_cross_coupling": cc}
+    if a.former:
+        from aided_digest import FORMER
+
+        kw |= FORMER
+    opts = A.Options(**kw, nhc=a.nhc, zupt=a.zupt, nhc_sd_mps=(0.01, 0.01))
+    rows = [run_grade(df, g, a.sequences, opts=opts, draw=a.draw, level=a.level) for g in a.grades]
     print(pd.DataFrame(rows).round(3).to_string(index=False))
 
 

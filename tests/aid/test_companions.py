@@ -410,8 +410,12 @@ def test_companion_options_are_checked(stage, tmp_path, cli):
         0.05,
         0.05,
     )
-    rep = {"max_body_lateral_speed_mps": 0.3, "max_body_vertical_speed_mps": 1e-3}
-    assert AID.filter_options(AID.AidOptions(), "car", None, rep).nhc_sd_mps == (0.3, 1e-3)
+    # the truth's RMS slip, at least the floor (NHC's own gate rejects the bursts)
+    rep = {"rms_body_lateral_speed_mps": 0.03, "rms_body_vertical_speed_mps": 1e-4}
+    assert AID.filter_options(AID.AidOptions(), "car", None, rep).nhc_sd_mps == (
+        0.03,
+        AID.SLIP_FLOOR_MPS,
+    )
     assert AID.filter_options(AID.AidOptions(), "car").nhc_sd_mps == (AID.SLIP_FALLBACK_MPS,) * 2
     r = cli("aid", str(d / "truth.parquet"), str(d / "imu.parquet"), "--gnss-out",
             str(tmp_path / "g.parquet"), "-o", str(tmp_path / "a.parquet"), "--baro", "bmp388")  # fmt: skip

@@ -1,6 +1,7 @@
 """GNSS scenarios: every kind against its definition on a noiseless and a noisy receiver,
 jamming noise against its stated variance (chi-square), draws reproducible and in range."""
 
+import itertools
 import math
 
 import numpy as np
@@ -122,7 +123,10 @@ def test_jamming_inflates_sigmas_and_noise_then_loses_the_fix():
 def test_draws_are_reproducible_independent_and_in_range():
     a = SC.draw(["outage", "spoof_ramp"], 600.0, seed=1, shard=0, sequences=50)
     b = SC.draw(["outage"], 600.0, seed=1, shard=0, sequences=3)
-    assert [x[0] for x in a[:3]] == [x[0] for x in b]  # a kind's draw ignores the others
+    # a kind's duration and parameters ignore the others (its start makes room for them)
+    assert [(x[0].duration_s, x[0].params) for x in a[:3]] == [(x[0].duration_s, {}) for x in b]
+    for o, s in a:  # the intervals of a sequence never overlap
+        assert o.end_s <= s.start_s + 1e-9 or s.end_s <= o.start_s + 1e-9
     durs = {x[0].duration_s for x in a}
     assert durs <= set(SC.OUTAGE_PRESETS_S) and len(durs) >= 3
     for o, s in a:
@@ -140,3 +144,34 @@ def test_bad_intervals_are_refused():
         SC.apply(g, [{"kind": "outage", "start_s": 1, "duration_s": 2, "rate_mps": 1}])
     with pytest.raises(InputError, match="missing rate_mps"):
         SC.apply(g, [{"kind": "spoof_ramp", "start_s": 1, "duration_s": 2}])
+
+
+def test_every_kind_drawn_together_never_overlaps_and_labels_stay_exact():
+    """Seven kinds in 600 s: the former independent starts overlapped in every sequence
+    ("spoofed" epochs with no fix); now the intervals tile the free time and an epoch whose
+    fix a scenario took is labelled a loss."""
+    kinds = list(SC.KINDS)
+    ivs = SC.draw(kinds, 600.0, seed=3, sequences=40)
+    for seq in ivs:
+        s = sorted((iv.start_s, iv.end_s) for iv in seq)
+        assert all(b[0] >= a[1] - 1e-9 for a, b in itertools.pairwise(s))
+        assert s[0][0] >= 60.0 - 1e-9 and s[-1][1] <= 600.0 + 1e-9
+    g = fixes(M=40, receiver=G.get_receiver("standalone"), T=600.0)
+    r = SC.apply(g, ivs, seed=3)
+    lost = (r.gnss.fix == 0) & (g.fix > 0)  # the receiver had a fix, a scenario took it
+    assert np.all(np.isin(r.state[lost], [1, 3]))
+    assert not np.any(np.isin(r.state[~lost], [1, 3]))
+
+
+def test_overlapping_declared_intervals_are_labelled_by_what_the_receiver_gives():
+    g = fixes(M=2, receiver=G.get_receiver("standalone"), T=60.0)
+    ivs = [
+        {"kind": "outage", "start_s": 10.0, "duration_s": 20.0},
+        {"kind": "spoof_ramp", "start_s": 20.0, "duration_s": 20.0, "rate_mps": 1.0},
+    ]
+    r = SC.apply(g, ivs)
+    t = g.time_s
+    both = (t >= 20.0) & (t < 30.0)
+    after = (t >= 30.0) & (t < 40.0)
+    assert np.all(r.gnss.fix[:, both] == 0) and np.all(r.state[:, both] == 1)
+    assert np.all(r.gnss.fix[:, after] > 0) and np.all(r.state[:, after] == SC.KINDS["spoof_ramp"])

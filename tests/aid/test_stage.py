@@ -113,11 +113,12 @@ def test_outage_end_equals_filter_in_memory(scene):
     from imugen.aid.stage import _stack
 
     scen = _stack(gs)
-    tun = A.Tuning.from_grade("consumer", "upper")
+    tun = A.Tuning.from_grade("consumer", "law")
+    Tm = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver, gnss_level="law")
     # the stage's NHC noise: the truth's own slip (its plausibility report)
     slip = AID.truth_slip_sd(truth.meta.get("plausibility"))
     opts = A.Options(nhc=True, zupt=True, nhc_sd_mps=slip)
-    res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts)
+    res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts, tuning_T=Tm)
     last = np.flatnonzero(scen.gnss.time_s < 110.0 - 1e-9)[-1]  # last epoch without a fix
     err = res.p_n[:, last] - truth.p_n[res.index[last]]
     a = taided.read(scene / "a.parquet")
@@ -172,12 +173,16 @@ def test_ideal_imu_and_gnss_stay_on_truth(scene, tmp_path):
     a = taided.read(tmp_path / "a.parquet")
     assert len(a) > 150
     assert np.abs(a[list(taided.ERR_POS)].to_numpy()).max() < 5e-3
-    assert a["err_att_rad"].max() < 1e-3
+    # the alignment's heading transient, inside the filter's own 3 sigma (1.2e-3 rad at 28 s
+    # with the accelerometer cross-coupling states: their prior slows it, r26 study)
+    sd_att = np.linalg.norm(a[list(taided.SD_ATT)].to_numpy(), axis=1)
+    assert np.all(a["err_att_rad"].to_numpy() < 3 * sd_att)
+    assert a["err_att_rad"].max() < 2e-3
     truth = ttruth.read(scene / "truth.parquet")
     k = np.searchsorted(truth.time_s, a["time_s"].to_numpy() - 1e-9)
     np.testing.assert_allclose(a[list(ttruth.VEL)].to_numpy(), truth.v_n[k], atol=5e-3)
     dq = np.abs(np.sum(a[list(ttruth.QUAT)].to_numpy() * truth.q_nb[k], axis=1))
-    assert np.all(dq > np.cos(5e-4))  # same rotation, scalar first (sign free)
+    assert np.all(dq > np.cos(1e-3))  # same rotation (angle < 2e-3), scalar first (sign free)
     # nothing to estimate: the biases stay inside their reported 3-sigma
     b = a[[*taided.GYRO_BIAS, *taided.ACCEL_BIAS]].to_numpy()
     sd = a[[*taided.SD_GYRO_BIAS, *taided.SD_ACCEL_BIAS]].to_numpy()
@@ -251,3 +256,37 @@ def test_aided_metrics_on_a_constructed_table():
     np.testing.assert_allclose(m.loc[[7, 9], "outage_30s_end_m"], [15.0, 30.0])
     np.testing.assert_allclose(m.loc[[7, 9], "time_to_10m_s"], [21.0, 11.0])  # first > 10 m
     assert [c for c in m.columns if c.startswith("outage_")] == ["outage_30s_end_m"]
+
+
+def test_correction_out_and_in_follow_their_contract(scene, tmp_path):
+    """``--correction-out`` streams what the filter removed from each increment (every sample
+    of every sequence) without changing the aided table; a learner's zero correction through
+    ``--correction-in`` changes nothing; a table missing a sequence is refused in one line."""
+    from imugen.tables import imu_correction as tcorr
+
+    d = scene
+    params = AID.AidOptions(intervals=(OUTAGE,))
+    AID.run(d / "truth.parquet", d / "imu.parquet", tmp_path / "g.parquet",
+            tmp_path / "a.parquet", params, out_correction=tmp_path / "c.parquet")  # fmt: skip
+    ref = taided.read(d / "a.parquet")
+    pd.testing.assert_frame_equal(taided.read(tmp_path / "a.parquet"), ref)
+    c = tcorr.read(tmp_path / "c.parquet")
+    ids = tshard.read_labels(d / "imu.parquet")["sequence"].to_numpy()
+    K = ttruth.read(d / "truth.parquet").K
+    assert list(c.columns) == list(tcorr.COLUMNS) and len(c) == len(ids) * K
+    dth, dv = tcorr.arrays(tmp_path / "c.parquet", ids, K)
+    # the filter's gyro-bias estimate times dt dominates the angle correction (consumer grade;
+    # the cross-coupling's share depends on the rate)
+    late = ref.groupby("sequence")[list(taided.GYRO_BIAS)].last()
+    np.testing.assert_allclose(dth[:, -1], late.loc[ids].to_numpy() * 0.01, rtol=0.3, atol=2e-7)
+    assert np.isfinite(dv).all() and np.abs(dv[:, -1]).max() > 0.0
+    assert np.all(dth[:, 0] == 0.0)  # row 0 unused
+    zeros = tcorr.frame(ids, np.zeros((len(ids), K, 6)))
+    tcorr.write(zeros, {"what": "zeros"}, tmp_path / "z.parquet")
+    AID.run(d / "truth.parquet", d / "imu.parquet", tmp_path / "g2.parquet",
+            tmp_path / "a2.parquet", params, correction_in=tmp_path / "z.parquet")  # fmt: skip
+    pd.testing.assert_frame_equal(taided.read(tmp_path / "a2.parquet"), ref)
+    part = tcorr.frame(ids[:2], np.zeros((2, K, 6)))
+    tcorr.write(part, {}, tmp_path / "p.parquet")
+    with pytest.raises(InputError, match=f"sequence {ids[2]} has 0 samples"):
+        tcorr.arrays(tmp_path / "p.parquet", ids, K)

@@ -314,13 +314,25 @@ def test_figure8_properties(drifting):
             assert tb.y1 <= fig.bbox.y1 + 1 and tb.x0 >= -1, ax.title.get_text()
         ax_b = fig.axes[1]
         (x0, x1), (y0, y1) = ax_b.get_xlim(), ax_b.get_ylim()
-        ends = 0
-        for line in ax_b.get_lines():
-            x, y = (np.asarray(v, float) for v in line.get_data())
-            if x.size:
-                assert x0 <= x[-1] <= x1 and y0 <= y[-1] <= y1, line.get_label()
-                ends += 1
-        assert ends >= 1 + len(nav)
+        # the zoom zooms: at most clip_factor (3) times the reference's window (a 100 m
+        # circle: its last 20 % spans ~120 m), not the 100 km drift of the consumer grade
+        assert x1 - x0 < 1000.0 and y1 - y0 < 1000.0, (x0, x1, y0, y1)
+        ref = ax_b.get_lines()[0]
+        rx, ry = (np.asarray(v, float) for v in ref.get_data())
+        assert x0 <= rx.min() and rx.max() <= x1 and y0 <= ry.min() and ry.max() <= y1
+        notes = {t.get_text().split(":")[0]: t.get_text() for t in ax_b.texts}
+        colour = {g: st["color"] for g, st in grade_styles(list(nav)).items()}
+        for g in nav:  # each end: a dot inside, or an edge mark labelled with its distance
+            dots = [
+                ln for ln in ax_b.get_lines()
+                if ln.get_marker() == "o" and ln.get_color() == colour[g]
+            ]  # fmt: skip
+            assert bool(dots) != (g in notes), (g, notes)
+            for ln in dots:
+                x, y = (np.asarray(v, float) for v in ln.get_data())
+                assert x0 <= x[-1] <= x1 and y0 <= y[-1] <= y1, g
+        assert "consumer" in notes and "km" in notes["consumer"], notes
+        assert "tactical_calibrated" not in notes
         styles = {
             (ln.get_color(), ln.get_linestyle()) for ln in fig.axes[0].get_lines()[1 : 1 + len(nav)]
         }

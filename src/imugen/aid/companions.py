@@ -313,7 +313,11 @@ def simulate_barometer(
     )  # fmt: skip
 
 
-def _figure_value(f, level: str) -> float:
+def _figure_value(f, level: str, tau: bool = False) -> float:
+    if level == "law" and f.lo is not None:  # sigmas: the law's RMS; correlation times: its mean
+        from imugen.aid.filter.tuning import law_mean, law_rms
+
+        return float((law_mean if tau else law_rms)(f.lo, f.hi))
     return f.hi if (level == "upper" and f.hi is not None) else f.value
 
 
@@ -366,8 +370,9 @@ def filter_input(
     consecutive windows, is modelled by the filter's states (:mod:`imugen.aid.filter.odometer`).
     Barometer: the altitude minus ``h0_m`` (the origin's height) at the epochs that are
     barometer epochs, variance ``s_w^2``. The noise figures and the drift /
-    scale-factor priors are the preset's top of range (``level="upper"``) or nominal
-    (``"nominal"``), or the drawn values of each sequence (``oracle=True``).
+    scale-factor priors are the preset's top of range (``level="upper"``), nominal
+    (``"nominal"``) or its law (``"law"``: the root mean square of each sigma's log-uniform
+    law, the mean correlation time), or the drawn values of each sequence (``oracle=True``).
 
     Returns a :class:`CompanionEpochs`.
     """
@@ -381,7 +386,8 @@ def filter_input(
     def fig(data, name):
         if oracle:
             return np.asarray(data.params[name], float)
-        return np.full(S, _figure_value(data.sensor.figures[name], level))
+        f = data.sensor.figures[name]
+        return np.full(S, _figure_value(f, level, name.endswith("tau_s")))
 
     if odometer is not None:
         o = odometer

@@ -63,8 +63,9 @@ class AidOptions:
         60.0, unit="s", config="scenarios.settle_s", help="earliest start of a drawn interval"
     )
     tuning_level: str = option(
-        "upper", choices=("nominal", "upper"), config="aided.tuning_level",
-        help="filter noise from the grade's nominal values or the top of their ranges",
+        "law", choices=("nominal", "upper", "law"), config="aided.tuning_level",
+        help="filter noise from the grade's (and receiver's) nominal values, the top of their "
+        "ranges, or the law they are drawn from (consistent over the population)",
     )  # fmt: skip
     gnss_bias_states: bool = option(
         True, flag="--no-gnss-bias-states", config="aided.gnss_bias_states",
@@ -73,7 +74,7 @@ class AidOptions:
     scale_factors: bool = option(False, config="aided.scale_factors", help="estimate scale factors")
     gyro_cross_coupling: bool = option(
         True, flag="--no-cross-coupling", config="aided.cross_coupling",
-        help="do not estimate the gyro cross-coupling",
+        help="do not estimate the gyro and accelerometer cross-coupling",
     )  # fmt: skip
     nhc: bool | None = option(
         None, config="aided.nhc", shown="on for a car truth", help="non-holonomic constraint"
@@ -188,6 +189,16 @@ COMMANDS = {
             ),
             argument("-o", "--output", required=True, help="aided navigation-error Parquet"),
             argument("--companions-out", help="companion-sensor Parquet (+ .labels)"),
+            argument(
+                "--correction-in",
+                help="a learner's IMU correction Parquet (imugen.tables.imu_correction), "
+                "subtracted from the increments before the filter",
+            ),
+            argument(
+                "--correction-out",
+                help="IMU correction Parquet: what the filter removed from each increment "
+                "(the filter-aware target is the shard's effective error minus it)",
+            ),
         ),
     )
 }

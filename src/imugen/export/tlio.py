@@ -8,6 +8,12 @@ sensor errors; TLIO's own data are bias-compensated by its VIO) rotated into Wor
 TRUE attitude; the specific force keeps gravity's reaction (+g on z at rest), as TLIO's does.
 The split lists ``train_list.txt``, ``val_list.txt``, ``test_list.txt`` name the sequence
 folders of each part of imugen's leakage-safe split.
+
+Training with TLIO (checked against its ``src/main_net.py`` at commit ``d7051c4``, 2023-08-07,
+the current ``master``; :func:`train_command`): the split lists are read from ``--root_dir``
+(``<split>_list.txt``: the former ``--train_list``, ``--val_list``, ``--test_list`` options
+are gone and refused), and ``--imu_freq`` must be the rate of the exported rows: the network's
+input window is ``window_time * imu_freq`` rows (``--imu_base_freq`` is no longer used).
 """
 
 from __future__ import annotations
@@ -55,3 +61,19 @@ def write(seq: Sequence, truth: TruthArrays, folder: Path, **_) -> list[Path]:
     }
     (folder / "imu0_resampled_description.json").write_text(json.dumps(desc, indent=2))
     return [folder / "imu0_resampled.npy", folder / "imu0_resampled_description.json"]
+
+
+def train_command(root_dir: str, rate_hz: float, mode: str = "train", out_dir: str = "models",
+                  model_path: str | None = None) -> str:  # fmt: skip
+    """TLIO's command line for an export under ``root_dir`` at ``rate_hz`` (the truth's rate,
+    ``approximate_frequency_hz`` of the descriptions): ``mode`` ``train`` or ``test`` (which
+    needs ``model_path``). Run from TLIO's repository root."""
+    rate = f"{float(rate_hz):g}"
+    # TLIO samples a window every imu_freq / sample_freq rows (an integer): at most 20 Hz
+    hz = float(rate_hz)
+    sample = next((d for d in range(20, 0, -1) if (hz / d).is_integer()), hz)
+    cmd = f"python3 src/main_net.py --mode {mode} --root_dir {root_dir} --out_dir {out_dir}"
+    cmd += f" --imu_freq {rate} --window_time 1.0 --sample_freq {sample:g}"
+    if mode == "test":
+        cmd += f" --model_path {model_path or 'models/checkpoint_best.pt'}"
+    return cmd

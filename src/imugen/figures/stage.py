@@ -295,11 +295,18 @@ def figure8_figure(
         zoom_extent(whole, [(t, e, n)], pad=0.03),
         clip_factor,
     )
-    # zoom: the reference over the window and the END of every plotted track
+    # zoom: the reference over the window and the END of every plotted track, cut to
+    # ``clip_factor`` times the reference's own window (a grade kilometres away is marked at
+    # the edge with its distance instead of turning the zoom into a map of its drift)
     ends = [(np.array([r["t"][-1]]), r["e"][-1:], r["n"][-1:]) for r in reps.values()]
-    lo_e, hi_e, lo_n, hi_n = zoom_extent(window, [(t, e, n), *ends], pad=0.08)
+    lo_e, hi_e, lo_n, hi_n = clip_box(
+        zoom_extent(window, [(t, e, n), *ends], pad=0.08),
+        zoom_extent(window, [(t, e, n)], pad=0.08),
+        clip_factor,
+    )
     half = max(hi_e - lo_e, hi_n - lo_n) / 2  # square box: equal scales on a square panel
     ce, cn = (lo_e + hi_e) / 2, (lo_n + hi_n) / 2
+    off = 0  # ends marked on the zoom's edge (their labels stacked)
     for ax, zoom in ((ax_a, False), (ax_b, True)):
         m = (t >= window[0]) if zoom else slice(None)
         ax.plot(e[m], n[m], color="black", lw=0.9, label="reference (truth)", zorder=3)
@@ -309,10 +316,10 @@ def figure8_figure(
                 r["e"][mr], r["n"][mr], lw=1.2, label=_rep_label(g, r, representative), **styles[g]
             )
             if zoom:
-                ax.plot(r["e"][-1], r["n"][-1], "o", ms=4, color=styles[g]["color"], zorder=4)
                 ax.plot(
                     [e[-1], r["e"][-1]], [n[-1], r["n"][-1]], ":", lw=0.7, color=styles[g]["color"]
                 )
+                off += _zoom_end(ax, g, r, (e[-1], n[-1]), (ce, cn, half), styles[g]["color"], off)
         ax.plot(e[-1], n[-1], "ks", ms=4, zorder=5, label=None if zoom else "end")
         if zoom:
             ax.set_xlim(ce - half, ce + half)
@@ -343,10 +350,36 @@ def figure8_figure(
     ax_c.set_xlabel("time [s]")
     ax_c.set_ylabel("horizontal error [m]")
     ax_a.set_title("(a) reference and one sequence per grade", loc="left")
-    ax_b.set_title(f"(b) last {100 * zoom_fraction:g} % of the time, every end inside", loc="left")
+    ax_b.set_title(f"(b) last {100 * zoom_fraction:g} % of the time and the ends", loc="left")
     ax_c.set_title("(c) horizontal error of the same sequences", loc="left")
     fig.legend(*ax_a.get_legend_handles_labels(), loc="outside lower center", ncols=2)
     return fig
+
+
+def _zoom_end(ax, g, r, ref_end, box, color, row=0) -> int:
+    """The end of grade ``g``'s track in the zoom: a dot where it lies inside the square
+    ``box`` (centre e, n and half-side), else a triangle on the box's edge towards it, labelled
+    with its distance from the reference's end (the zoom stays a zoom; ``row``: labels
+    already placed, stacked below). Returns 1 for an edge mark, else 0."""
+    ce, cn, half = box
+    ge, gn = float(r["e"][-1]), float(r["n"][-1])
+    de, dn = ge - ce, gn - cn
+    out = max(abs(de), abs(dn)) / half if half > 0 else 0.0
+    if out <= 1.0:
+        ax.plot(ge, gn, "o", ms=4, color=color, zorder=4)
+        return 0
+    k = 0.97 / out  # on the edge, just inside
+    pe, pn = ce + k * de, cn + k * dn
+    ax.plot(pe, pn, marker=(3, 0, np.degrees(np.arctan2(dn, de)) - 90.0), ms=7, color=color,
+            zorder=4, ls="none")  # fmt: skip
+    dist = float(np.hypot(ge - ref_end[0], gn - ref_end[1]))
+    ax.annotate(
+        f"{g}: end {format_length(dist)} away", (pe, pn),
+        xytext=(-6 if de > 0 else 6, -9 * row), textcoords="offset points",
+        ha="right" if de > 0 else "left", va="center", fontsize="x-small", color=color,
+        clip_on=True,
+    )  # fmt: skip
+    return 1
 
 
 def _map_axes(ax, rmap: mapview.RouteMap) -> None:
@@ -380,9 +413,11 @@ def figure8(
     ``representative`` one (median, best or worst) of that grade, never drawn beyond
     ``clip_factor`` times the reference's extent (:func:`clip_box`) so a grade drifting
     kilometres away does not shrink the route to a dot; (b) the last ``zoom_fraction`` of the
-    time in a square box that holds the reference over that time AND the end of every plotted
-    track (dotted lines join the reference's end to each grade's end), so the error the zoom is
-    meant to show is always in view, whatever its size; (c) the horizontal error of the same
+    time in a square box that holds the reference over that time and the end of every plotted
+    track (dotted lines join the reference's end to each grade's end), cut to ``clip_factor``
+    times the reference's own window: an end beyond is a triangle on the edge, pointing to it,
+    labelled with its distance (a zoom holding every end was no zoom when one grade drifted
+    kilometres: axes of 1e5-1e7 m); (c) the horizontal error of the same
     sequences against time on a log scale, which reads for metre and megametre errors alike.
     Grades keep their class hue; the paper's presets are darker and dashed, calibrated variants
     lighter and dash-dotted (:func:`grade_styles`); the legend gives each grade's RMSE total

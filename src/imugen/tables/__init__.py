@@ -11,6 +11,8 @@ on the atomic writes of :mod:`imugen.core.io`); no stage parses another's file b
 - :mod:`~imugen.tables.gnss`: GNSS epochs of ``imugen aid`` with receiver and scenario labels;
 - :mod:`~imugen.tables.aided`: aided (GNSS/INS filter) navigation errors and state;
 - :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels;
+- :mod:`~imugen.tables.imu_correction`: per-sample IMU corrections (a learner's, into
+  ``imugen aid``; the filter's own, out of it);
 - :mod:`~imugen.tables.layout`: where the workflow writes each of them (``results/...``).
 
 ``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them. The
@@ -25,7 +27,10 @@ SEQUENCE = "sequence"
 TIME = "time_s"
 """Time column, seconds from the first sample of the route."""
 
-_SUBMODULES = ("aided", "companions", "enu", "gnss", "layout", "metrics", "nav", "shard", "truth")
+_SUBMODULES = (
+    "aided", "companions", "enu", "gnss", "imu_correction", "layout", "metrics", "nav", "shard",
+    "truth",
+)  # fmt: skip
 __all__ = ["SEQUENCE", "TIME", *_SUBMODULES]
 
 

@@ -44,7 +44,8 @@ class Rig:
             ok=np.ones((S, J), bool), lever=np.array([lever], float),
             lat=np.array([latency], float), cz=np.zeros((S, J, 4)), cmark=np.ones(J, np.int8),
             clever=np.zeros((S, 3)), tun=tun, x0=np.zeros((S, NX)),
-            P0=np.zeros((S, self.lay.n, self.lay.n)),
+            P0=np.zeros((S, self.lay.n, self.lay.n)), lv=np.zeros((S, 0, 3)),
+            lvW=np.zeros((S, 0, 3, 3)), nvar=np.zeros((S, 0, 2)), carry=np.zeros((S, 2)),
         )  # fmt: skip
         self.wk = new_work(self.lay.n)
         np.fill_diagonal(self.wk.P, 0.01)

@@ -13,7 +13,7 @@ from imugen.core.rotations import quat_to_dcm
 def _row(r, x, r_):
     e = r.epoch(x)
     vel, lever = nhc.vehicle_velocity(e, r.md, x, r.wk)
-    return nhc.row(e, r.md, x, r.wk, r.inp.tun[0], r_, vel, lever)
+    return nhc.row(e, r.md, x, r.wk, r.inp.tun[0], r_, vel, lever, 0.0)
 
 
 @pytest.mark.parametrize("r_", [1, 2])

@@ -24,7 +24,10 @@ The house (one subject per module):
 * :mod:`~imugen.aid.filter._kernel` -- the compiled time loop (propagate -> updates ->
   feedback), :mod:`~imugen.aid.filter.context` its named tuples;
 * :mod:`~imugen.aid.filter.ekf` -- :func:`run` over a batch of sequences and its
-  :class:`AidedResult`.
+  :class:`AidedResult`;
+* :mod:`~imugen.aid.filter.learner` -- what a learner plugs in (:class:`LearnedInputs`, a
+  callable between compiled segments) and :mod:`~imugen.aid.filter.learned` its
+  measurement (a body-frame velocity).
 
 An optional innovation gate (``Options.gate_sigma``) rejects a scalar update whose normalized
 innovation exceeds it (GNSS, odometer, barometer). In ``geodetic`` the output sigmas of
@@ -44,18 +47,23 @@ from imugen.aid.filter.baro import F_BARO
 from imugen.aid.filter.ekf import AidedResult, attitude_error, run
 from imugen.aid.filter.gnss import F_GNSS_P, F_GNSS_V
 from imugen.aid.filter.kalman import F_REJECT
+from imugen.aid.filter.learned import F_LEARNED
+from imugen.aid.filter.learner import FilterEstimate, LearnedInputs, LearnerWindow
 from imugen.aid.filter.measurements import F_ALIGNED, FLAGS
 from imugen.aid.filter.nhc import F_NHC
 from imugen.aid.filter.odometer import F_ODO
 from imugen.aid.filter.options import Options
 from imugen.aid.filter.state import CC_PAIRS, NOMINAL, NX, StateLayout, state_names
 from imugen.aid.filter.tuning import (
+    LEVELS,
     MOTION_CORR_S,
     N_TUNE,
     T_GB_SD,
     T_GW,
     Tuning,
     companion_tuning,
+    law_mean,
+    law_rms,
     tuning_matrix,
 )
 from imugen.aid.filter.zupt import F_ZUPT
@@ -67,11 +75,13 @@ __all__ = [
     "F_BARO",
     "F_GNSS_P",
     "F_GNSS_V",
+    "F_LEARNED",
     "F_NHC",
     "F_ODO",
     "F_REJECT",
     "F_ZUPT",
     "HEADING_SD_RAD",
+    "LEVELS",
     "LEVEL_SD_RAD",
     "MOTION_CORR_S",
     "NOMINAL",
@@ -80,7 +90,10 @@ __all__ = [
     "T_GB_SD",
     "T_GW",
     "AidedResult",
+    "FilterEstimate",
     "Initial",
+    "LearnedInputs",
+    "LearnerWindow",
     "Options",
     "StateLayout",
     "Tuning",
@@ -89,6 +102,8 @@ __all__ = [
     "companion_tuning",
     "initial_covariance",
     "initial_state",
+    "law_mean",
+    "law_rms",
     "run",
     "state_names",
     "tuning_matrix",

@@ -68,7 +68,8 @@ def write_outputs(md, wk, x, out, s, j, flag):
 @njit_borrowing(cache=True)
 def kernel(md, inp, out, wk, win, x):
     """Filter every sequence of the batch ``inp`` from its start sample ``inp.k0[s]`` through
-    the epochs ``inp.ep_idx`` and write ``out`` (:mod:`imugen.aid.filter.context`); ``wk``
+    the epochs ``inp.ep_idx`` and write ``out`` (:mod:`imugen.aid.filter.context`); the state
+    reached is written back into ``inp.x0``, ``inp.P0``, ``inp.k0``, ``inp.carry``. ``wk``
     (:func:`~imugen.aid.filter.context.new_work`, its transition pattern filled), ``win``
     (:func:`~imugen.aid.filter.measurements.new_windows`) and ``x`` (the nominal state's size)
     are scratch buffers allocated by the caller: the loop allocates nothing and counts no
@@ -86,6 +87,7 @@ def kernel(md, inp, out, wk, win, x):
         k = inp.k0[s]
         wk.g_n[0], wk.g_n[1], wk.g_n[2] = gravitation(md, x)
         measurements.start(win)
+        win.zupt[0], win.zupt[1] = inp.carry[s, 0], inp.carry[s, 1]
         for j in range(J):
             ke = inp.ep_idx[j]
             if ke < k:  # before the start
@@ -96,7 +98,7 @@ def kernel(md, inp, out, wk, win, x):
                 out.flag[s, j] = 0
                 continue
             # --- propagate ---------------------------------------------------------------
-            still = strapdown(md, inp, s, k, ke, x, wk, win)
+            still = strapdown(md, inp, s, k, ke, x, wk, win, out.fc[s])
             if ke > k:
                 propagate_covariance(md, tn, wk, x, ke - k)
             k = ke
@@ -116,3 +118,11 @@ def kernel(md, inp, out, wk, win, x):
                 )
             symmetrize(P)
             write_outputs(md, wk, x, out, s, j, flag)
+        # where a later call over the following epochs resumes
+        for i in range(x.shape[0]):
+            inp.x0[s, i] = x[i]
+        for i in range(n):
+            for c in range(n):
+                inp.P0[s, i, c] = P[i, c]
+        inp.k0[s] = k
+        inp.carry[s, 0], inp.carry[s, 1] = win.zupt[0], win.zupt[1]

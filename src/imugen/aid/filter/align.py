@@ -86,6 +86,8 @@ def initial_covariance(
         P[:, d("ba"), d("ba")] -= tun.accel_static_sf_sd**2
     if lay.has("cc"):  # the cross-coupling states carry the body-fixed tilt
         P[:, d("ba"), d("ba")] -= tun.accel_tilt_cc_sd**2
+    if lay.has("ca"):  # the accelerometer's cross-coupling states carry its error on gravity
+        P[:, d("ba"), d("ba")] -= tun.accel_static_cc_sd**2
     if lay.has("gnss_bias"):
         gb = np.broadcast_to(
             np.atleast_2d(gnss_bias_sd if gnss_bias_sd is not None else 0.0), (S, 3)
@@ -116,6 +118,10 @@ def initial_covariance(
         i = lay.offset("cc")
         for m, (r, _) in enumerate(CC_PAIRS):
             P[:, i + m, i + m] = tun.gyro_cc_sd[r] ** 2
+    if lay.has("ca"):
+        i = lay.offset("ca")
+        for m, (r, _) in enumerate(CC_PAIRS):
+            P[:, i + m, i + m] = tun.accel_cc_sd[r] ** 2
     return P
 
 

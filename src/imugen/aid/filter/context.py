@@ -75,6 +75,16 @@ class Inputs(NamedTuple):
     tun : (S, N_TUNE)  tuning matrix (:mod:`imugen.aid.filter.tuning`)
     x0 : (S, NX)  nominal state at ``k0``
     P0 : (S, n, n)  error covariance at ``k0``
+    lv : (S, J, 3) or (S, 0, 3)  a learner's IMU velocity in body axes [m/s] (NaN: none;
+        :mod:`imugen.aid.filter.learned`)
+    lvW : (S, J, 3, 3) or (S, 0, 3, 3)  its whitening ``L^-1`` (``R = L L^T``)
+    nvar : (S, J, 2) or (S, 0, 2)  a learner's NHC variances (lateral, vertical) [m^2/s^2]
+        replacing the slip's (NaN: keep)
+    carry : (S, 2)  what a segmented run resumes from besides ``x0``, ``P0``, ``k0``: the ZUPT
+        detector's still time [s] and previous epoch sample (:mod:`imugen.aid.filter.zupt`)
+
+    ``k0``, ``x0``, ``P0`` and ``carry`` are written back at the end of each sequence (the
+    last epoch's sample, state, covariance): the next call over later epochs resumes there.
     """
 
     dth: np.ndarray
@@ -94,6 +104,10 @@ class Inputs(NamedTuple):
     tun: np.ndarray
     x0: np.ndarray
     P0: np.ndarray
+    lv: np.ndarray
+    lvW: np.ndarray
+    nvar: np.ndarray
+    carry: np.ndarray
 
 
 class Outputs(NamedTuple):
@@ -106,12 +120,16 @@ class Outputs(NamedTuple):
         E, N, U in ``geodetic``)
     P : (S, J, n, n) or (S, 0, n, n)  covariance (when stored)
     flag : (S, J) int16  update flags
+    fc : (S, K, 6) or (S, 0, 6)  the correction the filter applied to each increment (raw
+        minus corrected angle [rad] and velocity [m/s]: its bias, scale-factor and
+        cross-coupling estimates), per sample (when stored)
     """
 
     x: np.ndarray
     sd: np.ndarray
     P: np.ndarray
     flag: np.ndarray
+    fc: np.ndarray
 
 
 class Work(NamedTuple):
@@ -127,7 +145,8 @@ class Work(NamedTuple):
     Lm, Xc, Xm, Cv : (3, 3)  local level, skew and vehicle-axes scratch
     dvn : (3,)  integrated ``C dv`` [m/s];  Cint, Cf, Cw : (3, 3)  ``int C dt``, ``int C
     diag(dv)``, ``int C diag(dtheta)``;  Ccc : (3, 6)  ``int C[:, r] dtheta_c`` per
-    cross-coupling pair;  th : (3,)  corrected angle over the interval (body) [rad]
+    cross-coupling pair;  Cca : (3, 6)  ``int C[:, r] dv_c`` per accelerometer pair;
+    th : (3,)  corrected angle over the interval (body) [rad]
     acc : (3,)  acceleration of the last IMU interval [m/s^2];  g_n : (3,)  gravitation at
     the current position [m/s^2]
     """
@@ -153,6 +172,7 @@ class Work(NamedTuple):
     Cf: np.ndarray
     Cw: np.ndarray
     Ccc: np.ndarray
+    Cca: np.ndarray
     th: np.ndarray
     acc: np.ndarray
     g_n: np.ndarray
@@ -188,5 +208,5 @@ def new_work(n):
         np.zeros((n, n)), np.zeros((n, n)), np.zeros(n), np.zeros(n, np.int64),
         np.zeros((n, n), np.int64), z33, z33.copy(), z33.copy(), z33.copy(), z33.copy(),
         z33.copy(), np.zeros(3), z33.copy(), z33.copy(), z33.copy(), np.zeros((3, 6)),
-        np.zeros(3), np.zeros(3), np.zeros(3),
+        np.zeros((3, 6)), np.zeros(3), np.zeros(3), np.zeros(3),
     )  # fmt: skip

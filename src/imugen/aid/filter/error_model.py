@@ -83,6 +83,8 @@ def transition_pattern(ie, wgs, nnz, nzc):
             if sf_on:
                 _mark(cols, ie.sg, 3)
                 _mark(cols, ie.sa, 3)
+            if ie.ca >= 0:
+                _mark(cols, ie.ca, 6)
         elif ie.att <= i < ie.att + 3:
             _mark(cols, ie.att, 3)
             _mark(cols, ie.bg, 3)
@@ -112,19 +114,20 @@ def _sparse_rows_times(Phi, nnz, nzc, P, T, n):
 
 
 @njit_borrowing(cache=True, inline="always")
-def motion_axis(tn, i, ti, di, t2, d2, sf_on, cg_on):
+def motion_axis(tn, i, ti, di, t2, d2, sf_on, cg_on, ca_on):
     """Gyro variance of body axis ``i`` along the rotation (times ``|t|^2``) and
     accelerometer variance of axis ``i`` over one interval (see :func:`motion_noise`)."""
     sg = 0.0 if sf_on else tn[T_MSG + i] ** 2
     sa = 0.0 if sf_on else tn[T_MSA + i] ** 2
     cg = 0.0 if cg_on else tn[T_MCG + i] ** 2
     vi = sg * ti * ti + cg * (t2 - ti * ti)
-    va = sa * di * di + tn[T_MCA + i] ** 2 * (d2 - di * di)
+    ca = 0.0 if ca_on else tn[T_MCA + i] ** 2
+    va = sa * di * di + ca * (d2 - di * di)
     return vi, va
 
 
 @njit_borrowing(cache=True)
-def motion_noise(P, ie, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
+def motion_noise(P, ie, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on, ca_on=False):
     """Add the motion-dependent process noise of one interval of length ``T`` to ``P``
     (:mod:`imugen.aid.filter.tuning`).
 
@@ -144,9 +147,9 @@ def motion_noise(P, ie, C, tx, ty, tz, ux, uy, uz, tn, T, sf_on, cg_on):
     t2 = tx * tx + ty * ty + tz * tz
     d2 = dx * dx + dy * dy + dz * dz
     c = max(1.0, tn[T_MTAU] / T)
-    vg0, va0 = motion_axis(tn, 0, tx, dx, t2, d2, sf_on, cg_on)
-    vg1, va1 = motion_axis(tn, 1, ty, dy, t2, d2, sf_on, cg_on)
-    vg2, va2 = motion_axis(tn, 2, tz, dz, t2, d2, sf_on, cg_on)
+    vg0, va0 = motion_axis(tn, 0, tx, dx, t2, d2, sf_on, cg_on, ca_on)
+    vg1, va1 = motion_axis(tn, 1, ty, dy, t2, d2, sf_on, cg_on, ca_on)
+    vg2, va2 = motion_axis(tn, 2, tz, dz, t2, d2, sf_on, cg_on, ca_on)
     # along the rotation: c vpar e e^T with e = C t / |t|, i.e. c vpar / |t|^2 (C t)(C t)^T
     vpar = (tx * tx * vg0 + ty * ty * vg1 + tz * tz * vg2) / t2 if t2 > 0.0 else 0.0
     vperp = (vg0 + vg1 + vg2 - vpar) / 2.0  # per axis across the rotation, uncorrelated
@@ -209,6 +212,10 @@ def propagate_covariance(md, tn, wk, x, steps):
         if i_cg >= 0:
             for m in range(6):
                 Phi[ia + a, i_cg + m] = -Ccc[a, m]
+        if ie.ca >= 0:  # as the accelerometer bias: -int C cc f dt, half T into position
+            for m in range(6):
+                Phi[iv + a, ie.ca + m] = -wk.Cca[a, m]
+                Phi[ip + a, ie.ca + m] = -0.5 * Tint * wk.Cca[a, m]
     if md.wgs:
         w0, w1, w2 = md.prm[earth.P_OMEGA], md.prm[earth.P_OMEGA + 1], md.prm[earth.P_OMEGA + 2]
         skew(w0, w1, w2, Xm)  # [Omega x]
@@ -277,4 +284,5 @@ def propagate_covariance(md, tn, wk, x, steps):
     motion_noise(
         P, ie, C, wk.th[0], wk.th[1], wk.th[2], dvn[0] + wk.g_n[0] * Tint,
         dvn[1] + wk.g_n[1] * Tint, dvn[2] + wk.g_n[2] * Tint, tn, Tint, sf_on, i_cg >= 0,
+        ie.ca >= 0,
     )  # fmt: skip

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from imugen.aid.filter import baro, gnss, nhc, odometer, zupt
+import numpy as np
+
+from imugen.aid.filter import baro, gnss, learned, nhc, odometer, zupt
 from imugen.aid.filter.kalman import F_REJECT
 from imugen.core.jit import njit, njit_borrowing
 
@@ -39,6 +41,7 @@ FLAGS = {
     "aligned": F_ALIGNED,
     "odometer": odometer.F_ODO,
     "baro": baro.F_BARO,
+    "learned": learned.F_LEARNED,
 }
 """Every epoch flag bit, by name (the ``flags`` of the results)."""
 
@@ -47,18 +50,20 @@ class Windows(NamedTuple):
     """The windows of the windowed measurements (one sequence at a time)."""
 
     odometer: odometer.Window
+    zupt: np.ndarray
 
 
 @njit(cache=True)
 def new_windows():
     """Zeroed :class:`Windows`."""
-    return Windows(odometer.new_window())
+    return Windows(odometer.new_window(), zupt.new_window())
 
 
 @njit_borrowing(cache=True)
 def start(win):
     """A sequence's start: no window open."""
     odometer.start(win.odometer)
+    zupt.start(win.zupt)
 
 
 @njit_borrowing(cache=True)
@@ -66,6 +71,7 @@ def update(e, md, inp, wk, x, tn, win):
     """Every measurement update at epoch ``e``, in order; returns the flag bits."""
     flag = gnss.update(e, md, inp, wk, x, tn, win)
     flag |= zupt.update(e, md, inp, wk, x, tn, win)
+    flag |= learned.update(e, md, inp, wk, x, tn, win)
     flag |= nhc.update(e, md, inp, wk, x, tn, win)
     flag |= odometer.update(e, md, inp, wk, x, tn, win)
     flag |= baro.update(e, md, inp, wk, x, tn, win)

@@ -25,6 +25,12 @@ Without that term an exact constraint is overconfident after the alignment (NEES
 at the first epoch, at 3e-5 m/s); a constant noise instead (the former 0.1 m/s, or even
 1e-3 m/s) over-covers the two attitude directions NHC fixes (NEES 0.3 per direction
 where 1 is due, measured in P's eigenbasis, car rectangle of tests/aid/test_companions.py).
+The slip is the truth's RMS (:func:`imugen.aid.stage.truth_slip_sd`) and its bursts, where a
+path is implausible, are left to NHC's own innovation gate (``Options.nhc_gate_sigma``; the
+largest slip as white noise left heading NEES/dof 0.13-0.17, tilt 2.3). The rows linearize at
+the estimated velocity: NHC waits while ``|v|^2 <= ratio^2 tr(P_vv)``
+(``Options.nhc_speed_ratio``; at a stop inside an outage they turned the heading towards the
+velocity error, NEES up to 1e6 in single runs).
 ``R`` is the nominal mounting (identity), or, with ``nhc_misalignment_sd_rad`` set,
 ``Rz(yaw) Ry(-pitch)`` of two more error states, the IMU's pitch and yaw from the vehicle
 (random constants with that prior sigma): a misaligned IMU driving straight at ``u`` sees
@@ -42,7 +48,7 @@ from __future__ import annotations
 import math
 
 from imugen.aid.filter.geometry import skew
-from imugen.aid.filter.kalman import clear, put, scalar_update
+from imugen.aid.filter.kalman import F_REJECT, clear, put, scalar_update
 from imugen.aid.filter.tuning import T_NG
 from imugen.core.jit import njit_borrowing
 
@@ -120,9 +126,10 @@ def vehicle_velocity(e, md, x, wk):
 
 
 @njit_borrowing(cache=True)
-def row(e, md, x, wk, tn, r_, vel, lever):
+def row(e, md, x, wk, tn, r_, vel, lever, slip_var):
     """Row ``r_`` (1: lateral, 2: vertical) of the constraint, after
-    :func:`vehicle_velocity`: fills ``wk.h``; returns ``(m, r, var)``."""
+    :func:`vehicle_velocity`, with the slip's variance ``slip_var``: fills ``wk.h``; returns
+    ``(m, r, var)``."""
     ie, C, Cv, Xm, P, dt = md.ie, wk.C, wk.Cv, wk.Xm, wk.P, md.dt
     ub = vel[0]
     nlx, nly, nlz = lever
@@ -135,8 +142,7 @@ def row(e, md, x, wk, tn, r_, vel, lever):
     wgy = wby if wby * wby > 250.0 * tn[T_NG + 1] ** 2 / dt else 0.0
     wgz = wbz if wbz * wbz > 250.0 * tn[T_NG + 2] ** 2 / dt else 0.0
     m = clear(wk)
-    slip = md.opt.nhc_sd_lat if r_ == 1 else md.opt.nhc_sd_vert
-    var = slip * slip + second_order_var(P, ie, Cv, ub, r_)
+    var = slip_var + second_order_var(P, ie, Cv, ub, r_)
     # the vehicle row r (body) and l x r: the rate's error enters as r . (dw x l) = dw . (l x
     # r); its white noise (the rate extrapolated from two intervals' means, 1.5 and -0.5:
     # 2.5 N_g^2 / dt per axis) as noise, the gyro bias error as a sensitivity (dw = -dbg)
@@ -173,8 +179,21 @@ def update(e, md, inp, wk, x, tn, win):
     """NHC at epoch ``e`` when switched on (lateral, then vertical); returns the flag bits."""
     if not md.opt.nhc:
         return 0
+    ratio = md.opt.nhc_speed_ratio
+    if ratio > 0.0:  # the attitude rows need the velocity's direction (module docstring)
+        iv, ie, P = md.ix.v, md.ie.v, wk.P
+        v2 = x[iv] * x[iv] + x[iv + 1] * x[iv + 1] + x[iv + 2] * x[iv + 2]
+        if not v2 > ratio * ratio * (P[ie, ie] + P[ie + 1, ie + 1] + P[ie + 2, ie + 2]):
+            return 0
     vel, lever = vehicle_velocity(e, md, x, wk)
+    flag = F_NHC
+    learned = inp.nvar.shape[1] > 0
     for r_ in (1, 2):
-        m, r, var = row(e, md, x, wk, tn, r_, vel, lever)
-        scalar_update(wk, m, r, var, 0.0)
-    return F_NHC
+        slip = md.opt.nhc_sd_lat if r_ == 1 else md.opt.nhc_sd_vert
+        slip_var = slip * slip
+        if learned and math.isfinite(inp.nvar[e.s, e.j, r_ - 1]):  # a learner's (AI-IMU)
+            slip_var = inp.nvar[e.s, e.j, r_ - 1]
+        m, r, var = row(e, md, x, wk, tn, r_, vel, lever, slip_var)
+        if not scalar_update(wk, m, r, var, md.opt.nhc_gate):
+            flag |= F_REJECT
+    return flag

@@ -73,8 +73,11 @@ def gravitation(md, x):
 
 
 @njit_borrowing(cache=True)
-def strapdown(md, inp, s, k, ke, x, wk, win):
+def strapdown(md, inp, s, k, ke, x, wk, win, fc):
     """Propagate the nominal state ``x`` of sequence ``s`` from sample ``k`` to ``ke``.
+
+    ``fc`` (K, 6) or (0, 6): where the correction applied to each sample is stored (raw minus
+    corrected increments), when not empty.
 
     Accumulates the interval's integrals in ``wk`` (``dvn``, ``Cint``, ``Cf``, ``Cw``, ``Ccc``,
     ``th``), the acceleration of its last IMU interval (``wk.acc``, the GNSS latency's) and
@@ -87,6 +90,7 @@ def strapdown(md, inp, s, k, ke, x, wk, win):
     dt, g0, wgs = md.dt, md.g0, md.wgs
     sf_on = ie.sg >= 0
     cg_on = ie.cc >= 0
+    ca_on = ie.ca >= 0
     w0, w1, w2 = prm[earth.P_OMEGA], prm[earth.P_OMEGA + 1], prm[earth.P_OMEGA + 2]
     dvn, Cint, Cf, Cw, Ccc, C = wk.dvn, wk.Cint, wk.Cf, wk.Cw, wk.Ccc, wk.C
     px, py, pz = x[ix.p], x[ix.p + 1], x[ix.p + 2]
@@ -101,10 +105,11 @@ def strapdown(md, inp, s, k, ke, x, wk, win):
             Cw[a, b] = 0.0
     still = ke > k
     thx, thy, thz = 0.0, 0.0, 0.0  # corrected angle over the interval (motion noise)
-    if cg_on:
+    if cg_on or ca_on:
         for a in range(3):
             for m in range(6):
                 Ccc[a, m] = 0.0
+                wk.Cca[a, m] = 0.0
     bgx, bgy, bgz = x[ix.bg], x[ix.bg + 1], x[ix.bg + 2]
     bax, bay, baz = x[ix.ba], x[ix.ba + 1], x[ix.ba + 2]
     sgx, sgy, sgz = x[ix.sg], x[ix.sg + 1], x[ix.sg + 2]
@@ -124,6 +129,19 @@ def strapdown(md, inp, s, k, ke, x, wk, win):
             tty = ty - x[c + 2] * tx - x[c + 3] * tz
             tz = tz - x[c + 4] * tx - x[c + 5] * ty
             tx, ty = ttx, tty
+        if ca_on:  # the accelerometer's likewise
+            c = ix.ca
+            uux = ux - x[c] * uy - x[c + 1] * uz
+            uuy = uy - x[c + 2] * ux - x[c + 3] * uz
+            uz = uz - x[c + 4] * ux - x[c + 5] * uy
+            ux, uy = uux, uuy
+        if fc.shape[0] > 0:
+            fc[i, 0] = dth[s, i, 0] - tx
+            fc[i, 1] = dth[s, i, 1] - ty
+            fc[i, 2] = dth[s, i, 2] - tz
+            fc[i, 3] = dvb[s, i, 0] - ux
+            fc[i, 4] = dvb[s, i, 1] - uy
+            fc[i, 5] = dvb[s, i, 2] - uz
         thx += tx
         thy += ty
         thz += tz
@@ -159,6 +177,15 @@ def strapdown(md, inp, s, k, ke, x, wk, win):
                 Ccc[a, 3] += C[a, 1] * tz
                 Ccc[a, 4] += C[a, 2] * tx
                 Ccc[a, 5] += C[a, 2] * ty
+        if ca_on:  # the same pairs on the specific-force increment
+            Cca = wk.Cca
+            for a in range(3):
+                Cca[a, 0] += C[a, 0] * uy
+                Cca[a, 1] += C[a, 0] * uz
+                Cca[a, 2] += C[a, 1] * ux
+                Cca[a, 3] += C[a, 1] * uz
+                Cca[a, 4] += C[a, 2] * ux
+                Cca[a, 5] += C[a, 2] * uy
         ovx, ovy, ovz = vx, vy, vz
         if wgs:
             rx = prm[earth.P_R0N] + px

@@ -76,6 +76,12 @@ BLOCKS: tuple[Block, ...] = (
         doc="gyro cross-coupling, pairs CC_PAIRS",
     ),
     Block(
+        "ca",
+        tuple(f"dca_{'xyz'[i]}{'xyz'[j]}" for i, j in CC_PAIRS),
+        6,
+        doc="accelerometer cross-coupling, pairs CC_PAIRS",
+    ),
+    Block(
         "odo_tick",
         ("dodo_tick_start_m", "dodo_tick_end_m"),
         1,
@@ -105,6 +111,7 @@ class Offsets(NamedTuple):
     mount: int
     lever: int
     cc: int
+    ca: int
     odo_tick: int
     n: int
 
@@ -140,17 +147,17 @@ class StateLayout:
     @classmethod
     def of(
         cls, *, scale_factors=False, gnss_bias=False, odo_sf=False, baro=False, mounting=False,
-        gyro_cc=False, odometer=False, lever=False,
+        gyro_cc=False, odometer=False, lever=False, accel_cc=False,
     ) -> StateLayout:  # fmt: skip
         """The error state of a filter with these states switched on (``odo_sf``: odometer scale
         factor, ``baro``: barometer drift, ``mounting``: the IMU's pitch and yaw from the
         vehicle, ``gyro_cc``: the gyro's six cross-coupling elements, ``odometer``: the tick
         residuals at the two ends of a window, ``lever``: the NHC lever arm's departure from
-        its nominal)."""
+        its nominal, ``accel_cc``: the accelerometer's six cross-coupling elements)."""
         on = {
             "gnss_bias": gnss_bias, "sg": scale_factors, "sa": scale_factors, "odo_sf": odo_sf,
             "baro_bias": baro, "mount": mounting, "lever": lever, "cc": gyro_cc,
-            "odo_tick": odometer,
+            "ca": accel_cc, "odo_tick": odometer,
         }  # fmt: skip
         return cls(k for k, v in on.items() if v)
 
@@ -218,9 +225,10 @@ NX = NOMINAL.n
 def state_names(
     scale_factors: bool, gnss_bias: bool, odo_sf: bool = False, baro: bool = False,
     mounting: bool = False, gyro_cc: bool = False, odometer: bool = False, lever: bool = False,
+    accel_cc: bool = False,
 ) -> list[str]:  # fmt: skip
     """Names of the error-state components, in order (:meth:`StateLayout.of`)."""
     return StateLayout.of(
         scale_factors=scale_factors, gnss_bias=gnss_bias, odo_sf=odo_sf, baro=baro,
-        mounting=mounting, gyro_cc=gyro_cc, odometer=odometer, lever=lever,
+        mounting=mounting, gyro_cc=gyro_cc, odometer=odometer, lever=lever, accel_cc=accel_cc,
     ).names  # fmt: skip

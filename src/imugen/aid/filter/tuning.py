@@ -88,6 +88,9 @@ class Tuning:
     accel_tilt_cc_sd : (3,)  the part of ``accel_bias_sd`` standing for the gyro
         cross-coupling's body-fixed tilt (left out when the cross-coupling is estimated)
     motion_corr_s : float  correlation time of the motion-dependent noise [s]
+    accel_static_cc_sd : (3,)  the part of ``accel_bias_sd`` due to the accelerometer's
+        cross-coupling on gravity, ``g0 cc[:, 2]`` (left out when that cross-coupling is
+        estimated, ``Options.accel_cross_coupling``)
     """
 
     gyro_white: np.ndarray
@@ -105,6 +108,7 @@ class Tuning:
     accel_static_sf_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_tilt_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
     motion_corr_s: float = MOTION_CORR_S
+    accel_static_cc_sd: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
     def from_grade(
@@ -114,8 +118,12 @@ class Tuning:
         """Tuning from a grade's figures (every term the simulator injects, see the module
         docstring).
 
-        ``level``: ``"nominal"`` (the grade's values) or ``"upper"`` (the top of each range,
-        for a filter that knows the grade but not the device). Initial bias sigma:
+        ``level`` (:data:`LEVELS`): ``"nominal"`` (the grade's values), ``"upper"`` (the top
+        of each range, for a filter that knows the grade but not the device: conservative on
+        average) or ``"law"`` (the root mean square of each figure's log-uniform law,
+        :func:`law_rms`, and a Gauss-Markov correlation time ``1 / E[1/tau]``: what a filter
+        knowing how the simulator draws the device, not the draw, assumes; consistent over the
+        population, NEES/dof 1 on average). Initial bias sigma:
         ``sqrt(turn_on^2 + sigma_GM^2 + static^2)`` (``static``: the error on gravity of an
         uncalibrated grade); bias random walk ``2 sigma_GM^2 / T + K^2`` (the Gauss-Markov's
         short-time growth plus the rate random walk). ``inflate`` scales the white densities.
@@ -123,13 +131,22 @@ class Tuning:
         :data:`imugen.sensors.grades.TERMS`; default every configured one); the others are left out.
         """
         g = get_grade(grade)
-        if level not in ("nominal", "upper"):
-            raise InputError("aided.tuning", f"level must be nominal or upper, got {level!r}")
+        if level not in LEVELS:
+            raise InputError("aided.tuning", f"level must be one of {LEVELS}, got {level!r}")
 
         def val(p):
             if p is None or (terms is not None and _term_of(spec, p) not in terms):
                 return np.zeros(3)
+            if level == "law" and p.lo is not None:
+                return law_rms(p.lo, p.hi)
             return np.asarray(p.hi if (level == "upper" and p.hi is not None) else p.value)
+
+        def tau_of(p):
+            """The correlation time: ``1 / E[1/tau]`` of its law (``law``), else :func:`val`
+            (the GM's random-walk density ``2 sigma^2 / tau`` is linear in ``1/tau``)."""
+            if level == "law" and p.lo is not None:
+                return 1.0 / law_mean_inverse(p.lo, p.hi)
+            return val(p)
 
         g0 = units.G0
         out = {"motion_corr_s": float(motion_corr_s)}
@@ -144,7 +161,7 @@ class Tuning:
                 comp = bi.components
                 sig = np.array([bi.sigma_from_level(x) for x in lv]) * math.sqrt(comp)
                 if bi.model == "gauss_markov":
-                    tau = float(np.min(val(bi.correlation_time)))
+                    tau = float(np.min(tau_of(bi.correlation_time)))
                 else:
                     tau = float(bi.flicker_band[0])
                 q_gm = 2.0 * sig**2 / tau if tau > 0 else np.zeros(3)
@@ -158,6 +175,7 @@ class Tuning:
             else:
                 static = g0 * np.array([cc[0], cc[1], sf[2]])
                 out["accel_static_sf_sd"] = g0 * np.array([0.0, 0.0, sf[2]])
+                out["accel_static_cc_sd"] = g0 * np.array([cc[0], cc[1], 0.0])
             out[f"{s}_white"] = inflate * val(spec.white_noise)
             if s == "accel":
                 # the gyro cross-coupling across a rotation: a bounded, body-fixed tilt, seen
@@ -172,6 +190,39 @@ class Tuning:
         spec = g.sensor("gyro")
         out["gyro_gs_sd"] = val(spec.g_sensitivity)
         return cls(**out)
+
+
+LEVELS = ("nominal", "upper", "law")
+"""Tuning levels (:meth:`Tuning.from_grade`, :func:`tuning_matrix`)."""
+
+
+def law_rms(lo, hi) -> np.ndarray:
+    """Root mean square of a figure drawn log-uniformly in ``[lo, hi]`` (uniformly when
+    ``lo == 0``; ``hi`` when ``hi <= lo``): ``sqrt((hi^2 - lo^2) / (2 ln(hi / lo)))``. Over a
+    population of draws an error linear in the figure has this variance: a filter tuned to it
+    is consistent on average, one tuned to the top of the range conservative."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.sqrt((hi**2 - lo**2) / (2.0 * np.log(hi / lo)))
+    r = np.where(lo <= 0.0, hi / math.sqrt(3.0), r)
+    return np.where(hi <= lo, hi, r)
+
+
+def law_mean(lo, hi) -> np.ndarray:
+    """Mean of a figure drawn log-uniformly in ``[lo, hi]`` (uniformly when ``lo == 0``)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m = (hi - lo) / np.log(hi / lo)
+    m = np.where(lo <= 0.0, hi / 2.0, m)
+    return np.where(hi <= lo, hi, m)
+
+
+def law_mean_inverse(lo, hi) -> np.ndarray:
+    """``E[1/x]`` of a figure drawn log-uniformly in ``[lo, hi]`` (``lo > 0``)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m = (1.0 / lo - 1.0 / hi) / np.log(hi / lo)
+    return np.where(hi <= lo, 1.0 / hi, m)
 
 
 def _term_of(spec, p) -> str:
@@ -199,12 +250,22 @@ def companion_tuning(T: np.ndarray, companions: CompanionEpochs) -> np.ndarray:
     return T
 
 
-def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> np.ndarray:
+def tuning_matrix(
+    tun: Tuning, S: int, gnss_params=None, gnss_receiver=None, gnss_level: str = "nominal"
+) -> np.ndarray:
     """Per-sequence tuning vectors (S, N_TUNE).
 
     The GNSS bias model comes from ``gnss_params`` (drawn :class:`imugen.aid.gnss.ReceiverParams`,
-    an oracle) or from a receiver's nominal figures (``gnss_receiver``).
+    an oracle) or from a receiver's figures (``gnss_receiver``): ``gnss_level="nominal"``
+    their nominal values, ``"law"`` what a filter knowing how the figures are drawn (not the
+    draw) assumes: each sigma the root mean square of its law (:func:`law_rms`), the bias
+    correlation time the law's mean (the mixture of Gauss-Markov biases has variance
+    ``E[s^2]`` and low-frequency power ``2 E[s^2] E[tau]``, what the filter's averaging sees;
+    the standalone receiver's nominal 60 s against draws in 30-300 s left position NEES/dof
+    1.6-1.9, the law 0.9-1.0, r26 study).
     """
+    if gnss_level not in ("nominal", "law"):
+        raise InputError("aided.tuning", f"gnss_level must be nominal or law, got {gnss_level!r}")
     T = np.zeros((S, N_TUNE))
     T[:, T_NG : T_NG + 3] = tun.gyro_white
     T[:, T_NA : T_NA + 3] = tun.accel_white
@@ -225,11 +286,14 @@ def tuning_matrix(tun: Tuning, S: int, gnss_params=None, gnss_receiver=None) -> 
         T[:, T_GW : T_GW + 3] = gnss_params.axis("position_white_h_m", "position_white_v_m")
     elif gnss_receiver is not None:
         f = gnss_receiver.figures
-        T[:, T_GB_SD : T_GB_SD + 3] = [f["position_bias_h_m"].value] * 2 + [
-            f["position_bias_v_m"].value
-        ]
-        T[:, T_GB_TAU] = f["position_bias_tau_s"].value
-        T[:, T_GW : T_GW + 3] = [f["position_white_h_m"].value] * 2 + [
-            f["position_white_v_m"].value
-        ]
+
+        def fig(k, law=law_rms):
+            g = f[k]
+            if gnss_level == "law" and g.lo is not None:
+                return float(law(g.lo, g.hi))
+            return g.value
+
+        T[:, T_GB_SD : T_GB_SD + 3] = [fig("position_bias_h_m")] * 2 + [fig("position_bias_v_m")]
+        T[:, T_GB_TAU] = fig("position_bias_tau_s", law_mean)
+        T[:, T_GW : T_GW + 3] = [fig("position_white_h_m")] * 2 + [fig("position_white_v_m")]
     return T
