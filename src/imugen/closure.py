@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from imugen.core import earth
 from imugen.core.options import Command, argument, option, same_as
 from imugen.ingest.options import IngestOptions
 from imugen.navigate.options import NavigateOptions
@@ -108,6 +107,7 @@ def closure_of_truth(
         :meth:`~imugen.navigate.vertical.VerticalChannel.meta`) and ``free`` (the free
         channel's growth: module docstring).
     """
+    from imugen.core import earth
     from imugen.navigate import vertical as vch
     from imugen.navigate.mechanize import reference_heights
     from imugen.tables import truth as col

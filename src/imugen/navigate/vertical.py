@@ -95,7 +95,7 @@ class VerticalChannel:
     gains : tuple of float
         ``(k1, k2, k3)``; zeros when free.
     reference : str
-        Source of the reference height (``"none"`` when free).
+        Source of the reference height of the damped loop (unused when free).
     growth_time_s : float
         Growth time of the free channel at the scene (inf in ``flat``).
     duration_s : float
@@ -186,10 +186,42 @@ def resolve(
         order=int(order),
         time_constant_s=float(time_constant_s),
         gains=gains,
-        reference=reference if damped else "none",
+        reference=reference,
         growth_time_s=tau,
         duration_s=float(duration_s),
     )
+
+
+@dataclass(frozen=True)
+class VerticalSpec:
+    """What a user asked for (the ``navigate.vertical`` options), before the scene is known."""
+
+    mode: str = "auto"
+    order: int = ORDER
+    time_constant_s: float = TIME_CONSTANT_S
+    reference: str = "truth"
+
+    @classmethod
+    def of(cls, options) -> VerticalSpec:
+        """From an options object with ``vertical``, ``vertical_order``,
+        ``vertical_time_constant_s``, ``vertical_reference`` (the navigate command's)."""
+        return cls(
+            options.vertical,
+            int(options.vertical_order),
+            float(options.vertical_time_constant_s),
+            options.vertical_reference,
+        )
+
+    def resolve(self, frame: OriginFrame, duration_s: float) -> VerticalChannel:
+        """:func:`resolve` for a scene."""
+        return resolve(
+            self.mode,
+            frame,
+            duration_s,
+            order=self.order,
+            time_constant_s=self.time_constant_s,
+            reference=self.reference,
+        )
 
 
 def free_growth(dh_m: float, dv_mps: float, t_from_s: float, t_to_s: float, tau_s: float) -> float:
