@@ -37,7 +37,12 @@ FORMATS = (
     Format("GPX", (".gpx",), "gpx"),
     Format("CSV with a header", (".csv", ".txt"), "text"),
     Format("E N U text", (".txt",), "text"),
-    Format("GNSS logger CSV (ROS NavSatFix, hemisphere letters, NUL-padded)", (".csv",), "gnsscsv"),
+    Format(
+        "GNSS logger CSV (ROS NavSatFix, hemisphere letters, NUL-padded Columbus)",
+        (".csv",),
+        "gnsscsv",
+    ),
+    Format("70mai dashcam GPS log", (".txt",), "dashcam"),
     Format("NMEA 0183", (".nmea",), "nmea"),
     Format("IGC", (".igc",), "igc"),
     Format("GeoJSON", (".geojson", ".json"), "geojson"),

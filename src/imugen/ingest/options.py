@@ -45,6 +45,12 @@ class IngestOptions:
         "split", choices=("split", "bridge"), config="routes.*.gaps",
         help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
     )  # fmt: skip
+    navsatfix_status: str = option(
+        "lenient", choices=("lenient", "strict"),
+        help="a ROS NavSatFix dump whose every row has status -1 (no fix) but finite positions "
+        "and covariances: read them with a warning (a driver that never sets the status), or "
+        "refuse the file",
+    )  # fmt: skip
 
 
 COMMANDS = {

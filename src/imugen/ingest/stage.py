@@ -336,7 +336,7 @@ def read(src: str | Path, options: IngestOptions) -> Ingested:
     with np.errstate(over="ignore", invalid="ignore"):  # overflows are refused, not printed
         return _ingest(
             src, o.path, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km, o.gap_warn_s,
-            o.vehicle, o.max_gap_s, o.gaps,
+            o.vehicle, o.max_gap_s, o.gaps, o.navsatfix_status,
         )  # fmt: skip
 
 
@@ -367,7 +367,18 @@ def _densify_untimed(lat, lon, alt):
 
 
 def _ingest(
-    src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s, vehicle, max_gap_s, gaps
+    src,
+    path,
+    origin,
+    dt,
+    utm,
+    max_speed_kmh,
+    max_extent_km,
+    gap_warn_s,
+    vehicle,
+    max_gap_s,
+    gaps,
+    navsatfix_status="lenient",
 ) -> Ingested:
     src = Path(src)
     for name, value in (
@@ -380,7 +391,7 @@ def _ingest(
     if isinstance(origin, str):
         origin = parse_origin(origin)
     raw = limits.read_input(src)
-    cands = read_route_file(src, raw)
+    cands = read_route_file(src, raw, navsatfix_status=navsatfix_status)
     warnings: list[str] = []
     p, segments = choose_path(
         cands,
