@@ -156,3 +156,50 @@ def test_cli_gap_options(tmp_path, cli):
     assert "took the longest" not in proc.stderr and "40 points" in proc.stderr
     proc = cli("ingest", f, "-o", out, "--gaps", "bridge", check=0)
     assert "bridged 1 time gaps" in proc.stderr
+
+
+def _gpx_segments(tmp_path, segs, name="segs.gpx"):
+    """One track of several segments: segs = [(lat0, [seconds...]), ...], points 11 m apart."""
+    body = ""
+    for lat0, times in segs:
+        pts = "".join(
+            f'<trkpt lat="{lat0 + k * 1e-4!r}" lon="-105.0"><ele>1600</ele>'
+            f"<time>{datetime.fromtimestamp(1.7e9 + s).isoformat()}Z</time></trkpt>"
+            for k, s in enumerate(times)
+        )
+        body += f"<trkseg>{pts}</trkseg>"
+    f = tmp_path / name
+    f.write_text(f"<gpx><trk><name>drive</name>{body}</trk></gpx>")
+    return f
+
+
+def test_segments_of_one_track_that_continue_are_one_path(tmp_path):
+    """Issue 27: a track whose segments continue each other in time and space reads whole."""
+    f = _gpx_segments(tmp_path, [(40.0, range(0, 30)), (40.003, range(35, 60)),
+                                 (40.0055, range(62, 90))])  # fmt: skip
+    ing = ingest(f)
+    assert ing.meta["points_out"] == 83
+    assert any("joined the 3 paths" in w for w in ing.warnings)
+    # a jump the pause cannot explain (30 km in 5 s): the refusal lists the candidates
+    f = _gpx_segments(tmp_path, [(40.0, range(0, 30)), (40.3, range(35, 60))], "jump.gpx")
+    with pytest.raises(InputError, match="holds 2 candidate paths"):
+        ingest(f)
+
+
+def test_path_all_writes_one_route_per_path(tmp_path, cli):
+    f = _gpx(tmp_path, [("Morning walk", range(0, 20)), ("Evening run!", range(5000, 5030)),
+                        ("x", [0])])  # fmt: skip
+    out = tmp_path / "routes" / "walks.csv"
+    r = cli("ingest", str(f), "-o", str(out), "--path=all")
+    assert r.returncode == 0, r.stderr
+    files = sorted(p.name for p in (tmp_path / "routes" / "walks").iterdir())
+    assert files == ["1-morning-walk.csv", "2-evening-run.csv"]
+    assert "path 3-x not read" in r.stderr  # one point: refused, the others written
+    from imugen.ingest.stage import IngestOptions, read_all
+
+    done, refused = read_all(f, IngestOptions(path="all"))
+    assert [rid for rid, _ in done] == ["1-morning-walk", "2-evening-run"]
+    assert done[1][1].meta["points_out"] == 30 and done[1][1].meta["route_id"] == "2-evening-run"
+    assert [rid for rid, _ in refused] == ["3-x"]
+    with pytest.raises(InputError, match="one route per path"):
+        ingest(f, path="all")

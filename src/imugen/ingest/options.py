@@ -13,7 +13,10 @@ class IngestOptions:
     """How one path of a route file is chosen, cleaned and converted (:func:`imugen.ingest.stage.ingest`)."""
 
     path: str | int | None = option(
-        None, help="candidate path name, or 1-based index, when the file has several",
+        None, help="candidate path name, or 1-based index, when the file has several; 'all': "
+        "one route per path, written to OUT's name as a folder (OUT.parquet -> OUT/ID.parquet, "
+        "ids '<index>-<name>'); default: the only path, or the whole file when its paths are "
+        "segments of one track that continue each other",
         config="routes.*.path",
     )  # fmt: skip
     origin: str | None = option(

@@ -14,6 +14,12 @@ Trivial candidates
     When ``--path`` is not given and exactly one candidate is a real path, it is taken with a
     warning naming the others; a candidate is trivial when it has fewer than
     :data:`MIN_REAL_POINTS` points or is shorter than :data:`MIN_REAL_LENGTH_M`.
+Segments of one track
+    When ``--path`` is not given and the candidates continue each other (:func:`chain`):
+    timed, each starting after the previous ends, within ``max_gap_s``, no farther than
+    :data:`JOIN_SPEED_MPS` could go in the pause (plus :data:`JOIN_DISTANCE_M`); or untimed, each
+    starting within :data:`JOIN_DISTANCE_M` of the previous end), the whole file is one path,
+    joined with a warning. Otherwise the refusal lists the candidates.
 """
 
 from __future__ import annotations
@@ -35,6 +41,10 @@ MIN_REAL_POINTS = 5
 #: Shortest real path (m).
 MIN_REAL_LENGTH_M = 25.0
 GAP_MODES = ("split", "bridge")
+#: Largest distance (m) between the end of a segment and the start of the next it continues.
+JOIN_DISTANCE_M = 50.0
+#: Fastest straight-line speed (m/s) across the pause between continuing segments.
+JOIN_SPEED_MPS = 70.0
 _GEOD = Geod(ellps="WGS84")
 
 
@@ -118,6 +128,54 @@ def _sole_real(cands: list[RoutePath], warnings: list[str]) -> list[RoutePath]:
     return real
 
 
+def chain(cands: list[RoutePath], max_gap_s: float) -> bool:
+    """True when the candidates, in file order, are segments of one track (module docstring)."""
+    if len(cands) < 2 or any(p.enu_m is not None or p.n_points < 1 for p in cands):
+        return False
+    timed = [p.time_unix_s is not None and np.isfinite(p.time_unix_s).all() for p in cands]
+    if any(timed) and not all(timed):
+        return False
+    if len({p.altitude_trusted for p in cands}) > 1:
+        return False
+    for a, b in itertools.pairwise(cands):
+        _, _, d = _GEOD.inv(a.lon_deg[-1], a.lat_deg[-1], b.lon_deg[0], b.lat_deg[0])
+        if not np.isfinite(d):
+            return False
+        if timed[0]:
+            gap = float(b.time_unix_s[0] - a.time_unix_s[-1])
+            if not (0.0 <= gap <= max_gap_s and d <= JOIN_DISTANCE_M + JOIN_SPEED_MPS * gap):
+                return False
+        elif d > JOIN_DISTANCE_M:
+            return False
+    return True
+
+
+def join(cands: list[RoutePath], source) -> RoutePath:
+    """The candidates of a :func:`chain` as one path (the first's name, ``"<name> + k more"``)."""
+
+    def cat(attr):
+        vals = [getattr(p, attr) for p in cands]
+        return None if any(v is None for v in vals) else np.concatenate(vals)
+
+    missing = [
+        p.alt_missing if p.alt_missing is not None else np.zeros(p.n_points, bool) for p in cands
+    ]
+    alt_missing = np.concatenate(missing)
+    first = cands[0]
+    names = ", ".join(repr(p.name) for p in cands)
+    return replace(
+        first,
+        name=f"{first.name} + {len(cands) - 1} more" if len(cands) > 1 else first.name,
+        lat_deg=cat("lat_deg"),
+        lon_deg=cat("lon_deg"),
+        alt_m=cat("alt_m"),
+        time_unix_s=cat("time_unix_s"),
+        alt_missing=alt_missing if alt_missing.any() else None,
+        notes=[*first.notes, f"joined {len(cands)} segments of one track: {names}"],
+        warnings=list(dict.fromkeys(w for p in cands for w in p.warnings)),
+    )
+
+
 def _longest(group: list[RoutePath], why: str, warnings: list[str]) -> RoutePath:
     best = max(group, key=length_m)
     others = [p for p in group if p is not best]
@@ -177,6 +235,13 @@ def choose_path(
         return cands[0], dict(carried, carried=True)
     info = {"mode": gaps, "max_gap_s": limit, "parts": 1, "not_used": [], "bridged_gaps": 0}
     spec_s = None if spec is None or spec == "" else str(spec)
+    if spec_s is None and len(cands) > 1 and chain(cands, limit):
+        warnings.append(
+            f"joined the {len(cands)} paths of the file, segments of one track that continue "
+            f"each other in time and space ({', '.join(_label(p) for p in cands[:5])}"
+            f"{', ...' if len(cands) > 5 else ''}; choose one with --path NAME or INDEX)"
+        )
+        cands = [join(cands, source)]
     if spec_s is None and len(cands) > 1:
         cands = _sole_real(cands, warnings)
     groups: dict[str, list[RoutePath]] = {}
