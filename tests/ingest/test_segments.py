@@ -203,3 +203,49 @@ def test_path_all_writes_one_route_per_path(tmp_path, cli):
     assert [rid for rid, _ in refused] == ["3-x"]
     with pytest.raises(InputError, match="one route per path"):
         ingest(f, path="all")
+
+
+def _hike(tmp_path, teleport=False):
+    """A slow hike logged every ~24 s (0.7 m/s northwards) with gaps of 70-190 s at the same
+    pace (issue 27's 6 h canyon hike, smaller); ``teleport``: one gap jumps 2 km in 100 s."""
+    rng = np.random.default_rng(7)
+    dts = rng.uniform(20, 28, 160)
+    dts[10::15] = rng.uniform(70, 190, len(dts[10::15]))
+    if teleport:
+        dts[100] = 100.0
+    t = np.concatenate([[0.0], np.cumsum(dts)])
+    north = 0.7 * t + (2000.0 if teleport else 0.0) * (np.arange(len(t)) > 100)
+    lat = 36.0 + north / 111_000.0
+    pts = "".join(
+        f'<trkpt lat="{float(la)!r}" lon="-112.0"><ele>{800 + 0.01 * n:.2f}</ele>'
+        f"<time>{datetime.fromtimestamp(1.7e9 + s).isoformat()}Z</time></trkpt>"
+        for la, n, s in zip(lat, north, t, strict=True)
+    )
+    f = tmp_path / "hike.gpx"
+    f.write_text(f"<gpx><trk><name>hike</name><trkseg>{pts}</trkseg></trk></gpx>")
+    return f, t, int((dts > 60).sum())
+
+
+def test_sparse_hike_reads_whole_with_gaps_judged_by_motion(tmp_path):
+    f, t, n_gaps = _hike(tmp_path)
+    split = ingest(f, vehicle="pedestrian")  # split (default): the longest part only
+    assert split.meta["duration_s"] < 0.5 * t[-1]
+    ing = ingest(f, vehicle="pedestrian", gaps="auto")
+    assert ing.meta["duration_s"] == pytest.approx(t[-1])
+    seg = ing.meta["segments"]
+    assert len(seg["gaps"]) == n_gaps and all(g["bridge"] for g in seg["gaps"])
+    assert seg["invented_m"] == pytest.approx(sum(g["distance_m"] for g in seg["gaps"]))
+    # the legs cover the gaps' share of the time (28 % here), at the pace around them
+    assert seg["invented_m"] < 0.35 * ing.meta["length_3d_m"]
+    assert any("judged by motion" in w for w in ing.warnings)
+    # bridged by straight legs: the virtual fixes never leave the line between the fixes
+    assert np.all(np.diff(ing.table["n_m"].to_numpy()) >= -1e-6)
+
+
+def test_implausible_gap_is_split(tmp_path):
+    f, _, _ = _hike(tmp_path, teleport=True)
+    ing = ingest(f, vehicle="pedestrian", gaps="auto")
+    seg = ing.meta["segments"]
+    jumps = [g for g in seg["gaps"] if not g["bridge"]]
+    assert len(jumps) == 1 and jumps[0]["distance_m"] > 2000
+    assert seg["parts"] == 2

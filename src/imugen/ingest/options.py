@@ -45,8 +45,10 @@ class IngestOptions:
         help="time gaps longer than this split the path (see --gaps)",
     )  # fmt: skip
     gaps: str = option(
-        "split", choices=("split", "bridge"), config="routes.*.gaps",
-        help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
+        "split", choices=("split", "bridge", "auto"), config="routes.*.gaps",
+        help="split the path at long gaps (parts are candidates; --path longest), bridge them, "
+        "or judge each by motion (auto: bridged by a straight leg when the vehicle could have "
+        "made it at the speed around the gap, else split; each gap reported)",
     )  # fmt: skip
     navsatfix_status: str = option(
         "lenient", choices=("lenient", "strict"),

@@ -458,6 +458,7 @@ def _ingest(
         source=src,
         warnings=warnings,
         select=select_path,
+        vehicle=vehicle,
     )
     warnings += p.warnings
     n_in = p.n_points
