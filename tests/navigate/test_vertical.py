@@ -147,3 +147,14 @@ def test_meaningless_reason_explains_itself():
     msg = V.meaningless_reason(V.resolve("free", WGS, 19268.0).meta())
     assert "cosh(t / 569 s)" in msg and "19,268 s" in msg and "damped" in msg
     assert V.meaningless_reason(V.resolve("damped", WGS, 19268.0).meta()) == ""
+
+
+def test_meaningless_warning_of_evaluate_gives_the_growth():
+    from imugen.evaluate.stage import warn_meaningless
+
+    record = V.resolve("free", WGS, 19268.0).meta()
+    with pytest.warns(UserWarning, match=r"grows as cosh\(t / 569 s\), x.* over this 19,268 s"):
+        assert warn_meaningless("consumer", 1e12, 5000.0, False, record)
+    with pytest.warns(UserWarning) as rec:
+        warn_meaningless("consumer", 1e12, 5000.0, False, None)  # older tables: no record
+    assert "cosh" not in str(rec[0].message)
