@@ -22,7 +22,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 READERS = ("kml", "kmz", "gpx", "csv", "enu_text", "nmea", "igc", "geojson", "navsatfix",
-           "lettered_and_nul_padded_csv", "pose", "gpsbabel_formats")  # fmt: skip
+           "lettered_and_nul_padded_csv", "columbus_csv", "dashcam_70mai", "pose",
+           "gpsbabel_formats")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:

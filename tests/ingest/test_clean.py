@@ -91,7 +91,8 @@ def test_spike_no_longer_refuses_the_file(tmp_path):
     ing = ingest(_gpx(tmp_path, x, t), vehicle="pedestrian")
     c = ing.meta["cleaning"]
     assert (c["outliers_removed"], c["outlier_points"]) == (1, [121])
-    assert ing.meta["points_out"] == 199 and any("1 horizontal outliers" in w for w in ing.warnings)
+    assert ing.meta["points_out"] == 199
+    assert any("removed 1 fixes no pedestrian could reach" in w for w in ing.warnings)
     assert c["noise_horizontal_m"] == pytest.approx(1.0, rel=0.25)
 
 
@@ -165,3 +166,28 @@ def test_cli_vehicle_option(tmp_path, cli):
     proc = cli("ingest", f, "-o", out, "--vehicle", "aircraft", check=0)
     assert "outliers" not in proc.stderr
     assert cli("ingest", f, "-o", out, "--vehicle", "boat").returncode == 2
+
+
+def test_speed_gate_removes_cold_start_plateau_and_excursion():
+    """Issue 27 (an urban walk from an MTK logger): the first fixes 325 m off (cold start), a
+    30-epoch plateau 320 m away and a smooth 20 s excursion of 323 m; the acceleration
+    criterion alone keeps most of them. The speed gate removes exactly the 55 injected fixes."""
+    from imugen.ingest.clean import speed_outliers
+
+    rng = np.random.default_rng(3)
+    t = np.arange(600.0)
+    x = np.column_stack([1.3 * t, 20 * np.sin(t / 60)]) + rng.normal(0, 2.0, (600, 2))
+    bad = np.zeros(600, bool)
+    x[:5] += [250.0, 207.0]
+    bad[:5] = True
+    x[200:230] = [-100.0, 300.0]
+    bad[200:230] = True
+    k = np.arange(400, 420)
+    x[k, 1] += 323.0 * np.sin(np.pi * (k - 399) / 21)
+    bad[k] = True
+    got = speed_outliers(t, x, VEHICLE_LIMITS["pedestrian"].max_speed_mps, 2.0)
+    np.testing.assert_array_equal(got, np.flatnonzero(bad))
+    # a clean walk, a fast car: nothing removed
+    assert len(speed_outliers(t[~bad][:300], x[~bad][:300], 15.0, 2.0)) == 0
+    car = np.column_stack([40.0 * t, np.zeros(600)]) + rng.normal(0, 3.0, (600, 2))
+    assert len(speed_outliers(t, car, VEHICLE_LIMITS["car"].max_speed_mps, 3.0)) == 0

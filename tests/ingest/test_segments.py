@@ -156,3 +156,96 @@ def test_cli_gap_options(tmp_path, cli):
     assert "took the longest" not in proc.stderr and "40 points" in proc.stderr
     proc = cli("ingest", f, "-o", out, "--gaps", "bridge", check=0)
     assert "bridged 1 time gaps" in proc.stderr
+
+
+def _gpx_segments(tmp_path, segs, name="segs.gpx"):
+    """One track of several segments: segs = [(lat0, [seconds...]), ...], points 11 m apart."""
+    body = ""
+    for lat0, times in segs:
+        pts = "".join(
+            f'<trkpt lat="{lat0 + k * 1e-4!r}" lon="-105.0"><ele>1600</ele>'
+            f"<time>{datetime.fromtimestamp(1.7e9 + s).isoformat()}Z</time></trkpt>"
+            for k, s in enumerate(times)
+        )
+        body += f"<trkseg>{pts}</trkseg>"
+    f = tmp_path / name
+    f.write_text(f"<gpx><trk><name>drive</name>{body}</trk></gpx>")
+    return f
+
+
+def test_segments_of_one_track_that_continue_are_one_path(tmp_path):
+    """Issue 27: a track whose segments continue each other in time and space reads whole."""
+    f = _gpx_segments(tmp_path, [(40.0, range(0, 30)), (40.003, range(35, 60)),
+                                 (40.0055, range(62, 90))])  # fmt: skip
+    ing = ingest(f)
+    assert ing.meta["points_out"] == 83
+    assert any("joined the 3 paths" in w for w in ing.warnings)
+    # a jump the pause cannot explain (30 km in 5 s): the refusal lists the candidates
+    f = _gpx_segments(tmp_path, [(40.0, range(0, 30)), (40.3, range(35, 60))], "jump.gpx")
+    with pytest.raises(InputError, match="holds 2 candidate paths"):
+        ingest(f)
+
+
+def test_path_all_writes_one_route_per_path(tmp_path, cli):
+    f = _gpx(tmp_path, [("Morning walk", range(0, 20)), ("Evening run!", range(5000, 5030)),
+                        ("x", [0])])  # fmt: skip
+    out = tmp_path / "routes" / "walks.csv"
+    r = cli("ingest", str(f), "-o", str(out), "--path=all")
+    assert r.returncode == 0, r.stderr
+    files = sorted(p.name for p in (tmp_path / "routes" / "walks").iterdir())
+    assert files == ["1-morning-walk.csv", "2-evening-run.csv"]
+    assert "path 3-x not read" in r.stderr  # one point: refused, the others written
+    from imugen.ingest.stage import IngestOptions, read_all
+
+    done, refused = read_all(f, IngestOptions(path="all"))
+    assert [rid for rid, _ in done] == ["1-morning-walk", "2-evening-run"]
+    assert done[1][1].meta["points_out"] == 30 and done[1][1].meta["route_id"] == "2-evening-run"
+    assert [rid for rid, _ in refused] == ["3-x"]
+    with pytest.raises(InputError, match="one route per path"):
+        ingest(f, path="all")
+
+
+def _hike(tmp_path, teleport=False):
+    """A slow hike logged every ~24 s (0.7 m/s northwards) with gaps of 70-190 s at the same
+    pace (issue 27's 6 h canyon hike, smaller); ``teleport``: one gap jumps 2 km in 100 s."""
+    rng = np.random.default_rng(7)
+    dts = rng.uniform(20, 28, 160)
+    dts[10::15] = rng.uniform(70, 190, len(dts[10::15]))
+    if teleport:
+        dts[100] = 100.0
+    t = np.concatenate([[0.0], np.cumsum(dts)])
+    north = 0.7 * t + (2000.0 if teleport else 0.0) * (np.arange(len(t)) > 100)
+    lat = 36.0 + north / 111_000.0
+    pts = "".join(
+        f'<trkpt lat="{float(la)!r}" lon="-112.0"><ele>{800 + 0.01 * n:.2f}</ele>'
+        f"<time>{datetime.fromtimestamp(1.7e9 + s).isoformat()}Z</time></trkpt>"
+        for la, n, s in zip(lat, north, t, strict=True)
+    )
+    f = tmp_path / "hike.gpx"
+    f.write_text(f"<gpx><trk><name>hike</name><trkseg>{pts}</trkseg></trk></gpx>")
+    return f, t, int((dts > 60).sum())
+
+
+def test_sparse_hike_reads_whole_with_gaps_judged_by_motion(tmp_path):
+    f, t, n_gaps = _hike(tmp_path)
+    split = ingest(f, vehicle="pedestrian")  # split (default): the longest part only
+    assert split.meta["duration_s"] < 0.5 * t[-1]
+    ing = ingest(f, vehicle="pedestrian", gaps="auto")
+    assert ing.meta["duration_s"] == pytest.approx(t[-1])
+    seg = ing.meta["segments"]
+    assert len(seg["gaps"]) == n_gaps and all(g["bridge"] for g in seg["gaps"])
+    assert seg["invented_m"] == pytest.approx(sum(g["distance_m"] for g in seg["gaps"]))
+    # the legs cover the gaps' share of the time (28 % here), at the pace around them
+    assert seg["invented_m"] < 0.35 * ing.meta["length_3d_m"]
+    assert any("judged by motion" in w for w in ing.warnings)
+    # bridged by straight legs: the virtual fixes never leave the line between the fixes
+    assert np.all(np.diff(ing.table["n_m"].to_numpy()) >= -1e-6)
+
+
+def test_implausible_gap_is_split(tmp_path):
+    f, _, _ = _hike(tmp_path, teleport=True)
+    ing = ingest(f, vehicle="pedestrian", gaps="auto")
+    seg = ing.meta["segments"]
+    jumps = [g for g in seg["gaps"] if not g["bridge"]]
+    assert len(jumps) == 1 and jumps[0]["distance_m"] > 2000
+    assert seg["parts"] == 2

@@ -212,3 +212,28 @@ def test_attitude_angle_oracle():
     ident = np.tile([1.0, 0, 0, 0], (100, 1))
     np.testing.assert_allclose(attitude_angle(ident, q), ang, rtol=1e-12)
     np.testing.assert_allclose(attitude_angle(ident, -q), ang, rtol=1e-12)
+
+
+def test_closure_reports_horizontal_vertical_and_the_free_growth(tmp_path):
+    """`imugen closure` (issue 27): horizontal and vertical closure separately, the vertical
+    channel used and why, and the free channel's expected growth."""
+    t = np.arange(0, 300.0)
+    s = 12.0 * t
+    p = np.column_stack([s * np.cos(s / 900), s * np.sin(s / 900), 20 * np.sin(t / 60)])
+    src = write_enu(tmp_path / "drive.txt", t, p)
+    auto = closure(src, earth="wgs84", origin=ORIGIN, rate_hz=20)
+    damped = closure(src, earth="wgs84", origin=ORIGIN, rate_hz=20, vertical="damped")
+    assert auto["vertical_channel"]["mode"] == "free"  # 300 s < 3 x 570 s
+    assert damped["vertical_channel"]["mode"] == "damped"
+    assert damped["vertical_channel"]["gains"] == pytest.approx([0.03, 3.03e-4, 1e-6], rel=0.01)
+    for res in (auto, damped):
+        check(res, label=res["vertical_channel"]["mode"])
+        assert res["final_position_error_m"] == pytest.approx(
+            math.hypot(res["horizontal_final_m"], res["vertical_final_m"]), rel=1e-6
+        )
+        assert res["horizontal_max_m"] <= res["max_position_error_m"] * (1 + 1e-12)
+        free = res["free"]
+        assert free["growth_time_s"] == pytest.approx(569.5, abs=1.5)
+        assert free["growth_factor"] == pytest.approx(math.cosh(299.0 / free["growth_time_s"]))
+    # free: the whole run is its own seed, the expected growth is the run itself
+    assert auto["free"]["expected_vertical_m"] == pytest.approx(auto["vertical_final_m"])

@@ -529,6 +529,9 @@ def navsatfix_doc(draw) -> bytes:
         cols = draw(st.permutations(cols))[: draw(st.integers(2, len(cols)))]
     delim = draw(mostly(st.just(","), st.sampled_from([";", "\t", " "])))
     hostile = draw(st.booleans())
+    all_no_fix = draw(st.integers(0, 3)) == 0  # a driver that never sets the status
+    if all_no_fix:
+        cols = [*cols, *(f"field.position_covariance{i}" for i in range(9))]
     lines = [delim.join(cols)]
     t0 = draw(mostly(st.just(1_700_000_000 * NS), st.integers(0, 2**64)))
     for k in range(draw(mostly(st.integers(2, 6), st.integers(0, 8)))):
@@ -537,7 +540,7 @@ def navsatfix_doc(draw) -> bytes:
             "field.header.seq": str(k),
             "field.header.stamp": str(t0 + k * NS),
             "field.header.frame_id": "gps",
-            "field.status.status": draw(
+            "field.status.status": "-1" if all_no_fix else draw(
                 mostly(st.just("0"), st.sampled_from(["-1", "2", "", "x"]))
             ),
             "field.status.service": "1",
@@ -547,7 +550,9 @@ def navsatfix_doc(draw) -> bytes:
                 mostly(st.just(repr(150.0 + k)), st.sampled_from(["nan", "-nan", ""]) | numbers)
             ),
             "field.position_covariance_type": "0",
-        }
+            **{f"field.position_covariance{i}": draw(mostly(st.just("4.0"), numbers))
+               for i in range(9)},
+        }  # fmt: skip
         if hostile:
             key = draw(st.sampled_from(["field.header.stamp", "%time", "field.latitude", "field.longitude"]))  # fmt: skip
             row[key] = draw(st.sampled_from(WEIRD_STAMPS) if "time" in key or "stamp" in key else numbers)  # fmt: skip
@@ -593,6 +598,50 @@ def lettered_csv_doc(draw) -> bytes:
     if nul and draw(st.integers(0, 4)) == 0:
         data += draw(st.binary(min_size=1, max_size=40))  # a binary tail
     return data
+
+
+@st.composite
+def columbus_doc(draw) -> bytes:
+    """Columbus V-900/V-990 CSV: NUL-padded fixed-width fields, DATE yymmdd + TIME hhmmss."""
+    lat_name, lon_name = draw(st.sampled_from([("LATITUDE N/S", "LONGITUDE E/W"),
+                                               ("LATITUDE N", "LONGITUDE E"),
+                                               ("LATITUDEN/S", "LONGITUDEE/W")]))  # fmt: skip
+    header = ["INDEX", "TAG", "DATE", "TIME", lat_name, lon_name, "HEIGHT", "SPEED", "HEADING",
+              "VOX"]  # fmt: skip
+    hostile = draw(st.booleans())
+    lines = [",".join(header)]
+    for k in range(draw(mostly(st.integers(2, 6), st.integers(0, 8)))):
+        cells = [str(k + 1), "T", "231114", f"2213{k:02d}", f"{48.1371 + k * 1e-4:.6f}N",
+                 f"{11.575 + k * 1e-4:.6f}E", "520", "43", "4", ""]  # fmt: skip
+        if hostile:
+            j = draw(st.sampled_from([2, 3, 4, 5, 6]))
+            cells[j] = draw(st.sampled_from(["", "991399", "236161", "x", "48.1S", "N"]) | numbers)
+        cells = [c + "\x00" * draw(st.integers(0, 4)) for c in cells]
+        lines.append(",".join(cells))
+    return "\r\n".join(lines).encode()
+
+
+@st.composite
+def dashcam_doc(draw) -> bytes:
+    """70mai GPSData*.txt: $V02 session lines (also mid-file), epoch rows, A/V status."""
+    hostile = draw(st.booleans())
+    lines = ["$V02"]
+    t = 1_700_000_000
+    for k in range(draw(mostly(st.integers(2, 8), st.integers(0, 10)))):
+        if k and draw(st.integers(0, 5)) == 0:
+            lines.append("$V02")
+            t += draw(st.sampled_from([1, 30, 5000]))
+        t += draw(mostly(st.just(1), st.sampled_from([0, -3])))
+        status = draw(mostly(st.just("A"), st.just("V")))
+        cells = [str(t), status, f"{48.1371 + k * 1e-4:.6f}", f"{11.575 + k * 1e-5:.6f}", "350",
+                 "1200", "-85", "3", "47", "NO20231114-221320-000000F.MP4", "0", "0", "0"]  # fmt: skip
+        if hostile and draw(st.integers(0, 3)) == 0:
+            j = draw(st.sampled_from([0, 2, 3]))
+            cells[j] = draw(st.sampled_from(["", "x", "999", "-91"]) | numbers)
+        if hostile and draw(st.integers(0, 5)) == 0:
+            cells = cells[: draw(st.integers(1, 4))]
+        lines.append(",".join(cells))
+    return "\n".join(lines).encode()
 
 
 # --- the formats read through GPSBabel: FIT (binary), TCX (XML), OziExplorer PLT (text) --------
@@ -727,6 +776,18 @@ STAMP_1E25 = (
 @example(STAMP_1E25)  # issue 22: a stamp of 1e25 ns (ValueError: year out of range)
 def test_fuzz_navsatfix(data):
     check_ingest(data, "fix.csv")
+
+
+@FUZZ
+@given(columbus_doc())
+def test_fuzz_columbus_csv(data):
+    check_ingest(data, "GPS001.CSV")
+
+
+@FUZZ
+@given(dashcam_doc())
+def test_fuzz_dashcam_70mai(data):
+    check_ingest(data, "GPSData000001.txt")
 
 
 @FUZZ

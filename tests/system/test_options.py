@@ -168,7 +168,10 @@ CFG = {
         "enabled": True, "misalignment_sd_deg": [2.0, 2.0, 3.0], "lever_arm_m": [0.1, 0.2, 0.3],
         "lever_arm_sd_m": [0.01, 0.01, 0.01],
     },
-    "navigate": {"eval_rate_hz": 2.0},
+    "navigate": {
+        "eval_rate_hz": 2.0,
+        "vertical": {"mode": "damped", "order": 2, "time_constant_s": 50.0, "reference": "truth"},
+    },
     "evaluate": {"segments_s": [20, 40]},
     "gnss": {
         "enabled": True, "receiver": "rtk", "rate_hz": 5.0, "draw": "nominal",
@@ -224,7 +227,7 @@ def test_the_rules_pass_every_option_of_the_config(tmp_path):
         for s, block in CFG.items()
         if isinstance(block, dict) and s != "mounting"
         for k in (block["r1"] if s == "routes" else block)
-        for k in ([f"{k}.{j}" for j in block[k]] if k == "split" else [k])
+        for k in ([f"{k}.{j}" for j in block[k]] if k in ("split", "vertical") else [k])
     } | {"scenarios.intervals"}, "the test's config sets every key away from its default"
     write_config(tmp_path, CFG)
     given, commands = set(), set()

@@ -40,12 +40,17 @@ rule simulate:
         mounting=MOUNTING_ARG,
         imu=lambda wc, output: f"--output={shlex.quote(output.imu[0])}" if WRITE_IMU else "",
         eval_rate_hz=config["navigate"]["eval_rate_hz"],
+        vertical=config["navigate"]["vertical"],
     log:
         "logs/{route}/simulate/{grade}/shard-{shard}.log",
     shell:
         "IMUGEN_CONSOLE_FD=3 "
         "imugen simulate {input.truth:q} {params.imu} --navigate={output.nav:q} "
-        "--eval-rate-hz={params.eval_rate_hz} --route={wildcards.route:q} --grade={params.grade:q} "
+        "--eval-rate-hz={params.eval_rate_hz} --vertical={params.vertical[mode]} "
+        "--vertical-order={params.vertical[order]} "
+        "--vertical-time-constant-s={params.vertical[time_constant_s]} "
+        "--vertical-reference={params.vertical[reference]} "
+        "--route={wildcards.route:q} --grade={params.grade:q} "
         "--sequences={params.sequences} --shard-size={params.shard_size} --seed={params.seed} "
         "--shard={wildcards.shard} --draw={params.draw} --dtype={params.dtype} --outputs={params.outputs} --increments={params.increments} {params.series} "
         "--vibration={params.vibration} {params.mounting} "

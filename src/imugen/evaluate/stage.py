@@ -206,7 +206,9 @@ def segment_starts(samples: int, n: int) -> np.ndarray:
     return np.arange(0, samples - 1 - n + 1, max(1, round(n / 2)), dtype=np.int64)
 
 
-def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None) -> pd.DataFrame:
+def segment_drift(
+    truth_path, imu_path, segments_s, *, batch: int | None = None, vertical=None
+) -> pd.DataFrame:
     """Relative drift of every sequence of an IMU shard (see the module docstring).
 
     Parameters
@@ -218,6 +220,9 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
         Segment durations ``T`` (s).
     batch : int, optional
         Sequences mechanized together (default from the navigation memory budget).
+    vertical : imugen.navigate.vertical.VerticalSpec, optional
+        Vertical channel, resolved for the longest segment (default ``auto``: free for
+        segments up to 1,710 s; damped by the true height beyond).
 
     Returns
     -------
@@ -225,8 +230,14 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
         Index ``sequence``; one column ``drift_<T>s_m`` (metres) per ``T``.
     """
     from imugen.core.earth import earth_rate_n
-    from imugen.navigate.mechanize import compensate_raw, increments_from_rates, mechanize
+    from imugen.navigate.mechanize import (
+        compensate_raw,
+        increments_from_rates,
+        mechanize,
+        reference_heights,
+    )
     from imugen.navigate.navigator import batch_size
+    from imugen.navigate.vertical import VerticalSpec
     from imugen.sensors.mounting import imu_states
     from imugen.tables import shard as tshard
 
@@ -249,6 +260,10 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
     starts = segment_starts(K, n_max)
     every = math.gcd(*fit) if fit else 1  # store only the epochs some T needs
     S = len(starts)
+    vc = (vertical or VerticalSpec()).resolve(frame, n_max * dt)
+    h_seg = None
+    if vc.damped and S:
+        h_seg = reference_heights(p, frame)[starts[:, None] + np.arange(n_max + 1)]
     batch = batch or max(1, batch_size(K) // 2)  # segments hold about twice the samples
     for ids, a, c in tshard.iter_blocks(imu_path, columns, K, batch, 0 if rates else 1):
         ids_all.append(ids.copy())
@@ -275,6 +290,8 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
             frame,
             every=every,
             outputs=("p",),
+            gains=vc.kernel_gains(),
+            href=None if h_seg is None else np.tile(h_seg, (len(ids), 1)),
         )
         pos = nav.p_n.reshape(len(ids), S, -1, 3)  # at 0, every, 2 every, ..., n_max
         for T, n in ns.items():
@@ -290,6 +307,21 @@ def segment_drift(truth_path, imu_path, segments_s, *, batch: int | None = None)
             out[drift_column(T)].append(np.linalg.norm(err, axis=-1).mean(axis=1))
     index = pd.Index(np.concatenate(ids_all) if ids_all else [], name="sequence")
     return pd.DataFrame({k: np.concatenate(v) if v else [] for k, v in out.items()}, index=index)
+
+
+def _vertical_spec(record: dict | None):
+    """The :class:`~imugen.navigate.vertical.VerticalSpec` a navigation table's record was
+    made with (default ``auto`` when none is recorded)."""
+    from imugen.navigate.vertical import VerticalSpec
+
+    if not record:
+        return VerticalSpec()
+    return VerticalSpec(
+        record.get("requested") or "auto",
+        int(record.get("order") or 3),
+        float(record.get("time_constant_s") or 100.0),
+        record.get("reference") or "truth",
+    )
 
 
 _OPTIONAL = ("drift_", "aided_", "outage_", "time_to_")
@@ -489,6 +521,10 @@ def run(truth, nav_paths, out, options: EvaluateOptions, *, imu_paths=(), aided_
     grade, segments_s = options.grade, options.segments_s
 
     distance = horizontal_distance_m(truth)
+    # the navigation's vertical channel (its tables' metadata; older tables: none recorded)
+    vertical = next(
+        (m for m in (tnav.read_meta(p).get("vertical_channel") for p in nav_paths) if m), None
+    )
     # one navigation file at a time (a sequence lives in one shard): memory stays at one
     # file plus one metrics row per sequence, whatever the number of shards
     parts = [
@@ -510,7 +546,8 @@ def run(truth, nav_paths, out, options: EvaluateOptions, *, imu_paths=(), aided_
     if segments_s:
         if not imu_paths:
             raise InputError("--segments", "relative drift needs the IMU shards (--imu)")
-        drift = pd.concat([segment_drift(truth, p, segments_s) for p in imu_paths])
+        spec = _vertical_spec(vertical)
+        drift = pd.concat([segment_drift(truth, p, segments_s, vertical=spec) for p in imu_paths])
         if not drift.index.is_unique or set(drift.index) != set(metrics.index):
             raise InputError(grade, "the IMU shards do not hold the sequences of the navigation")
         metrics = metrics.join(drift)
@@ -527,7 +564,9 @@ def run(truth, nav_paths, out, options: EvaluateOptions, *, imu_paths=(), aided_
             raise InputError(grade, "the aided tables do not hold the sequences of the navigation")
         metrics = metrics.join(aid)
     extent = extent_m(truth)
-    warn_meaningless(grade, float(metrics[tmetrics.FINAL_3D].median()), extent, bool(aided_paths))
+    warn_meaningless(
+        grade, float(metrics[tmetrics.FINAL_3D].median()), extent, bool(aided_paths), vertical
+    )
     meta = {
         "stage": "evaluate",
         "grade": grade,
@@ -538,6 +577,7 @@ def run(truth, nav_paths, out, options: EvaluateOptions, *, imu_paths=(), aided_
         "distance_horizontal_m": distance,
         "segments_s": segments_s,
         "segment_step": "T_max/2",
+        "vertical_channel": vertical,
         "units": "metres; final_pct_distance in % of the horizontal distance travelled",
         "error_frame": "East/North/Up at the true position; along/cross the true track, "
         "cross positive left",
@@ -552,7 +592,11 @@ def run_tables(metrics_paths, out_csv) -> dict[str, Path]:
         meta = tmetrics.read_meta(p)
         row = grade_row(meta["grade"], tmetrics.read(p).set_index("sequence"))
         row["free_inertial_meaningless"] = warn_meaningless(
-            meta["grade"], row["final_3d_m"], meta.get("extent_m"), "aided_total_m" in row
+            meta["grade"],
+            row["final_3d_m"],
+            meta.get("extent_m"),
+            "aided_total_m" in row,
+            meta.get("vertical_channel"),
         )
         rows.append(row)
     return write_tables(grade_table(rows), out_csv)
@@ -569,16 +613,24 @@ def main_tables(options: TablesOptions, metrics, output) -> None:
     print(paths["md"].read_text(), file=sys.stderr)
 
 
-def warn_meaningless(grade: str, final_3d_m: float, extent: float | None, aided: bool) -> bool:
-    """:func:`meaningless`, with a warning naming the grade when True."""
+def warn_meaningless(
+    grade: str, final_3d_m: float, extent: float | None, aided: bool, vertical: dict | None = None
+) -> bool:
+    """:func:`meaningless`, with a warning naming the grade when True (and, with the
+    navigation's ``vertical`` channel record, why: the free vertical channel's growth)."""
+    from imugen.navigate.vertical import meaningless_reason
+
     if not meaningless(final_3d_m, extent):
         return False
+    why = meaningless_reason(vertical)
     warnings.warn(
         f"{grade}: median final free-inertial error {final_3d_m:.3g} m "
         f"({final_3d_m / EARTH_RADIUS_M:.3g} Earth radii) exceeds "
         f"{MEANINGLESS_EARTH_FRACTION:.0%} of the Earth radius or "
         f"{MEANINGLESS_EXTENT_FACTOR:g} x the scene's extent: the scene is too long for unaided "
-        "inertial navigation and its free-inertial figures say nothing about the IMU; "
+        "inertial navigation and its free-inertial figures say nothing about the IMU"
+        + (f" ({why})" if why else "")
+        + "; "
         + (
             "use the aided figures (aided_total_m, outage_*_end_m)"
             if aided

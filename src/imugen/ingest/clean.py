@@ -66,6 +66,7 @@ class Limits:
 
     max_accel_mps2: float
     max_vaccel_mps2: float
+    max_speed_mps: float = 350.0
 
 
 #: Generous physical bounds per vehicle class: a car brakes or corners at up to about 1 g; a
@@ -73,12 +74,12 @@ class Limits:
 #: of road crests and dips (car, bicycle), of steps and jumps (pedestrian), of manoeuvres
 #: (aircraft).
 VEHICLE_LIMITS = {
-    "car": Limits(10.0, 5.0),
-    "bicycle": Limits(6.0, 4.0),
-    "pedestrian": Limits(6.0, 4.0),
-    "aircraft": Limits(30.0, 30.0),
-    "airliner": Limits(30.0, 30.0),
-    "multirotor": Limits(30.0, 30.0),
+    "car": Limits(10.0, 5.0, 90.0),
+    "bicycle": Limits(6.0, 4.0, 30.0),
+    "pedestrian": Limits(6.0, 4.0, 15.0),
+    "aircraft": Limits(30.0, 30.0, 350.0),
+    "airliner": Limits(30.0, 30.0, 350.0),
+    "multirotor": Limits(30.0, 30.0, 40.0),
 }
 #: Outlier threshold in noise standard deviations (a 2-D Gaussian exceeds 5 sigma with
 #: probability 4e-6).
@@ -184,6 +185,64 @@ def median_residual(
         preds.append(p)
     med = np.nanmedian(np.stack(preds, axis=1), axis=1)
     return np.linalg.norm(x[i] - med, axis=1)
+
+
+#: Predecessors the speed gate looks back over (:func:`speed_outliers`).
+SPEED_GATE_WINDOW = 120
+
+
+def speed_outliers(
+    t: np.ndarray, x: np.ndarray, v_max: float, sigma: float, window: int = SPEED_GATE_WINDOW
+) -> np.ndarray:
+    """Fixes no vehicle of speed ``v_max`` could have reached: indexes off the longest chain of
+    fixes whose consecutive steps are all possible (issue 27).
+
+    A step from fix i to fix j is possible when ``|x_j - x_i| <= v_max (t_j - t_i) + K_SIGMA
+    sigma sqrt(2)``. The kept fixes are the longest time-ordered chain of possible steps
+    (dynamic programming over ``window`` predecessors): a cold-start offset at the start, a
+    plateau of multipath fixes or a far excursion cannot join the track without two impossible
+    steps, so the chain leaves them out (the acceleration criterion of :func:`find_outliers`
+    takes a long plateau for the track, and a smooth excursion passes it).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Times [s], increasing.
+    x : ndarray, shape (n, 2)
+        Horizontal positions [m].
+    v_max : float
+        The vehicle class's top speed [m/s].
+    sigma : float
+        Horizontal noise of one coordinate [m].
+
+    Returns
+    -------
+    ndarray of int
+        Indexes of the outlying fixes (sorted).
+    """
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    n = len(t)
+    if n < 3:
+        return np.zeros(0, dtype=int)
+    tol = K_SIGMA * sigma * np.sqrt(2.0)
+    best = np.ones(n, dtype=int)  # longest chain ending at j
+    prev = np.full(n, -1)
+    for j in range(1, n):
+        i0 = max(0, j - window)
+        d = np.hypot(x[i0:j, 0] - x[j, 0], x[i0:j, 1] - x[j, 1])
+        ok = d <= v_max * (t[j] - t[i0:j]) + tol
+        if ok.any():
+            cand = np.where(ok, best[i0:j], 0)
+            i = j - 1 - int(np.argmax(cand[::-1]))  # the latest among the longest
+            best[j] = best[i] + 1
+            prev[j] = i
+    keep = np.zeros(n, dtype=bool)
+    j = int(np.argmax(best))
+    while j >= 0:
+        keep[j] = True
+        j = prev[j]
+    return np.flatnonzero(~keep)
 
 
 def find_outliers(t: np.ndarray, x: np.ndarray, a_max: float) -> np.ndarray:
@@ -312,7 +371,23 @@ def clean_path(
     enu = _metric(cols, enu_frame)
     if timed and n_in >= 4:
         t = cols["time"]
-        bad = find_outliers(t, enu[:, :2], lim.max_accel_mps2)
+        d_h, _ = chord_deviation(t, enu[:, :2])
+        fast = speed_outliers(t, enu[:, :2], lim.max_speed_mps, noise_sigma(d_h, 2))
+        if len(fast) > (1.0 - MIN_KEPT_FRACTION) * n_in:  # the class, not the fixes, is wrong
+            warnings.append(
+                f"most of the track moves faster than a {vehicle}'s {lim.max_speed_mps:g} m/s: "
+                "no speed gate applied; check --vehicle"
+            )
+            fast = np.zeros(0, dtype=int)
+        rest = np.setdiff1d(np.arange(n_in), fast)
+        bad = np.union1d(fast, rest[find_outliers(t[rest], enu[rest, :2], lim.max_accel_mps2)])
+        if len(fast):
+            warnings.append(
+                f"removed {len(fast)} fixes no {vehicle} could reach (steps beyond "
+                f"{lim.max_speed_mps:g} m/s plus noise from the longest consistent chain: a "
+                "cold start, a multipath plateau or an excursion)"
+            )
+        report["speed_outliers_removed"] = len(fast)
         if len(bad) > (1.0 - MIN_KEPT_FRACTION) * n_in:
             raise InputError(
                 source,
@@ -328,11 +403,14 @@ def clean_path(
             enu, missing, t = enu[keep], missing[keep], t[keep]
             report["outliers_removed"] = len(bad)
             report["outlier_points"] = (bad[:MAX_LISTED] + 1).tolist()
-            shown = ", ".join(str(i + 1) for i in bad[:10]) + (", ..." if len(bad) > 10 else "")
-            warnings.append(
-                f"removed {len(bad)} horizontal outliers (points {shown} of the kept points; implied "
-                f"acceleration beyond a {vehicle}'s {lim.max_accel_mps2:g} m/s^2 plus noise)"
-            )
+            acc = np.setdiff1d(bad, fast)
+            shown = ", ".join(str(i + 1) for i in acc[:10]) + (", ..." if len(acc) > 10 else "")
+            if len(acc):
+                warnings.append(
+                    f"removed {len(acc)} horizontal outliers (points {shown} of the kept points; "
+                    f"implied acceleration beyond a {vehicle}'s {lim.max_accel_mps2:g} m/s^2 plus "
+                    "noise)"
+                )
         if np.any(cols["alt"][~missing] != 0):
             have = np.flatnonzero(~missing)
             if len(have) >= 4:

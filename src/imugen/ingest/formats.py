@@ -54,9 +54,14 @@ FORMATS = (
         "Earth by --origin",
     ),
     Format(
-        "GNSS logger CSV (ROS NavSatFix, hemisphere letters, NUL-padded)", (".csv",), "gnsscsv",
-        "rostopic echo -p dumps of sensor_msgs/NavSatFix; CSV with hemisphere letters "
-        "(30.2N, 097.6W); NUL-padded fixed-width fields",
+        "GNSS logger CSV (ROS NavSatFix, hemisphere letters, NUL-padded Columbus)", (".csv",),
+        "gnsscsv",
+        "rostopic echo -p dumps of sensor_msgs/NavSatFix (status -1 rows read with a warning); "
+        "CSV with hemisphere letters (30.2N, 097.6W); NUL-padded Columbus V-900 logs",
+    ),
+    Format(
+        "70mai dashcam GPS log", (".txt",), "dashcam",
+        "$V0x session lines and fixes; rows without a fix and repeated times dropped",
     ),
     Format(
         "NMEA 0183", (".nmea",), "nmea",

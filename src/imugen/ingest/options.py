@@ -13,7 +13,10 @@ class IngestOptions:
     """How one path of a route file is chosen, cleaned and converted (:func:`imugen.ingest.stage.ingest`)."""
 
     path: str | int | None = option(
-        None, help="candidate path name, or 1-based index, when the file has several",
+        None, help="candidate path name, or 1-based index, when the file has several; 'all': "
+        "one route per path, written to OUT's name as a folder (OUT.parquet -> OUT/ID.parquet, "
+        "ids '<index>-<name>'); default: the only path, or the whole file when its paths are "
+        "segments of one track that continue each other",
         config="routes.*.path",
     )  # fmt: skip
     origin: str | None = option(
@@ -42,8 +45,16 @@ class IngestOptions:
         help="time gaps longer than this split the path (see --gaps)",
     )  # fmt: skip
     gaps: str = option(
-        "split", choices=("split", "bridge"), config="routes.*.gaps",
-        help="split the path at long gaps (parts are candidates; --path longest) or bridge them",
+        "split", choices=("split", "bridge", "auto"), config="routes.*.gaps",
+        help="split the path at long gaps (parts are candidates; --path longest), bridge them, "
+        "or judge each by motion (auto: bridged by a straight leg when the vehicle could have "
+        "made it at the speed around the gap, else split; each gap reported)",
+    )  # fmt: skip
+    navsatfix_status: str = option(
+        "lenient", choices=("lenient", "strict"),
+        help="a ROS NavSatFix dump whose every row has status -1 (no fix) but finite positions "
+        "and covariances: read them with a warning (a driver that never sets the status), or "
+        "refuse the file",
     )  # fmt: skip
     pose_world: str = option(
         "enu", choices=("enu", "ned", "flu", "ecef"), config="routes.*.pose_world",

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -332,14 +333,67 @@ def ingest(src: str | Path, **options) -> Ingested:
     return read(src, IngestOptions(**options))
 
 
+ALL = "all"
+"""``--path=all``: one route per candidate path (:func:`read_all`)."""
+
+
 def read(src: str | Path, options: IngestOptions) -> Ingested:
     """:func:`ingest` with its options object."""
     o = options
+    if isinstance(o.path, str) and o.path.strip().casefold() == ALL:
+        raise InputError("--path", "all makes one route per path: use read_all (or the CLI)")
     with np.errstate(over="ignore", invalid="ignore"):  # overflows are refused, not printed
         return _ingest(
             src, o.path, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km, o.gap_warn_s,
-            o.vehicle, o.max_gap_s, o.gaps, o.pose_world, o.pose_world_yaw_deg,
+            o.vehicle, o.max_gap_s, o.gaps, o.navsatfix_status, o.pose_world,
+            o.pose_world_yaw_deg,
         )  # fmt: skip
+
+
+def route_ids(cands: list[RoutePath]) -> list[str]:
+    """Stable ids of a file's paths: ``<index>-<name slug>`` (``007-morning-walk``), the
+    index zero-padded to the count's width (file order; the same file gives the same ids)."""
+    width = len(str(len(cands)))
+    out = []
+    for k, p in enumerate(cands, start=1):
+        slug = re.sub(r"[^a-z0-9]+", "-", p.name.casefold()).strip("-")[:40].strip("-")
+        out.append(f"{k:0{width}d}" + (f"-{slug}" if slug else ""))
+    return out
+
+
+def read_all(src: str | Path, options: IngestOptions) -> tuple[list[tuple[str, Ingested]], list]:
+    """``--path=all``: every candidate path of ``src`` as its own route.
+
+    Each path is ingested alone (split at gaps, cleaned and checked as a file holding only it);
+    a path that is refused is skipped. Returns ``([(id, Ingested), ...], [(id, reason), ...])``
+    (ids from :func:`route_ids`); raises :class:`InputError` when no path is read.
+    """
+    from dataclasses import replace as _replace
+
+    src = Path(src)
+    raw = limits.read_input(src)
+    cands = read_route_file(src, raw, navsatfix_status=options.navsatfix_status)
+    o = _replace(options, path=None)
+    done, refused = [], []
+    for rid, cand in zip(route_ids(cands), cands, strict=True):
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                ing = _ingest(
+                    src, None, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km,
+                    o.gap_warn_s, o.vehicle, o.max_gap_s, o.gaps, o.navsatfix_status, o.pose_world,
+                    o.pose_world_yaw_deg, [cand], raw,
+                )  # fmt: skip
+        except InputError as exc:
+            refused.append((rid, str(exc)))
+            continue
+        ing.meta["route_id"] = rid
+        done.append((rid, ing))
+    if not done:
+        reasons = "; ".join(f"{rid}: {why}" for rid, why in refused[:3])
+        raise InputError(
+            src, f"--path=all: none of its {len(cands)} paths could be read ({reasons})"
+        )
+    return done, refused
 
 
 def distance_from_origin_m(origin: Origin, lat_deg, lon_deg) -> np.ndarray:
@@ -370,7 +424,7 @@ def _densify_untimed(lat, lon, alt):
 
 def _ingest(
     src, path, origin, dt, utm, max_speed_kmh, max_extent_km, gap_warn_s, vehicle, max_gap_s, gaps,
-    pose_world="enu", pose_world_yaw_deg=0.0,
+    navsatfix_status="lenient", pose_world="enu", pose_world_yaw_deg=0.0, cands=None, raw=None,
 ) -> Ingested:  # fmt: skip
     src = Path(src)
     for name, value in (
@@ -384,8 +438,11 @@ def _ingest(
         origin = parse_origin(origin)
     if src.is_dir() and (src / "metadata.yaml").is_file():  # a ROS 2 bag's folder
         src = src / "metadata.yaml"
-    raw = limits.read_input(src)
-    cands = read_route_file(src, raw)
+    if cands is None:
+        raw = limits.read_input(src)
+        cands = read_route_file(src, raw, navsatfix_status=navsatfix_status)
+    elif raw is None:
+        raise ValueError("candidates need the file's bytes (raw)")
     warnings: list[str] = []
     p, segments = choose_path(
         cands,
@@ -395,6 +452,7 @@ def _ingest(
         source=src,
         warnings=warnings,
         select=select_path,
+        vehicle=vehicle,
     )
     warnings += p.warnings
     n_in = p.n_points
@@ -592,8 +650,39 @@ def run(src: str | Path, out: str | Path, options: IngestOptions | None = None) 
     return ing
 
 
+def all_outputs(out: str | Path, ids: list[str]) -> list[Path]:
+    """Where ``--path=all`` writes: ``OUT`` without its suffix as a folder, one file per route
+    id with ``OUT``'s suffix (``routes/walks.parquet`` -> ``routes/walks/007-x.parquet``)."""
+    out = Path(out)
+    return [out.parent / out.stem / f"{rid}{out.suffix}" for rid in ids]
+
+
+def run_all(src, out, options: IngestOptions):
+    """``--path=all``: :func:`read_all`, each route written to :func:`all_outputs`."""
+    out = Path(out)
+    if out.suffix.lower() not in (".parquet", ".csv"):
+        raise InputError(out, "output must end in .parquet or .csv")
+    done, refused = read_all(src, options)
+    paths = all_outputs(out, [rid for rid, _ in done])
+    paths[0].parent.mkdir(parents=True, exist_ok=True)
+    for (_, ing), p in zip(done, paths, strict=True):
+        write(ing, p)
+    return list(zip(paths, (ing for _, ing in done), strict=True)), refused
+
+
 def main(options: IngestOptions, src, output) -> None:
-    """``imugen ingest``: :func:`run`, then its warnings and a summary line on stderr."""
+    """``imugen ingest``: :func:`run`, then its warnings and a summary line on stderr
+    (``--path=all``: :func:`run_all`, a line per route and per refused path)."""
+    if isinstance(options.path, str) and options.path.strip().casefold() == ALL:
+        written, refused = run_all(src, output, options)
+        for p, ing in written:
+            m = ing.meta
+            print(printable(f"{p}: path {m['path']!r}, {m['points_out']} points, "
+                            f"{m['length_3d_m']:.1f} m, {len(ing.warnings)} warnings"),
+                  file=sys.stderr)  # fmt: skip
+        for rid, why in refused:
+            print(printable(f"imugen: warning: {src}: path {rid} not read: {why}"), file=sys.stderr)
+        return
     ing = run(src, output, options)
     for w in ing.warnings:
         print(printable(f"imugen: warning: {src}: {w}"), file=sys.stderr)

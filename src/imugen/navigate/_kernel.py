@@ -31,7 +31,11 @@ S_QC = 26  # Kahan compensation of q (4)
 S_N = 30  # gravitation at the last four nodes k = j m, (j-1) m .. (j-3) m (12), newest first
 S_FB = 42  # blocks integrated with the exact gravitation every step (error check failed)
 S_D4 = 43  # 4th difference of the nodes at the previous node (3; inf until 5 nodes exist)
-N_STATE = 46
+S_B = 46  # height loop: vertical acceleration correction b (third order) [m/s^2]
+S_KL = 47  # height loop: sample k of its last update
+S_NL = 48  # height loop: updates done
+S_DH = 49  # height loop: last height error h - h_ref [m]
+N_STATE = 50
 
 # --- kernel parameter vector: frame params (earth.N_PARAMS) then these ------------------------
 K_DT = earth.N_PARAMS  # dt
@@ -128,13 +132,105 @@ def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1,
         out_q[s, slot, 3] = q3
 
 
+# --- height loop (damped vertical channel, imugen.navigate.vertical) -----------------------
+@njit(cache=True, inline="always")
+def _geodetic_h_up(x, y, z):
+    """ECEF -> (height, up_e): Bowring, one iteration (scalar twin of earth.geodetic_parts)."""
+    p = math.sqrt(x * x + y * y)
+    su = z * earth.A_WGS84
+    cu = p * earth.B_WGS84
+    ir = 1.0 / math.sqrt(su * su + cu * cu)
+    su = su * ir
+    cu = cu * ir
+    num = z + earth.EP2_WGS84 * earth.B_WGS84 * su * su * su
+    den = p - earth.E2_WGS84 * earth.A_WGS84 * cu * cu * cu
+    ir = 1.0 / math.sqrt(num * num + den * den)
+    sl = num * ir
+    cl = den * ir
+    h = p * cl + z * sl - earth.A_WGS84 * math.sqrt(1.0 - earth.E2_WGS84 * sl * sl)
+    if p > 0.0:
+        clon = x / p
+        slon = y / p
+    else:
+        clon = 1.0
+        slon = 0.0
+    return h, cl * clon, cl * slon, sl
+
+
 @njit(cache=True)
-def kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
+def height_of(prm, k, px, py, pz):
+    """Height [m] above the ellipsoid and local up (unit, kernel frame I) at the kernel
+    displacement ``d = (px, py, pz)`` of sample ``k``; ``flat``: the Up of n and n's Up."""
+    if prm[earth.P_MODEL] == 0.0:
+        return pz, 0.0, 0.0, 1.0
+    iw = 1.0 / earth.OMEGA_IE
+    zx = prm[earth.P_OMEGA] * iw
+    zy = prm[earth.P_OMEGA + 1] * iw
+    zz = prm[earth.P_OMEGA + 2] * iw
+    th = earth.OMEGA_IE * prm[K_DT] * k  # A(t_k): I <- n
+    h = math.sin(-0.5 * th)
+    ch = math.cos(0.5 * th)
+    omc = 2.0 * h * h
+    c = 1.0 - omc
+    sn = 2.0 * h * ch  # sin(-th): A^T
+    r0x = prm[earth.P_R0N]
+    r0y = prm[earth.P_R0N + 1]
+    r0z = prm[earth.P_R0N + 2]
+    ax, ay, az = _rot_axis(zx, zy, zz, c, sn, omc, px, py, pz)
+    bx, by, bz = _rot_axis(zx, zy, zz, 0.0, sn, omc, r0x, r0y, r0z)
+    pnx = ax + (bx - omc * r0x)
+    pny = ay + (by - omc * r0y)
+    pnz = az + (bz - omc * r0z)
+    # r_e = r0_e + C_en^T p_n
+    C = prm[earth.P_CEN : earth.P_CEN + 9]
+    rex = prm[earth.P_R0E] + C[0] * pnx + C[3] * pny + C[6] * pnz
+    rey = prm[earth.P_R0E + 1] + C[1] * pnx + C[4] * pny + C[7] * pnz
+    rez = prm[earth.P_R0E + 2] + C[2] * pnx + C[5] * pny + C[8] * pnz
+    hh, uex, uey, uez = _geodetic_h_up(rex, rey, rez)
+    # up_n = C_en up_e, up_I = A up_n
+    unx = C[0] * uex + C[1] * uey + C[2] * uez
+    uny = C[3] * uex + C[4] * uey + C[5] * uez
+    unz = C[6] * uex + C[7] * uey + C[8] * uez
+    ux, uy, uz = _rot_axis(zx, zy, zz, c, -sn, omc, unx, uny, unz)
+    return hh, ux, uy, uz
+
+
+@njit(cache=True)
+def heights_n(prm, p_n, h_out, up_out):
+    """Heights [m] and local up (unit, in n) of n-frame positions ``p_n`` (K, 3), by the loop's
+    own conversion (:func:`height_of` at ``k = 0``, where the kernel frame is n)."""
+    for j in range(p_n.shape[0]):
+        d0 = p_n[j, 0]
+        d1 = p_n[j, 1]
+        d2 = p_n[j, 2]
+        h, ux, uy, uz = height_of(prm, 0, d0, d1, d2)
+        h_out[j] = h
+        up_out[j, 0] = ux
+        up_out[j, 1] = uy
+        up_out[j, 2] = uz
+
+
+@njit(cache=True, inline="always")
+def _grad(gx, gy, gz, dx, dy, dz):
+    """Gravitation moved by d (point-mass gradient, as the kernel's node correction)."""
+    gd = IG2 * (gx * dx + gy * dy + gz * dz)
+    return (
+        gx + K3 * (3.0 * gd * gx - dx),
+        gy + K3 * (3.0 * gd * gy - dy),
+        gz + K3 * (3.0 * gd * gz - dz),
+    )
+
+
+@njit(cache=True)
+def kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start, href, gains):
     """Advance every sequence by ``dth.shape[1]`` steps (sequences outside, time inside).
 
     dth, dvb : (S, N, 3) increments; st : (S, N_STATE) state, updated in place;
     prm : kernel_params; out_* : (S, M, 3|4), M == 0 to skip; sample j (global index) is
-    written to slot ``j // every - out_start`` when ``j % every == 0``.
+    written to slot ``j // every - out_start`` when ``j % every == 0``;
+    href : (1 or S, N + 1) reference heights [m] of samples ``k .. k + N`` (NaN: none; row 0
+    serves every sequence when it has one row); gains : (k1, k2, k3) of the height loop, all
+    zero for the free channel (:mod:`imugen.navigate.vertical`; href is not read then).
     """
     S = dth.shape[0]
     N = dth.shape[1]
@@ -171,6 +267,9 @@ def kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
     fbuf = np.empty((m, 3))  # a_j = C_Ib dv_j of the block's steps
     abuf[0] = 0.0
     pbuf[0] = 0.0
+    k1, k2, k3 = gains[0], gains[1], gains[2]
+    damp = k1 != 0.0 or k2 != 0.0 or k3 != 0.0
+    Tl = m * dt  # height-loop update interval (every gravitation node)
     for s in range(S):
         # fmt: off
         (px, py, pz, pcx, pcy, pcz, vx, vy, vz, vcx, vcy, vcz,
@@ -184,8 +283,54 @@ def kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
         k = int(st[s, S_K])
         km = k % m  # phases of k (no integer division per step)
         kw = k % every
+        k_start = k
+        hs = s if href.shape[0] > 1 else 0
+        bz_ = st[s, S_B]
+        kl = int(st[s, S_KL])  # 0 at the start: no update at sample 0 (the initial state)
+        nl = st[s, S_NL]
+        dhl = st[s, S_DH]
         i = 0
         while i < N:
+            # height loop at every node (km == 0), once per sample, from the sample's
+            # reference height; impulses on p, v (and v_k-1: the 3-point rule sees no kink),
+            # gravitation history moved with the position
+            if damp and km == 0 and k > kl:
+                kl = k
+                hr = href[hs, k - k_start]
+                if hr == hr:
+                    hh, ux, uy, uz = height_of(prm, k, px - pcx, py - pcy, pz - pcz)
+                    dh = hh - hr
+                    dhl = dh
+                    bz_ += k3 * dh * Tl
+                    a1 = -k1 * dh * Tl
+                    a2 = -(k2 * dh + bz_) * Tl
+                    ddx = a1 * ux
+                    ddy = a1 * uy
+                    ddz = a1 * uz
+                    px, pcx = _kahan(px, pcx, ddx)
+                    py, pcy = _kahan(py, pcy, ddy)
+                    pz, pcz = _kahan(pz, pcz, ddz)
+                    wx = a2 * ux
+                    wy = a2 * uy
+                    wz = a2 * uz
+                    if rot:  # Omega x delta d (the velocity of a displaced Earth-fixed point)
+                        w = earth.OMEGA_IE
+                        wx += w * (zy * ddz - zz * ddy)
+                        wy += w * (zz * ddx - zx * ddz)
+                        wz += w * (zx * ddy - zy * ddx)
+                        Gx, Gy, Gz = _grad(Gx, Gy, Gz, ddx, ddy, ddz)
+                        Gpx, Gpy, Gpz = _grad(Gpx, Gpy, Gpz, ddx, ddy, ddz)
+                        n0x, n0y, n0z = _grad(n0x, n0y, n0z, ddx, ddy, ddz)
+                        n1x, n1y, n1z = _grad(n1x, n1y, n1z, ddx, ddy, ddz)
+                        n2x, n2y, n2z = _grad(n2x, n2y, n2z, ddx, ddy, ddz)
+                        n3x, n3y, n3z = _grad(n3x, n3y, n3z, ddx, ddy, ddz)
+                    vx, vcx = _kahan(vx, vcx, wx)
+                    vy, vcy = _kahan(vy, vcy, wy)
+                    vz, vcz = _kahan(vz, vcz, wz)
+                    vpx += wx
+                    vpy += wy
+                    vpz += wz
+                    nl += 1.0
             if km == 0 and m > 1 and k >= 4 * m and i + m <= N:
                 # ---- a block of m steps: attitude first (it does not depend on gravity),
                 # then the exact gravitation once at the block's predicted end, a cubic in
@@ -532,6 +677,10 @@ def kernel(dth, dvb, st, prm, every, out_p, out_v, out_q, out_start):
         st[s, S_D4], st[s, S_D4 + 1], st[s, S_D4 + 2] = dpx, dpy, dpz
         st[s, S_QC], st[s, S_QC + 1], st[s, S_QC + 2], st[s, S_QC + 3] = qc0, qc1, qc2, qc3
         st[s, S_K] = k
+        st[s, S_B] = bz_
+        st[s, S_KL] = kl
+        st[s, S_NL] = nl
+        st[s, S_DH] = dhl
 
 
 @njit(cache=True, inline="always")

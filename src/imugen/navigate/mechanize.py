@@ -82,6 +82,7 @@ from imugen.navigate._kernel import (
     S_VC,
     S_VP,
     compensate,
+    heights_n,
     kernel,
 )
 
@@ -264,13 +265,24 @@ class Mechanizer:
         Initial attitude (scalar first).
     S : int, optional
         Number of sequences when all initial values are single vectors.
+    gains : array_like, shape (3,), optional
+        Gains ``(k1, k2, k3)`` of the height loop (:mod:`imugen.navigate.vertical`); None or
+        zeros: the free vertical channel. When damped, :meth:`run` needs reference heights.
     """
 
-    def __init__(self, frame: OriginFrame, dt: float, p0_n, v0_n, q0_nb, S: int | None = None):
+    def __init__(
+        self, frame: OriginFrame, dt: float, p0_n, v0_n, q0_nb, S: int | None = None, gains=None
+    ):
         self.frame = frame
         self.dt = float(dt)
         self.prm = kernel_params(frame, self.dt)
         self.state = initial_state(p0_n, v0_n, q0_nb, frame, S)
+        self.gains = np.zeros(3) if gains is None else np.asarray(gains, dtype=float).reshape(3)
+
+    @property
+    def damped(self) -> bool:
+        """True when the height loop is on."""
+        return bool(np.any(self.gains != 0.0))
 
     @property
     def steps(self) -> int:
@@ -292,7 +304,9 @@ class Mechanizer:
         """Current attitude q_nb (scalar first), shape (S, 4)."""
         return nav_from_state(self.state, self.prm)[2]
 
-    def run(self, dtheta_b, dv_b, out_p=None, out_v=None, out_q=None, every=1, out_start=0):
+    def run(
+        self, dtheta_b, dv_b, out_p=None, out_v=None, out_q=None, every=1, out_start=0, href=None
+    ):
         """Integrate a time chunk of increments for all sequences.
 
         Parameters
@@ -302,6 +316,9 @@ class Mechanizer:
         out_p, out_v, out_q : ndarray, shape (S, M, 3|4), optional
             Preallocated outputs; sample ``j`` (global index) goes to slot
             ``j // every - out_start`` when ``j % every == 0``; None to skip.
+        href : ndarray, shape (1 or S, N + 1), optional
+            Reference heights [m] of samples ``steps .. steps + N`` (NaN: none there); needed
+            when the loop is on (:attr:`damped`).
         """
         dth = np.ascontiguousarray(dtheta_b, dtype=np.float64)
         dvb = np.ascontiguousarray(dv_b, dtype=np.float64)
@@ -320,7 +337,35 @@ class Mechanizer:
             empty3 if out_v is None else out_v,
             empty4 if out_q is None else out_q,
             int(out_start),
+            _reference(href, self.damped, S, dth.shape[1]),
+            self.gains,
         )
+
+
+def _reference(href, damped: bool, S: int, N: int) -> np.ndarray:
+    """Reference heights for the kernel: (1 or S, N + 1) float64, checked when damped."""
+    if not damped:
+        return np.empty((1, 0))
+    if href is None:
+        raise ValueError("the damped vertical channel needs reference heights (href)")
+    h = np.ascontiguousarray(np.atleast_2d(href), dtype=np.float64)
+    if h.shape[0] not in (1, S) or h.shape[1] != N + 1:
+        raise ValueError(f"href must be (1 or {S}, {N + 1}), got {h.shape}")
+    return h
+
+
+def reference_heights(p_n, frame: OriginFrame, with_up: bool = False):
+    """Heights above the ellipsoid [m] of n-frame positions ``p_n`` (..., 3), by the height
+    loop's own conversion (a reference that holds the truth's height exactly); ``with_up``:
+    also the local up (unit, in n), shape (..., 3)."""
+    p = np.ascontiguousarray(np.asarray(p_n, dtype=float).reshape(-1, 3))
+    h = np.empty(len(p))
+    up = np.empty((len(p), 3))
+    heights_n(kernel_params(frame, 1.0), p, h, up)
+    shape = np.shape(p_n)[:-1]
+    if with_up:
+        return h.reshape(shape), up.reshape(*shape, 3)
+    return h.reshape(shape)
 
 
 def mechanize(
@@ -335,6 +380,8 @@ def mechanize(
     every=1,
     outputs=("p", "v", "q"),
     seq_chunk=256,
+    gains=None,
+    href=None,
 ) -> Navigation:
     """Strapdown-integrate exact increments for a batch of sequences.
 
@@ -356,6 +403,10 @@ def mechanize(
         Which series to store (e.g. ``("p",)`` for positions only).
     seq_chunk : int
         Sequences per kernel call (bounds the working set; outputs are preallocated).
+    gains : array_like, shape (3,), optional
+        Height-loop gains (:class:`Mechanizer`); None: the free vertical channel.
+    href : ndarray, shape (1 or S, K), optional
+        Reference heights [m] of samples ``0 .. K-1`` (needed when ``gains`` damp).
 
     Returns
     -------
@@ -369,7 +420,8 @@ def mechanize(
         dth = dth[None]
         dvb = dvb[None]
     S, N = dth.shape[:2]
-    mech = Mechanizer(frame, dt, p0_n, v0_n, q0_nb, S)
+    mech = Mechanizer(frame, dt, p0_n, v0_n, q0_nb, S, gains=gains)
+    href = _reference(href, mech.damped, S, N)
     every = int(every)
     if every < 1:
         raise ValueError("every must be >= 1")
@@ -401,6 +453,8 @@ def mechanize(
             empty3 if out_v is None else out_v[a:b],
             empty4 if out_q is None else out_q[a:b],
             0,
+            href if len(href) == 1 else href[a:b],
+            mech.gains,
         )
     nav = Navigation(index, out_p, out_v, out_q, mech.p_n, mech.v_n, mech.q_nb)
     return nav.squeeze() if single else nav

@@ -13,7 +13,13 @@ import numpy as np
 from imugen import __version__
 from imugen.core.rotations import log_quat, quat_conj, quat_mul
 from imugen.navigate import local_errors as lerr
-from imugen.navigate.mechanize import compensate_raw, increments_from_rates, mechanize
+from imugen.navigate.mechanize import (
+    compensate_raw,
+    increments_from_rates,
+    mechanize,
+    reference_heights,
+)
+from imugen.navigate.vertical import VerticalSpec
 from imugen.tables import SEQUENCE, TIME
 from imugen.tables import nav as tnav
 from imugen.tables import truth as ttruth
@@ -43,9 +49,16 @@ class Navigator:
         metadata's origin and Earth model.
     eval_rate_hz : float
         Error epochs per second.
+    vertical : VerticalSpec, optional
+        Vertical channel (:mod:`imugen.navigate.vertical`, default ``auto``), resolved for the
+        truth's duration (:attr:`vertical`); damped, the reference is the vehicle's true height
+        at every sample (for a mounted IMU too: its lever arm's vertical part then stays as a
+        height offset, as for a height sensor at the vehicle's reference point).
     """
 
-    def __init__(self, truth: ttruth.Truth, eval_rate_hz: float):
+    def __init__(
+        self, truth: ttruth.Truth, eval_rate_hz: float, vertical: VerticalSpec | None = None
+    ):
         self.t = truth.time_s
         self.K = truth.K
         self.dt = truth.dt
@@ -57,6 +70,12 @@ class Navigator:
         self.x0 = (self.p_true[0], self.v_true[0], self.q_true[0])
         self._truth = truth
         self._local = None  # (epoch indices, C_ln, track) of the last batch
+        duration = float(self.t[-1] - self.t[0]) if self.K else 0.0
+        self.vertical = (vertical or VerticalSpec()).resolve(self.frame, duration)
+        self.gains = self.vertical.kernel_gains()
+        self.href = (
+            reference_heights(self.p_true, self.frame)[None] if self.vertical.damped else None
+        )
 
     def local(self, idx):
         """``(C_ln, track)`` at the epochs ``idx`` (:mod:`imugen.navigate.local_errors`), cached."""
@@ -104,7 +123,8 @@ class Navigator:
         else:
             (p0, v0, q0), p_true, q_true = self.imu_truth(mount, idx)
         nav = mechanize(dth, dvb, self.dt, p0, v0, q0, self.frame, every=self.every,
-                        outputs=("p", "q"))  # fmt: skip
+                        outputs=("p", "q"), gains=self.gains,
+                        href=None if self.href is None else self.href[:, : dth.shape[1] + 1])  # fmt: skip
         idx = nav.index
         err = lerr.apply(*self.local(idx), nav.p_n - p_true)
         dq = quat_mul(quat_conj(q_true), nav.q_nb)
@@ -130,9 +150,12 @@ class Navigator:
         return increments_from_rates(a, b, self.dt)
 
 
-def table_meta(truth_name, truth_sha256, shard_name, smeta: dict, eval_rate_hz) -> dict:
+def table_meta(
+    truth_name, truth_sha256, shard_name, smeta: dict, eval_rate_hz, vertical: dict | None = None
+) -> dict:
     """Metadata of the error table of a shard (``smeta``: the shard's metadata; ``shard_name``
-    None when the shard was navigated in memory and not written)."""
+    None when the shard was navigated in memory and not written; ``vertical``: the vertical
+    channel's record, :meth:`imugen.navigate.vertical.VerticalChannel.meta`)."""
     return {
         "stage": "navigate",
         "imugen_version": __version__,
@@ -145,4 +168,5 @@ def table_meta(truth_name, truth_sha256, shard_name, smeta: dict, eval_rate_hz) 
         "increments": smeta.get("increments", "compensated"),
         "derived": smeta.get("derived"),
         "error": "navigation minus truth, ENU at the true position; along/cross the true track",
+        "vertical_channel": vertical,
     }

@@ -33,32 +33,48 @@ from imugen.core.errors import InputError
 from imugen.navigate.mechanize import compensate_raw
 from imugen.navigate.navigator import NAV_TRUTH_COLUMNS, Navigator, batch_size, table_meta
 from imugen.navigate.options import NavigateOptions
+from imugen.navigate.vertical import VerticalSpec
 from imugen.tables import SEQUENCE
 from imugen.tables import nav as tnav
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 
 
-def navigate(truth_path, shard_path, *, eval_rate_hz: float = 1.0, batch: int | None = None):
+def navigate(
+    truth_path,
+    shard_path,
+    *,
+    eval_rate_hz: float = 1.0,
+    batch: int | None = None,
+    vertical: VerticalSpec | None = None,
+):
     """Mechanize every sequence of a shard and return its errors at the evaluation epochs.
 
     ``batch`` sequences are mechanized together (default :func:`batch_size`, from a fixed
-    memory budget); the result does not depend on it. Returns a DataFrame (the table of
+    memory budget); the result does not depend on it. ``vertical``: the vertical channel
+    (:mod:`imugen.navigate.vertical`, default ``auto``). Returns a DataFrame (the table of
     :mod:`imugen.tables.nav`).
     """
     import pandas as pd
 
-    frames = [pd.DataFrame(c) for c in _iter_errors(truth_path, shard_path, eval_rate_hz, batch)]
+    frames = [
+        pd.DataFrame(c)
+        for c in _iter_errors(_navigator(truth_path, eval_rate_hz, vertical), shard_path, batch)
+    ]
     if not frames:
         raise InputError(shard_path, "holds no sequences")
     return pd.concat(frames, ignore_index=True)
 
 
-def _iter_errors(truth_path, shard_path, eval_rate_hz, batch):
+def _navigator(truth_path, eval_rate_hz, vertical) -> Navigator:
+    truth = ttruth.read(Path(truth_path), columns=NAV_TRUTH_COLUMNS, arrow=True)
+    return Navigator(truth, eval_rate_hz, vertical)
+
+
+def _iter_errors(nav: Navigator, shard_path, batch):
     """Error-table columns of each batch of sequences of a shard (a generator)."""
-    truth_path, shard_path = Path(truth_path), Path(shard_path)
+    shard_path = Path(shard_path)
     smeta = tshard.read_meta(shard_path)
-    nav = Navigator(ttruth.read(truth_path, columns=NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
     K = nav.K
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
@@ -123,6 +139,7 @@ def navigate_arrays(
     semantics: str | None = None,
     eval_rate_hz: float = 1.0,
     sequence_ids=None,
+    vertical: VerticalSpec | None = None,
 ):
     """Navigate increments held in memory against a truth; no files written.
 
@@ -144,6 +161,9 @@ def navigate_arrays(
         Error epochs per second (every ``round(rate / eval_rate_hz)`` samples from ``t_0``).
     sequence_ids : array of int, optional
         Ids of the ``S`` sequences in the result (default the shard's, else ``0 .. S-1``).
+    vertical : VerticalSpec, optional
+        Vertical channel (:mod:`imugen.navigate.vertical`; default ``auto``: damped by the true
+        height beyond 3 growth times, 1,710 s).
 
     Returns
     -------
@@ -154,7 +174,7 @@ def navigate_arrays(
     """
     if not isinstance(truth, ttruth.Truth):
         truth = ttruth.read(truth, columns=NAV_TRUTH_COLUMNS, arrow=True)
-    nav = Navigator(truth, eval_rate_hz)
+    nav = Navigator(truth, eval_rate_hz, vertical)
     dth, dv, ids, kind, mount = _as_increments(increments, nav.K)
     kind = semantics or kind or "compensated"
     if kind not in tshard.INCREMENT_KINDS:
@@ -176,14 +196,17 @@ def run(
     """Navigate a shard and stream its error table to ``out`` atomically (one row group per
     batch of ``batch`` sequences, default :func:`~imugen.navigate.navigator.batch_size`: memory
     stays flat in the shard's size)."""
-    eval_rate_hz = (options or NavigateOptions()).eval_rate_hz
+    options = options or NavigateOptions()
+    eval_rate_hz = options.eval_rate_hz
     out = Path(out)
     smeta = tshard.read_meta(shard)
+    nav = _navigator(truth, eval_rate_hz, VerticalSpec.of(options))
     meta = table_meta(
-        Path(truth).name, ttruth.checksum(truth), Path(shard).name, smeta, eval_rate_hz
-    )
+        Path(truth).name, ttruth.checksum(truth), Path(shard).name, smeta, eval_rate_hz,
+        nav.vertical.meta(),
+    )  # fmt: skip
     with tnav.writer(out, meta) as w:
-        for cols in _iter_errors(truth, shard, eval_rate_hz, batch):
+        for cols in _iter_errors(nav, shard, batch):
             w.put(cols)
         if w.rows == 0:
             raise InputError(shard, "holds no sequences")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
-from imugen.core.options import DRAWS, Command, argument, option
+from imugen.core.options import DRAWS, Command, argument, option, same_as
+from imugen.navigate.options import NavigateOptions
 
 OUTPUTS = ("increments", "rates", "both")
 """IMU columns a shard holds (:data:`imugen.tables.shard.OUTPUTS`)."""
@@ -107,6 +108,10 @@ class SimulateOptions:
         1.0, unit="Hz", config="navigate.eval_rate_hz",
         help="with --navigate: error epochs per second",
     )  # fmt: skip
+    vertical: str = same_as(NavigateOptions, "vertical")
+    vertical_order: int = same_as(NavigateOptions, "vertical_order")
+    vertical_time_constant_s: float = same_as(NavigateOptions, "vertical_time_constant_s")
+    vertical_reference: str = same_as(NavigateOptions, "vertical_reference")
 
 
 COMMANDS = {

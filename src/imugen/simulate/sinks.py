@@ -115,12 +115,16 @@ class NavSink:
             self.n = 0
 
 
-def navigation_sink(stack, inner, plan, truth, out, nav_out, eval_rate_hz, dtype) -> NavSink:
+def navigation_sink(
+    stack, inner, plan, truth, out, nav_out, eval_rate_hz, dtype, vertical=None
+) -> NavSink:
     """A :class:`NavSink` writing to ``nav_out`` (entered on ``stack``), with the metadata
-    ``imugen navigate`` would record for the written shard."""
+    ``imugen navigate`` would record for the written shard (``vertical``: the
+    :class:`imugen.navigate.vertical.VerticalSpec`, default ``auto``)."""
     from imugen.navigate import navigator as nv
 
-    nav = nv.Navigator(ttruth.read(truth, columns=nv.NAV_TRUTH_COLUMNS, arrow=True), eval_rate_hz)
+    truth_table = ttruth.read(truth, columns=nv.NAV_TRUTH_COLUMNS, arrow=True)
+    nav = nv.Navigator(truth_table, eval_rate_hz, vertical)
     if nav.K != plan.truth.K:
         raise InputError(truth, "changed while being read")
     meta = nv.table_meta(
@@ -129,6 +133,7 @@ def navigation_sink(stack, inner, plan, truth, out, nav_out, eval_rate_hz, dtype
         None if out is None else Path(out).name,
         json.loads(json.dumps(plan.meta)),
         eval_rate_hz,
+        nav.vertical.meta(),
     )
     nw = stack.enter_context(tnav.writer(nav_out, meta))
     return NavSink(inner, nav, plan, dtype, nw, nv.batch_size(nav.K))

@@ -194,7 +194,15 @@ def _loop(plan: Plan, sink, progress=None):
     return normals / M if M else 0
 
 
-FILE_ONLY = ("dtype", "explicit_time", "eval_rate_hz")
+FILE_ONLY = (
+    "dtype",
+    "explicit_time",
+    "eval_rate_hz",
+    "vertical",
+    "vertical_order",
+    "vertical_time_constant_s",
+    "vertical_reference",
+)
 """Fields of :class:`SimulateOptions` that concern the written shard only, not :func:`simulate`."""
 
 
@@ -301,7 +309,10 @@ def run(truth, out, options: SimulateOptions, *, navigate=None) -> dict:
             )
             sink = WriterSink(w, plan.ids)
         if navigate is not None:
-            sink = navigation_sink(stack, sink, plan, truth, out, navigate, o.eval_rate_hz, o.dtype)
+            from imugen.navigate.vertical import VerticalSpec
+
+            sink = navigation_sink(stack, sink, plan, truth, out, navigate, o.eval_rate_hz,
+                                   o.dtype, VerticalSpec.of(o))  # fmt: skip
         _loop(plan, sink, progress)
         if navigate is not None:
             sink.flush()

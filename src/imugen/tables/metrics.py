@@ -9,7 +9,8 @@ the position error over the evaluation epochs, m; East/North/Up at the true posi
 when the navigation tables had no track columns; ``epochs``; optional columns of
 :mod:`imugen.evaluate.stage` (``drift_*``, ``aided_*``, ``outage_*``, ``time_to_10m_s``).
 Metadata (JSON under ``b"imugen"``): ``stage``, ``grade``, ``distance_horizontal_m``,
-``extent_m``, ``units``.
+``extent_m``, ``units``, ``vertical_channel`` (the navigation tables' record, which
+``imugen tables`` uses to say why free-inertial figures are meaningless).
 """
 
 from __future__ import annotations

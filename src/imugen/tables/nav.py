@@ -9,7 +9,9 @@ to the left, m) and attitude error ``err_att_rad`` (angle of the rotation from t
 computed attitude). Tables written before the track columns existed lack them; readers
 asking for :data:`ERR_TRACK` should check :func:`has_track` first.
 Metadata (JSON under ``b"imugen"``): ``stage``, ``truth`` and ``shard`` (file names),
-``truth_sha256``, ``grade``, ``eval_rate_hz``, ``increments``, ``units``.
+``truth_sha256``, ``grade``, ``eval_rate_hz``, ``increments``, ``units``,
+``vertical_channel`` (the vertical channel navigation used and why:
+:meth:`imugen.navigate.vertical.VerticalChannel.meta`; absent in older tables).
 """
 
 from __future__ import annotations

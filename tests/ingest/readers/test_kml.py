@@ -116,7 +116,8 @@ def test_messy_coordinates(tmp_path):
     assert p.altitude_trusted
 
 
-def test_two_d_tuples_get_zero_altitude_and_are_untrusted(tmp_path):
+def test_two_d_tuples_among_3d_are_missing_heights(tmp_path):
+    # issue 27: a 2-D tuple among 3-D ones has no height (interpolated by ingestion), not 0 m
     line = (
         "<LineString><altitudeMode>absolute</altitudeMode>"
         "<coordinates>1.5,2.5 3.5,4.5,7</coordinates></LineString>"
@@ -125,8 +126,9 @@ def test_two_d_tuples_get_zero_altitude_and_are_untrusted(tmp_path):
     np.testing.assert_array_equal(p.lon_deg, [1.5, 3.5])
     np.testing.assert_array_equal(p.lat_deg, [2.5, 4.5])
     np.testing.assert_array_equal(p.alt_m, [0.0, 7.0])
-    assert not p.altitude_trusted
-    assert any("2-D" in n and "1 of 2" in n for n in p.notes)
+    np.testing.assert_array_equal(p.alt_missing, [True, False])
+    assert p.altitude_trusted
+    assert any("2-D" in n and "1 of 2" in n and "missing" in n for n in p.notes)
 
 
 @pytest.mark.parametrize(
@@ -705,3 +707,25 @@ def test_example_route_resource():
     assert 450.0 <= p.alt_m.min() and p.alt_m.max() <= 500.0
     assert 30.0 <= np.ptp(p.alt_m) <= 40.0
     assert abs(p.lat_deg.mean() - 31.63) < 0.05 and abs(p.lon_deg.mean() + 7.99) < 0.05
+
+
+def test_2d_tuples_among_3d_are_missing_heights_not_0m(tmp_path):
+    """Issue 27 (a phone's mountain run): 2-D tuples among 3-D ones are missing heights,
+    interpolated by ingestion, never 0 m; a path of 2-D tuples only stays at 0 m, untrusted."""
+    from imugen.ingest.readers import read_route_file
+    from imugen.ingest.stage import ingest
+
+    f = tmp_path / "run.kml"
+    f.write_text(
+        "<kml><Placemark><name>run</name><LineString><altitudeMode>absolute</altitudeMode>"
+        "<coordinates>7.0,46.0,800 7.0001,46.0,801 7.0002,46.0 7.0003,46.0 7.0004,46.0,803 "
+        "7.0005,46.0,804</coordinates></LineString></Placemark></kml>"
+    )
+    (p,) = read_route_file(f)
+    np.testing.assert_array_equal(p.alt_missing, [False, False, True, True, False, False])
+    alt = ingest(f, dt=1.0, vehicle="pedestrian").table["alt_m"].to_numpy()
+    np.testing.assert_allclose(alt, [800, 801, 801 + 2 / 3, 801 + 4 / 3, 803, 804])
+    f.write_text(f.read_text().replace(",800", "").replace(",801", "").replace(",803", "")
+                 .replace(",804", ""))  # fmt: skip
+    (p,) = read_route_file(f)
+    assert p.alt_missing is None and not p.altitude_trusted and np.all(p.alt_m == 0)

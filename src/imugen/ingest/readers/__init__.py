@@ -26,31 +26,46 @@ _WIDE_BOMS = (
 )
 
 
-def read_route_file(path: str | Path, data: bytes | None = None) -> list[RoutePath]:
+def read_route_file(
+    path: str | Path, data: bytes | None = None, *, navsatfix_status: str = "lenient"
+) -> list[RoutePath]:
     """Read every candidate path of a route file, choosing the reader by content.
 
     KMZ is recognised by its zip signature, KML and GPX by their XML root element, NMEA by
-    ``$GP``/``$GN``/... sentences, IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
+    ``$GP``/``$GN``/... sentences, a 70mai dashcam log by its ``$V0`` session line
+    (:mod:`imugen.ingest.readers.dashcam`), IGC by its A record and ``HFDTE``, GeoJSON by ``{``; the
     suffixes of :data:`imugen.ingest.formats.GPSBABEL` go through GPSBabel; NUL bytes, ROS
     NavSatFix and hemisphere-lettered CSV go to :mod:`imugen.ingest.readers.gnsscsv`; pose
     trajectories (TUM, EuRoC ground truth, CSV with named pose columns, ROS 2 bags) to
     :mod:`imugen.ingest.readers.pose`; anything else is
     read as delimited text (CSV with a header, or E N U rows). ``data`` is
     the file's content when the caller has already read it with
-    :func:`imugen.ingest.limits.read_input`.
+    :func:`imugen.ingest.limits.read_input`. ``navsatfix_status``: what a ROS NavSatFix dump
+    whose every row has status -1 gets (:data:`imugen.ingest.readers.gnsscsv.NAVSATFIX_STATUS`).
     """
     path = Path(path)
     if data is None:
         data = limits.read_input(path)
-    paths = _dispatch(path, data)
+    paths = _dispatch(path, data, navsatfix_status)
     limits.check(path, "points", sum(p.n_points for p in paths), "all paths together")
     for p in paths:
         limits.check(path, "name_chars", len(p.name), "a path name")
     return paths
 
 
-def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
-    from imugen.ingest.readers import babel, geojson, gnsscsv, gpx, igc, kml, nmea, pose, text
+def _dispatch(path: Path, data: bytes, navsatfix_status: str = "lenient") -> list[RoutePath]:
+    from imugen.ingest.readers import (
+        babel,
+        dashcam,
+        geojson,
+        gnsscsv,
+        gpx,
+        igc,
+        kml,
+        nmea,
+        pose,
+        text,
+    )  # fmt: skip
 
     head = data[:_SNIFF_BYTES]
     if not head:
@@ -66,8 +81,11 @@ def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
     if wide:
         head = head.decode(wide, errors="replace").encode("utf-8", errors="replace")
     elif b"\x00" in head:
-        return gnsscsv.read_gnss_csv(path, data)  # NUL-padded fields, or a binary file (refused)
+        # NUL-padded fields, or a binary file (refused)
+        return gnsscsv.read_gnss_csv(path, data, navsatfix_status)
     start = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    if start.startswith(b"$V0") and dashcam.claims(start.decode("utf-8", errors="replace")):
+        return dashcam.read_70mai(path, data)
     if suffix == ".nmea" or start.startswith((b"$GP", b"$GN", b"$GL", b"$GA", b"$BD")):
         return nmea.read_nmea(path, data)
     if suffix == ".igc" or (start.startswith(b"A") and b"\nHFDTE" in head):
@@ -80,7 +98,7 @@ def _dispatch(path: Path, data: bytes) -> list[RoutePath]:
             path, data
         )
     if gnsscsv.claims(head):
-        return gnsscsv.read_gnss_csv(path, data)
+        return gnsscsv.read_gnss_csv(path, data, navsatfix_status)
     lowered = head.lower()
     if suffix == ".gpx" or b"<gpx" in lowered:
         return gpx.read_gpx(path, data)

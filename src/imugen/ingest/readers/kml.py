@@ -37,8 +37,9 @@ as written in ``RoutePath.altitude_mode``)
     ``clampToGround``, ``clampToSeaFloor``, or an unknown value
         Google Earth ignores the altitudes, so do we: ``alt_m`` is set to 0,
         ``altitude_trusted=False``, with a note.
-    2-D tuples (``lon,lat``) get altitude 0 and ``altitude_trusted=False`` whatever
-    the mode.
+    A path of 2-D tuples only (``lon,lat``) gets altitude 0 and ``altitude_trusted=False``
+    whatever the mode; a path mixing 3-D and 2-D tuples marks the 2-D ones' heights missing
+    (``alt_missing``: ingestion interpolates them from their neighbours, never reads 0 m).
 
 Times
     ``<when>`` of a Track -> POSIX seconds (:func:`imugen.ingest.route.parse_iso_time`); an
@@ -176,14 +177,14 @@ def _parse_tuples(
     """Parse ``lon<sep>lat[<sep>alt]`` tuples.
 
     ``numbers`` are the 1-based positions used in error messages (default 1..n).
-    Returns lat_deg, lon_deg, alt_m (shape (n,)) and the number of 2-D tuples
-    (which get altitude 0).
+    Returns lat_deg, lon_deg, alt_m (shape (n,)) and the mask of 2-D tuples (shape (n,),
+    altitude 0 there).
     """
     n = len(tuples)
     lon = np.empty(n)
     lat = np.empty(n)
     alt = np.zeros(n)
-    n_2d = 0
+    two_d = np.zeros(n, bool)
     for k, tup in enumerate(tuples):
         parts = tup.split(sep)
         number = k + 1 if numbers is None else numbers[k]
@@ -200,8 +201,8 @@ def _parse_tuples(
         if len(values) == 3:
             alt[k] = values[2]
         else:
-            n_2d += 1
-    return lat, lon, alt, n_2d
+            two_d[k] = True
+    return lat, lon, alt, two_d
 
 
 def _finish(
@@ -210,13 +211,20 @@ def _finish(
     lat: np.ndarray,
     lon: np.ndarray,
     alt: np.ndarray,
-    n_2d: int,
+    two_d: np.ndarray,
     mode: str | None,
     times: np.ndarray | None,
     notes: list[str],
 ) -> RoutePath:
     alt, trusted = _apply_altitude_mode(mode, alt, notes)
-    if n_2d:
+    n_2d = int(two_d.sum())
+    missing = None
+    if 0 < n_2d < len(lat) and np.any(alt[~two_d] != 0.0):  # heights kept: 2-D ones missing
+        notes.append(
+            f"{n_2d} of {len(lat)} coordinate tuples are 2-D (lon,lat): their heights are missing"
+        )
+        missing = two_d
+    elif n_2d:
         notes.append(
             f"{n_2d} of {len(lat)} coordinate tuples are 2-D (lon,lat): altitude set to 0 m"
         )
@@ -231,6 +239,7 @@ def _finish(
         altitude_mode=mode,
         altitude_trusted=trusted,
         notes=notes,
+        alt_missing=missing,
     )
 
 
@@ -238,11 +247,11 @@ def _read_linestring(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> 
     coords = _children(geom, "coordinates")
     text = " ".join(_text(c) for c in coords)
     tuples = _tuples(text, ",")
-    lat, lon, alt, n_2d = _parse_tuples(tuples, ",", ctx, where)
+    lat, lon, alt, two_d = _parse_tuples(tuples, ",", ctx, where)
     notes: list[str] = []
     if not tuples:
         notes.append("LineString has no coordinates")
-    return _finish(where, "LineString", lat, lon, alt, n_2d, mode, None, notes)
+    return _finish(where, "LineString", lat, lon, alt, two_d, mode, None, notes)
 
 
 def _read_track(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> RoutePath:
@@ -270,7 +279,7 @@ def _read_track(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> Route
         )
     # gx:coord is "lon lat alt"; tolerate commas too.
     tuples = [_tuples(coords[k], " ")[0] for k in keep]
-    lat, lon, alt, n_2d = _parse_tuples(
+    lat, lon, alt, two_d = _parse_tuples(
         tuples, None, ctx, f"{where}, <coord>", [k + 1 for k in keep]
     )
     times: np.ndarray | None = None
@@ -291,7 +300,7 @@ def _read_track(geom: Element, mode: str | None, ctx: _Ctx, where: str) -> Route
             notes.append(f"{n_empty} empty <when> element(s): time unknown (NaN)")
     elif coords:
         notes.append("Track has no <when> elements: untimed")
-    return _finish(where, "Track", lat, lon, alt, n_2d, mode, times, notes)
+    return _finish(where, "Track", lat, lon, alt, two_d, mode, times, notes)
 
 
 def _collect(
