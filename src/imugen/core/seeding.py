@@ -8,8 +8,8 @@ many routes, shards or jobs exist, nor on their order, and never repeats elsewhe
 IMU sensors (simulate stage; :func:`sensor_rng`)
     ``(route_id, grade_id, shard, j, stream)``, ``j`` the sequence's index in its shard and
     ``stream`` from :data:`SENSOR_STREAMS` (parameter draw, white noise, rate random walk and
-    bias instability per sensor, vibration, mounting, and the internal-rate white noise of a
-    sensor with an output bandwidth). ``route_id`` is
+    bias instability per sensor, vibration, mounting, the internal-rate white noise of a
+    sensor with an output bandwidth, and the window-mode draws of :mod:`imugen.stream`). ``route_id`` is
     :func:`imugen.tables.shard.route_id` of the route name.
 GNSS receiver (aid stage; :func:`gnss_rng`)
     ``(GNSS_KEY, receiver_id, shard, j, stream)``, streams :data:`GNSS_STREAMS`.
@@ -49,6 +49,7 @@ SENSOR_STREAMS = {
     "mounting": 8,
     "gyro_band": 9,
     "accel_band": 10,
+    "window": 11,
 }
 """Per-sequence streams of the IMU (last element of its spawn key)."""
 

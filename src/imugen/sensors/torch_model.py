@@ -6,8 +6,9 @@ a batch of ``S`` windows of ideal signals at once, each window with its own draw
 or the stream): turn-on bias, Gauss-Markov bias instability (one component, or several for
 flicker), rate random walk, scale factor and cross-coupling (misalignment), g-sensitivity
 (gyro), white noise, saturation and quantization with residual carry. Not here: temperature
-terms (use the NumPy path), and an output bandwidth, which the model has nowhere (a grade's
-``bandwidth_hz`` is a datasheet note).
+terms, a sensor's output bandwidth and rounding quantization (``bandwidth``,
+``quantization.mode: round`` of a grade: the measured presets ``adis16405``, ``phone``; use the
+NumPy path, :class:`imugen.sensors.model.SensorModel`, for them).
 
 A window covers samples ``k0 .. k0 + L - 1`` of a sequence (``k0 >= 1``; row ``j``'s increment is
 the interval ending at sample ``k0 + j``). As in the stream's window mode
@@ -55,6 +56,8 @@ class TorchSensor:
     """
 
     def __init__(self, params: SensorParams, dt: float, device=None, dtype=torch.float32):
+        if getattr(params, "q_round", False):
+            raise ValueError("rounding quantization is not on the torch path (use the NumPy one)")
         self.dt = float(dt)
         self.device = torch.device(device) if device is not None else torch.device("cpu")
         self.dtype = dtype

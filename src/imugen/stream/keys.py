@@ -20,15 +20,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from imugen.core.seeding import generator
+from imugen.core.seeding import SENSOR_STREAMS, generator
 from imugen.tables.shard import ROUTE_SHIFT
 
 STREAM_SHARD0 = 1 << ROUTE_SHIFT
 """First shard number of the streamed namespace (``2^31``): written shards are all below it."""
 STREAM_KEY = 0x5354524D
 """First element of the spawn key of a batch's key draw ("STRM")."""
-WINDOW_STREAM = 9
-"""Stream (last spawn-key element, after :data:`imugen.core.seeding.SENSOR_STREAMS`) of a
+WINDOW_STREAM = SENSOR_STREAMS["window"]
+"""Stream (last spawn-key element, :data:`imugen.core.seeding.SENSOR_STREAMS`) of a
 sequence's window-mode draws: the slow states at each window's start and the window's noise."""
 
 KEY_DTYPE = np.dtype(

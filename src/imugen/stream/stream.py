@@ -110,6 +110,14 @@ class Stream:
         self.first_batch = int(first_batch)
         grades = list(grade) if isinstance(grade, list | tuple) else [grade]
         self.grades = [get_grade(g, grades_file) for g in grades]
+        for g in self.grades:  # the stream's kernels draw the ideal-output model only
+            for sensor in (g.gyro, g.accel):
+                if sensor.bandwidth is not None or sensor.quantization_mode != "carry":
+                    raise InputError(
+                        "grade",
+                        f"{g.name}: an output bandwidth or rounding quantization is not "
+                        "streamed yet; write its shards with imugen simulate",
+                    )
         self.enabled = [enabled_terms(g, terms) for g in self.grades]
         self.temp = temperature_profile(temperature)
         items = routes.items() if isinstance(routes, Mapping) else ((None, r) for r in routes)
