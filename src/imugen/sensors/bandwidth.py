@@ -51,10 +51,17 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal
 
 from imugen.core import units
 from imugen.core.errors import InputError
+
+
+def _signal():
+    """``scipy.signal``, imported when a filter is built or run: it imports ``scipy.linalg``,
+    which a shard job without an output bandwidth never needs (tests/system/test_startup.py)."""
+    from scipy import signal
+
+    return signal
 
 KINDS = ("ideal", "moving_average", "bartlett", "butterworth", "mpu6050_dlpf")
 
@@ -150,7 +157,7 @@ class OutputFilter:
             while True:
                 x = np.zeros(n)
                 x[0] = 1.0
-                h = signal.lfilter(b, a, x)
+                h = _signal().lfilter(b, a, x)
                 e = np.cumsum(h[::-1] ** 2)[::-1]
                 if e[n // 2] < tol * e[0]:
                     h = h[: max(len(b), np.searchsorted(-e, -tol * e[0]) + 1)]
@@ -210,7 +217,7 @@ class OutputFilter:
     def response(self, f_hz) -> np.ndarray:
         """Complex frequency response ``H(e^{i 2 pi f / f_i})``."""
         w = 2 * np.pi * np.asarray(f_hz, float) / self.internal_rate_hz
-        _, H = signal.freqz(self.b, self.a, worN=w)
+        _, H = _signal().freqz(self.b, self.a, worN=w)
         return H
 
     def psd(self, f_hz, density: float) -> np.ndarray:
@@ -266,7 +273,7 @@ class OutputFilter:
         The first ``len(h)`` internal samples warm the filter up (the output starts in
         steady state); read ``k`` takes internal index ``warm + floor(k D + phase)``.
         """
-        y = signal.lfilter(self.b, self.a, x_internal, axis=-1)
+        y = _signal().lfilter(self.b, self.a, x_internal, axis=-1)
         warm = len(self.impulse())
         idx = warm + np.floor(np.arange(K) * self.ratio + phase).astype(np.int64)
         if idx[-1] >= x_internal.shape[-1]:
@@ -340,7 +347,7 @@ def butterworth(
     """Digital Butterworth low-pass (bilinear transform, -3 dB at ``cutoff_hz``)."""
     if not 0 < cutoff_hz < internal_rate_hz / 2:
         raise ValueError(f"cut-off {cutoff_hz} Hz outside (0, {internal_rate_hz / 2}) Hz")
-    b, a = signal.butter(int(order), cutoff_hz, fs=internal_rate_hz)
+    b, a = _signal().butter(int(order), cutoff_hz, fs=internal_rate_hz)
     g = np.sum(b) / np.sum(a)
     return OutputFilter(
         internal_rate_hz,
@@ -627,7 +634,7 @@ class Stream:
         self.b = np.asarray(filt.b, float)
         self.a = np.asarray(filt.a, float)
         self.n = max(len(self.a), len(self.b)) - 1
-        self.zi0 = signal.lfilter_zi(self.b, self.a) if self.n else np.zeros(0)
+        self.zi0 = _signal().lfilter_zi(self.b, self.a) if self.n else np.zeros(0)
         self.state: dict[str, list] = {}
 
     def reads(self, s: int, k0: int, L: int) -> np.ndarray:
@@ -640,7 +647,7 @@ class Stream:
     def _filter(self, x, zi):
         if not self.n:
             return x * (self.b[0] / self.a[0]), zi
-        return signal.lfilter(self.b, self.a, x, axis=0, zi=zi)
+        return _signal().lfilter(self.b, self.a, x, axis=0, zi=zi)
 
     def noise(self, k0: int, L: int) -> np.ndarray:
         """Filtered white noise read at outputs ``k0 .. k0 + L - 1``: ``(S, L, 3)``."""
