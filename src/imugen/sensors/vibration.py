@@ -253,6 +253,10 @@ def shaft_rpm(speed_mps, profile: Profile, dt: float) -> np.ndarray:
 
 
 _SERIES = 1e-2  # below this phase advance per interval the integrals use their Taylor series
+_RESYNC = 64
+"""Angular lines at a fixed frequency step their sin/cos by a rotation each sample and take
+them from the phase at every sample index that is a multiple of this (so a sample's values
+depend on its index only, never on the chunks)."""
 
 
 @njit(cache=True)
@@ -378,8 +382,14 @@ def _apply_kernel(
     sb = np.empty(Ca)
     syn = np.empty(Ca, np.int64)  # components in the coning pairs: all but the broadband
     n_syn = 0
+    rec = np.empty(Ca, np.bool_)  # fixed-frequency components: sin/cos by rotation steps
+    cd = np.empty(Ca)
+    sd = np.empty(Ca)
     for c in range(Ca):
         sb[c] = math.sin(a_phi0[c])
+        rec[c] = a_order[c] == 0.0 and a_w[c] != 0.0
+        cd[c] = math.cos(a_w[c] * dt)
+        sd[c] = math.sin(a_w[c] * dt)
         if not a_noise[c]:
             syn[n_syn] = c
             n_syn += 1
@@ -406,9 +416,14 @@ def _apply_kernel(
                 ls[c] = math.sin(ph)
                 lc[c] = math.cos(ph)
             for c in range(Ca):
-                ph = a_phi0[c] + a_order[c] * shaft_angle[kp] + a_w[c] * kp * dt
-                as_[c] = math.sin(ph)
-                ac[c] = math.cos(ph)
+                kb = kp - kp % _RESYNC if rec[c] else kp
+                ph = a_phi0[c] + a_order[c] * shaft_angle[kb] + a_w[c] * kb * dt
+                s1 = math.sin(ph)
+                c1 = math.cos(ph)
+                for _ in range(kp - kb):
+                    s1, c1 = s1 * cd[c] + c1 * sd[c], c1 * cd[c] - s1 * sd[c]
+                as_[c] = s1
+                ac[c] = c1
         for i in range(3):
             th[i] = 0.0
             th_p[i] = 0.0
@@ -420,12 +435,16 @@ def _apply_kernel(
             int_ta[i] = 0.0
         # angular components
         for c in range(Ca):
-            ph = a_phi0[c] + a_order[c] * shaft_angle[k] + a_w[c] * k * dt
             w = a_order[c] * shaft_rate[k] + a_w[c]
-            s1 = math.sin(ph)
-            c1 = math.cos(ph)
             s0 = as_[c]
             c0 = ac[c]
+            if rec[c] and k % _RESYNC != 0:
+                s1 = s0 * cd[c] + c0 * sd[c]
+                c1 = c0 * cd[c] - s0 * sd[c]
+            else:
+                ph = a_phi0[c] + a_order[c] * shaft_angle[k] + a_w[c] * k * dt
+                s1 = math.sin(ph)
+                c1 = math.cos(ph)
             B = a_amp[c] * (noise_scale[k] if a_noise[c] else 1.0)
             i = a_axis[c]
             th[i] += B * (s1 - sb[c])
