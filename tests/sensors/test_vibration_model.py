@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ from scipy import signal
 
 from imugen.sensors.vibration import PROFILES, Vibration
 from imugen.sensors.vibration_model import (
+    Harmonic,
     VibrationModel,
     alias,
     fit_vibration,
@@ -161,7 +163,8 @@ def test_multirotor_vibration_is_locked_to_the_truths_rotors(tmp_path):
     m = preset("quadrotor")
     (tmp_path / "vib.yaml").write_text(yaml.safe_dump({"vibration": _plain(m.as_dict())}))
     prof = kernel_profile(str(tmp_path / "vib.yaml"))
-    assert prof.orders == (1.0, 2.0, 4.0) and "gyro broadband" in prof.source
+    assert prof.orders == (1.0, 2.0, 4.0)
+    assert prof.gyro_noise_radps == m.gyro_rms_radps and prof.gyro_lines == 360  # 180 Hz / 0.5
     np.testing.assert_allclose(
         np.asarray(prof.accel_g) * 9.80665, [h.accel_mps2 for h in m.harmonics]
     )
@@ -171,3 +174,144 @@ def _plain(x):
     from imugen.sensors.vibration_fit import _plain as plain
 
     return plain(x)
+
+
+# --- the model's gyro broadband and fixed lines in the simulate stage's kernel --------------
+def _model_yaml(tmp_path, model):
+    import yaml
+
+    path = tmp_path / "vib.yaml"
+    path.write_text(yaml.safe_dump({"vibration": _plain(model.as_dict())}))
+    return str(path)
+
+
+def _simulate_rates(vibration, truth=None, rate_hz=400.0, seconds=60.0, sequences=2):
+    """Rate samples (M, K, 3) of an ideal IMU (no sensor errors) on a vibrating case."""
+    from imugen.sensors.grades import grade_from_config
+    from imugen.simulate import stage as S
+
+    clean = grade_from_config("clean", {"id": 5000})
+    where = {"static_s": seconds, "rate_hz": rate_hz} if truth is None else {}
+    sh = S.simulate(
+        truth, clean, sequences=sequences, seed=3, vibration=vibration, outputs="rates", **where
+    )
+    return sh.data["gyro"], sh.data["accel"]
+
+
+def test_gyro_broadband_has_the_models_variance_and_a_flat_band(tmp_path):
+    """Gyro broadband only: the simulated rate has variance sigma^2 per axis (the closed form)
+    and a flat PSD sigma^2 / (f_hi - f_lo) in the band, nothing outside it."""
+    band = (20.0, 150.0)
+    rms = np.array([0.02, 0.015, 0.01])  # rad/s
+    m = VibrationModel(band_hz=band, gyro_rms_radps=tuple(rms))
+    fs = 400.0
+    gyro, accel = _simulate_rates(_model_yaml(tmp_path, m), rate_hz=fs)
+    # the case tilts by its angle (rate / omega, summed over the lines: ~1e-4 rad) only
+    assert np.max(np.abs(accel - accel[:, :1])) < 1e-3 * 9.81
+    for x in gyro:
+        np.testing.assert_allclose(x.var(axis=0), rms**2, rtol=0.03)
+        f, P = signal.welch(x, fs=fs, nperseg=4096, axis=0)
+        df = f[1] - f[0]
+        edges = np.arange(band[0], band[1] + 1e-9, 10.0)  # 10 Hz slices of the band
+        for a, b in itertools.pairwise(edges):
+            inside = (f >= a + 1) & (f < b - 1)  # (lines near a slice edge leak across it)
+            density = P[inside].mean(axis=0)
+            np.testing.assert_allclose(density, rms**2 / (band[1] - band[0]), rtol=0.15)
+        out = (f < band[0] - 2) | (f > band[1] + 2)
+        assert np.all(P[out].sum(axis=0) * df < 0.01 * rms**2)
+
+
+def test_fixed_lines_appear_at_their_frequency_with_their_amplitude(tmp_path):
+    """A fixed gyro line (y, 37 Hz) and accelerometer line (z, 55 Hz): power A^2 / 2 at
+    their frequency, on their axis; the gyro line's angle ``A / omega`` tilts gravity into
+    the accelerometer's x axis (``g A / omega``), nothing else."""
+    from imugen.sensors.vibration_model import Line
+
+    g_amp, a_amp = 0.01, 0.2
+    m = VibrationModel(
+        lines=[Line(37.0, (0.0, g_amp, 0.0)), Line(55.0, accel_mps2=(0.0, 0.0, a_amp))]
+    )
+    fs = 400.0
+    gyro, accel = _simulate_rates(_model_yaml(tmp_path, m), rate_hz=fs, seconds=30.0)
+    g = float(np.mean(accel[0, :, 2]))
+    tilt = g * g_amp / (2 * math.pi * 37.0)
+    for gy, ac in zip(gyro, accel, strict=True):
+        for x, axis, f0, amp in ((gy, 1, 37.0, g_amp), (ac, 2, 55.0, a_amp)):
+            f, P = signal.welch(x, fs=fs, nperseg=4000, axis=0)
+            df = f[1] - f[0]
+            k = round(f0 / df)
+            assert np.argmax(P[:, axis]) == k
+            assert P[k - 3 : k + 4, axis].sum() * df == pytest.approx(0.5 * amp**2, rel=0.02)
+            assert x.var(axis=0)[axis] == pytest.approx(0.5 * amp**2, rel=0.02)
+        assert np.all(gy.var(axis=0)[[0, 2]] < 1e-9 * g_amp**2)
+        assert ac.var(axis=0)[0] == pytest.approx(0.5 * tilt**2, rel=0.02)
+        assert ac.var(axis=0)[1] < 1e-9 * tilt**2
+
+
+def test_fit_recovers_a_simulated_records_gyro_broadband(tmp_path):
+    """Round trip: a model with gyro broadband and a harmonic, simulated
+    by the simulate stage on a hovering multirotor's truth plus sensor noise; `imugen
+    vibration fit` recovers the broadband RMS per axis."""
+    import pandas as pd
+    import yaml
+
+    from imugen.cli import main
+    from imugen.tables import truth as ttable
+    from imugen.truth.build import build_truth, enu_table
+
+    fs = 500.0
+    t = np.arange(0.0, 40.0, 0.5)
+    p = np.column_stack([0.05 * np.sin(0.2 * t), 0 * t, 1.0 + 0 * t])
+    df, meta = enu_table(p, t, (47.4, 8.5, 400.0))
+    tr, tm = build_truth(df, meta, rate_hz=fs, earth="flat", vehicle="multirotor", verbose=False)
+    ttable.write(tr, tm, tmp_path / "truth.parquet")
+    rpm = tr[list(ttable.ROTORS[:4])].to_numpy().mean()
+    d = math.radians(1.0)
+    m = VibrationModel(
+        rotation_hz=rpm / 60.0,
+        harmonics=[Harmonic(2.0, (0.8 * d, 0.8 * d, 0.4 * d), (0.1, 0.1, 0.2))],
+        band_hz=(20.0, 150.0),
+        gyro_rms_radps=(1.0 * d, 0.8 * d, 0.5 * d),
+    )  # (no accelerometer broadband: its 24 lines per axis are resolved as lines by the fit)
+    gyro, accel = _simulate_rates(_model_yaml(tmp_path, m), tmp_path / "truth.parquet", sequences=1)
+    rng = np.random.default_rng(4)
+    rec = pd.DataFrame({"time_s": tr[ttable.TIME]})
+    for i, ax in enumerate("xyz"):
+        rec[f"gyro_{ax}_radps"] = gyro[0, :, i] + 2e-3 * rng.standard_normal(len(tr))
+        rec[f"accel_{ax}_mps2"] = accel[0, :, i] + 0.02 * rng.standard_normal(len(tr))
+    rec.to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "fit.yaml"
+    main(["vibration", "fit", str(tmp_path / "rec.csv"), f"--truth={tmp_path / 'truth.parquet'}",
+          f"--rotation-hz={m.rotation_hz}", f"--output={out}"])  # fmt: skip
+    fit = VibrationModel.from_dict(yaml.safe_load(out.read_text())["vibration"])
+    np.testing.assert_allclose(fit.gyro_rms_radps, m.gyro_rms_radps, rtol=0.15)
+    assert [h.order for h in fit.harmonics] == [2.0] and not fit.lines
+    np.testing.assert_allclose(fit.harmonics[0].gyro_radps, m.harmonics[0].gyro_radps, rtol=0.1)
+
+
+def test_angular_lines_do_not_depend_on_the_chunks():
+    """The broadband's sin/cos step by rotations between resyncs at fixed sample indices: the
+    same numbers whatever the chunks, and on the phase's closed form to 1e-12."""
+    from imugen.core.rotations import exp_quat, log_quat, quat_mul
+    from imugen.sensors.vibration import Vibration, profile_for
+
+    K, dt = 3000, 1 / 400
+    vib = Vibration(profile_for("quadrotor"), np.zeros(K), dt)
+    seq = vib.draw(np.random.default_rng(2))
+    w = np.column_stack([0.3 * np.sin(np.arange(K) * dt), np.full(K, 0.1), np.zeros(K)])
+    f = np.tile([0.0, 0.0, 9.8], (K, 1))
+    for raw in (False, True):
+        whole = seq.apply(0, w, f, w * dt, f * dt, raw=raw)
+        cuts = [0, 1, 100, 1337, 2999, K]
+        parts = [seq.apply(a, w[a:b], f[a:b], w[a:b] * dt, f[a:b] * dt, raw=raw)
+                 for a, b in itertools.pairwise(cuts)]  # fmt: skip
+        for i in range(4):
+            np.testing.assert_array_equal(np.concatenate([p[i] for p in parts]), whole[i])
+    # the case's angle against its closed form (the phases evaluated at every sample)
+    ks = np.arange(K)
+    th = seq.angle(ks)
+    _, _, comp, _ = seq.apply(0, np.zeros((K, 3)), f, np.zeros((K, 3)), f * dt)
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    for k in range(1, K):
+        q = quat_mul(q, exp_quat(comp[k]))
+    np.testing.assert_allclose(log_quat(q), th[-1], atol=1e-12)

@@ -18,9 +18,15 @@ The case moves relative to the vehicle body ``b`` of the truth by a small rotati
 * engine harmonics: ``phi = phi_0 + n Theta(t)``, ``n`` the engine order, ``Theta`` the
   crank (or propeller shaft) angle, whose rate follows the vehicle's speed (:func:`shaft_rpm`);
   linear and small angular parts; constant amplitudes (a per-sequence gain);
-* road / airframe noise: linear only, ``N`` lines per axis with frequencies drawn uniformly in
+* road / airframe noise: linear, ``N`` lines per axis with frequencies drawn uniformly in
   the band, equal amplitudes giving the profile's RMS at the reference speed, scaled by
-  ``min(speed / v_ref, 2)`` (zero at a stop).
+  ``min(speed / v_ref, 2)`` (zero at a stop); angular (a fitted model's gyro broadband,
+  ``gyro_noise_radps``): ``gyro_lines`` lines per axis, one drawn uniformly in each equal
+  slice of the band (a flat spectrum at the slice width), of rate amplitude
+  ``sigma sqrt(2 / N)`` (angle ``rate / omega``), so the rate's variance is ``sigma^2``,
+  scaled with the speed alike;
+* fixed lines (structural resonances, ``fixed_lines``): linear and angular lines at their own
+  frequency, ``phi = phi_0 + 2 pi f t``, at the harmonics' gain.
 
 Frequencies and amplitudes are held over each sample interval (the phase is continuous and
 piecewise linear), so every integral over an interval is a closed form. The linear phases start
@@ -41,8 +47,11 @@ What the IMU measures (case frame ``c = b Exp(dtheta_v)``; ``omega``, ``f``, ``d
     raw increments (plain integrals): ``dtheta_c = dtheta + dtheta_v(t_k) - dtheta_v(t_{k-1})
     - (int dtheta_v) x w - 1/2 int dtheta_v x d(dtheta_v)/dt`` -- the last term is the coning
     rectification of synchronous angular vibration, integrated in closed form for every pair of
-    components; ``dv_c = dv + int a_v - (int dtheta_v) x dv / dt`` (first order in the case
-    angle: the product of angular and linear vibration, ~1e-5 of ``a_v``, is left out).
+    components but the angular broadband's (independent lines at distinct frequencies: their
+    pairs' terms have zero mean, at most ``|dtheta_v| |d(dtheta_v)/dt| dt / 2`` an interval,
+    ~1e-9 rad for a quadrotor's 1 deg/s, and are left out); ``dv_c = dv + int a_v - (int
+    dtheta_v) x dv / dt`` (first order in the case angle: the product of angular and linear
+    vibration, ~1e-5 of ``a_v``, is left out).
 Rate samples are instantaneous: lines above the Nyquist frequency alias in them as in an
 unfiltered sampled sensor; increments integrate every line exactly.
 """
@@ -122,6 +131,15 @@ class Profile:
     broadband scales with the speed), ``"rotor"`` (the truth's rotor speed, its
     ``rotor_*_rpm`` columns, else ``idle_rpm``; broadband at its level) or ``"constant"``
     (``idle_rpm``; broadband at its level)."""
+    gyro_noise_radps: tuple = (0.0, 0.0, 0.0)
+    """RMS of the angular broadband per body axis [rad/s] (as ``noise_g``: at ``ref_mps``,
+    scaled with the speed when ``rotation`` is ``"speed"``): ``gyro_lines`` angular lines per
+    axis, one drawn uniformly in each of ``gyro_lines`` equal slices of ``band_hz``, of equal
+    rate amplitude ``rms sqrt(2 / gyro_lines)`` (angle ``rate / omega``)."""
+    gyro_lines: int = 0
+    fixed_lines: tuple = ()
+    """Lines at fixed frequencies (structural resonances): ``(freq_hz, accel_g (3,),
+    angle_rad (3,))`` each, per body axis, scaled by the harmonics' gain."""
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -235,6 +253,10 @@ def shaft_rpm(speed_mps, profile: Profile, dt: float) -> np.ndarray:
 
 
 _SERIES = 1e-2  # below this phase advance per interval the integrals use their Taylor series
+_RESYNC = 64
+"""Angular lines at a fixed frequency step their sin/cos by a rotation each sample and take
+them from the phase at every sample index that is a multiple of this (so a sample's values
+depend on its index only, never on the chunks)."""
 
 
 @njit(cache=True)
@@ -334,7 +356,9 @@ def _apply_kernel(
     a_axis,
     a_amp,
     a_order,
+    a_w,
     a_phi0,
+    a_noise,
     omega_b,
     f_b,
     dtheta,
@@ -356,8 +380,19 @@ def _apply_kernel(
     c0a = np.empty(Ca)
     wa = np.empty(Ca)
     sb = np.empty(Ca)
+    syn = np.empty(Ca, np.int64)  # components in the coning pairs: all but the broadband
+    n_syn = 0
+    rec = np.empty(Ca, np.bool_)  # fixed-frequency components: sin/cos by rotation steps
+    cd = np.empty(Ca)
+    sd = np.empty(Ca)
     for c in range(Ca):
         sb[c] = math.sin(a_phi0[c])
+        rec[c] = a_order[c] == 0.0 and a_w[c] != 0.0
+        cd[c] = math.cos(a_w[c] * dt)
+        sd[c] = math.sin(a_w[c] * dt)
+        if not a_noise[c]:
+            syn[n_syn] = c
+            n_syn += 1
     th = np.zeros(3)
     th_p = np.zeros(3)
     th_dot = np.zeros(3)
@@ -381,9 +416,14 @@ def _apply_kernel(
                 ls[c] = math.sin(ph)
                 lc[c] = math.cos(ph)
             for c in range(Ca):
-                ph = a_phi0[c] + a_order[c] * shaft_angle[kp]
-                as_[c] = math.sin(ph)
-                ac[c] = math.cos(ph)
+                kb = kp - kp % _RESYNC if rec[c] else kp
+                ph = a_phi0[c] + a_order[c] * shaft_angle[kb] + a_w[c] * kb * dt
+                s1 = math.sin(ph)
+                c1 = math.cos(ph)
+                for _ in range(kp - kb):
+                    s1, c1 = s1 * cd[c] + c1 * sd[c], c1 * cd[c] - s1 * sd[c]
+                as_[c] = s1
+                ac[c] = c1
         for i in range(3):
             th[i] = 0.0
             th_p[i] = 0.0
@@ -395,13 +435,17 @@ def _apply_kernel(
             int_ta[i] = 0.0
         # angular components
         for c in range(Ca):
-            ph = a_phi0[c] + a_order[c] * shaft_angle[k]
-            w = a_order[c] * shaft_rate[k]
-            s1 = math.sin(ph)
-            c1 = math.cos(ph)
+            w = a_order[c] * shaft_rate[k] + a_w[c]
             s0 = as_[c]
             c0 = ac[c]
-            B = a_amp[c]
+            if rec[c] and k % _RESYNC != 0:
+                s1 = s0 * cd[c] + c0 * sd[c]
+                c1 = c0 * cd[c] - s0 * sd[c]
+            else:
+                ph = a_phi0[c] + a_order[c] * shaft_angle[k] + a_w[c] * k * dt
+                s1 = math.sin(ph)
+                c1 = math.cos(ph)
+            B = a_amp[c] * (noise_scale[k] if a_noise[c] else 1.0)
             i = a_axis[c]
             th[i] += B * (s1 - sb[c])
             th_p[i] += B * (s0 - sb[c])
@@ -412,8 +456,10 @@ def _apply_kernel(
             wa[c] = w
             as_[c] = s1
             ac[c] = c1
-        for a in range(Ca):
-            for b in range(Ca):
+        for pa in range(n_syn if raw else 0):  # coning: raw increments only
+            for pb in range(n_syn):
+                a = syn[pa]
+                b = syn[pb]
                 ia = a_axis[a]
                 ib = a_axis[b]
                 if ia == ib:
@@ -562,7 +608,18 @@ class Vibration:
         lin_sign = rng.integers(0, 2, size=(n_ord + p.lines, 3))
         ang_phase = rng.uniform(0.0, 2.0 * math.pi, size=(n_ord, 3))
         freq = rng.uniform(p.band_hz[0], p.band_hz[1], size=(p.lines, 3))
-        return SequenceVibration(self, gains, lin_sign, ang_phase, freq)
+        extra = {}
+        if any(p.gyro_noise_radps) or p.fixed_lines:  # (drawn after the others: profiles
+            n_g, n_f = p.gyro_lines, len(p.fixed_lines)  # without these draw as before)
+            lo, hi = p.band_hz
+            slot = (np.arange(n_g)[:, None] + rng.random((n_g, 3))) / max(n_g, 1)
+            extra = {
+                "gyro_freq_hz": lo + (hi - lo) * slot,
+                "gyro_phase": rng.uniform(0.0, 2.0 * math.pi, size=(n_g, 3)),
+                "fixed_sign": rng.integers(0, 2, size=(n_f, 3)),
+                "fixed_phase": rng.uniform(0.0, 2.0 * math.pi, size=(n_f, 3)),
+            }
+        return SequenceVibration(self, gains, lin_sign, ang_phase, freq, **extra)
 
 
 @dataclass
@@ -574,6 +631,10 @@ class SequenceVibration:
     lin_sign: np.ndarray  # (orders + lines, 3) 0/1: linear start phase pi/2 or 3 pi/2
     ang_phase: np.ndarray  # (orders, 3) angular start phases
     freq_hz: np.ndarray  # (lines, 3) noise line frequencies
+    gyro_freq_hz: np.ndarray | None = None  # (gyro_lines, 3) angular noise line frequencies
+    gyro_phase: np.ndarray | None = None  # (gyro_lines, 3) their start phases
+    fixed_sign: np.ndarray | None = None  # (fixed lines, 3) 0/1 linear start phases
+    fixed_phase: np.ndarray | None = None  # (fixed lines, 3) angular start phases
     lin: dict = field(init=False)
     ang: dict = field(init=False)
 
@@ -600,6 +661,14 @@ class SequenceVibration:
                     w.append(2.0 * math.pi * self.freq_hz[n, i])
                     phi0.append(math.pi * (0.5 + self.lin_sign[n_ord + n, i]))
                     noise.append(True)
+            for n, (f_hz, acc_g, _) in enumerate(p.fixed_lines):
+                if acc_g[i] > 0:
+                    axis.append(i)
+                    amp.append(acc_g[i] * G0 * self.gains[0])
+                    order.append(0.0)
+                    w.append(2.0 * math.pi * f_hz)
+                    phi0.append(math.pi * (0.5 + self.fixed_sign[n, i]))
+                    noise.append(False)
         self.lin = {
             "axis": np.array(axis, int),
             "amp": np.array(amp, float),
@@ -610,19 +679,40 @@ class SequenceVibration:
         }
         self.lin["onehot"] = np.eye(3)[self.lin["axis"]].reshape(-1, 3)
         ang = np.asarray(p.angle_rad) * self.gains[0]
-        a_axis, a_amp, a_order, a_phi0 = [], [], [], []
+        a_axis, a_amp, a_order, a_w, a_phi0, a_noise = [], [], [], [], [], []
+
+        def add(i, amp, order, w, phi0, noise):
+            a_axis.append(i)
+            a_amp.append(amp)
+            a_order.append(order)
+            a_w.append(w)
+            a_phi0.append(phi0)
+            a_noise.append(noise)
+
         for o in range(n_ord):
             for i in range(3):
                 if ang[o, i] > 0:
-                    a_axis.append(i)
-                    a_amp.append(ang[o, i])
-                    a_order.append(p.orders[o])
-                    a_phi0.append(self.ang_phase[o, i])
+                    add(i, ang[o, i], p.orders[o], 0.0, self.ang_phase[o, i], False)
+        for n, (f_hz, _, ang_rad) in enumerate(p.fixed_lines):
+            for i in range(3):
+                if ang_rad[i] > 0:
+                    w = 2.0 * math.pi * f_hz
+                    add(i, ang_rad[i] * self.gains[0], 0.0, w, self.fixed_phase[n, i], False)
+        # angular broadband: rate amplitude rms sqrt(2 / N) per line, angle rate / omega
+        rate_amp = (
+            np.asarray(p.gyro_noise_radps) * self.gains[1] * math.sqrt(2.0 / max(p.gyro_lines, 1))
+        )
+        for i in range(3):
+            for n in range(p.gyro_lines if rate_amp[i] > 0 else 0):
+                w = 2.0 * math.pi * self.gyro_freq_hz[n, i]
+                add(i, rate_amp[i] / w, 0.0, w, self.gyro_phase[n, i], True)
         self.ang = {
             "axis": np.array(a_axis, int),
             "amp": np.array(a_amp, float),
             "order": np.array(a_order, float),
+            "w": np.array(a_w, float),
             "phi0": np.array(a_phi0, float),
+            "noise": np.array(a_noise, bool),
         }
         self.ang["onehot"] = np.eye(3)[self.ang["axis"]].reshape(-1, 3)
 
@@ -637,8 +727,8 @@ class SequenceVibration:
             w = w + c["w"][None]
         return phi, w
 
-    def _lin_amp(self, ks):
-        c = self.lin
+    def _amp(self, c, ks):
+        """Amplitudes (len(ks), C): the noise lines scaled with the speed."""
         scale = np.where(c["noise"][None], self.vib.noise_scale[ks][:, None], 1.0)
         return c["amp"][None] * scale
 
@@ -648,7 +738,7 @@ class SequenceVibration:
         out = np.zeros((len(ks), 3))
         if len(c["amp"]):
             phi, _ = self._phase(c, ks)
-            out += (c["amp"][None] * (np.sin(phi) - np.sin(c["phi0"]))) @ c["onehot"]
+            out += (self._amp(c, ks) * (np.sin(phi) - np.sin(c["phi0"]))) @ c["onehot"]
         return out
 
     def accel(self, ks) -> np.ndarray:
@@ -657,7 +747,7 @@ class SequenceVibration:
         out = np.zeros((len(ks), 3))
         if len(c["amp"]):
             phi, _ = self._phase(c, ks)
-            out += (self._lin_amp(ks) * np.sin(phi)) @ c["onehot"]
+            out += (self._amp(c, ks) * np.sin(phi)) @ c["onehot"]
         return out
 
     def labels(self) -> dict:
@@ -692,7 +782,9 @@ class SequenceVibration:
             ca["axis"],
             ca["amp"],
             ca["order"],
+            ca["w"],
             ca["phi0"],
+            ca["noise"],
             *(np.ascontiguousarray(x, dtype=np.float64) for x in (omega_b, f_b, dtheta, dv)),
             *out,
             bool(raw),

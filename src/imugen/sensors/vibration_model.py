@@ -28,6 +28,8 @@ expressed in this model at a vehicle speed: their rotation follows the speed by 
 angular amplitudes ``theta`` become gyro amplitudes ``2 pi o f_rot theta``, their broadband
 (``lines`` random lines per axis in the band) is the broadband term of the same RMS and band;
 ``quadrotor`` is a small multirotor's (rotor 1P, blade pass and its double, frame noise).
+:func:`kernel_profile` gives the simulate stage's case-motion kernel all of a model: harmonics,
+fixed lines and both broadbands (as lines: see there).
 The presets live here, not in the grades file (whose text is hashed into shards).
 """
 
@@ -195,13 +197,16 @@ def load(path) -> VibrationModel:
         raise InputError(path, f"is not a vibration model ({exc})") from None
 
 
-def kernel_profile(option, lines_per_axis: int = 24):
+def kernel_profile(option, lines_per_axis: int = 24, gyro_line_hz: float = 0.5):
     """The case-motion kernel's :class:`imugen.sensors.vibration.Profile` of ``"quadrotor"``
     or of a model's YAML file: harmonics (linear amplitudes, and angular ones
     ``gyro / (2 pi o f_rot)``) locked to the truth's rotor speed when it has one (``rotation =
     "rotor"``, else the model's constant rotation), the accelerometer broadband as
-    ``lines_per_axis`` lines per axis at a constant level. The kernel has no gyro broadband
-    and no fixed-frequency lines: a model's are left out (named in the profile's ``source``)."""
+    ``lines_per_axis`` lines per axis at a constant level, the gyro broadband as angular lines
+    one per ``gyro_line_hz`` of the band (at least ``lines_per_axis``; a spectrum resolved more
+    coarsely than that sees it flat, so ``imugen vibration fit`` finds it as broadband), and
+    the fixed-frequency lines as lines of the case's motion at their own frequency (angle
+    ``gyro / (2 pi f)``)."""
     from imugen.core.errors import InputError
     from imugen.sensors.vibration import Profile
 
@@ -209,12 +214,11 @@ def kernel_profile(option, lines_per_axis: int = 24):
     f_rot = model.rotation_hz
     if not f_rot > 0 and model.harmonics:
         raise InputError(option, "a model with harmonics needs its rotation_hz")
-    dropped = []
-    if any(model.gyro_rms_radps):
-        dropped.append("gyro broadband")
-    if model.lines:
-        dropped.append(f"{len(model.lines)} fixed-frequency lines")
-    note = f"; left out by the kernel: {', '.join(dropped)}" if dropped else ""
+    if any(not ln.freq_hz > 0 for ln in model.lines):
+        raise InputError(option, "a fixed line needs a positive freq_hz")
+    lo, hi = model.band_hz
+    if any(model.gyro_rms_radps) and not 0 < lo < hi:
+        raise InputError(option, f"band_hz {model.band_hz} must be 0 < low < high Hz")
     return Profile(
         name=model.name,
         orders=tuple(h.order for h in model.harmonics),
@@ -230,8 +234,18 @@ def kernel_profile(option, lines_per_axis: int = 24):
         noise_g=tuple(a / G0 for a in model.accel_rms_mps2),
         lines=lines_per_axis,
         gain_range=tuple(model.gain_range),
-        source=(model.source or model.name) + note,
+        source=model.source or model.name,
         rotation="rotor",
+        gyro_noise_radps=tuple(model.gyro_rms_radps),
+        gyro_lines=max(lines_per_axis, math.ceil((hi - lo) / gyro_line_hz)),
+        fixed_lines=tuple(
+            (
+                ln.freq_hz,
+                tuple(a / G0 for a in ln.accel_mps2),
+                tuple(g / (2.0 * math.pi * ln.freq_hz) for g in ln.gyro_radps),
+            )
+            for ln in model.lines
+        ),
     )
 
 
