@@ -63,6 +63,7 @@ def _signal():
 
     return signal
 
+
 KINDS = ("ideal", "moving_average", "bartlett", "butterworth", "mpu6050_dlpf")
 
 # InvenSense RM-MPU-6000A-00 rev 4.2, register 26 (CONFIG), DLPF_CFG: (accelerometer bandwidth
