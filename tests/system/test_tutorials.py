@@ -15,8 +15,8 @@ the route and results of the first). A page's fenced code blocks are taken in or
 A page that needs an optional extra says so in a comment ``<!-- needs: torch -->``; it is
 skipped where that module is missing (CI installs every extra).
 
-The tutorials use tiny configurations (a few sequences at 20 Hz), so that all six pages run
-in a couple of minutes.
+The tutorials use tiny configurations (a few sequences at 20 Hz), so that all the pages run
+in about four minutes.
 """
 
 from __future__ import annotations
