@@ -541,6 +541,28 @@ def _batch_n(p_n, frame, gravitation):
 
 
 @njit(cache=True, inline="always")
+def geodetic_parts_nb(x, y, z):
+    """ECEF -> ``(sin lat, cos lat, cos lon, sin lon, h)``: the scalar numba twin of
+    :func:`geodetic_parts` (same operations, same order; the aided filter's local level and the
+    damped vertical channel's height)."""
+    p = math.sqrt(x * x + y * y)
+    su = z * A_WGS84
+    cu = p * B_WGS84
+    ir = 1.0 / math.sqrt(su * su + cu * cu)
+    su = su * ir
+    cu = cu * ir
+    num = z + EP2_WGS84 * B_WGS84 * su * su * su
+    den = p - E2_WGS84 * A_WGS84 * cu * cu * cu
+    ir = 1.0 / math.sqrt(num * num + den * den)
+    sl = num * ir
+    cl = den * ir
+    h = p * cl + z * sl - A_WGS84 * math.sqrt(1.0 - E2_WGS84 * sl * sl)
+    if p > 0.0:
+        return sl, cl, x / p, y / p, h
+    return sl, cl, 1.0, 0.0, h
+
+
+@njit(cache=True, inline="always")
 def gravitation_nb(prm, px, py, pz):
     """Numba scalar gravitation at navigation position ``p``; ``prm`` from ``OriginFrame.params()``.
 

@@ -136,24 +136,7 @@ def _write(out_p, out_v, out_q, s, slot, prm, k, px, py, pz, vx, vy, vz, q0, q1,
 @njit(cache=True, inline="always")
 def _geodetic_h_up(x, y, z):
     """ECEF -> (height, up_e): Bowring, one iteration (scalar twin of earth.geodetic_parts)."""
-    p = math.sqrt(x * x + y * y)
-    su = z * earth.A_WGS84
-    cu = p * earth.B_WGS84
-    ir = 1.0 / math.sqrt(su * su + cu * cu)
-    su = su * ir
-    cu = cu * ir
-    num = z + earth.EP2_WGS84 * earth.B_WGS84 * su * su * su
-    den = p - earth.E2_WGS84 * earth.A_WGS84 * cu * cu * cu
-    ir = 1.0 / math.sqrt(num * num + den * den)
-    sl = num * ir
-    cl = den * ir
-    h = p * cl + z * sl - earth.A_WGS84 * math.sqrt(1.0 - earth.E2_WGS84 * sl * sl)
-    if p > 0.0:
-        clon = x / p
-        slon = y / p
-    else:
-        clon = 1.0
-        slon = 0.0
+    sl, cl, clon, slon, h = earth.geodetic_parts_nb(x, y, z)
     return h, cl * clon, cl * slon, sl
 
 

@@ -6,13 +6,16 @@ Every reader maps a missing or unreadable file, or a missing column, to one-line
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from types import SimpleNamespace
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imugen.core.errors import InputError
+from imugen.core.io import atomic_output
 
 
 def to_numpy(col) -> np.ndarray:
@@ -85,3 +88,32 @@ def read_table(path, columns=None, filters=None, what: str = "table") -> pa.Tabl
         raise InputError(path, "no such file") from None
     except (OSError, pa.ArrowInvalid) as exc:
         raise InputError(path, f"cannot read as a Parquet {what} ({_short(exc)})") from None
+
+
+@contextmanager
+def block_writer(out, meta: dict | None, schema_of: Callable[[dict], pa.Schema]) -> Iterator:
+    """Stream a table to ``out`` atomically, one row group per block: yields ``w`` with
+    ``w.put(cols)`` (a mapping of every column of the schema to a 1-D array) and ``w.meta``,
+    settable until the first ``put`` (the schema, with its metadata, is ``schema_of(w.meta)``).
+    A table with no block put is written empty."""
+    w = SimpleNamespace(meta=dict(meta or {}), rows=0)
+    with atomic_output(out) as tmp:
+        pw = schema = None
+
+        def put(cols) -> None:
+            nonlocal pw, schema
+            if pw is None:
+                schema = schema_of(w.meta)
+                pw = pq.ParquetWriter(tmp, schema)
+            arrays = [from_numpy(np.asarray(cols[f.name]), f.type) for f in schema]
+            pw.write_table(pa.Table.from_arrays(arrays, schema=schema))
+            w.rows += len(arrays[0])
+
+        w.put = put
+        try:
+            yield w
+            if pw is None:
+                pq.write_table(schema_of(w.meta).empty_table(), tmp)
+        finally:
+            if pw is not None:
+                pw.close()

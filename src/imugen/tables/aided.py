@@ -50,14 +50,12 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
 
-import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
-from imugen.core.io import METADATA_KEY, atomic_output
+from imugen.core.io import METADATA_KEY
 from imugen.core.io import read_meta as read_meta
 from imugen.tables import SEQUENCE, TIME
-from imugen.tables._parquet import from_numpy, names, read_table
+from imugen.tables._parquet import block_writer, names, read_table
 from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
 from imugen.tables.truth import POS, QUAT, VEL
 
@@ -117,27 +115,8 @@ def writer(out, meta: dict | None = None) -> Iterator[SimpleNamespace]:
     block becomes one row group, so a job holds one block, never the whole table. ``w.meta``
     is settable until the first ``put``. A table with no block put is written empty.
     """
-    w = SimpleNamespace(meta=dict(meta or {}), rows=0)
-    with atomic_output(out) as tmp:
-        pw = schema = None
-
-        def put(cols) -> None:
-            nonlocal pw, schema
-            if pw is None:
-                schema = _schema(w.meta)
-                pw = pq.ParquetWriter(tmp, schema)
-            arrays = [from_numpy(np.asarray(cols[f.name]), f.type) for f in schema]
-            pw.write_table(pa.Table.from_arrays(arrays, schema=schema))
-            w.rows += len(arrays[0])
-
-        w.put = put
-        try:
-            yield w
-            if pw is None:
-                pq.write_table(_schema(w.meta).empty_table(), tmp)
-        finally:
-            if pw is not None:
-                pw.close()
+    with block_writer(out, meta, _schema) as w:
+        yield w
 
 
 def write(df, meta: dict, out) -> Path:

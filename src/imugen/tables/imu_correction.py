@@ -29,12 +29,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from imugen.core.errors import InputError
-from imugen.core.io import METADATA_KEY, atomic_output
+from imugen.core.io import METADATA_KEY
 from imugen.tables import SEQUENCE
-from imugen.tables._parquet import from_numpy, names, read_table, require
+from imugen.tables._parquet import block_writer, names, read_table, require
 
 SAMPLE = "sample"
 DTHETA = tuple(f"corr_dtheta_{a}_rad" for a in "xyz")
@@ -66,27 +65,8 @@ def writer(out, meta: dict | None = None) -> Iterator[SimpleNamespace]:
     """Stream the table to ``out`` atomically: yields ``w`` with ``w.put(cols)`` (a mapping of
     every column, e.g. :func:`frame`), one row group per call; ``w.meta`` settable until the
     first ``put``."""
-    w = SimpleNamespace(meta=dict(meta or {}), rows=0)
-    with atomic_output(out) as tmp:
-        pw = schema = None
-
-        def put(cols) -> None:
-            nonlocal pw, schema
-            if pw is None:
-                schema = _schema(w.meta)
-                pw = pq.ParquetWriter(tmp, schema)
-            arrays = [from_numpy(np.asarray(cols[f.name]), f.type) for f in schema]
-            pw.write_table(pa.Table.from_arrays(arrays, schema=schema))
-            w.rows += len(arrays[0])
-
-        w.put = put
-        try:
-            yield w
-            if pw is None:
-                pq.write_table(_schema(w.meta).empty_table(), tmp)
-        finally:
-            if pw is not None:
-                pw.close()
+    with block_writer(out, meta, _schema) as w:
+        yield w
 
 
 def read(path, columns=None, filters=None):

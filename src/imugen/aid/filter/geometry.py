@@ -12,31 +12,10 @@ from imugen.core import earth
 from imugen.core.jit import njit_borrowing
 
 
-@njit_borrowing(cache=True, inline="always")
-def level_nb(x, y, z):
-    """ECEF -> ``(sin lat, cos lat, cos lon, sin lon, h)``: the numba twin of
-    :func:`imugen.core.earth.geodetic_parts` (same operations, same order)."""
-    p = math.sqrt(x * x + y * y)
-    su = z * earth.A_WGS84
-    cu = p * earth.B_WGS84
-    ir = 1.0 / math.sqrt(su * su + cu * cu)
-    su = su * ir
-    cu = cu * ir
-    num = z + earth.EP2_WGS84 * earth.B_WGS84 * su * su * su
-    den = p - earth.E2_WGS84 * earth.A_WGS84 * cu * cu * cu
-    ir = 1.0 / math.sqrt(num * num + den * den)
-    sl = num * ir
-    cl = den * ir
-    h = p * cl + z * sl - earth.A_WGS84 * math.sqrt(1.0 - earth.E2_WGS84 * sl * sl)
-    if p > 0.0:
-        return sl, cl, x / p, y / p, h
-    return sl, cl, 1.0, 0.0, h
-
-
 @njit_borrowing(cache=True)
 def local_level_nb(x, y, z, L):
     """``L = C_le`` (ECEF -> East, North, Up at the ECEF point ``(x, y, z)``); returns ``h``."""
-    sl, cl, co, so, hgt = level_nb(x, y, z)
+    sl, cl, co, so, hgt = earth.geodetic_parts_nb(x, y, z)
     L[0, 0] = -so
     L[0, 1] = co
     L[0, 2] = 0.0
