@@ -157,7 +157,7 @@ def test_bad_input_is_refused(truth):
     s = stream(truth)
     with pytest.raises(InputError):
         s.generate(s.keys(ROUTE, "consumer", 0, 0, 0))
-    # a part with an output bandwidth (issue 24's presets) is not streamed: refused, not
-    # drawn with the ideal-output model
-    with pytest.raises(InputError, match="bandwidth"):
-        Stream({ROUTE: truth}, "adis16405")
+    # vibration and mounting are streamed in exact mode only
+    s = stream(truth, vibration="car")
+    with pytest.raises(InputError, match="exact"):
+        s.generate(s.keys(ROUTE, "consumer", 0, 0, 5))

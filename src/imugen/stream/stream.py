@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 
 import numpy as np
 
 from imugen.core.errors import InputError
+from imugen.core.seeding import sensor_rng
 from imugen.sensors.grades import get_grade
+from imugen.sensors.mounting import MountingSpec
+from imugen.sensors.mounting import setup as setup_mounting
+from imugen.sensors.vibration import setup_vibration
 from imugen.sensors.ideal import ArrayTruth, TruthSource
 from imugen.simulate.plan import enabled_terms, temperature_profile
 from imugen.simulate.sources import resolve_truth, route_name
@@ -63,6 +68,10 @@ class Stream:
         A route's probability: proportional to its windows, or equal.
     first_batch : int
         Number of the first batch (to resume a run).
+    vibration, mounting
+        As the simulate stage's options (case vibration: ``off``, ``car``, ``aircraft``,
+        ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Exact mode only (their
+        draws are the shard's, streams ``vibration`` and ``mounting``).
     """
 
     def __init__(
@@ -85,6 +94,8 @@ class Stream:
         grades_file=None,
         weights: str = "length",
         first_batch: int = 0,
+        vibration: str | None = "off",
+        mounting=None,
     ):
         self.window = int(window)
         self.stride = int(stride if stride is not None else window)
@@ -110,23 +121,17 @@ class Stream:
         self.first_batch = int(first_batch)
         grades = list(grade) if isinstance(grade, list | tuple) else [grade]
         self.grades = [get_grade(g, grades_file) for g in grades]
-        for g in self.grades:  # the stream's kernels draw the ideal-output model only
-            for sensor in (g.gyro, g.accel):
-                if sensor.bandwidth is not None or sensor.quantization_mode != "carry":
-                    raise InputError(
-                        "grade",
-                        f"{g.name}: an output bandwidth or rounding quantization is not "
-                        "streamed yet; write its shards with imugen simulate",
-                    )
         self.enabled = [enabled_terms(g, terms) for g in self.grades]
         self.temp = temperature_profile(temperature)
         items = routes.items() if isinstance(routes, Mapping) else ((None, r) for r in routes)
         self.truths: list[TruthSource] = []
         self.route_names: list[str] = []
+        sources = []
         for name, t in items:
             tr = resolve_truth(t, None, 100.0, "flat")
             self.truths.append(tr)
             self.route_names.append(route_name(t, tr, name))
+            sources.append(t if isinstance(t, str | Path) else None)
         if not self.truths:
             raise InputError("routes", "give at least one route")
         self.route_ids = [tshard.route_id(n) for n in self.route_names]
@@ -134,6 +139,14 @@ class Stream:
         if np.ptp(dts) > 1e-9 * dts[0]:
             raise InputError("routes", f"routes differ in sample rate ({sorted(set(1 / dts))} Hz)")
         self.dt = float(dts[0])
+        self.bands = [
+            tuple(
+                None if g.sensor(n).bandwidth is None
+                else g.sensor(n).bandwidth.output_filter(n, 1.0 / self.dt)
+                for n in ("gyro", "accel")
+            )
+            for g in self.grades
+        ]  # fmt: skip
         self.windows = np.array(
             [max((t.K - 1 - self.window) // self.stride + 1, 0) for t in self.truths], np.int64
         )
@@ -145,6 +158,12 @@ class Stream:
             self.weights = (self.windows > 0) / np.count_nonzero(self.windows)
         else:
             raise InputError("weights", f"must be length or uniform, got {weights!r}")
+        self._vib = [setup_vibration(t, vibration) for t in self.truths]
+        self._mount_spec = MountingSpec.from_option(mounting, "mounting")
+        self._mounting = [
+            setup_mounting(t, self._mount_spec, src)
+            for t, src in zip(self.truths, sources, strict=True)
+        ]
         self._concat()
         self._scratch = Scratch()
 
@@ -248,6 +267,11 @@ class Stream:
                 draw_params(self.seed, self.route_ids[k["route"]], g, self.enabled[k["grade"]],
                             self.nominal, int(k["shard"]), int(k["j"]))
             )  # fmt: skip
+        if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
+            raise InputError("exact", "vibration and mounting are streamed in exact mode only")
+        if not exact and any(self._post(g) for g in np.unique(sk["grade"])):
+            raise InputError("exact", "an output bandwidth or rounding quantization is streamed "
+                             "in exact mode only")  # fmt: skip
         if exact:
             self._exact(sk, seq_start, draws, want, outs)
         else:
@@ -288,6 +312,13 @@ class Stream:
         out["keys"] = keys
         return out
 
+    def _post(self, gi) -> bool:
+        """Grade ``gi`` has an output bandwidth or rounding quantization."""
+        g = self.grades[gi]
+        return any(b is not None for b in self.bands[gi]) or any(
+            g.sensor(n).quantization_mode == "round" for n in ("gyro", "accel")
+        )
+
     def _labels(self, draws, seq_of) -> np.ndarray:
         """Per-window label rows ``(B, L)`` in :attr:`label_names` order."""
         cols = None
@@ -312,10 +343,15 @@ class Stream:
         for s, (a, b) in enumerate(zip(seq_start, ends, strict=True)):
             k = sk[a]
             kmax = int(sk["k0"][a:b].max()) + W
-            tr = self.truths[k["route"]]
+            r, gi = int(k["route"]), int(k["grade"])
+            key = (self.seed, self.route_ids[r], self.grades[gi].id, int(k["shard"]), int(k["j"]))
+            vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
+            mount = None
+            if self._mount_spec is not None:
+                mount = self._mount_spec.draw(sensor_rng(*key, "mounting"))
             data = exact_sequence(
-                tr, draws[s], self.seed, self.route_ids[k["route"]], self.grades[k["grade"]].id,
-                int(k["shard"]), int(k["j"]), kmax, self.temp, groups,
+                self.truths[r], draws[s], *key, kmax, self.temp, groups, bands=self.bands[gi],
+                vib=vib, mounting=self._mounting[r], mount=mount,
             )  # fmt: skip
             for i in range(a, b):
                 k0 = int(sk["k0"][i])

@@ -39,6 +39,7 @@ import numpy as np
 from imugen.core.jit import njit
 from imugen.core.seeding import generator, sensor_rng
 from imugen.sensors._kernel import kernel
+from imugen.sensors.ideal import CHUNK
 from imugen.sensors.model import SensorModel, SensorParams, draw_sensor
 from imugen.stream.keys import WINDOW_STREAM
 
@@ -61,8 +62,13 @@ def draw_params(seed, rid, grade, enabled, nominal, shard, j) -> Draw:
     return Draw(gp, ap)
 
 
-def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want) -> dict:
+def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want, *,
+                   bands=(None, None), vib=None, mounting=None, mount=None) -> dict:  # fmt: skip
     """Samples ``0 .. kmax - 1`` of one sequence exactly as the simulate stage makes them.
+
+    The same chunks (:data:`imugen.sensors.ideal.CHUNK`), streams and models as the shard
+    loop (:func:`imugen.simulate.stage._loop`): mounting, then vibration of the truth chunk,
+    then each sensor (with its output bandwidth, stream ``*_band``, and its quantization mode).
 
     Parameters
     ----------
@@ -73,6 +79,12 @@ def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want
         Temperature profile (:func:`imugen.simulate.plan.temperature_profile`).
     want : iterable of str
         Groups of :data:`imugen.tables.shard.GROUPS` to return (``dtheta``, ``err_dv``, ...).
+    bands : (OutputFilter or None, OutputFilter or None)
+        Output bandwidth of the gyro and the accelerometer read at ``1 / dt``.
+    vib : imugen.sensors.vibration.SequenceVibration, optional
+        The sequence's drawn vibration (stream ``vibration``).
+    mounting, mount : imugen.sensors.mounting.Mounting and the sequence's ``(angles, lever)``
+        (stream ``mounting``), optional.
 
     Returns
     -------
@@ -81,33 +93,41 @@ def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want
     dt = truth.dt
     want = set(want)
     out = {n: np.empty((kmax, 3)) for n in want}
-    _, w_b, f_b, dth, dv = truth.chunk(0, kmax)
-    dT = None
-    if temp is not None:
-        tt = np.maximum(np.arange(-1, kmax), 0) * dt
-        dT = np.ascontiguousarray(temp(tt), dtype=np.float64)
-    for s, p in (("gyro", draw.gyro), ("accel", draw.accel)):
-        m = SensorModel(p, dt)
-        z = {}
+    models, rngs = {}, {}
+    for s, p, band in (("gyro", draw.gyro, bands[0]), ("accel", draw.accel, bands[1])):
+        extra = () if band is None else (band, [sensor_rng(seed, rid, gid, shard, j, f"{s}_band")])
+        m = models[s] = SensorModel(p, dt, *extra)
         for name, use, width in (
             ("white", m.use_w, 3),
             ("rrw", m.use_r, 3),
             ("bi", m.use_b, 3 * p.components),
         ):
             if use:
-                z[name] = sensor_rng(seed, rid, gid, shard, j, f"{s}_{name}").standard_normal(
-                    (kmax, width)
-                )[None]
-        inc, rate = ("dtheta", "gyro") if s == "gyro" else ("dv", "accel")
-        args = (w_b, dth, f_b, dv) if s == "gyro" else (f_b, dv, None, None)
+                rngs[f"{s}_{name}"] = (sensor_rng(seed, rid, gid, shard, j, f"{s}_{name}"), width)
+    for k0 in range(0, kmax, CHUNK):
+        L = min(CHUNK, kmax - k0)
+        _, w_b, f_b, dth, dv = truth.chunk(k0, L)
+        if mounting is not None:
+            sh = mounting.shared(k0, L, False)
+            w_b, f_b, dth, dv = mounting.apply(k0, sh, *mount, dth, dv, False)
+        if vib is not None:
+            w_b, f_b, dth, dv = vib.apply(k0, w_b, f_b, dth, dv, raw=False)
+        dT = None
+        if temp is not None:
+            tt = np.maximum(np.arange(k0 - 1, k0 + L), 0) * dt
+            dT = np.ascontiguousarray(temp(tt), dtype=np.float64)
+        z = {k: rng.standard_normal((L, w))[None] for k, (rng, w) in rngs.items()}
+        for s, m in models.items():
+            inc, rate = ("dtheta", "gyro") if s == "gyro" else ("dv", "accel")
+            args = (w_b, dth, f_b, dv) if s == "gyro" else (f_b, dv, None, None)
 
-        def o(name):
-            return out[name][None] if name in want else None
+            def o(name, k0=k0, L=L):
+                return out[name][None, k0 : k0 + L] if name in want else None
 
-        m.step(
-            0, *args, dT, z.get("white"), z.get("rrw"), z.get("bi"), o(rate), o(inc),
-            o(f"{s}_bias"), o(f"{s}_sf"), o(f"err_{rate}"), o(f"err_{inc}"),
-        )  # fmt: skip
+            m.step(
+                k0, *args, dT, z.get(f"{s}_white"), z.get(f"{s}_rrw"), z.get(f"{s}_bi"),
+                o(rate), o(inc), o(f"{s}_bias"), o(f"{s}_sf"), o(f"err_{rate}"), o(f"err_{inc}"),
+            )  # fmt: skip
     return out
 
 

@@ -1,0 +1,100 @@
+"""imugen.stream with output bandwidths, rounding quantization, vibration and mounting.
+
+Exact mode against the written shard (bit for bit); window mode against closed forms of
+filtered white noise (:mod:`imugen.sensors.bandwidth`)."""
+
+import copy
+
+import numpy as np
+import pytest
+import yaml
+
+from imugen.sensors.grades import presets, preset_text
+from imugen.stream import Stream
+from imugen.tables import shard as tshard
+
+from helpers import simulate_shard
+
+SEED, ROUTE, W = 11, "oracle", 50
+
+BANDS = {  # grade name -> gyro/accel bandwidth entry (quantization mode)
+    "bw_ideal": ({"filter": "ideal"}, "carry"),
+    "bw_ma": ({"filter": "moving_average", "taps": 10, "internal_rate": {"value": 819.2,
+                                                                          "unit": "hz"}}, "carry"),
+    "bw_bartlett": ({"filter": "bartlett", "taps": 4, "internal_rate": {"value": 400,
+                                                                         "unit": "hz"}}, "round"),
+    "bw_butter": ({"filter": "butterworth", "order": 2, "internal_rate": {"value": 1000,
+                   "unit": "hz"}, "cutoff": {"value": 30, "unit": "hz"}}, "carry"),
+    "bw_dlpf": ({"filter": "mpu6050_dlpf", "setting": 3}, "carry"),
+    "round_only": (None, "round"),
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def grades_file(tmp_path_factory):
+    """consumer with each bandwidth / quantization mode of :data:`BANDS` (ids 90..)."""
+    base = yaml.safe_load(preset_text())["grades"]["consumer"]
+    doc = {"grades": {}}
+    for i, (name, (band, mode)) in enumerate(BANDS.items()):
+        g = copy.deepcopy(base)
+        g["id"] = 90 + i
+        for s in ("gyro", "accel"):
+            g[s]["quantization"] = {**g[s]["quantization"], "mode": mode}
+            if band is not None:
+                g[s]["bandwidth"] = band
+        doc["grades"][name] = g
+    p = tmp_path_factory.mktemp("grades") / "grades.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    return str(p)
+
+
+def moving_truth(K, dt=0.01):
+    """A body turning and accelerating (sinusoids), as arrays of a truth table."""
+    t = np.arange(K) * dt
+    w = np.column_stack([0.3 * np.sin(0.7 * t), 0.2 * np.cos(0.5 * t), 0.4 + 0 * t])
+    f = np.column_stack([1.5 * np.sin(0.3 * t), 0.8 * np.cos(0.9 * t), 9.8 + 0.5 * np.sin(t)])
+    dth = np.vstack([np.zeros(3), 0.5 * (w[1:] + w[:-1]) * dt])
+    dv = np.vstack([np.zeros(3), 0.5 * (f[1:] + f[:-1]) * dt])
+    return {"time_s": t, "omega_ib_b": w, "f_b": f, "dtheta": dth, "dv": dv}
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return moving_truth(K=400)
+
+
+def _compare_exact(tmp_path, truth, grade, grades_file=None, outputs="increments", **opts):
+    out = tmp_path / "shard-002.parquet"
+    simulate_shard(truth, str(out), grade, sequences=2, seed=SEED, shard=2, route=ROUTE,
+                   outputs=outputs, series=True, grades_file=grades_file, **opts)  # fmt: skip
+    cols = list(tshard.INCREMENTS if outputs == "increments" else tshard.RATES)
+    err = list(tshard.EFFECTIVE_ERROR[outputs])
+    t = tshard.read(out, [*cols, *err, *tshard.BIAS])
+    K = len(truth["time_s"])
+    s = Stream({ROUTE: truth}, grade, window=W, batch_size=4, windows_per_sequence=2, seed=SEED,
+               inputs=outputs, targets=["effective_error", "bias"], exact=True,
+               grades_file=grades_file, **opts)  # fmt: skip
+    j = np.array([0, 1, 1, 0])
+    k0 = np.array([1, 1, K - W, 213])
+    b = s.generate(s.keys(ROUTE, grade, 2, j, k0))
+    for name, c in (("x", cols), ("effective_error", err), ("bias", list(tshard.BIAS))):
+        a = np.column_stack([t.column(n).to_numpy() for n in c])
+        want = np.stack([a[jj * K + kk : jj * K + kk + W] for jj, kk in zip(j, k0, strict=True)])
+        np.testing.assert_array_equal(b[name], want, err_msg=f"{grade} {name}")
+
+
+@pytest.mark.parametrize("grade", list(BANDS))
+def test_exact_mode_with_bandwidth_and_rounding_is_the_shard(tmp_path, truth, grades_file, grade):
+    _compare_exact(tmp_path, truth, grade, grades_file)
+
+
+@pytest.mark.parametrize("grade", ["adis16405", "phone", "phone_calibrated"])
+@pytest.mark.parametrize("outputs", ["increments", "rates"])
+def test_measured_presets_stream_exactly(tmp_path, truth, grade, outputs):
+    assert grade in presets()
+    _compare_exact(tmp_path, truth, grade, outputs=outputs)
+
+
+def test_exact_mode_with_vibration_and_mounting_is_the_shard(tmp_path, truth):
+    _compare_exact(tmp_path, truth, "consumer", vibration="car",
+                   mounting={"misalignment_sd_deg": 1.0, "lever_arm_m": [0.3, 0.1, -0.2]})  # fmt: skip
