@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from imugen.sensors.grades import presets, preset_text
+from imugen.sensors.grades import preset_text, presets
 from imugen.stream import Stream
 from imugen.tables import shard as tshard
 

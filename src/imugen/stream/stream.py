@@ -10,10 +10,10 @@ import numpy as np
 from imugen.core.errors import InputError
 from imugen.core.seeding import sensor_rng
 from imugen.sensors.grades import get_grade
+from imugen.sensors.ideal import ArrayTruth, TruthSource
 from imugen.sensors.mounting import MountingSpec
 from imugen.sensors.mounting import setup as setup_mounting
 from imugen.sensors.vibration import setup_vibration
-from imugen.sensors.ideal import ArrayTruth, TruthSource
 from imugen.simulate.plan import enabled_terms, temperature_profile
 from imugen.simulate.sources import resolve_truth, route_name
 from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0, batch_keys, worker_batches
