@@ -98,3 +98,65 @@ def test_measured_presets_stream_exactly(tmp_path, truth, grade, outputs):
 def test_exact_mode_with_vibration_and_mounting_is_the_shard(tmp_path, truth):
     _compare_exact(tmp_path, truth, "consumer", vibration="car",
                    mounting={"misalignment_sd_deg": 1.0, "lever_arm_m": [0.3, 0.1, -0.2]})  # fmt: skip
+
+
+def _window_stream(truth, grade, grades_file, **kw):
+    kw = {"window": W, "batch_size": 8, "windows_per_sequence": 4, "seed": SEED,
+          "grades_file": grades_file, **kw}  # fmt: skip
+    return Stream({ROUTE: truth}, grade, **kw)
+
+
+@pytest.mark.parametrize("grade", ["bw_bartlett", "bw_butter", "bw_dlpf", "bw_ideal"])
+@pytest.mark.parametrize("inputs", ["increments", "rates"])
+def test_window_mode_filter_is_warmed_up_as_the_whole_sequence(truth, grades_file, grade, inputs):
+    """Deterministic terms only: the window's filtered error (filter started a warm-up before
+    the window) is the whole sequence's, up to the IIR's truncated tail."""
+    terms = "turn_on_bias scale_factor cross_coupling g_sensitivity"
+    s = _window_stream(truth, grade, grades_file, terms=terms, inputs=inputs,
+                       targets=["effective_error"])  # fmt: skip
+    K = len(truth["time_s"])
+    keys = s.keys(ROUTE, grade, 5, [0, 0, 1, 1], [1, 40, 170, K - W])
+    win = s.generate(keys, exact=False)["effective_error"]
+    ex = s.generate(keys, exact=True)["effective_error"]
+    scale = np.abs(ex).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(win[1:], ex[1:], rtol=0, atol=2e-6 * scale.max())
+    # the first window starts at the route's start: the filters start in steady state on it
+    np.testing.assert_allclose(win[0, 5:], ex[0, 5:], rtol=0, atol=2e-3 * scale.max())
+
+
+@pytest.mark.parametrize("grade", ["bw_ma", "bw_butter", "bw_dlpf"])
+def test_window_mode_noise_has_the_filters_closed_forms(grades_file, grade):
+    """White noise only: variance and lag-1 covariance of the output noise are those of
+    filtered white noise read at the output rate (OutputFilter.variance / output_autocov)."""
+    from imugen.sensors.grades import get_grade
+
+    tr = moving_truth(K=300)
+    s = _window_stream(tr, grade, grades_file, terms="white_noise", inputs="rates",
+                       targets=["effective_error"], draw="nominal", batch_size=512,
+                       windows_per_sequence=8)  # fmt: skip
+    b = s.batch(0)
+    rows = b["keys"]["k0"][:, None] + np.arange(W)
+    true = np.concatenate([tr["omega_ib_b"][rows], tr["f_b"][rows]], axis=2)
+    n = b["x"].astype(float) - true - b["effective_error"]  # (B, W, 6)
+    g = get_grade(grade, grades_file)
+    for i, sensor in enumerate(("gyro", "accel")):
+        f = s.bands[0][i]
+        N = g.sensor(sensor).white_noise.value[0]
+        r = f.output_autocov(N, 2)
+        x = n[..., 3 * i : 3 * i + 3]
+        var = np.mean(x**2)
+        lag1 = np.mean(x[:, 1:] * x[:, :-1])
+        assert var == pytest.approx(r[0], rel=0.06), sensor
+        assert lag1 / var == pytest.approx(r[1] / r[0], abs=0.04), sensor
+
+
+def test_window_mode_rounding_quantizes_each_sample(truth, grades_file):
+    s = _window_stream(truth, "round_only", grades_file, inputs="rates")
+    b = s.batch(0)
+    from imugen.sensors.grades import get_grade
+
+    g = get_grade("round_only", grades_file)
+    for i, sensor in enumerate(("gyro", "accel")):
+        q = g.sensor(sensor).quantization.value[0]
+        k = b["x"][..., 3 * i : 3 * i + 3].astype(float) / q
+        np.testing.assert_allclose(k, np.round(k), atol=1e-3)

@@ -50,6 +50,7 @@ SENSOR_STREAMS = {
     "gyro_band": 9,
     "accel_band": 10,
     "window": 11,
+    "window_band": 12,
 }
 """Per-sequence streams of the IMU (last element of its spawn key)."""
 

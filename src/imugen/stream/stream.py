@@ -21,8 +21,12 @@ from imugen.stream.windows import (
     Scratch,
     draw_params,
     exact_sequence,
+    output_stage,
+    warmup_rows,
+    window_band_rng,
     window_batch,
     window_rngs,
+    without_output_stage,
 )
 from imugen.tables import shard as tshard
 
@@ -269,9 +273,6 @@ class Stream:
             )  # fmt: skip
         if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
             raise InputError("exact", "vibration and mounting are streamed in exact mode only")
-        if not exact and any(self._post(g) for g in np.unique(sk["grade"])):
-            raise InputError("exact", "an output bandwidth or rounding quantization is streamed "
-                             "in exact mode only")  # fmt: skip
         if exact:
             self._exact(sk, seq_start, draws, want, outs)
         else:
@@ -288,9 +289,13 @@ class Stream:
                                 int(sk["j"][seq_start[s]]))
                     for s in seqs
                 ]  # fmt: skip
-                rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
-                window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
-                             sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
+                if self._post(gi):
+                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]], rngs,
+                                      [draws[s] for s in seqs], want, sub)  # fmt: skip
+                else:
+                    rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
+                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
+                                 sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
                 if not one:
                     for n in outs:
                         outs[n][sel] = sub[n]
@@ -311,6 +316,46 @@ class Stream:
                 out[t] = self._labels(draws, seq_of)[inv].astype(dt)
         out["keys"] = keys
         return out
+
+    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, rngs, draws, want, sub):
+        """Window mode of a grade with an output bandwidth or rounding quantization: the
+        kernel from :func:`~imugen.stream.windows.warmup_rows` rows before each window, then
+        :func:`~imugen.stream.windows.output_stage`."""
+        W, dt, bands = self.window, self.dt, self.bands[gi]
+        Wu = warmup_rows(bands, dt)
+        k0 = sk["k0"][sel]
+        route = sk["route"][sel]
+        K = np.array([t.K for t in self.truths])[route]
+        if np.any(K < 1 + W + Wu):
+            raise InputError("routes", f"a route is shorter than the window and the "
+                             f"{Wu} rows of the output filter's warm-up")  # fmt: skip
+        ks = np.maximum(k0 - Wu, 1)
+        Wt = W + Wu
+        kw = {
+            "rate": want["rate"] or want["err_rate"],
+            "inc": want["inc"] or want["err_inc"],
+            "err_rate": want["err_rate"],
+            "err_inc": want["err_inc"],
+            "bias": want["bias"],
+        }
+        kout = {n: np.empty((len(sel), Wt, 6)) for n, v in kw.items() if v}
+        kdraws = [without_output_stage(d, bands) for d in draws]
+        window_batch(self._tr, kdraws, seqs_of, rngs, ks, Wt, self._row0[route] + ks, kw, kout,
+                     self._scratch)  # fmt: skip
+        brng = [
+            window_band_rng(self.seed, self.route_ids[sk["route"][seq_start[s]]],
+                            self.grades[gi].id, int(sk["shard"][seq_start[s]]),
+                            int(sk["j"][seq_start[s]]))
+            for s in seqs
+        ]  # fmt: skip
+        rows = (self._row0[route] + k0)[:, None] + np.arange(W)
+        tr = self._tr
+        t_rate = np.concatenate([tr[0][rows], tr[1][rows]], axis=2)
+        t_inc = np.concatenate([tr[2][rows], tr[3][rows]], axis=2)
+        res = output_stage(draws, seqs_of, [brng[q] for q in seqs_of], bands, t_rate, t_inc, dt,
+                           k0 - ks, W, kout, want)  # fmt: skip
+        for n, a in sub.items():
+            a[...] = res[n]
 
     def _post(self, gi) -> bool:
         """Grade ``gi`` has an output bandwidth or rounding quantization."""

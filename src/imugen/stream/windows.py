@@ -32,13 +32,13 @@ increments and rates.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from imugen.core.jit import njit
 from imugen.core.seeding import generator, sensor_rng
-from imugen.sensors._kernel import kernel
+from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
 from imugen.sensors.model import SensorModel, SensorParams, draw_sensor
 from imugen.stream.keys import WINDOW_STREAM
@@ -319,3 +319,88 @@ def _windows(k0, rows, dt, W, z, zoff, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, P
                    P[0][ss], P[1][ss], P[3][ss], P[4][ss], P[5][ss], P[6][ss], P[7][ss],
                    P[8][ss], P[9][ss], use_g, P[10][ss], P[11][ss], lsb, fs, x, r, sp, qr, qi,
                    slow, out_r, out_i, out_b, out_s, out_er, out_ei)  # fmt: skip
+
+
+# --- window mode of a sensor with an output bandwidth or rounding quantization ----------------
+def warmup_rows(bands, dt) -> int:
+    """Output rows generated before a window so that its output filters forget their start:
+    the impulse response's length on the output grid, plus two (0 without a bandwidth)."""
+    n = 0
+    for f in bands:
+        if f is not None:
+            n = max(n, math.ceil(len(f.impulse()) / f.ratio) + 2)
+    return n
+
+
+def window_band_rng(seed, rid, gid, shard, j):
+    """The window-mode stream of a sequence's internal-rate noise, read phases and carry
+    residuals (stream ``window_band``, :data:`imugen.core.seeding.SENSOR_STREAMS`)."""
+    return sensor_rng(seed, rid, gid, shard, j, "window_band")
+
+
+def without_output_stage(d: Draw, bands) -> Draw:
+    """The draw the window kernel runs for a grade with an output stage: no quantization
+    (applied after the filter), no white noise where a bandwidth generates it internally."""
+    out = []
+    for p, band in ((d.gyro, bands[0]), (d.accel, bands[1])):
+        kw = {"lsb": 0.0}
+        if band is not None:
+            kw["white"] = np.zeros_like(p.white)
+        out.append(replace(p, **kw))
+    return Draw(*out)
+
+
+def output_stage(draws, seqs, band_rngs, bands, truth_rate, truth_inc, dt, lead, W, outs, want):
+    """Bandwidth and quantization of window-mode rows, as :meth:`SensorModel.step` does them.
+
+    The kernel's rows ``(B, lead_max + W, 6)`` in ``outs`` (no white noise where a bandwidth
+    generates it, no quantization) start ``lead[b]`` rows before each window: the output
+    filter's motion state starts in steady state on the first of them (a warm-up of
+    :func:`warmup_rows`), its internal-rate white noise in steady state after a warm-up of
+    the impulse response's length (exact law), the asynchronous read phase is uniform, the
+    carry residual uniform on ``[-q/2, q/2)``, all from each sequence's ``window_band``
+    stream (``band_rngs``, one per window: the sequence's, consumed window after window, gyro
+    then accelerometer). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``, ``err_rate``,
+    ``err_inc``, ``bias``: the window's rows.
+    """
+    from imugen.sensors.bandwidth import Stream as BandStream
+
+    B = len(seqs)
+    take = np.asarray(lead)[:, None] + np.arange(W)  # (B, W)
+    bi = np.arange(B)[:, None]
+    res = {n: np.empty((B, W, 6)) for n in ("rate", "inc", "err_rate", "err_inc", "bias")
+           if want.get(n)}  # fmt: skip
+    if "bias" in res:
+        res["bias"][...] = outs["bias"][bi, take]
+    for s, name in enumerate(("gyro", "accel")):
+        c = slice(3 * s, 3 * s + 3)
+        p = SensorParams.stack([getattr(draws[q], name) for q in seqs])
+        band = bands[s]
+        st = None
+        if band is not None:
+            st = BandStream(band, p.white, band_rngs)
+            noise = st.noise(1, outs["rate" if "rate" in outs else "inc"].shape[1])
+        for kind, q, fs, truth in (
+            ("rate", p.lsb, p.full_scale, truth_rate),
+            ("inc", p.lsb * dt, p.full_scale * dt, truth_inc),
+        ):
+            if kind not in outs:
+                continue
+            y = np.ascontiguousarray(outs[kind][..., c])
+            if band is not None:
+                y = st.motion(kind, 1, y / dt if kind == "inc" else y)
+                if kind == "inc":
+                    y *= dt
+                if f"err_{kind}" in res:
+                    res[f"err_{kind}"][..., c] = y[bi, take] - truth[..., c]
+                np.clip(y + (noise if kind == "rate" else noise * dt), -fs, fs, out=y)
+            elif f"err_{kind}" in res:
+                res[f"err_{kind}"][..., c] = outs[f"err_{kind}"][bi, take, c]
+            y = np.ascontiguousarray(y[bi, take])
+            r0 = np.zeros((B, 3))
+            if q > 0 and not p.q_round:  # carry from a uniform residual at the window start
+                r0 = np.stack([(g.random(3) - 0.5) * q for g in band_rngs])
+            quantize_series(y, q, p.q_round, r0)
+            if kind in res:
+                res[kind][..., c] = y
+    return res
