@@ -9,7 +9,8 @@ IMU sensors (simulate stage; :func:`sensor_rng`)
     ``(route_id, grade_id, shard, j, stream)``, ``j`` the sequence's index in its shard and
     ``stream`` from :data:`SENSOR_STREAMS` (parameter draw, white noise, rate random walk and
     bias instability per sensor, vibration, mounting, the internal-rate white noise of a
-    sensor with an output bandwidth, and the window-mode draws of :mod:`imugen.stream`). ``route_id`` is
+    sensor with an output bandwidth, and the window-mode draws of :mod:`imugen.stream`: the
+    kernel's, and those of an output bandwidth and rounding quantization). ``route_id`` is
     :func:`imugen.tables.shard.route_id` of the route name.
 GNSS receiver (aid stage; :func:`gnss_rng`)
     ``(GNSS_KEY, receiver_id, shard, j, stream)``, streams :data:`GNSS_STREAMS`.
