@@ -52,8 +52,13 @@ def main(argv=None) -> dict:
         apar.append(draw_sensor(grade.accel, rng, en["accel"]))
     dt = 0.01
     dtype = getattr(torch, a.dtype)
-    g = TorchSensor(SensorParams.stack(gp), dt, dev, dtype)
-    acc = TorchSensor(SensorParams.stack(apar), dt, dev, dtype)
+    bands = [
+        None if grade.sensor(s).bandwidth is None
+        else grade.sensor(s).bandwidth.output_filter(s, 1.0 / dt)
+        for s in ("gyro", "accel")
+    ]  # fmt: skip
+    g = TorchSensor(SensorParams.stack(gp), dt, dev, dtype, band=bands[0])
+    acc = TorchSensor(SensorParams.stack(apar), dt, dev, dtype, band=bands[1])
     L = a.samples
     t = torch.arange(L, device=dev, dtype=torch.float64) * dt
     dth = torch.stack([0.01 * torch.sin(t), 0 * t, 0.002 + 0 * t], dim=1) * dt

@@ -142,3 +142,68 @@ def test_both_triads_in_float32():
     a = TorchSensor(params(S, white=1e-2), DT)
     o = imu(g, a, torch.zeros(L, 3), torch.zeros(L, 3), generator=torch.Generator().manual_seed(0))
     assert o["inc"].shape == (S, L, 6) and o["inc"].dtype == torch.float32
+
+
+@pytest.mark.parametrize(
+    "band",
+    ["ma_async", "butterworth", "dlpf"],
+)
+def test_output_bandwidth_noise_has_the_filters_closed_forms(band):
+    """White noise through an output bandwidth: variance, lag-1 covariance and Allan variance
+    of the torch path's output are those of filtered white noise (OutputFilter's closed forms)
+    and the NumPy path's (its Stream on the same parameters)."""
+    from imugen.sensors import bandwidth as bw
+
+    f = {
+        "ma_async": bw.moving_average(10, 819.2, 1 / DT),
+        "butterworth": bw.butterworth(2, 30.0, 1000.0, 1 / DT),
+        "dlpf": bw.mpu6050_dlpf(3, "gyro", 1 / DT),
+    }[band]
+    N, S, L = 0.01, 400, 200
+    p = params(S, white=N)
+    ts = TorchSensor(p, DT, dtype=torch.float64, band=f)
+    g = torch.Generator().manual_seed(3)
+    y = ts.apply(torch.zeros(L, 3), torch.zeros(L, 3), generator=g, outputs=("rate",))["rate"]
+    y = y.numpy().transpose(0, 2, 1).reshape(-1, L)
+    m = SensorModel(p, DT, f, [np.random.default_rng(i) for i in range(S)])
+    out = np.empty((S, L, 3))
+    z3 = np.zeros((L, 3))
+    m.step(1, z3, z3, None, None, None, None, None, None, out_rate=out)
+    yn = out.transpose(0, 2, 1).reshape(-1, L)
+    r = f.output_autocov(N, 2)
+    for x in (y, yn):
+        assert np.mean(x**2) == pytest.approx(r[0], rel=0.03)
+        assert np.mean(x[:, 1:] * x[:, :-1]) / np.mean(x**2) == pytest.approx(r[1] / r[0],
+                                                                              abs=0.02)  # fmt: skip
+        for mm in (1, 4, 16):
+            assert avar(x, mm) == pytest.approx(float(f.avar(mm, N)), rel=0.08), mm
+
+
+def test_output_bandwidth_filters_the_motion_as_the_numpy_path():
+    """A deterministic scale factor on a ramp through a synchronous Butterworth: the torch
+    path's filtered output is the NumPy Stream's (both start in steady state on row 0)."""
+    from imugen.sensors import bandwidth as bw
+
+    f = bw.butterworth(2, 20.0, 1000.0, 1 / DT)
+    S, L = 3, 120
+    p = params(S, sf=0.01)
+    t = np.arange(L) * DT
+    u = np.column_stack([np.sin(3 * t), 0.5 * t, np.cos(2 * t)])
+    ts = TorchSensor(p, DT, dtype=torch.float64, band=f)
+    y = ts.apply(torch.as_tensor(u), torch.as_tensor(u) * DT, outputs=("rate",))["rate"].numpy()
+    m = SensorModel(p, DT, f, [np.random.default_rng(i) for i in range(S)])
+    out = np.empty((S, L, 3))
+    m.step(1, u, u * DT, None, None, None, None, None, None, out_rate=out)
+    np.testing.assert_allclose(y, out, rtol=0, atol=1e-7)
+
+
+def test_rounding_quantizes_each_sample():
+    p = params(50, white=0.02, lsb=0.003)
+    p = SensorParams(**{**p.__dict__, "q_round": True})
+    ts = TorchSensor(p, DT, dtype=torch.float64)
+    g = torch.Generator().manual_seed(4)
+    y = ts.apply(torch.zeros(500, 3), torch.zeros(500, 3), generator=g, outputs=("rate",))
+    k = y["rate"].numpy() / 0.003
+    np.testing.assert_allclose(k, np.round(k), atol=1e-9)
+    # rounding noise of a white signal well above the step: variance N^2/dt + q^2/12
+    assert np.var(y["rate"].numpy()) == pytest.approx(0.02**2 / DT + 0.003**2 / 12, rel=0.03)

@@ -5,10 +5,21 @@ a batch of ``S`` windows of ideal signals at once, each window with its own draw
 (:class:`imugen.sensors.model.SensorParams`, e.g. from :func:`imugen.sensors.model.draw_sensor`
 or the stream): turn-on bias, Gauss-Markov bias instability (one component, or several for
 flicker), rate random walk, scale factor and cross-coupling (misalignment), g-sensitivity
-(gyro), white noise, saturation and quantization with residual carry. Not here: temperature
-terms, a sensor's output bandwidth and rounding quantization (``bandwidth``,
-``quantization.mode: round`` of a grade: the measured presets ``adis16405``, ``phone``; use the
-NumPy path, :class:`imugen.sensors.model.SensorModel`, for them).
+(gyro), white noise, an output bandwidth (internal rate, low-pass, decimation:
+:mod:`imugen.sensors.bandwidth`, e.g. the measured presets ``adis16405``, ``phone``),
+saturation and quantization with residual carry or rounding (``quantization.mode: round``).
+Not here: temperature terms (use the NumPy path, :class:`imugen.sensors.model.SensorModel`).
+
+Output bandwidth (``band``, an :class:`~imugen.sensors.bandwidth.OutputFilter`): as the NumPy
+path's :class:`~imugen.sensors.bandwidth.Stream`, the sensed signal is interpolated linearly to
+the internal grid, filtered and read at ``floor(k D + phase)`` (``phase`` uniform per window
+for an asynchronous read, 0 for a synchronous one); the white noise is generated at the
+internal rate (``N sqrt(f_i)`` per internal sample), filtered and read at the same indices,
+after a warm-up of the impulse response's length (steady state: exact law). The filter is
+applied as a convolution with its impulse response (an IIR's truncated where its energy tail
+is below 1e-13, rescaled to unit DC gain). The motion's filter starts in steady state on the window's first row: give a
+window :func:`imugen.stream.windows.warmup_rows` rows early and drop them where the filter's
+lag at the window's start matters (the stream's window mode does).
 
 A window covers samples ``k0 .. k0 + L - 1`` of a sequence (``k0 >= 1``; row ``j``'s increment is
 the interval ending at sample ``k0 + j``). As in the stream's window mode
@@ -53,11 +64,14 @@ class TorchSensor:
     device : torch device, optional
     dtype : torch dtype
         Of the outputs (float32 default; scans in float64).
+    band : OutputFilter, optional
+        The sensor's output bandwidth read at ``1 / dt`` (module docstring).
     """
 
-    def __init__(self, params: SensorParams, dt: float, device=None, dtype=torch.float32):
-        if getattr(params, "q_round", False):
-            raise ValueError("rounding quantization is not on the torch path (use the NumPy one)")
+    def __init__(self, params: SensorParams, dt: float, device=None, dtype=torch.float32,
+                 band=None):  # fmt: skip
+        self.q_round = bool(getattr(params, "q_round", False))
+        self.band = band
         self.dt = float(dt)
         self.device = torch.device(device) if device is not None else torch.device("cpu")
         self.dtype = dtype
@@ -74,6 +88,58 @@ class TorchSensor:
         self.use_r = bool((self.rrw > 0).any())
         self.use_w = bool((self.white > 0).any())
         self.E = self.cc + torch.diag_embed(self.sf)  # (S, 3, 3)
+        if band is not None:
+            if abs(band.output_rate_hz * self.dt - 1.0) > 1e-9:
+                raise ValueError(f"band read at {band.output_rate_hz} Hz, not 1 / dt")
+            h = np.asarray(band.impulse())
+            h = torch.as_tensor(h / h.sum(), dtype=f64, device=self.device)  # unit DC gain
+            self._h = h.flip(0)[None, None]  # conv1d kernel (1, 1, n): correlation with flipped h
+
+    def _reads(self, L: int, generator):
+        """Internal read indices ``(S, L)`` of rows ``0 .. L - 1`` and the read phases
+        ``(S, 1)`` (uniform if the read is asynchronous, else 0)."""
+        f = self.band
+        k = torch.arange(L, dtype=torch.float64, device=self.device)
+        if f.synchronous:
+            ph = torch.zeros((self.S, 1), dtype=torch.float64, device=self.device)
+            return (k * round(f.ratio)).to(torch.int64).expand(self.S, L), ph
+        ph = torch.rand((self.S, 1), generator=generator, device=self.device, dtype=torch.float64)
+        return torch.floor(k * f.ratio + ph).to(torch.int64), ph
+
+    def _filter(self, x):
+        """Causal filter of internal samples ``(N, n)`` (zero before the first): ``(N, n)``."""
+        n = self._h.shape[-1]
+        return torch.nn.functional.conv1d(torch.nn.functional.pad(x[:, None], (n - 1, 0)),
+                                          self._h)[:, 0]  # fmt: skip
+
+    def _band_noise(self, j, generator):
+        """Filtered internal white noise read at ``j`` ``(S, L)``: ``(S, L, 3)``."""
+        S, L = j.shape
+        warm = self._h.shape[-1]
+        n = int(j.max()) + 1 + warm
+        z = self._randn((S * 3, n), generator)
+        y = self._filter(z).reshape(S, 3, n)
+        idx = (j + warm)[:, None, :].expand(S, 3, L)
+        scale = self.white * math.sqrt(self.band.internal_rate_hz)  # (S, 3)
+        return torch.gather(y, 2, idx).transpose(1, 2) * scale[:, None, :]
+
+    def _band_motion(self, y, j, phase):
+        """The signal ``y`` ``(S, L, 3)`` (output rows) interpolated to the internal grid,
+        filtered (steady state on its first row) and read at ``j``: ``(S, L, 3)``."""
+        S, L, _ = y.shape
+        warm = self._h.shape[-1]
+        D = self.band.ratio
+        i = torch.arange(-warm, int(j.max()) + 1, device=self.device, dtype=torch.float64)
+        pos = torch.clamp((i[None] - phase) / D, 0.0, float(L - 1))  # (S, n)
+        i0 = torch.clamp(torch.floor(pos).to(torch.int64), max=L - 1)
+        i1 = torch.clamp(i0 + 1, max=L - 1)
+        fr = (pos - i0)[..., None]
+        g0 = torch.gather(y, 1, i0[..., None].expand(-1, -1, 3))
+        g1 = torch.gather(y, 1, i1[..., None].expand(-1, -1, 3))
+        x = (g0 * (1.0 - fr) + g1 * fr).transpose(1, 2).reshape(S * 3, -1)
+        yf = self._filter(x).reshape(S, 3, -1)
+        idx = (j + warm)[:, None, :].expand(S, 3, L)
+        return torch.gather(yf, 2, idx).transpose(1, 2)
 
     def _randn(self, shape, gen):
         return torch.randn(shape, generator=gen, device=self.device, dtype=torch.float64)
@@ -142,7 +208,13 @@ class TorchSensor:
 
         u, du, a, da = f64(u), f64(du), f64(a), f64(da)
         s = self.slow(L, k0, generator)
-        w = self._randn((S, L, 3), generator) * self.white[:, None, :] if self.use_w else None
+        band = self.band is not None
+        w = None
+        if self.use_w and not band:
+            w = self._randn((S, L, 3), generator) * self.white[:, None, :]
+        if band:
+            j, phase = self._reads(L, generator)
+            nz = self._band_noise(j, generator) if self.use_w else None
         use_g = bool((self.gs != 0).any()) and a is not None
         out = {}
         if "bias" in outputs:
@@ -159,13 +231,21 @@ class TorchSensor:
                 e = e + torch.einsum("sij,slj->sli", self.gs, g)
             e = e + (s[:, 1:] if kind == "rate" else 0.5 * dt * (s[:, :-1] + s[:, 1:]))
             y = x + e
+            if band:  # filter the sensed signal (increments as mean rates), then add its noise
+                y = (self._band_motion(y / dt, j, phase) * dt if kind == "inc"
+                     else self._band_motion(y, j, phase))  # fmt: skip
+                e = y - x
+                if nz is not None:
+                    y = y + (nz if kind == "rate" else nz * dt)
             if w is not None:
                 y = y + (w / math.sqrt(dt) if kind == "rate" else w * math.sqrt(dt))
             c = torch.clamp(y, -fs, fs) if math.isfinite(fs) else y
             if f"err_{kind}" in outputs:
                 out[f"err_{kind}"] = (e + (c - y)).to(self.dtype)
             if kind in outputs:
-                if q > 0:
+                if q > 0 and self.q_round:
+                    c = q * torch.floor(c / q + 0.5)
+                elif q > 0:
                     z = q_u[:, 0 if kind == "rate" else 1][:, None, :]
                     r0 = (0.5 * torch.erfc(-z / math.sqrt(2.0)) - 0.5) * q
                     Q = q * torch.floor((r0 + torch.cumsum(c, dim=1)) / q + 0.5)
