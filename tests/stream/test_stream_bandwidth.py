@@ -160,3 +160,48 @@ def test_window_mode_rounding_quantizes_each_sample(truth, grades_file):
         q = g.sensor(sensor).quantization.value[0]
         k = b["x"][..., 3 * i : 3 * i + 3].astype(float) / q
         np.testing.assert_allclose(k, np.round(k), atol=1e-3)
+
+
+def test_gnss_target_is_the_aid_stages_table(tmp_path):
+    """The gnss target of written keys: the aid stage's GNSS table (fixes, sigmas, scenario
+    states, receiver labels) on the window's rows, with drawn outages and a spoofing ramp."""
+    from imugen.aid import stage as aid
+    from imugen.aid.options import AidOptions
+    from imugen.core.io import write_parquet
+    from imugen.tables import gnss as tgnss
+    from imugen.truth import build_truth, enu_table
+
+    t = np.arange(0.0, 181.0, 1.0)
+    enu = np.column_stack([400 * np.sin(t / 50.0), 250 * (1 - np.cos(t / 35.0)), 0.1 * t])
+    df, meta = enu_table(enu, t, origin=(45.2, 7.6, 300.0))
+    tdf, tmeta = build_truth(df, meta, rate_hz=50.0, earth="flat", verbose=False)
+    truth = write_parquet(tdf, tmeta, tmp_path / "drive" / "truth.parquet")
+    shard = tmp_path / "drive" / "imu" / "consumer" / "shard-001.parquet"
+    simulate_shard(truth, shard, "consumer", sequences=3, seed=SEED, shard=1)
+    opts = {"draw_kinds": ("outage", "spoof_ramp"), "settle_s": 20.0, "lever_arm_sd_m": 0.1}
+    g = tmp_path / "g.parquet"
+    aid.run(truth, shard, g, tmp_path / "a.parquet", AidOptions(**opts))
+    s = Stream([str(truth)], "consumer", window=400, batch_size=2, windows_per_sequence=1,
+               seed=SEED, targets=["gnss"], gnss=opts, shard_size=3)  # fmt: skip
+    route = s.route_names[0]
+    k0 = np.array([1, 4000, 7500])
+    b = s.generate(s.keys(route, "consumer", 1, [0, 2, 1], k0))
+    tab = tgnss.read(g)
+    lab = tgnss.read_labels(g)
+    ids = np.sort(tab["sequence"].unique())
+    dt = 1 / 50.0
+    for i, (j, k) in enumerate(zip([0, 2, 1], k0, strict=True)):
+        rows = tab[tab["sequence"] == ids[j]]
+        kk = np.round(rows["time_s"].to_numpy() / dt).astype(int)
+        sel = (kk >= k) & (kk < k + 400)
+        r = kk[sel] - k
+        assert len(r) >= 8
+        for name, cols in (("gnss_p_n", tgnss.P), ("gnss_v_n", tgnss.V),
+                           ("gnss_sigma_p_n", tgnss.SIGMA_P)):  # fmt: skip
+            want = rows[list(cols)].to_numpy()[sel].astype(np.float32)
+            np.testing.assert_array_equal(b[name][i, r], want, err_msg=name)
+            assert np.isnan(b[name][i, np.setdiff1d(np.arange(400), r)]).all()
+        np.testing.assert_array_equal(b["gnss_state"][i, r], rows["state"].to_numpy()[sel])
+        want = lab[lab["sequence"] == ids[j]][s.gnss_label_names].to_numpy()[0]
+        np.testing.assert_array_equal(b["gnss_labels"][i], want.astype(np.float32))
+    assert (tab["state"] != 0).any()  # the scenarios act on the table

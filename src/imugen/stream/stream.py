@@ -31,7 +31,7 @@ from imugen.stream.windows import (
 from imugen.tables import shard as tshard
 
 INPUTS = ("increments", "rates")
-TARGETS = ("effective_error", "increments", "bias", "labels")
+TARGETS = ("effective_error", "increments", "bias", "labels", "gnss")
 
 
 class Stream:
@@ -76,6 +76,13 @@ class Stream:
         As the simulate stage's options (case vibration: ``off``, ``car``, ``aircraft``,
         ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Exact mode only (their
         draws are the shard's, streams ``vibration`` and ``mounting``).
+    gnss : AidOptions or dict, optional
+        Receiver and scenarios of the ``gnss`` target (:class:`imugen.aid.options.AidOptions`
+        or its fields; default the aid stage's defaults): the aid stage's draws for the same
+        sequence (:mod:`imugen.stream.gnss`). Needs routes given as truth files.
+    shard_size : int, optional
+        Sequences per written shard, for the ``gnss`` target of written keys (a sequence's
+        index in its route is ``shard * shard_size + j``); default the batch's sequences.
     """
 
     def __init__(
@@ -100,6 +107,8 @@ class Stream:
         first_batch: int = 0,
         vibration: str | None = "off",
         mounting=None,
+        gnss=None,
+        shard_size: int | None = None,
     ):
         self.window = int(window)
         self.stride = int(stride if stride is not None else window)
@@ -168,6 +177,7 @@ class Stream:
             setup_mounting(t, self._mount_spec, src)
             for t, src in zip(self.truths, sources, strict=True)
         ]
+        self._gnss_setup(gnss, shard_size, sources)
         self._concat()
         self._scratch = Scratch()
 
@@ -192,6 +202,16 @@ class Stream:
         g = self.grades[0]
         d = draw_params(self.seed, 0, g, self.enabled[0], True, STREAM_SHARD0, 0)
         return [*d.gyro.labels("gyro", "radps"), *d.accel.labels("accel", "mps2")]
+
+    @property
+    def gnss_label_names(self) -> list[str]:
+        """Columns of the ``gnss_labels`` entry (the GNSS labels sidecar's, no ``sequence``)."""
+        if self.gnss is None:
+            return []
+        from imugen.stream import gnss as SG
+
+        return SG.label_names(SG.sequence_gnss(self._full[0], self.gnss, self.seed,
+                                               self.route_ids[0], 0))  # fmt: skip
 
     def batch(self, n: int) -> dict:
         """Batch number ``n``: ``{"x": (B, W, 6), <target>: ..., "keys": (B,) KEY_DTYPE}``."""
@@ -314,6 +334,11 @@ class Stream:
                 out[t] = np.concatenate([self._tr[2][idx], self._tr[3][idx]], axis=2).astype(dt)
             elif t == "labels":
                 out[t] = self._labels(draws, seq_of)[inv].astype(dt)
+            elif t == "gnss":
+                g = {}
+                self._gnss(sk, seq_start, seq_of, g)
+                for n, a in g.items():
+                    out[n] = a[inv] if a.dtype == np.int8 else a[inv].astype(dt)
         out["keys"] = keys
         return out
 
@@ -356,6 +381,47 @@ class Stream:
                            k0 - ks, W, kout, want)  # fmt: skip
         for n, a in sub.items():
             a[...] = res[n]
+
+    def _gnss_setup(self, gnss, shard_size, sources):
+        """Options and full truth tables of the ``gnss`` target."""
+        self.gnss = None
+        self.shard_size = None if shard_size is None else int(shard_size)
+        n_seq = self.batch_size // self.per_seq
+        if self.shard_size is not None and self.shard_size < n_seq:
+            raise InputError("shard_size", f"must be >= the batch's {n_seq} sequences")
+        if "gnss" not in self.targets:
+            return
+        from imugen.aid.options import AidOptions
+        from imugen.tables import truth as ttruth
+
+        if isinstance(gnss, dict):
+            gnss = AidOptions(**gnss)
+        self.gnss = gnss if gnss is not None else AidOptions()
+        if self._mount_spec is not None:
+            raise InputError("gnss", "the gnss target is not streamed with mounting")
+        if any(src is None for src in sources):
+            raise InputError("routes", "the gnss target needs routes given as truth files")
+        self._full = [ttruth.read(src) for src in sources]
+
+    def _gnss(self, sk, seq_start, seq_of, out):
+        """The ``gnss`` target's entries (sorted-key order) into ``out``."""
+        from imugen.stream import gnss as SG
+
+        W, B = self.window, len(sk)
+        size = self.shard_size or self.batch_size // self.per_seq
+        scen = []
+        for a in seq_start:
+            k = sk[a]
+            r = int(k["route"])
+            scen.append(SG.sequence_gnss(self._full[r], self.gnss, self.seed, self.route_ids[r],
+                                         int(k["shard"]) * size + int(k["j"])))  # fmt: skip
+        L = len(SG.label_names(scen[0]))
+        res = {n: np.empty((B, W, 3)) for n in SG.KEYS[:4]}
+        res["gnss_state"] = np.empty((B, W), np.int8)
+        res["gnss_labels"] = np.empty((B, L))
+        for b in range(B):
+            SG.lay(scen[seq_of[b]], int(sk["k0"][b]), W, res, b)
+        out.update(res)
 
     def _post(self, gi) -> bool:
         """Grade ``gi`` has an output bandwidth or rounding quantization."""
