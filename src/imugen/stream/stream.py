@@ -271,7 +271,9 @@ class Stream:
             "err_inc": not rate and "effective_error" in self.targets,
             "bias": "bias" in self.targets,
         }
-        outs = {n: self._scratch.get(n, B, W, 6) for n, v in want.items() if v}
+        # the kernels write the returned dtype (one rounding of float64 values, as the shard's
+        # float32 columns); the batch's arrays are fresh copies in the keys' order
+        outs = {n: self._scratch.get(n, B, W, 6, dtype=self.dtype) for n, v in want.items() if v}
         seq_start = np.flatnonzero(
             np.concatenate(
                 [
@@ -302,7 +304,7 @@ class Stream:
                 remap = np.full(len(seq_start), -1)
                 remap[seqs] = np.arange(len(seqs))
                 one = len(sel) == B  # a single grade: write in place
-                sub = outs if one else {n: np.empty((len(sel), W, 6)) for n in outs}
+                sub = outs if one else {n: np.empty((len(sel), W, 6), self.dtype) for n in outs}
                 rngs = [
                     window_rngs(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                                 self.grades[gi].id, int(sk["shard"][seq_start[s]]),
@@ -322,12 +324,12 @@ class Stream:
         inv = np.empty(B, np.int64)
         inv[order] = np.arange(B)
         dt = self.dtype
-        out = {"x": outs["rate" if rate else "inc"][inv].astype(dt)}
+        out = {"x": outs["rate" if rate else "inc"][inv]}
         for t in self.targets:
             if t == "effective_error":
-                out[t] = outs["err_rate" if rate else "err_inc"][inv].astype(dt)
+                out[t] = outs["err_rate" if rate else "err_inc"][inv]
             elif t == "bias":
-                out[t] = outs["bias"][inv].astype(dt)
+                out[t] = outs["bias"][inv]
             elif t == "increments":
                 rows = self._row0[keys["route"]] + keys["k0"]
                 idx = rows[:, None] + np.arange(W)

@@ -188,7 +188,8 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     want : dict
         ``{"rate", "inc", "bias", "sf", "err_rate", "err_inc"}`` -> bool.
     outs : dict
-        ``name -> (B, W, 6)`` float64 output buffers (gyro columns, then accel).
+        ``name -> (B, W, 6)`` output buffers (gyro columns, then accel), float64 or float32
+        (the kernel computes in float64 and rounds once on writing, as the shard path).
     scratch : Scratch, optional
         Reused memory for the normals (fresh pages cost more than the draws).
     """
@@ -207,7 +208,7 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
         rng.standard_normal(out=z[starts[s] : starts[s + 1]])
     first = np.concatenate([[0], np.cumsum(nwin)[:-1]])
     zoff = starts[seqs] + (np.arange(B) - first[seqs]) * per[seqs]
-    empty = np.zeros((0, W, 6))
+    empty = np.zeros((0, W, 6), next(iter(outs.values())).dtype if outs else np.float64)
     o = {
         n: (outs[n] if want.get(n) else empty)
         for n in ("rate", "inc", "bias", "sf", "err_rate", "err_inc")
@@ -227,11 +228,12 @@ class Scratch:
     def __init__(self):
         self._a = {}
 
-    def get(self, name: str, *shape) -> np.ndarray:
+    def get(self, name: str, *shape, dtype=np.float64) -> np.ndarray:
         n = int(np.prod(shape))
-        a = self._a.get(name)
+        key = (name, np.dtype(dtype))
+        a = self._a.get(key)
         if a is None or len(a) < n:
-            a = self._a[name] = np.empty(max(n, 2 * len(a) if a is not None else n))
+            a = self._a[key] = np.empty(max(n, 2 * len(a) if a is not None else n), dtype)
         return a[:n].reshape(shape)
 
 
