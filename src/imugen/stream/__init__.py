@@ -32,8 +32,11 @@ Example
         x, y = b["x"], b["effective_error"]      # float32 (256, 200, 6) each
         break
 
-Not streamed (yet): vibration, mounting, raw increments, and the aid stage's GNSS and scenario
-labels; use written shards for those.
+Grades with an output bandwidth or rounding quantization (``adis16405``, ``phone``, ...) stream
+in both modes (window mode warms each window's output filter up, :mod:`imugen.stream.windows`);
+vibration and mounting stream in exact mode; the ``gnss`` target gives the aid stage's GNSS
+fixes, scenario states and receiver labels on the window's rows (:mod:`imugen.stream.gnss`).
+Not streamed: raw increments; vibration and mounting in window mode.
 """
 
 from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0

@@ -24,9 +24,21 @@ window (:func:`window_batch`)
     of one sequence are drawn independently of each other (their slow states are not the
     same realization), so use the exact mode where the cross-window correlation matters.
 
-Neither supports vibration, mounting or raw increments (the shard options ``vibration``,
-``mounting``, ``increments="raw"``): a stream is the sensor on the truth's compensated
-increments and rates.
+Output bandwidth and rounding quantization (a grade's ``bandwidth``, ``quantization.mode:
+round``): exact mode runs the shard path's :class:`~imugen.sensors.model.SensorModel` (its
+filter streams, stream ``*_band``). Window mode (:func:`output_stage`) runs the kernel from
+:func:`warmup_rows` rows before the window (the impulse response's length on the output grid,
+plus two; from row 1 when the window starts closer to the route's start) without white noise
+and quantization, then the output filter on the motion (started in steady state on the first
+warm-up row, so the window's rows carry the filter's true history up to an IIR's truncated
+tail), the internal-rate white noise after a warm-up of the impulse response's length
+(steady state: its exact law), saturation, and quantization (rounded per sample, or carried
+from a uniform residual), these draws from the sequence's stream ``window_band``.
+
+Vibration and mounting (the shard options ``vibration``, ``mounting``) are applied to the truth
+chunks in exact mode as the shard loop applies them (streams ``vibration``, ``mounting``); window
+mode has neither. Raw increments (``increments="raw"``) are not streamed: a stream is the
+sensor on the truth's compensated increments and rates.
 """
 
 from __future__ import annotations
