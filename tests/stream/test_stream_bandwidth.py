@@ -205,3 +205,28 @@ def test_gnss_target_is_the_aid_stages_table(tmp_path):
         want = lab[lab["sequence"] == ids[j]][s.gnss_label_names].to_numpy()[0]
         np.testing.assert_array_equal(b["gnss_labels"][i], want.astype(np.float32))
     assert (tab["state"] != 0).any()  # the scenarios act on the table
+
+
+@pytest.mark.parametrize("grade", ["adis16405", "phone", "phone_calibrated"])
+def test_measured_presets_stream_in_window_mode(truth, grade):
+    """Window mode on the measured presets: finite rows, rates on the LSB grid (rounding)."""
+    from imugen.sensors.grades import get_grade
+
+    s = Stream({ROUTE: truth}, grade, window=W, batch_size=4, windows_per_sequence=2,
+               seed=SEED, inputs="rates", targets=["effective_error", "bias"])  # fmt: skip
+    b = s.batch(3)
+    assert b["x"].shape == (4, W, 6) and np.isfinite(b["x"]).all()
+    assert np.isfinite(b["effective_error"]).all() and np.isfinite(b["bias"]).all()
+    g = get_grade(grade)
+    for i, sensor in enumerate(("gyro", "accel")):
+        q = g.sensor(sensor).quantization.value[0]
+        k = b["x"][..., 3 * i : 3 * i + 3].astype(float) / q
+        np.testing.assert_allclose(k, np.round(k), atol=1e-3 * np.abs(k).max())
+
+
+def test_gnss_target_needs_truth_files(truth):
+    from imugen.core.errors import InputError
+
+    with pytest.raises(InputError, match="truth files"):
+        Stream({ROUTE: truth}, "consumer", window=W, batch_size=4, windows_per_sequence=2,
+               targets=["gnss"])  # fmt: skip
