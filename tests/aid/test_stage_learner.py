@@ -157,3 +157,21 @@ def test_bad_learned_files_are_refused_in_one_line(scene, tmp_path, cli):
     with pytest.raises(InputError, match="neither"):
         tlearned.write(rows[["sequence", "time_s"]], {}, tmp_path / "n.parquet")
         tlearned.arrays(tmp_path / "n.parquet", ids, t)
+
+
+def test_workflow_writes_the_estimates_only_when_asked(tmp_path):
+    """Dry runs: ``aided.estimates: true`` gives every aid job ``--estimates-out`` and the
+    estimates table as an output (a target of the default run); off by default."""
+    import helpers as W
+
+    cfg = {**W.TINY, "gnss": {"enabled": True}, "scenarios": {"outages_s": [60]}}
+    W.write_config(tmp_path, cfg)
+    proc = W.snakemake(tmp_path, "-n", "-p", "-j1")
+    assert proc.returncode == 0 and "--estimates-out" not in proc.stdout
+    W.write_config(tmp_path, {**cfg, "aided": {"estimates": True}})
+    proc = W.snakemake(tmp_path, "-n", "-p", "-j1")
+    out = proc.stdout
+    assert proc.returncode == 0, proc.stderr
+    n_aid = out.count("imugen aid ")
+    assert n_aid > 0 and out.count("--estimates-out=") == n_aid
+    assert "/estimates/" in out
