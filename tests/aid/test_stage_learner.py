@@ -17,10 +17,12 @@ from imugen import truth as T
 from imugen.aid import stage as AID
 from imugen.core.errors import InputError
 from imugen.core.rotations import quat_to_dcm
+from imugen.dataset import RouteFiles, WindowDataset
 from imugen.tables import aided as taided
 from imugen.tables import filter_estimates as test_
 from imugen.tables import gnss as tgnss
 from imugen.tables import imu_correction as tcorr
+from imugen.tables import layout
 from imugen.tables import learned as tlearned
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
@@ -43,11 +45,18 @@ def scene(tmp_path_factory):
     meta = {"origin": {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 200.0}, "timed": False}
     df, tm = T.build_truth(enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False)
     ttruth.write(df, tm, d / "truth.parquet")
-    simulate_shard(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=5,
+    # the results layout (imugen.tables.layout), so that the loader finds the estimates
+    shard = d / "car" / "imu" / "consumer" / "shard-001.parquet"
+    shard.parent.mkdir(parents=True)
+    simulate_shard(d / "truth.parquet", shard, "consumer", sequences=3, seed=5,
                    shard=1, shard_size=3, route="car", dtype="float64", series=True)  # fmt: skip
+    (d / "imu.parquet").symlink_to(shard)
+    est = layout.beside(shard, "estimates")
+    est.parent.mkdir(parents=True)
+    (d / "e.parquet").symlink_to(est)
     params = AID.AidOptions(intervals=(OUTAGE,))
-    AID.run(d / "truth.parquet", d / "imu.parquet", d / "g.parquet", d / "a.parquet", params,
-            out_correction=d / "c.parquet", out_estimates=d / "e.parquet")  # fmt: skip
+    AID.run(d / "truth.parquet", shard, d / "g.parquet", d / "a.parquet", params,
+            out_correction=d / "c.parquet", out_estimates=est)  # fmt: skip
     return d
 
 
@@ -175,3 +184,47 @@ def test_workflow_writes_the_estimates_only_when_asked(tmp_path):
     n_aid = out.count("imugen aid ")
     assert n_aid > 0 and out.count("--estimates-out=") == n_aid
     assert "/estimates/" in out
+
+
+def test_loader_serves_the_filter_aware_target_and_the_estimates(scene):
+    """``target="filter_aware_error"`` = the effective error minus what the filter removed from
+    each increment (its ``--correction-out``), NaN before its first epoch; the ``filter`` and
+    ``filter_sd`` extras hold the table's rows (absent states read 0)."""
+    shard = scene / "car" / "imu" / "consumer" / "shard-001.parquet"
+    route = RouteFiles("car", scene / "truth.parquet", (shard,), "consumer")
+    W = 500
+    ds = WindowDataset([route], window=W, target="filter_aware_error", dtype=np.float64,
+                       extras=["filter", "filter_sd"], cache_dir=scene / "cache")  # fmt: skip
+    eff = WindowDataset([route], window=W, target="effective_error", dtype=np.float64,
+                        cache_dir=scene / "cache")  # fmt: skip
+    sh = tshard.read(shard).to_pandas()
+    ids = sh["sequence"].unique()
+    K = ttruth.read(scene / "truth.parquet").K
+    cth, cdv = tcorr.arrays(scene / "c.parquet", ids, K)
+    corr = np.concatenate([cth, cdv], -1)
+    idx = np.arange(len(ds))
+    _x, y, ex = ds.get_batch(idx)
+    _, y_eff = eff.get_batch(idx)
+    e = test_.read(scene / "e.parquet")
+    for b in idx:
+        info = ds.window_info(int(b))
+        s = int(np.flatnonzero(ids == info["sequence"])[0])
+        rows = np.arange(info["start"], info["stop"])
+        k0 = int(e.loc[e["sequence"] == info["sequence"], "sample"].min())
+        on = rows > k0
+        assert np.isnan(y[b, ~on]).all()
+        want = y_eff[b, on] - corr[s, rows[on]]
+        np.testing.assert_allclose(y[b, on], want, rtol=0, atol=2e-6 * np.abs(corr).max())
+    # the filter removes most of the effective error (velocity part) once it runs
+    late = np.isfinite(y[..., 3])
+    assert np.sqrt(np.mean(y[..., 3:][late] ** 2)) < 0.5 * np.sqrt(
+        np.mean(y_eff[..., 3:][late] ** 2)
+    )
+    cols = ds.extra_columns["filter"]
+    f = ex["filter"]
+    valid = f[..., cols.index("filter_valid")] == 1
+    assert valid.mean() > 0.8
+    assert np.all(f[..., cols.index("gyro_sf_x")][valid] == 0.0)  # no scale-factor state
+    assert np.abs(f[..., cols.index("gyro_bias_z_radps")][valid]).max() > 0
+    sd = ex["filter_sd"][..., ds.extra_columns["filter_sd"].index("sd_att_u_rad")]
+    assert np.all(sd[valid] > 0)
