@@ -184,6 +184,20 @@ def test_workflow_writes_the_estimates_only_when_asked(tmp_path):
     n_aid = out.count("imugen aid ")
     assert n_aid > 0 and out.count("--estimates-out=") == n_aid
     assert "/estimates/" in out
+    # a learner's files per shard (aided.learned_in): an input of the aid jobs, passed on
+    tmpl = "learned/{route}/{grade}/shard-{shard}.parquet"
+    W.write_config(tmp_path, {**cfg, "aided": {"learned_in": tmpl}})
+    proc = W.snakemake(tmp_path, "-n", "-p", "-j1")
+    assert proc.returncode != 0 and "learned/" in proc.stdout + proc.stderr  # missing input
+    for route in cfg["routes"]:
+        for grade in cfg["grades"]:
+            for s in range(cfg["simulate"]["sequences"] // cfg["simulate"]["sequences_per_shard"]):
+                f = tmp_path / tmpl.format(route=route, grade=grade, shard=f"{s:03d}")
+                f.parent.mkdir(parents=True, exist_ok=True)
+                f.write_bytes(b"")
+    proc = W.snakemake(tmp_path, "-n", "-p", "-j1")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.count("--learned-in=learned/") == proc.stdout.count("imugen aid ") > 0
 
 
 def test_loader_serves_the_filter_aware_target_and_the_estimates(scene):
