@@ -18,7 +18,8 @@ Columns (conventions of :mod:`imugen`: ENU navigation frame, FLU body frame, SI)
   bias); ``gyro_sf_{x,y,z}``, ``accel_sf_{x,y,z}``: estimated scale factors (measured = (1 +
   s) true); ``gyro_cc_{ab}``, ``accel_cc_{ab}`` (pairs ``xy, xz, yx, yz, zx, zy``: row, column
   of :data:`imugen.aid.filter.CC_PAIRS`): estimated cross-coupling; ``gnss_bias_{e,n,u}_m``:
-  the receiver's position bias state. NaN where the filter has no such state;
+  the receiver's position bias state (navigation axes). NaN where the filter has no such
+  state;
 - ``sd_*``: the 1-sigma of **every error state** (the square root of the diagonal of the
   filter's covariance ``P``; correlations are not written), NaN where the filter has no such
   state: ``sd_p_{e,n,u}_m``, ``sd_v_{e,n,u}_mps``, ``sd_att_{e,n,u}_rad`` (attitude error
