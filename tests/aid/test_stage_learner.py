@@ -50,7 +50,6 @@ def scene(tmp_path_factory):
     shard.parent.mkdir(parents=True)
     simulate_shard(d / "truth.parquet", shard, "consumer", sequences=3, seed=5,
                    shard=1, shard_size=3, route="car", dtype="float64", series=True)  # fmt: skip
-    (d / "imu.parquet").symlink_to(shard)
     est = layout.beside(shard, "estimates")
     est.parent.mkdir(parents=True)
     (d / "e.parquet").symlink_to(est)
@@ -58,6 +57,10 @@ def scene(tmp_path_factory):
     AID.run(d / "truth.parquet", shard, d / "g.parquet", d / "a.parquet", params,
             out_correction=d / "c.parquet", out_estimates=est)  # fmt: skip
     return d
+
+
+def _shard(d):
+    return d / "car" / "imu" / "consumer" / "shard-001.parquet"
 
 
 def test_estimates_are_the_filter_state_at_every_epoch(scene):
@@ -84,7 +87,7 @@ def test_estimates_are_the_filter_state_at_every_epoch(scene):
 def test_held_estimates_reproduce_the_filter_correction(scene):
     """raw - corrected(raw, estimate held since the last epoch) = the filter's correction."""
     e = test_.read(scene / "e.parquet")
-    sh = tshard.read(scene / "imu.parquet").to_pandas()
+    sh = tshard.read(_shard(scene)).to_pandas()
     ids = sh["sequence"].unique()
     K = ttruth.read(scene / "truth.parquet").K
     dth = sh[list(tshard.INCREMENTS[:3])].to_numpy().reshape(len(ids), K, 3)
@@ -122,7 +125,7 @@ def test_perfect_learned_velocity_from_a_file_shrinks_the_outage_drift(scene, tm
     ids, t, z, cov = _perfect(scene, np.array([0.05, 0.02, 0.02]))
     tlearned.write(tlearned.frame(ids, t, z, cov), {"what": "truth"}, tmp_path / "l.parquet")
     params = AID.AidOptions(intervals=(OUTAGE,))
-    AID.run(scene / "truth.parquet", scene / "imu.parquet", tmp_path / "g.parquet",
+    AID.run(scene / "truth.parquet", _shard(scene), tmp_path / "g.parquet",
             tmp_path / "a.parquet", params, learned_in=tmp_path / "l.parquet",
             out_estimates=tmp_path / "e.parquet")  # fmt: skip
 
@@ -148,10 +151,10 @@ def test_bad_learned_files_are_refused_in_one_line(scene, tmp_path, cli):
         g, a = tmp_path / "g.parquet", tmp_path / "a.parquet"
         if not via_cli:
             with pytest.raises(InputError, match=match):
-                AID.run(scene / "truth.parquet", scene / "imu.parquet", g, a,
+                AID.run(scene / "truth.parquet", _shard(scene), g, a,
                         AID.AidOptions(intervals=(OUTAGE,)), learned_in=p)  # fmt: skip
         else:
-            r = cli("aid", str(scene / "truth.parquet"), str(scene / "imu.parquet"),
+            r = cli("aid", str(scene / "truth.parquet"), str(_shard(scene)),
                     f"--gnss-out={g}", f"--output={a}", f"--learned-in={p}",
                     "--scenario=outage:30@80")  # fmt: skip
             assert r.returncode != 0 and match in r.stderr, r.stderr
