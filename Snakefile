@@ -82,3 +82,9 @@ rule all:
             route=ROUTES,
             grade=GRADES if config["exports"]["formats"] and WRITE_IMU else [],
         ),
+        expand(
+            layout.shard("estimates"),
+            route=ROUTES,
+            grade=GRADES if AID_ON and AIDED["estimates"] else [],
+            shard=SHARDS,
+        ),

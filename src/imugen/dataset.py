@@ -32,6 +32,18 @@ Every sequence of a route has the truth's ``K`` samples. A window is ``window`` 
   (m) over the window, ENU: ``truth[k0 + window - 1] - truth[k0 - 1]``;
 - ``"bias"``: ``(window, 6)`` true slow bias ``gyro_bias_{x,y,z}_radps``,
   ``accel_bias_{x,y,z}_mps2`` (shards simulated with ``series=True``);
+- ``"filter_aware_error"``: ``(window, 6)`` the **filter-aware target** (issue 26): the error
+  left in each measured increment after the aided filter's own correction, i.e. the effective
+  error above minus what the filter removes from that increment,
+  ``err - (x - x_hat)``, where ``x_hat`` is the increment ``x`` corrected as the filter does
+  (:func:`imugen.tables.filter_estimates.corrected_increments`: ``(dtheta - b_g dt) / (1 +
+  s_g)`` minus the cross-coupling, likewise ``dv``) with the estimates of the last filter
+  epoch **strictly before** the row (the filter corrects the increments of
+  ``(t_j, t_{j+1}]`` with its state after epoch ``j``). Needs ``inputs="increments"``, a shard
+  with ``series=True`` and the filter-estimates table beside it (``results/<route>/estimates/
+  <grade>/``, config ``aided.estimates``); NaN at the rows before the filter's first epoch.
+  For shards of raw increments the filter corrected them after its coning and sculling
+  compensation: the target here uses the stored increments (a second-order difference);
 - label column name(s): ``(L,)`` per-sequence scalars of the labels sidecar (the drawn
   parameters), e.g. ``["gyro_bias_x_radps", ...]``.
 
@@ -56,6 +68,10 @@ loader works on results without GNSS or aided outputs.
   measured minus true antenna; invalid where no fix was delivered);
 - ``"aided"`` (:mod:`imugen.tables.aided`): the filter's position, velocity and ``q_nb``
   (scalar first) at its evaluation epochs (invalid before the filter's alignment);
+- ``"filter"`` (:mod:`imugen.tables.filter_estimates`, config ``aided.estimates``): the
+  filter's position, velocity, ``q_nb``, biases, scale factors, cross-coupling and GNSS bias at
+  every filter epoch; ``"filter_sd"``: the 1-sigma of every state (the filter's covariance
+  diagonal). States the filter does not have read 0;
 - ``"odometer"``, ``"barometer"`` (:mod:`imugen.tables.companions`): the measured ticks and
   speed, the barometric altitude; ``"odometer_error"``, ``"barometer_error"``: their true
   errors (labels: speed error; drift and total altitude error).
@@ -123,6 +139,7 @@ from imugen.core.errors import InputError
 from imugen.core.jit import njit
 from imugen.tables import aided as taided
 from imugen.tables import companions as tcomp
+from imugen.tables import filter_estimates as testim
 from imugen.tables import gnss as tgnss
 from imugen.tables import layout
 from imugen.tables import shard as tshard
@@ -130,7 +147,7 @@ from imugen.tables import truth as ttruth
 from imugen.tables.shard import BIAS, EFFECTIVE_ERROR, SEQUENCE
 
 INPUTS = {"increments": tshard.INCREMENTS, "rates": tshard.RATES}
-TARGETS = ("increments", "effective_error", "bias", "delta_vel_pos")
+TARGETS = ("increments", "effective_error", "bias", "delta_vel_pos", "filter_aware_error")
 CACHE_DIR = ".imugen-cache"
 CACHE_FORMAT = 1  # bump when the cache layout changes
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
@@ -145,12 +162,15 @@ class Extra:
     ``folder``: the table of IMU shard ``results/<route>/imu/<grade>/<name>`` is
     ``results/<route>/<folder>/<grade>/<name>``; ``read(path, columns, filters)``: the table
     module's reader (rows ``sequence``, ``time_s`` at IMU sample times); ``columns``: the
-    values given per row.
+    values given per row; ``fill``: what a NaN value reads as.
     """
 
     folder: str
     read: Callable
     columns: tuple[str, ...]
+    fill: float | None = None
+    """What a NaN value reads as (None: the epoch is invalid); ``0`` for the filter's absent
+    states."""
 
 
 EXTRAS: dict[str, Extra] = {
@@ -166,9 +186,13 @@ EXTRAS: dict[str, Extra] = {
     "barometer_error": Extra(
         "companions", tcomp.read_barometer, (tcomp.BARO_DRIFT, tcomp.BARO_ERROR)
     ),
+    "filter": Extra("estimates", testim.read, (*testim.NAV, *testim.VALUES), fill=0.0),
+    "filter_sd": Extra("estimates", testim.read, testim.SIGMAS, fill=0.0),
 }
 """Streams ``extras`` may name (``*_error``: labels, the companion's true error)."""
 EXTRA_ALIGN = ("hold", "event")
+_HELD = Extra("estimates", testim.read, testim.VALUES[:24], fill=0.0)
+"""The estimates the filter corrects the increments with (the filter-aware target's)."""
 
 
 def extra_path(shard, folder: str) -> Path:
@@ -478,7 +502,8 @@ class WindowDataset:
     keys : iterable of (str, int), optional
         Only these ``(route, sequence)`` keys (a part of :func:`split`); default all.
     inputs : {"increments", "rates"}
-    target : {"increments", "effective_error", "bias", "delta_vel_pos"} or label column(s)
+    target : {"increments", "effective_error", "bias", "delta_vel_pos", "filter_aware_error"}
+        or label column(s)
         A name or list of names of label columns gives the per-sequence scalars of the labels
         sidecar, ``(len(names),)`` per window.
     in_memory : bool
@@ -529,9 +554,13 @@ class WindowDataset:
         self.dtype = np.dtype(dtype)
         self.cache_dir = cache_dir
         self.x_cols = list(INPUTS[inputs])
-        self.y_cols = {"bias": list(BIAS), "effective_error": list(EFFECTIVE_ERROR[inputs])}.get(
-            self.target, []
-        )
+        if self.target == "filter_aware_error" and inputs != "increments":
+            raise InputError("target", "filter_aware_error needs inputs='increments'")
+        self.y_cols = {
+            "bias": list(BIAS),
+            "effective_error": list(EFFECTIVE_ERROR[inputs]),
+            "filter_aware_error": list(EFFECTIVE_ERROR[inputs]),
+        }.get(self.target, [])
         truth_cols = {
             # the rates turn the vehicle's increments into a mounted IMU's (_mounted_increments)
             "increments": [*ttruth.DTHETA, *ttruth.DV, *ttruth.GYRO],
@@ -549,7 +578,9 @@ class WindowDataset:
             n: [*EXTRAS[n].columns, f"{n}_new", f"{n}_valid", f"{n}_age_s"] for n in self.extras
         }
         epochs = {n: [] for n in self.extras}
+        held = []  # the filter-aware target's estimates
         clocks = []
+        need_clock = bool(self.extras) or self.target == "filter_aware_error"
 
         self.files: list[Path] = []
         truths, toff, lab, file_k = [], [0], [], []
@@ -561,7 +592,7 @@ class WindowDataset:
                 t = ttruth.read_arrow(r.truth, columns=truth_cols[self.target])
                 truths.append(np.column_stack([c.to_numpy() for c in t.columns]))
             toff.append(toff[-1] + K)
-            if self.extras:
+            if need_clock:
                 clocks.append(
                     ttruth.read_arrow(r.truth, columns=[ttruth.TIME]).column(0).to_numpy()
                 )
@@ -580,6 +611,8 @@ class WindowDataset:
                     lab.append(_label_rows(p, labels, ids[sel]))
                 for n in self.extras:
                     epochs[n].append(_epoch_rows(p, EXTRAS[n], ids[sel], clocks[-1], len(ent_file)))
+                if self.target == "filter_aware_error":
+                    held.append(_epoch_rows(p, _HELD, ids[sel], clocks[-1], len(ent_file)))
                 if self.target == "increments":
                     m = None
                     if tshard.read_meta(p).get("mounting"):
@@ -605,8 +638,12 @@ class WindowDataset:
             self._truth = np.concatenate(truths) if truths else None
         self._labels = np.concatenate(lab).astype(self.dtype) if lab else None
         dts = [float((c[-1] - c[0]) / (len(c) - 1)) if len(c) > 1 else 0.0 for c in clocks]
-        self._dt = np.array(dts, float)[self._route] if self.extras and len(self._route) else None
+        self._dt = np.array(dts, float)[self._route] if need_clock and len(self._route) else None
         self._epochs = {n: _EpochIndex.concat(v, len(EXTRAS[n].columns)) for n, v in epochs.items()}
+        self._held = (
+            _EpochIndex.concat(held, len(_HELD.columns))
+            if self.target == "filter_aware_error" else None
+        )  # fmt: skip
         # per window entry (angles, lever arm) of a mounted IMU (imugen.sensors.mounting), else None
         self._mount = np.concatenate(ent_mount) if mounted else None
         self._cache_paths = [
@@ -710,6 +747,8 @@ class WindowDataset:
             y = (self._truth[t0 + self.window] - self._truth[t0]).astype(self.dtype)
         elif self.target == "labels":
             y = self._labels[e]
+        elif self.target == "filter_aware_error":
+            y = self._filter_aware(e, k0, x, y)
         if self.extras:
             rows = k0[:, None] + np.arange(self.window)[None, :]
             ex = {
@@ -718,6 +757,19 @@ class WindowDataset:
             }
             return x, y, ex
         return x, y
+
+    def _filter_aware(self, e, k0, x, y) -> np.ndarray:
+        """The effective error ``y`` minus the filter's correction of the increments ``x``
+        (module docstring, ``filter_aware_error``)."""
+        rows = k0[:, None] + np.arange(self.window)[None, :] - 1  # held since before the row
+        h = self._held.gather(e, rows, self._dt[e], "hold", np.float64)
+        C = len(_HELD.columns)
+        xx = x.astype(np.float64)
+        dt = self._dt[e][:, None, None]
+        th, dv = testim.corrected_increments(xx[..., :3], xx[..., 3:6], h[..., :C], dt)
+        out = y.astype(np.float64) - (xx - np.concatenate([th, dv], -1))
+        out[h[..., C + 1] == 0] = np.nan
+        return out.astype(self.dtype)
 
     def __getitem__(self, i):
         """Window ``i`` as ``(x, y)``; a list or array of indices gives a batch (:meth:`get_batch`)."""
@@ -865,4 +917,6 @@ def _epoch_rows(shard: Path, extra: Extra, ids, clock: np.ndarray, first_entry: 
     if off.any():
         raise InputError(path, f"epoch at {t[off][0]!r} s is not an IMU sample time of the route")
     vals = df[list(extra.columns)].to_numpy(float)
+    if extra.fill is not None:
+        vals = np.where(np.isnan(vals), extra.fill, vals)
     return entry, k.astype(np.int64), vals

@@ -39,6 +39,8 @@ WORKFLOW_ONLY = {
     "simulate.sequences": "N, split into shards of sequences_per_shard (--sequences per job)",
     "simulate.write_imu": "whether the shard job is given -o",
     "gnss.enabled": "whether the aid jobs run",
+    "aided.estimates": "whether the aid job is given --estimates-out",
+    "aided.learned_in": "the aid job's --learned-in, a path with wildcards",
     "allan.sequences": "--sequences of the still IMU's simulate job",
     "exports.mat": "whether the export-mat jobs run",
     "budget.memory_gib": "the preflight's",

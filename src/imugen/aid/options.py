@@ -199,6 +199,17 @@ COMMANDS = {
                 help="IMU correction Parquet: what the filter removed from each increment "
                 "(the filter-aware target is the shard's effective error minus it)",
             ),
+            argument(
+                "--estimates-out",
+                help="filter-estimates Parquet (imugen.tables.filter_estimates): the filter's "
+                "biases, scale factors, cross-coupling, attitude, velocity, position and the "
+                "1-sigma of every state at every filter epoch",
+            ),
+            argument(
+                "--learned-in",
+                help="learned-measurements Parquet (imugen.tables.learned): body-frame velocity "
+                "with its covariance and/or NHC variances per sequence and filter epoch",
+            ),
         ),
     )
 }

@@ -54,8 +54,10 @@ from imugen.navigate.navigator import batch_size
 from imugen.tables import SEQUENCE, TIME
 from imugen.tables import aided as taided
 from imugen.tables import companions as tcomp
+from imugen.tables import filter_estimates as test
 from imugen.tables import gnss as tgnss
 from imugen.tables import imu_correction as tcorr
+from imugen.tables import learned as tlearned
 from imugen.tables import shard as tshard
 from imugen.tables import truth as ttruth
 from imugen.tables.nav import ERR_ATT, ERR_POS, ERR_TRACK
@@ -321,15 +323,49 @@ def aided_errors(truth: ttruth.Truth, ids, res: A.AidedResult, scen, every: int,
     return pd.DataFrame(rows)[list(taided.COLUMNS)]
 
 
+def filter_estimates(ids, res: A.AidedResult) -> dict:
+    """The filter-estimates table's rows (:mod:`imugen.tables.filter_estimates`) of a filter
+    result of sequences ``ids``: every epoch from the filter's start on; NaN for the states
+    the filter does not have."""
+    keep = (res.flags & A.F_ALIGNED) != 0
+    S, J = keep.shape
+    k = keep.ravel()
+    rows = {
+        SEQUENCE: np.repeat(np.asarray(ids, np.int64), J)[k],
+        TIME: np.tile(np.asarray(res.time_s, float), S)[k],
+        test.SAMPLE: np.tile(np.asarray(res.index, np.int64), S)[k],
+        test.FLAGS: res.flags[keep].astype(np.int16),
+    }
+    for cols, arr in ((ttruth.POS, res.p_n), (ttruth.VEL, res.v_n), (ttruth.QUAT, res.q_nb)):
+        for i, c in enumerate(cols):
+            rows[c] = arr[..., i][keep]
+    lay = res.layout
+    values = {"bg": res.gyro_bias, "ba": res.accel_bias, "sg": res.gyro_sf, "sa": res.accel_sf,
+              "cc": res.gyro_cc, "ca": res.accel_cc, "gnss_bias": res.gnss_bias}  # fmt: skip
+    nan = np.full(int(k.sum()), np.nan)
+    for key, cols in test.ESTIMATES.items():
+        for i, c in enumerate(cols):
+            rows[c] = values[key][..., i][keep] if lay.has(key) else nan
+    for key, cols in test.SD.items():
+        sd = res.sd_of(key) if lay.has(key) else None
+        for i, c in enumerate(cols):
+            rows[c] = sd[..., i][keep] if sd is not None else nan
+    return rows
+
+
 def aid(
     truth_path, shard_path, params: AidOptions, *, batch: int | None = None, sink=None,
     aided_sink=None, companion_sink=None, correction_in=None, correction_sink=None,
+    estimates_sink=None, learned_in=None,
 ):  # fmt: skip
     """Run the stage on one shard: ``(gnss rows, labels, intervals, aided rows, meta)``.
 
     ``correction_in``: an IMU correction table (:mod:`imugen.tables.imu_correction`, a
     learner's) subtracted from the increments before the filter; ``correction_sink(cols)``
     receives, batch by batch, what the filter removed from each increment (the same layout).
+    ``estimates_sink(meta, cols)`` receives, batch by batch, the filter's state and sigmas at every
+    epoch (:mod:`imugen.tables.filter_estimates`). ``learned_in``: a learned-measurements table
+    (:mod:`imugen.tables.learned`) fed to the filter.
 
     ``sink(meta, df)`` and ``aided_sink(meta, df)``, when given, receive the GNSS rows and the
     aided rows batch by batch (and ``gnss rows``, ``aided rows`` are then None), so neither
@@ -359,6 +395,9 @@ def aid(
         params, truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility")
     )
     mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
+    shard_ids = None
+    if learned_in is not None:
+        shard_ids = tshard.read_labels(shard_path, smeta)[SEQUENCE].to_numpy(np.int64)
     frame = truth.origin_frame()
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
@@ -384,6 +423,8 @@ def aid(
         "odometer": params.odometer,
         "barometer": params.barometer,
         "error": "filter minus truth, ENU at the true position; along/cross the true track",
+        "dt_s": float(truth.dt),
+        "learned": None if learned_in is None else Path(learned_in).name,
     }
     gnss_rows, labels, intervals, aided_rows = [], [], [], []
     never = batches = 0
@@ -408,14 +449,20 @@ def aid(
                        speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
         never += int(np.sum(init.k0 >= K))
         learned = None
-        if correction_in is not None:
-            learned = A.LearnedInputs(*tcorr.arrays(correction_in, ids, K))
+        if correction_in is not None or learned_in is not None:
+            corr = (None, None) if correction_in is None else tcorr.arrays(correction_in, ids, K)
+            meas = {}
+            if learned_in is not None:
+                meas = tlearned.arrays(learned_in, ids, scen.gnss.time_s, shard_ids)
+            learned = A.LearnedInputs(*corr, **meas)
         res = A.run(
             dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce,
             learned=learned, store_correction=correction_sink is not None,
         )  # fmt: skip
         if correction_sink is not None:
             correction_sink(tcorr.frame(ids, res.correction))
+        if estimates_sink is not None:
+            estimates_sink(meta, filter_estimates(ids, res))
         if companion_sink is not None:
             clab = pd.DataFrame({SEQUENCE: ids})
             for d in (odo, baro):
@@ -456,14 +503,17 @@ def aid(
 
 def run(
     truth, shard, out_gnss, out_nav, params: AidOptions | None = None, *, batch=None,
-    out_companions=None, correction_in=None, out_correction=None,
+    out_companions=None, correction_in=None, out_correction=None, out_estimates=None,
+    learned_in=None,
 ):  # fmt: skip
     """Run the stage on one shard and write the GNSS table (with sidecars), the aided table
     (both streamed batch by batch) and, when ``out_companions`` is given, the companion table
     (with its labels; no rows when no companion is configured) atomically; ``correction_in``
     a learner's IMU correction table to apply, ``out_correction`` where to stream what the
-    filter removed (:mod:`imugen.tables.imu_correction`). Returns ``(out_gnss, out_nav)``
-    paths."""
+    filter removed (:mod:`imugen.tables.imu_correction`), ``out_estimates`` where to stream the
+    filter's state and sigmas at every epoch (:mod:`imugen.tables.filter_estimates`),
+    ``learned_in`` a learned-measurements table (:mod:`imugen.tables.learned`). Returns
+    ``(out_gnss, out_nav)`` paths."""
     params = params or AidOptions()
     if out_companions is None and (params.odometer or params.barometer):
         raise InputError("--companions-out", "needed with an odometer or a barometer")
@@ -477,6 +527,7 @@ def run(
         tgnss.writer(out_gnss) as w,
         taided.writer(out_nav) as wa,
         tcorr.writer(out_correction) if out_correction else nullcontext() as wc,
+        test.writer(out_estimates) if out_estimates else nullcontext() as we,
     ):
         correction_sink = None
         if wc is not None:
@@ -491,9 +542,17 @@ def run(
             wa.meta = {**meta, "stage": "aid", "gnss": Path(out_gnss).name}
             wa.put(df)
 
+        def estimates_sink(meta, cols):
+            keys = ("imugen_version", "truth", "shard", "grade", "route", "options",
+                    "tuning_level", "learned")  # fmt: skip
+            we.meta = {k: meta.get(k) for k in keys} | {"stage": "aid-estimates",
+                                                        "dt_s": meta["dt_s"]}  # fmt: skip
+            we.put(cols)
+
         _, w.labels, w.intervals, _, meta = aid(
             truth, shard, params, batch=batch, sink=sink, aided_sink=aided_sink,
             companion_sink=csink, correction_in=correction_in, correction_sink=correction_sink,
+            estimates_sink=estimates_sink if we is not None else None, learned_in=learned_in,
         )  # fmt: skip
         if out_companions is not None:
             cmeta = {
@@ -519,16 +578,18 @@ def _rate(kind, preset, rate):
 
 def main(
     options: AidOptions, truth, shard, gnss_out, output, companions_out, correction_in=None,
-    correction_out=None,
+    correction_out=None, estimates_out=None, learned_in=None,
 ) -> None:  # fmt: skip
     """``imugen aid``."""
     run(
         truth, shard, gnss_out, output, options, out_companions=companions_out,
-        correction_in=correction_in, out_correction=correction_out,
+        correction_in=correction_in, out_correction=correction_out, out_estimates=estimates_out,
+        learned_in=learned_in,
     )  # fmt: skip
 
 
 __all__ = [
-    "AidOptions", "aid", "aided_errors", "companions_for", "eval_mask", "filter_options",
+    "AidOptions", "aid", "aided_errors", "companions_for", "eval_mask", "filter_estimates",
+    "filter_options",
     "gnss_for", "run",
 ]  # fmt: skip

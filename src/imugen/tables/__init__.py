@@ -13,6 +13,10 @@ on the atomic writes of :mod:`imugen.core.io`); no stage parses another's file b
 - :mod:`~imugen.tables.companions`: odometer and barometer epochs of ``imugen aid``, labels;
 - :mod:`~imugen.tables.imu_correction`: per-sample IMU corrections (a learner's, into
   ``imugen aid``; the filter's own, out of it);
+- :mod:`~imugen.tables.filter_estimates`: the aided filter's state and sigmas at every epoch
+  (``imugen aid --estimates-out``);
+- :mod:`~imugen.tables.learned`: a learner's body-frame velocities and NHC variances per epoch
+  (``imugen aid --learned-in``);
 - :mod:`~imugen.tables.layout`: where the workflow writes each of them (``results/...``).
 
 ``SEQUENCE`` (``"sequence"``) and ``TIME`` (``"time_s"``) are shared by all of them. The
@@ -28,8 +32,8 @@ TIME = "time_s"
 """Time column, seconds from the first sample of the route."""
 
 _SUBMODULES = (
-    "aided", "companions", "enu", "gnss", "imu_correction", "layout", "metrics", "nav", "shard",
-    "truth",
+    "aided", "companions", "enu", "filter_estimates", "gnss", "imu_correction", "layout",
+    "learned", "metrics", "nav", "shard", "truth",
 )  # fmt: skip
 __all__ = ["SEQUENCE", "TIME", *_SUBMODULES]
 

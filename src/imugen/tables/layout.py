@@ -14,6 +14,7 @@ with the same functions, so the two cannot drift apart::
         kind gnss: GNSS epochs (+ .labels, .intervals)        aid       (imugen.tables.gnss)
         kind aided: aided navigation errors and state         aid       (imugen.tables.aided)
         kind companions: odometer/barometer (+ .labels)       aid       (imugen.tables.companions)
+        kind estimates: the filter's state and sigmas   aid (aided.estimates) (imugen.tables.filter_estimates)
     results/{route}/metrics/{grade}.parquet        evaluate             (imugen.tables.metrics)
     results/{route}/rmse.{csv,md,tex,html}         RMSE table of the route
     results/{route}/figures/{name}.{ext}           figures
@@ -30,7 +31,7 @@ from __future__ import annotations
 
 RESULTS = "results"
 """The folder every result lies under."""
-SHARD_KINDS = ("imu", "nav", "gnss", "aided", "companions")
+SHARD_KINDS = ("imu", "nav", "gnss", "aided", "companions", "estimates")
 """Per-shard tables, one folder each under a route (``{route}/{kind}/{grade}/``)."""
 LABELS_SUFFIX = ".labels.parquet"
 """A shard's labels sidecar: ``shard-000.parquet`` -> ``shard-000.labels.parquet``."""
@@ -75,7 +76,7 @@ def shard_dir(kind: str, route="{route}", grade="{grade}", root=RESULTS) -> str:
 
 
 def shard(kind: str, route="{route}", grade="{grade}", shard="{shard}", root=RESULTS) -> str:
-    """One shard's table of ``kind`` (``imu``, ``nav``, ``gnss``, ``aided``, ``companions``)."""
+    """One shard's table of ``kind`` (:data:`SHARD_KINDS`)."""
     return f"{shard_dir(kind, route, grade, root)}/shard-{shard}.parquet"
 
 
