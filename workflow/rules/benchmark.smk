@@ -7,6 +7,10 @@
 BENCH = config.get("benchmark")
 if BENCH:
     _split = {r: s for s in ("train", "validation", "test") for r in BENCH.get(s, [])}
+    _named = [r for s in ("train", "validation", "test") for r in BENCH.get(s, [])]
+    if len(_named) != len(set(_named)):
+        _twice = sorted({r for r in _named if _named.count(r) > 1})
+        raise WorkflowError(f"imugen: error: benchmark: routes {_twice} are in two splits")
     _unknown = sorted(r for r in _split if r not in config["routes"])
     if _unknown:
         raise WorkflowError(f"imugen: error: benchmark: routes {_unknown} are not under `routes`")
