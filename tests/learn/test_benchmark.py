@@ -127,7 +127,7 @@ def test_tiny_benchmark_workflow_end_to_end(tmp_path):
                 "window": 20,
                 "width": 4,
             },
-        },  # fmt: skip
+        },
         "truth": {"rate_hz": 10, "earth": "flat"},
         "grades": {"consumer": {}},
         "simulate": {"sequences": 2, "sequences_per_shard": 2, "seed": 7},
