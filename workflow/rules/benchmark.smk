@@ -32,10 +32,6 @@ if BENCH:
     BENCH_MODEL = BENCH["model"]
     BENCH_DIR = f"{layout.RESULTS}/benchmark"
 
-    def bench_shard(kind, shard="{shard}"):
-        """A benchmark table of a route's shard: results/<route>/benchmark/<kind>/<grade>/."""
-        return f"{layout.route_dir()}/benchmark/{kind}/{{grade}}/shard-{shard}.parquet"
-
     rule learn_train:
         input:
             truth=[layout.truth(r) for r in BENCH["train"]],
