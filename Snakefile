@@ -51,6 +51,7 @@ include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
 include: "workflow/rules/allan.smk"
+include: "workflow/rules/benchmark.smk"
 
 
 onstart:
@@ -66,7 +67,8 @@ onerror:
 
 
 rule all:
-    default_target: True
+    # a benchmark config (config/benchmark.yaml) builds the benchmark instead (rule benchmark)
+    default_target: not BENCH
     input:
         expand(rules.rmse_table.output.csv, route=ROUTES),
         expand(layout.figure("figure8"), route=ROUTES, ext=FIG["formats"]),
@@ -88,3 +90,11 @@ rule all:
             grade=GRADES if AID_ON and AIDED["estimates"] else [],
             shard=SHARDS,
         ),
+
+
+if BENCH:  # default target of a benchmark config (an included file cannot set one)
+
+    rule benchmark:
+        default_target: True
+        input:
+            rules.benchmark_table.output,

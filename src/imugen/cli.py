@@ -68,11 +68,21 @@ COMMANDS = {
         "imugen.sensors.options",
         "IMU recording (minus its truth) -> vibration model: broadband + rotation harmonics",
     ),
+    "learn train": (
+        "imugen.learn.options",
+        "truth of training routes -> reference network (.pt; the optional torch extra)",
+    ),
+    "learn correct": ("imugen.learn.options", "network + IMU shard -> IMU correction Parquet"),
+    "learn table": (
+        "imugen.learn.options",
+        "metrics of the GNSS-denied benchmark -> its table (CSV, MD) and figure",
+    ),
 }
 """Command -> (module declaring it in its ``COMMANDS``, one-line help)."""
 GROUPS = {
     "grade": "import a Kalibr/VINS/i2Nav/datasheet IMU description; export Kalibr; fit a log",
     "vibration": "fit a vibration model to a recording",
+    "learn": "the GNSS-denied benchmark's reference network: train, correct a shard, table",
 }
 """Commands of two words: the first word's help."""
 

@@ -45,6 +45,9 @@ WORKFLOW_ONLY = {
     "exports.mat": "whether the export-mat jobs run",
     "budget.memory_gib": "the preflight's",
     "budget.disk_gib": "the preflight's",
+    "benchmark.train": "the truths given to learn train",
+    "benchmark.validation": "the routes whose metrics the benchmark table reads",
+    "benchmark.test": "the routes whose metrics the benchmark table reads",
 }
 """Keys of the schema that are no command's option, and what the workflow does with them."""
 NOT_PASSED = {("allan_static", "draw"): "the Allan check's still IMU is drawn nominal"}
@@ -224,17 +227,52 @@ def _job_commands(workdir) -> list[tuple[str, list[str]]]:
 
 
 def test_the_rules_pass_every_option_of_the_config(tmp_path):
-    assert {k for k in _leaves(SCHEMA) if k not in WORKFLOW_ONLY and k != "mounting"} <= {
+    assert {
+        k
+        for k in _leaves(SCHEMA)
+        if k not in WORKFLOW_ONLY and k != "mounting" and not k.startswith("benchmark.")
+    } <= {
         f"{s}.{k}" if s != "routes" else f"routes.*.{k}"
         for s, block in CFG.items()
         if isinstance(block, dict) and s != "mounting"
         for k in (block["r1"] if s == "routes" else block)
         for k in ([f"{k}.{j}" for j in block[k]] if k in ("split", "vertical") else [k])
     } | {"scenarios.intervals"}, "the test's config sets every key away from its default"
-    write_config(tmp_path, CFG)
+    _check_passed(tmp_path, CFG)
+
+
+CFG_BENCH = {
+    "routes": {"r1": CFG["routes"]["r1"], "r2": {"file": str(ROUTE)}},
+    "grades": {"consumer": {}},
+    "gnss": {"enabled": True},
+    "figures": {"formats": ["png", "pdf"], "dpi": 80},
+    "benchmark": {
+        "train": ["r2"], "test": ["r1"], "outages_s": [10, 20],
+        "model": {"steps": 7, "batch_size": 12, "windows_per_sequence": 3, "window": 30,
+                  "width": 5, "learning_rate": 0.01, "smooth_s": 9.0},
+    },
+}  # fmt: skip
+"""The benchmark's keys (a benchmark config builds only the benchmark), away from defaults."""
+
+
+def test_the_benchmark_rules_pass_every_option_of_its_config(tmp_path):
+    assert {k for k in _leaves(SCHEMA) if k.startswith("benchmark.")} - set(WORKFLOW_ONLY) <= {
+        "benchmark.outages_s",
+        *(f"benchmark.model.{k}" for k in CFG_BENCH["benchmark"]["model"]),
+    }
+    commands = _check_passed(tmp_path, CFG_BENCH, prefix="learn")
+    assert commands == {"learn train", "learn correct", "learn table"}
+
+
+def _check_passed(tmp_path, cfg, prefix="") -> set:
+    """Every option of the commands (those starting with ``prefix``) a dry run of ``cfg``
+    schedules is passed its config value; returns the commands."""
+    write_config(tmp_path, cfg)
     given, commands = set(), set()
     for rule, argv in _job_commands(tmp_path):
         name = command_of(argv)
+        if not name.startswith(prefix):
+            continue
         cmd = dict(_commands())[name]
         commands.add(name)
         o = from_namespace(cmd.options, build_parser([name]).parse_args(argv))
@@ -246,10 +284,10 @@ def test_the_rules_pass_every_option_of_the_config(tmp_path):
                 continue
             given.add((name, f.name))
             if (rule, f.name) not in NOT_PASSED:
-                want = _config_value(CFG, key, "r1")
+                want = _config_value(cfg, key, "r1")
                 assert _plain(getattr(o, f.name)) == _plain(want), (rule, f.name)
-        if name == "aid":
-            scen = CFG["scenarios"]
+        if name == "aid" and "scenarios" in cfg:
+            scen = cfg["scenarios"]
             assert _plain(o.intervals) == _plain(tuple(scen["intervals"]))
             assert _plain(o.outage_durations_s) == _plain(scen["outages_s"])
             assert set(o.draw_kinds) == {*scen["draw"], "outage"}
@@ -261,3 +299,4 @@ def test_the_rules_pass_every_option_of_the_config(tmp_path):
         if f.metadata.get("config") and (name, f.name) not in given
     }
     assert not missing, missing
+    return commands

@@ -257,6 +257,12 @@ def shard_paths(kind):
     return lambda wc: [layout.shard(kind, wc.route, wc.grade, s) for s in SHARDS]
 
 
+def bench_shard(kind, shard="{shard}"):
+    """A benchmark table of a route's shard (workflow/rules/benchmark.smk):
+    results/<route>/benchmark/<kind>/<grade>/shard-<shard>.parquet."""
+    return f"{layout.route_dir()}/benchmark/{kind}/{{grade}}/shard-{shard}.parquet"
+
+
 def route_shards(kind):
     """All shard tables of one kind of a route, grade by grade (``GRADES`` order)."""
     return lambda wc: [layout.shard(kind, wc.route, g, s) for g in GRADES for s in SHARDS]

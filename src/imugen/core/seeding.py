@@ -16,6 +16,9 @@ GNSS receiver (aid stage; :func:`gnss_rng`)
     ``(GNSS_KEY, receiver_id, shard, j, stream)``, streams :data:`GNSS_STREAMS`.
 GNSS scenarios (aid stage; :func:`scenario_rng`)
     ``(SCENARIO_KEY, shard, j, stream)``, streams :data:`SCENARIO_STREAMS`.
+Reference learned model (:mod:`imugen.learn`; :func:`learn_seed`)
+    ``(LEARN_KEY, grade_id, stream)``, streams :data:`LEARN_STREAMS` (the network's initial
+    weights and batch order given to PyTorch as one integer seed).
 Companion sensors (aid stage; :func:`companion_rng`)
     ``(COMPANION_KEY, kind, sensor_id, shard, j, stream)``, streams :data:`COMPANION_STREAMS`
     (``kind`` is :data:`imugen.aid.companions.KINDS` of the sensor).
@@ -70,6 +73,11 @@ COMPANION_KEY = 0x434F4D50
 COMPANION_STREAMS = {"params": 0, "white": 1, "bias": 2}
 """Per-sequence streams of a companion sensor (last element of its spawn key)."""
 
+LEARN_KEY = 0x4C45524E
+"""First element of the reference learned model's spawn keys ("LERN")."""
+LEARN_STREAMS = {"init": 0}
+"""Streams of the reference learned model (last element of its spawn key)."""
+
 
 def generator(seed, key: tuple[int, ...]) -> np.random.Generator:
     """``Generator(PCG64(SeedSequence(seed, spawn_key=key)))``: the one way a draw is made."""
@@ -106,3 +114,10 @@ def sequence_entropy(seed: int, route_id: int, index: int) -> list[int]:
     """``[seed, route_id, index]``: the entropy of a sequence's aid-stage draws (receiver,
     scenarios, companions), ``index`` its position in the route (``shard * shard_size + j``)."""
     return [int(seed), int(route_id), int(index)]
+
+
+def learn_seed(seed, grade_id: int, stream: str = "init") -> int:
+    """A 63-bit integer seed for PyTorch (``torch.manual_seed``) of the reference learned model
+    of grade ``grade_id`` (stream of :data:`LEARN_STREAMS`)."""
+    ss = np.random.SeedSequence(seed, spawn_key=(LEARN_KEY, int(grade_id), LEARN_STREAMS[stream]))
+    return int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))
