@@ -166,6 +166,16 @@ def test_report_has_figures_and_tables(done, tmp_path):
     html = (wd / "report.html").read_text(errors="replace")
     for name in ("figure8", "error_vs_time", "rmse", "allan"):
         assert name in html, name
+    # the report keeps one item per set of labels: every figure file of every route has its
+    # own (route, figure, grade, format), so none hides another (6 IMU figures, not 1)
+    items = set(re.findall(r'"filename": "([^"]+)", "labels": (\{[^}]*\})', html))
+    figures = sorted(p.name for p in (wd / "results").glob("*/figures/*"))
+    assert len(figures) == 2 * 2 * (3 + len(TINY["grades"])), figures
+    labels = [lab for name, lab in items if name in figures]
+    assert len(labels) == len(figures), labels
+    assert len(set(labels)) == len(labels), sorted(labels)
+    imu = [lab for name, lab in items if name.startswith("imu_")]
+    assert len(set(imu)) == 2 * 2 * len(TINY["grades"]), imu
 
 
 def test_j1_and_j2_identical(done, tmp_path):
