@@ -382,6 +382,10 @@ SCEN = config["scenarios"]
 AIDED = config["aided"]
 COMP = config["companions"]
 AID_ON = bool(GNSS["enabled"])
+OUTAGES = AID_ON and bool(
+    SCEN["outages_s"] or any(iv["kind"] == "outage" for iv in SCEN["intervals"])
+)
+"""The aid stage runs with outage scenarios: the outage-drift table and figure are made."""
 
 
 def aid_opts(wildcards):

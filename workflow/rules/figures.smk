@@ -53,3 +53,30 @@ rule outage_figure:
     shell:
         "imugen outage-figure --output={params.stem:q} "
         "{params.aided} {params.nav} --formats {params.formats} --dpi={params.dpi} > {log:q} 2>&1"
+
+
+rule outage_drift:
+    input:
+        metrics=expand(layout.metrics(grade="{grade}"), grade=GRADES, allow_missing=True),
+    output:
+        csv=report(
+            f"{layout.route_dir()}/outage_drift.csv",
+            caption="../report/outage_drift.rst",
+            category="Outages",
+            labels={"route": "{route}", "format": "CSV"},
+        ),
+        md=f"{layout.route_dir()}/outage_drift.md",
+        figures=figure_reports(
+            "outage_drift", "../report/outage_drift.rst", "drift at the end of each GNSS outage"
+        ),
+    params:
+        code=code_digest("imugen.figures.outage"),
+        stem=lambda wc: layout.figure("outage_drift", "", wc.route).removesuffix("."),
+        metrics=grade_pairs("metrics"),
+        formats=" ".join(FIG["formats"]),
+        dpi=FIG["dpi"],
+    log:
+        "logs/{route}/outage_drift.log",
+    shell:
+        "imugen outage-drift --output={params.stem:q} --table={output.csv:q} "
+        "{params.metrics} --formats {params.formats} --dpi={params.dpi} > {log:q} 2>&1"
