@@ -132,7 +132,7 @@ def _metrics(ends, drift=None):
 def test_outage_drift_table_of_constructed_metrics():
     """Median and 5-95 % over the sequences that had each outage; free inertial beside it where
     the metrics hold the same length; lengths ascending per grade, in the grades' order."""
-    from imugen.figures.outage import DRIFT_COLUMNS, outage_drift
+    from imugen.figures.outage_drift import DRIFT_COLUMNS, outage_drift
 
     a60 = np.array([1.0, 2.0, 3.0, np.nan, 5.0])  # one sequence without a 60 s outage
     a30 = np.arange(5.0)
@@ -161,7 +161,7 @@ def test_outage_drift_table_of_constructed_metrics():
 
 def test_outage_drift_refuses_metrics_without_outages():
     from imugen.core.errors import InputError
-    from imugen.figures.outage import outage_drift
+    from imugen.figures.outage_drift import outage_drift
 
     with pytest.raises(InputError, match="no GNSS outage"):
         outage_drift({"consumer": pd.DataFrame({"rmse_total_m": [1.0]})})
@@ -171,7 +171,7 @@ def test_outage_drift_command_writes_table_markdown_and_figure(tmp_path):
     """``imugen outage-drift`` on metrics written through their contract: the CSV, its
     Markdown twin and the figure (one line per grade and kind, log scale)."""
     from imugen.cli import main
-    from imugen.figures.outage import outage_drift_figure
+    from imugen.figures.outage_drift import outage_drift_figure
     from imugen.tables import metrics as tmetrics
 
     paths = []

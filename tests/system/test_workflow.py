@@ -262,6 +262,12 @@ def test_configfile_replaces_the_shipped_routes_and_grades(tmp_path):
     outs = dry_run_outputs(tmp_path)
     assert {p.split("/")[1] for p in outs if "/nav/" in p} == set(shipped["routes"])
     assert {p.split("/")[3] for p in outs if "/nav/" in p} == set(shipped["grades"])
+    # the shipped example shows the GNSS-denied result: the aid stage with declared outages,
+    # their drift table and figure beside the error growth
+    assert shipped["gnss"]["enabled"] and shipped["scenarios"]["intervals"]
+    for f in ("outage_drift.csv", "outage_drift.md", "figures/outage_drift.png",
+              "figures/outage_growth.png", "aided/consumer/shard-000.parquet"):  # fmt: skip
+        assert f"results/example/{f}" in outs, f
 
 
 def test_export_formats_planned_per_route_and_grade(tmp_path):

@@ -70,7 +70,7 @@ rule outage_drift:
             "outage_drift", "../report/outage_drift.rst", "drift at the end of each GNSS outage"
         ),
     params:
-        code=code_digest("imugen.figures.outage"),
+        code=code_digest("imugen.figures.outage_drift"),
         stem=lambda wc: layout.figure("outage_drift", "", wc.route).removesuffix("."),
         metrics=grade_pairs("metrics"),
         formats=" ".join(FIG["formats"]),

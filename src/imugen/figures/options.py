@@ -38,7 +38,7 @@ class OutageFigureOptions:
 
 @dataclass(frozen=True, kw_only=True)
 class OutageDriftOptions:
-    """How the outage-drift figure is drawn (:func:`imugen.figures.outage.outage_drift`)."""
+    """How the outage-drift figure is drawn (:func:`imugen.figures.outage_drift.outage_drift`)."""
 
     formats: tuple[str, ...] = same_as(FiguresOptions, "formats")
     dpi: int = same_as(FiguresOptions, "dpi")
@@ -70,7 +70,7 @@ COMMANDS = {
     ),
     "outage-drift": Command(
         OutageDriftOptions,
-        "imugen.figures.outage:main_drift",
+        "imugen.figures.outage_drift:main",
         (
             argument("-o", "--output", required=True, help="figure path without extension"),
             argument("--table", required=True, help="table CSV (a Markdown twin beside it)"),
