@@ -73,6 +73,9 @@ rule all:
         expand(rules.rmse_table.output.csv, route=ROUTES),
         expand(layout.figure("figure8"), route=ROUTES, ext=FIG["formats"]),
         expand(layout.figure("outage_growth"), route=ROUTES if AID_ON else [], ext=FIG["formats"]),
+        expand(
+            layout.figure("outage_drift"), route=ROUTES if OUTAGES else [], ext=FIG["formats"]
+        ),
         expand(rules.allan.output.json, grade=GRADES),
         expand(
             rules.export_mat.output[0],

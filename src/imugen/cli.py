@@ -45,6 +45,10 @@ COMMANDS = {
         "imugen.figures.options",
         "aided error growth during GNSS outages per grade, free inertial beside",
     ),
+    "outage-drift": (
+        "imugen.figures.options",
+        "per-grade metrics -> drift at the end of each GNSS outage (table, figure)",
+    ),
     "export-mat": (
         "imugen.export.options",
         "one grade's truth, IMU, labels, errors -> MATLAB .mat",

@@ -222,12 +222,13 @@ def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     cfg["grades"] = {"consumer": {}, "tactical": {}}
     W.write_config(tmp_path, cfg)
     jobs = W.planned_jobs(tmp_path)
-    assert "aid" not in jobs and "outage_figure" not in jobs
+    assert "aid" not in jobs and "outage_figure" not in jobs and "outage_drift" not in jobs
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True}, "scenarios": {"outages_s": [60]}})
     jobs = W.planned_jobs(tmp_path)
     shards = cfg["simulate"]["sequences"] // cfg["simulate"]["sequences_per_shard"]
     assert jobs["aid"] == len(cfg["routes"]) * len(cfg["grades"]) * shards
     assert jobs["outage_figure"] == len(cfg["routes"])  # the outage figure of each route
+    assert jobs["outage_drift"] == len(cfg["routes"])  # and its outage-drift table and figure
     W.write_config(tmp_path, {**cfg, "gnss": {"enabled": True, "receiver": "galileo"}})
     proc = W.snakemake(tmp_path, "-n", "-j1")
     assert proc.returncode != 0 and "galileo" in proc.stdout + proc.stderr

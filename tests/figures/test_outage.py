@@ -119,3 +119,85 @@ def test_figure_curves_and_legends(tmp_path):
     assert x[-1] == 60 and y[-1] == pytest.approx(0.05 * 60**3)  # free inertial, same span
     paths = outage_growth(aided, nav, tmp_path / "fig", formats=["png"], dpi=50)
     assert [p.name for p in paths] == ["fig.png"] and paths[0].stat().st_size > 1000
+
+
+def _metrics(ends, drift=None):
+    """Per-sequence metrics with ``outage_<D>s_end_m`` (and ``drift_<D>s_m``) columns."""
+    df = pd.DataFrame({f"outage_{D:g}s_end_m": v for D, v in ends.items()})
+    for D, v in (drift or {}).items():
+        df[f"drift_{D:g}s_m"] = v
+    return df
+
+
+def test_outage_drift_table_of_constructed_metrics():
+    """Median and 5-95 % over the sequences that had each outage; free inertial beside it where
+    the metrics hold the same length; lengths ascending per grade, in the grades' order."""
+    from imugen.figures.outage_drift import DRIFT_COLUMNS, outage_drift
+
+    a60 = np.array([1.0, 2.0, 3.0, np.nan, 5.0])  # one sequence without a 60 s outage
+    a30 = np.arange(5.0)
+    tab = outage_drift(
+        {
+            "tactical": _metrics({60: a60, 30: a30}, drift={30: 10 * a30}),
+            "consumer": _metrics({30: a30 + 1}),
+        }
+    )
+    assert list(tab.columns) == DRIFT_COLUMNS
+    assert list(zip(tab.grade, tab.outage_s, strict=True)) == [
+        ("tactical", 30),
+        ("tactical", 60),
+        ("consumer", 30),
+    ]
+    assert tab.sequences.tolist() == [5, 4, 5]
+    r = tab.iloc[1]
+    v = a60[np.isfinite(a60)]
+    np.testing.assert_allclose(
+        [r.aided_end_m, r.aided_end_p05_m, r.aided_end_p95_m], np.percentile(v, [50, 5, 95])
+    )
+    assert np.isnan(r.free_inertial_drift_m)  # no drift_60s_m
+    np.testing.assert_allclose(tab.iloc[0].free_inertial_drift_m, 20.0)
+    np.testing.assert_allclose(tab.iloc[2].aided_end_m, 3.0)
+
+
+def test_outage_drift_refuses_metrics_without_outages():
+    from imugen.core.errors import InputError
+    from imugen.figures.outage_drift import outage_drift
+
+    with pytest.raises(InputError, match="no GNSS outage"):
+        outage_drift({"consumer": pd.DataFrame({"rmse_total_m": [1.0]})})
+
+
+def test_outage_drift_command_writes_table_markdown_and_figure(tmp_path):
+    """``imugen outage-drift`` on metrics written through their contract: the CSV, its
+    Markdown twin and the figure (one line per grade and kind, log scale)."""
+    from imugen.cli import main
+    from imugen.figures.outage_drift import outage_drift_figure
+    from imugen.tables import metrics as tmetrics
+
+    paths = []
+    for g, k in (("consumer", 10.0), ("tactical", 1.0)):
+        df = _metrics({30: k * np.arange(1.0, 5.0), 60: k * np.arange(2.0, 6.0)}, {30: [9.0] * 4})
+        df.insert(0, "sequence", np.arange(4))
+        df["rmse_total_m"] = 1.0
+        paths.append(tmetrics.write(df, {}, tmp_path / f"{g}.parquet"))
+    out = tmp_path / "fig" / "outage_drift"
+    csv = tmp_path / "outage_drift.csv"
+    argv = ["outage-drift", f"--output={out}", f"--table={csv}", "--formats", "png"]
+    assert main(argv + [f"--metrics={p.stem}={p}" for p in paths]) == 0
+    tab = pd.read_csv(csv)
+    assert tab.grade.tolist() == ["consumer", "consumer", "tactical", "tactical"]
+    np.testing.assert_allclose(tab.aided_end_m, [25.0, 35.0, 2.5, 3.5])
+    md = csv.with_suffix(".md").read_text()
+    assert (
+        "| consumer | 60 | 4 | 35 [" in md and "| tactical | 60 | 4 | 3.5 [2.15-4.85] | - |" in md
+    )
+    assert (out.parent / "outage_drift.png").stat().st_size > 1000
+    with style():
+        fig = outage_drift_figure(tab)
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log"
+    labels = ax.get_legend_handles_labels()[1]
+    assert labels == [
+        "consumer: aided (GNSS lost)", "consumer: free inertial",
+        "tactical: aided (GNSS lost)", "tactical: free inertial",
+    ]  # fmt: skip

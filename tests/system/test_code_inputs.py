@@ -29,8 +29,8 @@ CFG = {
 }
 
 AFTER_TRUTH = {
-    "simulate", "aid", "evaluate", "rmse_table", "figures", "outage_figure", "export_mat",
-    "export_formats", "all",
+    "simulate", "aid", "evaluate", "rmse_table", "figures", "outage_figure", "outage_drift",
+    "export_mat", "export_formats", "all",
 }  # fmt: skip
 """Every rule downstream of the truth (with the aid stage and both exports on)."""
 IMU = AFTER_TRUTH | {"allan_static", "allan"}
@@ -38,7 +38,10 @@ IMU = AFTER_TRUTH | {"allan_static", "allan"}
 follows, and the Allan check's still IMU (``imugen simulate --static`` is the same command,
 so it runs the same code)."""
 
-AFTER_AID = {"aid", "evaluate", "rmse_table", "figures", "outage_figure", "export_formats", "all"}
+AFTER_AID = {
+    "aid", "evaluate", "rmse_table", "figures", "outage_figure", "outage_drift", "export_formats",
+    "all",
+}  # fmt: skip
 """The aid jobs and what reads their tables (metrics, the outage figure, the TUM export)."""
 
 EDITS = {
@@ -47,10 +50,11 @@ EDITS = {
     "sensors/model.py": IMU,
     "navigate/_kernel.py": IMU,
     "aid/scenarios.py": AFTER_AID,
-    "evaluate/stage.py": {"evaluate", "rmse_table", "figures", "all"},
-    "tables/metrics.py": {"evaluate", "rmse_table", "figures", "all"},
+    "evaluate/stage.py": {"evaluate", "rmse_table", "figures", "outage_drift", "all"},
+    "tables/metrics.py": {"evaluate", "rmse_table", "figures", "outage_drift", "all"},
     "figures/mapview.py": {"figures", "all"},
     "figures/outage.py": {"outage_figure", "all"},
+    "figures/outage_drift.py": {"outage_drift", "all"},
     "export/tum.py": {"export_formats", "all"},
     "export/mat.py": {"export_mat", "all"},
     "allan/stage.py": {"allan", "all"},

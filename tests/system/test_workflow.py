@@ -166,6 +166,16 @@ def test_report_has_figures_and_tables(done, tmp_path):
     html = (wd / "report.html").read_text(errors="replace")
     for name in ("figure8", "error_vs_time", "rmse", "allan"):
         assert name in html, name
+    # the report keeps one item per set of labels: every figure file of every route has its
+    # own (route, figure, grade, format), so none hides another (6 IMU figures, not 1)
+    items = set(re.findall(r'"filename": "([^"]+)", "labels": (\{[^}]*\})', html))
+    figures = sorted(p.name for p in (wd / "results").glob("*/figures/*"))
+    assert len(figures) == 2 * 2 * (3 + len(TINY["grades"])), figures
+    labels = [lab for name, lab in items if name in figures]
+    assert len(labels) == len(figures), labels
+    assert len(set(labels)) == len(labels), sorted(labels)
+    imu = [lab for name, lab in items if name.startswith("imu_")]
+    assert len(set(imu)) == 2 * 2 * len(TINY["grades"]), imu
 
 
 def test_j1_and_j2_identical(done, tmp_path):
@@ -252,6 +262,12 @@ def test_configfile_replaces_the_shipped_routes_and_grades(tmp_path):
     outs = dry_run_outputs(tmp_path)
     assert {p.split("/")[1] for p in outs if "/nav/" in p} == set(shipped["routes"])
     assert {p.split("/")[3] for p in outs if "/nav/" in p} == set(shipped["grades"])
+    # the shipped example shows the GNSS-denied result: the aid stage with declared outages,
+    # their drift table and figure beside the error growth
+    assert shipped["gnss"]["enabled"] and shipped["scenarios"]["intervals"]
+    for f in ("outage_drift.csv", "outage_drift.md", "figures/outage_drift.png",
+              "figures/outage_growth.png", "aided/consumer/shard-000.parquet"):  # fmt: skip
+        assert f"results/example/{f}" in outs, f
 
 
 def test_export_formats_planned_per_route_and_grade(tmp_path):

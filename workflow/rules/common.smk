@@ -10,6 +10,7 @@ from pathlib import Path
 
 import yaml
 from snakemake.exceptions import WorkflowError
+from snakemake.io import report as report_flag  # a bare `report(` reads as `report:`
 from snakemake.utils import validate
 
 # the checks below use this checkout's package (the jobs call the installed `imugen`)
@@ -60,6 +61,22 @@ IMU_OUTPUTS = (
 )
 IMU_GRADES = GRADES if WRITE_IMU else []
 FIG = config["figures"]
+
+
+def figure_reports(stem, caption, figure, **labels):
+    """One report item per figure format of ``layout.figure(stem, ext)``: each with its own
+    labels (route, figure, the given extra labels such as the grade, and the format), since
+    Snakemake's report keeps one item per set of labels within a category (items sharing
+    labels hide each other; tests/system/test_workflow.py checks they are unique)."""
+    return [
+        report_flag(
+            layout.figure(stem, ext),
+            caption=caption,
+            category="Figures",
+            labels={"route": "{route}", "figure": figure, **labels, "format": ext.upper()},
+        )
+        for ext in FIG["formats"]
+    ]
 
 
 wildcard_constraints:
@@ -371,6 +388,10 @@ SCEN = config["scenarios"]
 AIDED = config["aided"]
 COMP = config["companions"]
 AID_ON = bool(GNSS["enabled"])
+OUTAGES = AID_ON and bool(
+    SCEN["outages_s"] or any(iv["kind"] == "outage" for iv in SCEN["intervals"])
+)
+"""The aid stage runs with outage scenarios: the outage-drift table and figure are made."""
 
 
 def aid_opts(wildcards):

@@ -8,30 +8,13 @@ rule figures:
         metrics=expand(layout.metrics(grade="{grade}"), grade=GRADES, allow_missing=True),
         imu=[layout.shard("imu", grade=g, shard=layout.shard_label(0)) for g in IMU_GRADES],
     output:
-        report(
-            [layout.figure("figure8", ext) for ext in FIG["formats"]],
-            caption="../report/figure8.rst",
-            category="Figures",
-            labels={"route": "{route}", "figure": "Figure 8 (paper)"},
-        ),
-        report(
-            [layout.figure("trajectories_3d", ext) for ext in FIG["formats"]],
-            caption="../report/trajectories_3d.rst",
-            category="Figures",
-            labels={"route": "{route}", "figure": "3-D trajectories"},
-        ),
-        report(
-            [layout.figure("error_vs_time", ext) for ext in FIG["formats"]],
-            caption="../report/error_vs_time.rst",
-            category="Figures",
-            labels={"route": "{route}", "figure": "errors against time"},
-        ),
-        report(
-            [layout.figure(f"imu_{g}", ext) for g in IMU_GRADES for ext in FIG["formats"]],
-            caption="../report/imu.rst",
-            category="Figures",
-            labels={"route": "{route}", "figure": "IMU signals"},
-        ),
+        figure_reports("figure8", "../report/figure8.rst", "Figure 8 (paper)"),
+        figure_reports("trajectories_3d", "../report/trajectories_3d.rst", "3-D trajectories"),
+        figure_reports("error_vs_time", "../report/error_vs_time.rst", "errors against time"),
+        [
+            figure_reports(f"imu_{g}", "../report/imu.rst", "IMU signals", grade=g)
+            for g in IMU_GRADES
+        ],
     params:
         code=code_digest("imugen.figures.stage"),
         outdir=lambda wc: layout.figures_dir(wc.route),
@@ -55,11 +38,8 @@ rule outage_figure:
         aided=route_shards("aided"),
         nav=route_shards("nav"),
     output:
-        report(
-            [layout.figure("outage_growth", ext) for ext in FIG["formats"]],
-            caption="../report/outage_growth.rst",
-            category="Figures",
-            labels={"route": "{route}", "figure": "error growth during GNSS outages"},
+        figure_reports(
+            "outage_growth", "../report/outage_growth.rst", "error growth during GNSS outages"
         ),
     params:
         code=code_digest("imugen.figures.outage"),
@@ -73,3 +53,30 @@ rule outage_figure:
     shell:
         "imugen outage-figure --output={params.stem:q} "
         "{params.aided} {params.nav} --formats {params.formats} --dpi={params.dpi} > {log:q} 2>&1"
+
+
+rule outage_drift:
+    input:
+        metrics=expand(layout.metrics(grade="{grade}"), grade=GRADES, allow_missing=True),
+    output:
+        csv=report(
+            f"{layout.route_dir()}/outage_drift.csv",
+            caption="../report/outage_drift.rst",
+            category="Outages",
+            labels={"route": "{route}", "format": "CSV"},
+        ),
+        md=f"{layout.route_dir()}/outage_drift.md",
+        figures=figure_reports(
+            "outage_drift", "../report/outage_drift.rst", "drift at the end of each GNSS outage"
+        ),
+    params:
+        code=code_digest("imugen.figures.outage_drift"),
+        stem=lambda wc: layout.figure("outage_drift", "", wc.route).removesuffix("."),
+        metrics=grade_pairs("metrics"),
+        formats=" ".join(FIG["formats"]),
+        dpi=FIG["dpi"],
+    log:
+        "logs/{route}/outage_drift.log",
+    shell:
+        "imugen outage-drift --output={params.stem:q} --table={output.csv:q} "
+        "{params.metrics} --formats {params.formats} --dpi={params.dpi} > {log:q} 2>&1"

@@ -1,4 +1,4 @@
-"""Options of ``imugen figures`` and ``imugen outage-figure``; imports nothing of the stage."""
+"""Options of ``imugen figures``, ``imugen outage-figure`` and ``imugen outage-drift``; imports nothing of the stage."""
 
 from __future__ import annotations
 
@@ -36,6 +36,14 @@ class OutageFigureOptions:
     dpi: int = same_as(FiguresOptions, "dpi")
 
 
+@dataclass(frozen=True, kw_only=True)
+class OutageDriftOptions:
+    """How the outage-drift figure is drawn (:func:`imugen.figures.outage_drift.outage_drift`)."""
+
+    formats: tuple[str, ...] = same_as(FiguresOptions, "formats")
+    dpi: int = same_as(FiguresOptions, "dpi")
+
+
 _NAV = argument("--nav", action="append", metavar="GRADE=PATH", help="navigation errors")
 COMMANDS = {
     "figures": Command(
@@ -58,6 +66,21 @@ COMMANDS = {
                 "--aided", action="append", required=True, metavar="GRADE=PATH", help="aided tables"
             ),
             _NAV,
+        ),
+    ),
+    "outage-drift": Command(
+        OutageDriftOptions,
+        "imugen.figures.outage_drift:main",
+        (
+            argument("-o", "--output", required=True, help="figure path without extension"),
+            argument("--table", required=True, help="table CSV (a Markdown twin beside it)"),
+            argument(
+                "--metrics",
+                action="append",
+                required=True,
+                metavar="GRADE=PATH",
+                help="per-sequence metrics",
+            ),
         ),
     ),
 }

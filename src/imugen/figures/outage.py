@@ -10,6 +10,8 @@ still without GNSS then. Right panel: the free-inertial horizontal error of the 
 (``imugen navigate``: strapdown from the true state at ``t_0``) against time since ``t_0``, over
 the same span, median and 5-95 % band over sequences. Log scale; shared plotting style
 (:mod:`imugen.core.plotting`), grade colours of :mod:`imugen.figures.stage`.
+
+The drift at the end of each outage, as a table and a figure: :mod:`imugen.figures.outage_drift`.
 """
 
 from __future__ import annotations
