@@ -106,6 +106,28 @@ def pose_motion(enu: pd.DataFrame, meta: dict, settings: PoseSettings | None):
     return fit_poses(enu[tenu.TIME].to_numpy(float), y, q_n, settings)
 
 
+def _virtual(t: np.ndarray, meta: dict) -> np.ndarray | None:
+    """Rows of a timed route that are virtual fixes of bridged gaps (ingestion's
+    ``segments.virtual_s`` spans, s like ``time_s``), or None."""
+    spans = (meta.get("segments") or {}).get("virtual_s") or []
+    if not spans:
+        return None
+    out = np.zeros(len(t), bool)
+    for a, b in spans:
+        out |= (t > a + 1e-6) & (t < b - 1e-6)
+    return out if out.any() else None
+
+
+def _limits(vp: VehicleParams, opts: BuildOptions) -> dict:
+    """The speed profile's limits of an untimed route: the options' or the class's."""
+    return {
+        "cruise_mps": opts.cruise_mps or vp.cruise_mps,
+        "accel_mps2": opts.accel_mps2 or vp.accel_mps2,
+        "lat_accel_mps2": opts.lat_accel_mps2 or vp.lat_accel_mps2,
+        "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
+    }
+
+
 def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOptions, E=None):
     """Fit the route: returns (motion, fit report, timing report).
 
@@ -124,7 +146,8 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
         raise InputError(None, "ENU table holds non-finite coordinates")
     timed = bool(meta.get("timed", col.TIME in enu.columns)) and col.TIME in enu.columns
     if timed:
-        motion, fit = fit_timed(enu[col.TIME].to_numpy(float), y, vp, opts.fit_tol_m, opts.stops)
+        t = enu[col.TIME].to_numpy(float)
+        motion, fit = fit_timed(t, y, vp, opts.fit_tol_m, opts.stops, _virtual(t, meta))
         timing = {"timed": True, "source": "input clock"}
     else:
         G, L, fit, s_v = fit_path(y, vp, opts.corner_m, vertices=True)
@@ -135,13 +158,7 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
         if vp.phases:
             alt = enu[tenu.ALT].to_numpy(float) if tenu.ALT in enu.columns else y[:, 2]
             G, L, vmax, plan = flight_geometry(G, L, _origin(meta), alt, vp)
-        prof = {
-            "cruise_mps": opts.cruise_mps or vp.cruise_mps,
-            "accel_mps2": opts.accel_mps2 or vp.accel_mps2,
-            "lat_accel_mps2": opts.lat_accel_mps2 or vp.lat_accel_mps2,
-            "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
-        }
-        s_pp, rep = speed_profile(G, L, **prof, vmax_mps=vmax)
+        s_pp, rep = speed_profile(G, L, **_limits(vp, opts), vmax_mps=vmax)
         motion = PathMotion(G, s_pp, L, profile)
         timing = {"timed": False, "source": "speed profile", **rep}
         if plan is not None:
