@@ -24,6 +24,7 @@ from imugen.truth.increments import imu_pass
 from imugen.truth.pose import PoseSettings, fit_poses, motion_figures, pose_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
+from imugen.truth.reversals import find_reversals, legs_motion
 from imugen.truth.road import motion_on_road, path_on_road
 from imugen.truth.vehicles import VehicleParams, vehicle_params
 
@@ -107,14 +108,14 @@ def pose_motion(enu: pd.DataFrame, meta: dict, settings: PoseSettings | None):
 
 
 def _virtual(t: np.ndarray, meta: dict) -> np.ndarray | None:
-    """Rows of a timed route that are virtual fixes of bridged gaps (ingestion's
-    ``segments.virtual_s`` spans, s like ``time_s``), or None."""
-    spans = (meta.get("segments") or {}).get("virtual_s") or []
-    if not spans:
-        return None
-    out = np.zeros(len(t), bool)
-    for a, b in spans:
-        out |= (t > a + 1e-6) & (t < b - 1e-6)
+    """Coordinates of a timed route that ingestion placed, (n, 3) bool, or None: the virtual
+    fixes of bridged gaps (``segments.virtual_s`` spans, s like ``time_s``) and the heights
+    held while an aircraft stands still (``cleaning.still_runs_s``)."""
+    out = np.zeros((len(t), 3), bool)
+    for a, b in (meta.get("segments") or {}).get("virtual_s") or []:
+        out[(t > a + 1e-6) & (t < b - 1e-6)] = True
+    for a, b in (meta.get("cleaning") or {}).get("still_runs_s") or []:
+        out[(t >= a - 1e-6) & (t <= b + 1e-6), 2] = True
     return out if out.any() else None
 
 
@@ -134,7 +135,8 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
     With ``E`` (the :class:`EarthField` of the truth), an untimed ground route's geometry
     takes the vertical of its road profile before its speed profile (:func:`_path_on_road`);
     the motion's ``profile`` holds it. A pose trajectory's motion carries its attitude
-    (:func:`pose_motion`)."""
+    (:func:`pose_motion`). An untimed ground route that doubles back is timed leg by leg with
+    a stop and a turn at each reversal (:mod:`imugen.truth.reversals`)."""
     for c in tenu.ENU:
         if c not in enu.columns:
             raise InputError(None, f"ENU table lacks column {c!r}")
@@ -149,6 +151,8 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
         t = enu[col.TIME].to_numpy(float)
         motion, fit = fit_timed(t, y, vp, opts.fit_tol_m, opts.stops, _virtual(t, meta))
         timing = {"timed": True, "source": "input clock"}
+    elif vp.attitude == "ground" and (cuts := find_reversals(y, vp)):
+        motion, fit, timing = legs_motion(y, cuts, vp, opts.corner_m, _limits(vp, opts))
     else:
         G, L, fit, s_v = fit_path(y, vp, opts.corner_m, vertices=True)
         profile = None
@@ -376,6 +380,8 @@ def build_truth(
     model = earth
     E = None if earth == "auto" else EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
     motion, fit, timing = build_motion(enu, meta, vp, opts, E)
+    if "vertex_times_s" in timing:  # timed leg by leg: the input points' times
+        enu = enu.assign(**{col.TIME: timing.pop("vertex_times_s")})
     K = _samples(motion, rate_hz)
     if earth == "auto":
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)

@@ -284,9 +284,11 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
 def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None):
     """Fit the position spline of a timed route; returns (TimedMotion, report dict).
 
-    ``virtual`` (bool, shape (n,), or None): fixes that ingestion placed along a bridged gap
-    (exact, noiseless); the noise is estimated from the other fixes and the RMS residual
-    target scaled by sqrt(real / all), the virtual fixes' residuals being near 0."""
+    ``virtual`` (bool, shape (n,) or (n, 3) per axis, or None): coordinates that ingestion
+    placed (fixes along a bridged gap, heights held while an aircraft stands still): exact,
+    noiseless; the noise of the horizontal and of the vertical is estimated from the other
+    fixes and the RMS residual target scaled by sqrt(real / all), the placed coordinates'
+    residuals being near 0."""
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     n = len(t)
@@ -295,12 +297,16 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
     dt = np.diff(t)
     if not np.all(np.isfinite(t)) or np.any(dt <= 0):
         raise InputError(None, "route times must be finite and strictly increasing")
-    real = None if virtual is None else ~np.asarray(virtual, bool)
-    if real is not None and real.sum() >= 8:
-        sig = noise_estimate(t[real], y[real])
-        share = math.sqrt(real.sum() / n)
-    else:
-        sig, share = noise_estimate(t, y), 1.0
+    sig, share = noise_estimate(t, y), np.ones(3)
+    real = None
+    if virtual is not None:
+        virtual = np.asarray(virtual, bool)
+        real = ~(virtual if virtual.ndim == 2 else np.repeat(virtual[:, None], 3, axis=1))
+        for axes in ((0, 1), (2,)):
+            r = real[:, axes[0]]
+            if r.sum() >= 8 and not r.all():
+                sig[list(axes)] = noise_estimate(t[r], y[r])[list(axes)]
+                share[list(axes)] = math.sqrt(r.sum() / n)
     norm = float(np.linalg.norm(sig))
     if fit_tol_m is not None:
         if not fit_tol_m > 0:
@@ -340,7 +346,7 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         "method": "quintic penalized smoothing spline (knots at input times, penalty on jerk)",
         "criterion": criterion,
         "noise_estimate_m": sig.tolist(),
-        "virtual_fixes": 0 if real is None else int((~real).sum()),
+        "virtual_fixes": 0 if real is None else int((~real).any(axis=1).sum()),
         "target_rms_m": target.tolist(),
         "lambda_normalized": lam.tolist(),
         "time_scale_s": ps.scale,
