@@ -250,10 +250,11 @@ def test_sparse_hike_reads_whole_with_gaps_judged_by_motion(tmp_path):
     f, t, n_gaps = _hike(tmp_path)
     split = ingest(f, vehicle="pedestrian", gaps="split")  # fixed time: the longest part only
     assert split.meta["duration_s"] < 0.5 * t[-1]
-    ing = ingest(f, vehicle="pedestrian", gaps="auto")
+    ing = ingest(f, vehicle="pedestrian")  # the default: gaps judged by motion
     assert ing.meta["duration_s"] == pytest.approx(t[-1])
     seg = ing.meta["segments"]
     assert len(seg["gaps"]) == n_gaps and all(g["bridge"] for g in seg["gaps"])
+    assert all(g["kind"] == "leg" and g["leg_speed_mps"] > 0.5 for g in seg["gaps"])
     assert seg["invented_m"] == pytest.approx(sum(g["distance_m"] for g in seg["gaps"]))
     # the legs cover the gaps' share of the time (28 % here), at the pace around them
     assert seg["invented_m"] < 0.35 * ing.meta["length_3d_m"]
