@@ -60,9 +60,10 @@ def test_split_at_gaps():
     assert split_at_gaps(whole, 60.0) == [whole] and split_at_gaps(untimed, 1.0) == [untimed]
 
 
-def test_default_takes_longest_part_with_warning(tmp_path):
+def test_split_takes_longest_part_with_warning(tmp_path):
+    """``gaps="split"``, the fixed-time rule (the default judges gaps by motion)."""
     f = _gpx(tmp_path, [("drive", [*range(10), *range(200, 230), *range(400, 405)])])
-    ing = ingest(f)
+    ing = ingest(f, gaps="split")
     assert ing.meta["path"] == "drive / part 2" and ing.meta["points_in"] == 30
     assert ing.meta["duration_s"] == 29.0
     seg = ing.meta["segments"]
@@ -74,11 +75,11 @@ def test_default_takes_longest_part_with_warning(tmp_path):
     w = next(w for w in ing.warnings if "3 parts after splitting" in w)
     assert "'drive / part 1' (10 points" in w and "--gaps bridge" in w
     # the parts are candidates: by name, by index, longest, or the original's name
-    assert ingest(f, path="drive / part 3").meta["points_in"] == 5
-    assert ingest(f, path=1).meta["path"] == "drive / part 1"
-    assert ingest(f, path="longest").meta["path"] == "drive / part 2"
-    assert ingest(f, path="DRIVE").meta["path"] == "drive / part 2"
-    assert ingest(f, max_gap_s=500).meta["points_in"] == 45
+    assert ingest(f, gaps="split", path="drive / part 3").meta["points_in"] == 5
+    assert ingest(f, gaps="split", path=1).meta["path"] == "drive / part 1"
+    assert ingest(f, gaps="split", path="longest").meta["path"] == "drive / part 2"
+    assert ingest(f, gaps="split", path="DRIVE").meta["path"] == "drive / part 2"
+    assert ingest(f, gaps="split", max_gap_s=500).meta["points_in"] == 45
 
 
 def test_bridge_only_when_asked(tmp_path):
@@ -98,9 +99,9 @@ def test_bridge_only_when_asked(tmp_path):
 def test_several_tracks_still_need_a_choice(tmp_path):
     f = _gpx(tmp_path, [("a", range(20)), ("b", [*range(10), *range(100, 120)])])
     with pytest.raises(InputError, match=r"3 candidate paths.*\[2\] 'b / part 1'"):
-        ingest(f)
-    assert ingest(f, path="b").meta["path"] == "b / part 2"
-    assert ingest(f, path="longest").meta["points_in"] == 20
+        ingest(f, gaps="split")
+    assert ingest(f, gaps="split", path="b").meta["path"] == "b / part 2"
+    assert ingest(f, gaps="split", path="longest").meta["points_in"] == 20
 
 
 def test_only_real_candidate_taken_with_note(tmp_path):
@@ -140,19 +141,25 @@ def test_real_austin_hike_split_at_its_gaps(shared_file):
     parts = [(a, b) for a, b in itertools.pairwise(cuts) if b - a >= 2]
     lengths = [GEOD.line_length(coords[a:b, 0], coords[a:b, 1]) for a, b in parts]
     a, b = parts[int(np.argmax(lengths))]
-    ing = ingest(path, vehicle="pedestrian")
+    ing = ingest(path, vehicle="pedestrian", gaps="split")  # the fixed-time rule
     assert ing.meta["segments"]["parts"] == len(parts) > 1
     assert ing.meta["points_in"] == b - a
     assert ing.meta["duration_s"] == pytest.approx(t[b - 1] - t[a])
     assert np.diff(ing.table.time_s).max() <= 60
+    judged = ingest(path, vehicle="pedestrian")  # the default: gaps judged by motion
+    seg = judged.meta["segments"]
+    assert seg["mode"] == "auto" and len(seg["gaps"]) >= len(parts) - 1
+    assert judged.meta["duration_s"] > ing.meta["duration_s"]
 
 
 def test_cli_gap_options(tmp_path, cli):
     f = _gpx(tmp_path, [("drive", [*range(10), *range(100, 130)])])
     out = tmp_path / "o.csv"
-    proc = cli("ingest", f, "-o", out, check=0)
+    proc = cli("ingest", f, "-o", out, "--gaps=split", check=0)
     assert "took the longest" in proc.stderr and "30 points" in proc.stderr
-    proc = cli("ingest", f, "-o", out, "--max-gap-s", "100", check=0)
+    proc = cli("ingest", f, "-o", out, check=0)  # judged by motion: 11 m in 91 s is a stop
+    assert "a stop of" in proc.stderr and "took the longest" not in proc.stderr
+    proc = cli("ingest", f, "-o", out, "--max-gap-s", "100", "--gaps=split", check=0)
     assert "took the longest" not in proc.stderr and "40 points" in proc.stderr
     proc = cli("ingest", f, "-o", out, "--gaps", "bridge", check=0)
     assert "bridged 1 time gaps" in proc.stderr
@@ -192,15 +199,28 @@ def test_path_all_writes_one_route_per_path(tmp_path, cli):
     out = tmp_path / "routes" / "walks.csv"
     r = cli("ingest", str(f), "-o", str(out), "--path=all")
     assert r.returncode == 0, r.stderr
-    files = sorted(p.name for p in (tmp_path / "routes" / "walks").iterdir())
-    assert files == ["1-morning-walk.csv", "2-evening-run.csv"]
-    assert "path 3-x not read" in r.stderr  # one point: refused, the others written
-    from imugen.ingest.stage import IngestOptions, read_all
+    from imugen.ingest.stage import IngestOptions, read_all, route_ids
 
+    files = sorted(p.name for p in (tmp_path / "routes" / "walks").iterdir())
+    assert [n[: -len("-123456.csv")] for n in files] == ["evening-run", "morning-walk"]
     done, refused = read_all(f, IngestOptions(path="all"))
-    assert [rid for rid, _ in done] == ["1-morning-walk", "2-evening-run"]
-    assert done[1][1].meta["points_out"] == 30 and done[1][1].meta["route_id"] == "2-evening-run"
-    assert [rid for rid, _ in refused] == ["3-x"]
+    ids = [rid for rid, _ in done]
+    assert [f"{rid}.csv" for rid in ids] == sorted(files, reverse=True)
+    assert done[1][1].meta["points_out"] == 30 and done[1][1].meta["route_id"] == ids[1]
+    assert [rid[:2] for rid, _ in refused] == ["x-"]  # one point: refused, the others written
+    assert f"path {refused[0][0]} not read" in r.stderr
+    # one path of them by its id, as the workflow's paths: all reads it
+    one = ingest(f, path=f"all:{ids[1]}")
+    assert one.meta["points_out"] == 30 and one.meta["route_id"] == ids[1]
+    with pytest.raises(InputError, match="no path has this id"):
+        ingest(f, path="all:nope")
+    # ids: name slug + hash of name and first point; twins are numbered
+    from imugen.ingest import limits
+    from imugen.ingest.readers import read_route_file
+
+    cands = read_route_file(f, limits.read_input(f))
+    twice = route_ids([cands[0], cands[0]])
+    assert twice == [ids[0], f"{ids[0]}-2"]
     with pytest.raises(InputError, match="one route per path"):
         ingest(f, path="all")
 
@@ -228,12 +248,13 @@ def _hike(tmp_path, teleport=False):
 
 def test_sparse_hike_reads_whole_with_gaps_judged_by_motion(tmp_path):
     f, t, n_gaps = _hike(tmp_path)
-    split = ingest(f, vehicle="pedestrian")  # split (default): the longest part only
+    split = ingest(f, vehicle="pedestrian", gaps="split")  # fixed time: the longest part only
     assert split.meta["duration_s"] < 0.5 * t[-1]
-    ing = ingest(f, vehicle="pedestrian", gaps="auto")
+    ing = ingest(f, vehicle="pedestrian")  # the default: gaps judged by motion
     assert ing.meta["duration_s"] == pytest.approx(t[-1])
     seg = ing.meta["segments"]
     assert len(seg["gaps"]) == n_gaps and all(g["bridge"] for g in seg["gaps"])
+    assert all(g["kind"] == "leg" and g["leg_speed_mps"] > 0.5 for g in seg["gaps"])
     assert seg["invented_m"] == pytest.approx(sum(g["distance_m"] for g in seg["gaps"]))
     # the legs cover the gaps' share of the time (28 % here), at the pace around them
     assert seg["invented_m"] < 0.35 * ing.meta["length_3d_m"]
@@ -249,3 +270,55 @@ def test_implausible_gap_is_split(tmp_path):
     jumps = [g for g in seg["gaps"] if not g["bridge"]]
     assert len(jumps) == 1 and jumps[0]["distance_m"] > 2000
     assert seg["parts"] == 2
+
+
+def _car_park(tmp_path):
+    """Issue 27's car logger: 8 m/s northwards into an underground car park (1 Hz fixes, 3 m
+    uphill over the route), 924 s without a fix, out again 36 m further on at 8 m/s."""
+    rng = np.random.default_rng(3)
+    t_in = np.arange(0.0, 61.0)
+    t_out = t_in[-1] + 924.0 + np.arange(0.0, 61.0)
+    north = np.concatenate([8.0 * t_in, 8.0 * t_in[-1] + 36.0 + 8.0 * (t_out - t_out[0])])
+    east = np.concatenate([np.zeros(61), np.full(61, 5.0)])
+    north += rng.normal(0.0, 0.3, north.size)
+    up = 500.0 + 3.0 * north / north[-1]
+    t = np.concatenate([t_in, t_out])
+    pts = "".join(
+        f'<trkpt lat="{46.0 + n / 111_132.0:.9f}" lon="{7.0 + e / 77_300.0:.9f}"><ele>{u:.2f}</ele>'
+        f"<time>{datetime.fromtimestamp(1.7e9 + s).isoformat()}Z</time></trkpt>"
+        for n, e, u, s in zip(north, east, up, t, strict=True)
+    )
+    f = tmp_path / "carpark.gpx"
+    f.write_text(f"<gpx><trk><name>drive</name><trkseg>{pts}</trkseg></trk></gpx>")
+    return f
+
+
+def test_a_long_gap_between_close_fixes_is_a_stop_within_the_cars_limits(tmp_path):
+    """Issue 27: a 924 s gap between fixes 36 m apart, entered and left at 8 m/s, is a stop
+    (braking, waiting, accelerating within the car's acceleration), not a 1.46 km drive nor
+    a 27 m/s^2 halt; the truth stays between the two fixes' heights."""
+    from imugen import truth
+    from imugen.tables import truth as col
+    from imugen.truth import VEHICLES
+
+    ing = ingest(_car_park(tmp_path))  # gaps judged by motion: the default
+    seg = ing.meta["segments"]
+    assert seg["mode"] == "auto" and len(seg["gaps"]) == 1
+    g = seg["gaps"][0]
+    assert g["bridge"] and g["kind"] == "stop" and g["stop_s"] > 900
+    assert g["accel_mps2"] <= 4.0 and 30 < seg["invented_m"] < 45  # peak of the ramps
+    assert any("a stop of" in w for w in ing.warnings)
+    tr, _ = truth.build_truth(ing.table, ing.meta, rate_hz=10.0, vehicle="car", verbose=False)
+    t = tr[col.TIME].to_numpy()
+    v = tr[list(col.VEL)].to_numpy()
+    acc = np.linalg.norm(np.diff(v, axis=0), axis=1) / np.diff(t)
+    assert acc.max() <= VEHICLES["car"].max_accel_mps2
+    pos = tr[list(col.POS)].to_numpy()
+    travelled = np.linalg.norm(np.diff(pos[:, :2], axis=0), axis=1).sum()
+    assert travelled < 1.05 * ing.meta["length_3d_m"]
+    gap = (t > 61.0) & (t < 985.0)
+    u_fixes = ing.table["u_m"].to_numpy()
+    lo, hi = u_fixes[60], u_fixes[-61]
+    assert pos[gap, 2].min() >= min(lo, hi) - 0.5 and pos[gap, 2].max() <= max(lo, hi) + 0.5
+    speed = np.linalg.norm(v[:, :2], axis=1)
+    assert (speed[gap] < 0.05).sum() * 0.1 > 800  # standing still, not creeping

@@ -263,7 +263,7 @@ REAL = {
     "a_sparkfun_rally_course_ge_pro.kml": dict(points=138, timed=False, path="path"),
     "b_kml23_track_no_gx_prefix.kml": dict(points=7, timed=True),
     # gaps up to 5 min: split, longest part taken (checked in test_segments.py)
-    "b_mapfinity_hike_austin_gxtrack.kml": dict(timed=True, warn="parts after splitting at gaps"),
+    "b_mapfinity_hike_austin_gxtrack.kml": dict(timed=True, warn="bridged (9 as stops"),
     "c_limassol_tour_newline_coords.kml": dict(points=1812, timed=False),
     "e_cycling_central_park_1hz.gpx": dict(points=1812, timed=True),
     "f_hike_identical_1901_timestamps.gpx": dict(timed=False, warn="does not advance"),
@@ -329,9 +329,12 @@ def test_real_pacific_route_extent_limit_is_geodesic(shared_file, tmp_path, cli)
 def test_real_refusals(shared_file):
     with pytest.raises(InputError, match="6 candidate paths"):
         ingest(shared_file("c_google_kml_samples.kml"))
-    # two track segments, the second split at a time gap into two parts
-    with pytest.raises(InputError, match=r"3 candidate paths.*#3 / part 2"):
+    # two track segments; the second's time gap bridged by a stop (gaps judged by motion), or
+    # split into two parts by the fixed-time rule
+    with pytest.raises(InputError, match=r"2 candidate paths.*'ACTIVE LOG #3' \(trkseg, 157"):
         ingest(shared_file("e_car_colorado_mountain_pass.gpx"))
+    with pytest.raises(InputError, match=r"3 candidate paths.*#3 / part 2"):
+        ingest(shared_file("e_car_colorado_mountain_pass.gpx"), gaps="split")
     car = ingest(shared_file("e_car_colorado_mountain_pass.gpx"), path=1)
     assert car.meta["points_in"] == 104 and car.meta["timed"]
     assert ingest(shared_file("c_google_kml_samples.kml"), path="Absolute").meta["altitude_trusted"]

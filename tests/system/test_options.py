@@ -35,6 +35,7 @@ DIFFERENT = {
 """(command, field) whose default is not the schema's, and why."""
 WORKFLOW_ONLY = {
     "routes.*.file": "the input of ingest",
+    "routes.*.paths": "all: one route per path of the file, each ingested with --path=all:ID",
     "grades": "one job per grade (--grade)",
     "simulate.sequences": "N, split into shards of sequences_per_shard (--sequences per job)",
     "simulate.write_imu": "whether the shard job is given -o",

@@ -28,6 +28,41 @@ _problems = preflight.schema_problems(
 if _problems:
     raise WorkflowError("\n".join(f"imugen: error: {p}" for p in _problems))
 validate(config, "../schemas/config.schema.yaml")
+
+
+def expand_paths_all(routes):
+    """``paths: all``: one route per path of the route's file, named ``<route>-<id>`` (the
+    path's stable id, :func:`imugen.ingest.stage.route_ids`: its name's slug and a hash of its
+    name and first point), each ingesting its path with ``--path=all:<id>``. The file's path
+    list is read here, when the workflow is parsed (the file only, no cleaning); a path that
+    the ingest job then refuses fails that route's jobs alone."""
+    out = {}
+    for name, r in routes.items():
+        if r.get("paths") != "all":
+            out[name] = r
+            continue
+        if r.get("path") is not None:
+            raise WorkflowError(
+                f"imugen: error: routes.{name}: give path or paths: all, not both"
+            )
+        from imugen.ingest.stage import path_ids
+
+        try:
+            ids = path_ids(r["file"])
+        except InputError as exc:
+            raise WorkflowError(f"imugen: error: routes.{name}: {exc}") from None
+        for rid in ids:
+            sub = f"{name}-{rid}"
+            if sub in routes or sub in out:
+                raise WorkflowError(
+                    f"imugen: error: routes.{name}: path {rid!r} gives the route name {sub!r}, "
+                    "which another route already has"
+                )
+            out[sub] = {**r, "paths": None, "path": f"all:{rid}"}
+    return out
+
+
+config["routes"] = expand_paths_all(config["routes"])
 # Before any job: no NaN/inf, custom grades valid (not named like a preset), the run within
 # the memory and disk budgets (estimates in the message; see src/imugen/preflight.py). The
 # budget is checked in dry runs too, which is what we want: `snakemake -n` refuses a run that
@@ -248,7 +283,7 @@ def ingest_clean_opts(wildcards):
     opts = [f"--vehicle={shlex.quote(str(r.get('vehicle', 'car')))}"]
     if r.get("max_gap_s") is not None:
         opts.append(f"--max-gap-s={float(r['max_gap_s'])!r}")
-    opts.append(f"--gaps={shlex.quote(str(r.get('gaps', 'split')))}")
+    opts.append(f"--gaps={shlex.quote(str(r.get('gaps', 'auto')))}")
     return " ".join(opts)
 
 

@@ -369,6 +369,16 @@ def clean_path(
             "clampToGround); they are flagged as untrusted in the metadata"
         )
     enu = _metric(cols, enu_frame)
+    if not timed and n_in >= 5 and stale_first(enu):
+        for k in cols:
+            cols[k] = cols[k][1:]
+        enu, missing = enu[1:], missing[1:]
+        report["stale_first_removed"] = True
+        warnings.append(
+            "removed the first point: it lies where the path ends, and its leg to the next "
+            "point is longer than any the path draws (a logger's last known position, "
+            "written before its first fix)"
+        )
     if timed and n_in >= 4:
         t = cols["time"]
         d_h, _ = chord_deviation(t, enu[:, :2])
@@ -442,12 +452,104 @@ def clean_path(
                 "(not 0 m), flagged in the metadata"
             )
         enu = _metric(cols, enu_frame)
+    if timed and vehicle in FIXED_WING and len(cols["time"]) >= 3:
+        d_h, _ = chord_deviation(cols["time"], enu[:, :2])
+        h_new, runs = still_heights(cols["time"], enu, noise_sigma(d_h, 2))
+        if runs:
+            drift = float(np.max(np.abs(h_new - enu[:, 2])))
+            if enu_frame is not None:
+                cols["pos"] = np.column_stack([enu[:, :2], h_new])
+                cols["lat"], cols["lon"], cols["alt"] = enu_frame.to_geodetic(cols["pos"])
+            else:
+                cols["alt"] = cols["alt"] + (h_new - enu[:, 2])
+                cols["pos"] = np.column_stack([cols["lat"], cols["lon"], cols["alt"]])
+            enu = _metric(cols, enu_frame)
+            report["still_runs_s"] = [[float(cols["time"][a]), float(cols["time"][b])]
+                                      for a, b in runs]  # fmt: skip
+            warnings.append(
+                f"{len(runs)} stretches where the aircraft stands still (longest "
+                f"{max(cols['time'][b] - cols['time'][a] for a, b in runs):.0f} s): their GPS "
+                f"heights, wandering up to {drift:.1f} m, held at the heights where it moves "
+                "(a parked aircraft does not climb)"
+            )
     if timed and len(cols["time"]) >= 3:
         d_h, _ = chord_deviation(cols["time"], enu[:, :2])
         d_v, _ = chord_deviation(cols["time"], enu[:, 2:])
         report["noise_horizontal_m"] = noise_sigma(d_h, 2)
         report["noise_vertical_m"] = noise_sigma(d_v, 1)
     return cols, report
+
+
+#: :func:`stale_first`: the first leg is this many times the median leg, or more ...
+STALE_LEG_RATIO = 20.0
+#: ... and at least this long (m) ...
+STALE_MIN_M = 1000.0
+#: ... and the first point lies within this fraction of that leg from the path's end.
+STALE_END_FRACTION = 0.05
+
+
+def stale_first(enu: np.ndarray) -> bool:
+    """Whether an untimed path's first point (``enu`` (n, 3), m) is a stale fix: a logger's
+    last known position (where the previous recording ended, here the path's end) written
+    before its first fix, so that the path starts with a jump out and a flight back: its
+    first leg is at least :data:`STALE_LEG_RATIO` times the median leg and
+    :data:`STALE_MIN_M`, and the point lies within :data:`STALE_END_FRACTION` of that leg
+    from the last point."""
+    legs = np.linalg.norm(np.diff(enu[:, :2], axis=0), axis=1)
+    first = float(legs[0])
+    to_end = float(np.linalg.norm(enu[0, :2] - enu[-1, :2]))
+    return bool(
+        first >= max(STALE_LEG_RATIO * float(np.median(legs[1:])), STALE_MIN_M)
+        and to_end <= STALE_END_FRACTION * first
+    )
+
+
+#: Classes whose heights are held while they stand still (:func:`still_heights`): fixed-wing
+#: aircraft cannot hover, so a height change at rest is the GPS's (a multirotor can).
+FIXED_WING = ("aircraft", "airliner")
+#: :func:`still_heights`: standing still is a horizontal speed below this (m/s) over
+#: :data:`STILL_WINDOW_S` (plus the fixes' noise), for at least :data:`STILL_MIN_S`.
+STILL_SPEED_MPS = 0.3
+STILL_WINDOW_S = 10.0
+STILL_MIN_S = 30.0
+#: :func:`still_heights`: the height at an end of a still stretch is the median over this (s).
+STILL_END_S = 20.0
+
+
+def still_heights(
+    t: np.ndarray, enu: np.ndarray, noise_m: float
+) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Heights of a timed path with those of its still stretches held (a parked aircraft).
+
+    A fix is still when the horizontal displacement across the fixes within
+    :data:`STILL_WINDOW_S` around it is below :data:`STILL_SPEED_MPS` times their span plus
+    :data:`K_SIGMA` times the noise of a difference of two fixes (``noise_m``, m); runs
+    of still fixes lasting :data:`STILL_MIN_S` or more are still stretches. Inside one, the
+    height is that where the vehicle moves again (the median of the last :data:`STILL_END_S`
+    of it), or where it came to rest when it never moves again; between two moving phases,
+    linear in time from the one to the other (continuous with both). Returns the heights
+    (n,) and the stretches as (first, last) fix indexes.
+    """
+    t = np.asarray(t, float)
+    lo = np.searchsorted(t, t - 0.5 * STILL_WINDOW_S)
+    hi = np.searchsorted(t, t + 0.5 * STILL_WINDOW_S, side="right") - 1
+    span = t[hi] - t[lo]
+    move = np.linalg.norm(enu[hi, :2] - enu[lo, :2], axis=1)
+    still = (span > 0) & (move < STILL_SPEED_MPS * span + K_SIGMA * np.sqrt(2.0) * noise_m)
+    h = enu[:, 2].copy()
+    runs = []
+    edges = np.flatnonzero(np.diff(np.r_[0, still.astype(np.int8), 0]))
+    for a, b in zip(edges[::2], edges[1::2] - 1, strict=True):
+        if t[b] - t[a] < STILL_MIN_S:
+            continue
+        first = np.median(h[a : np.searchsorted(t, t[a] + STILL_END_S, side="right")])
+        last = np.median(h[np.searchsorted(t, t[b] - STILL_END_S) : b + 1])
+        if a == 0 or b == len(t) - 1:  # the file starts or ends at rest: one height
+            h[a : b + 1] = last if a == 0 and b < len(t) - 1 else first
+        else:
+            h[a : b + 1] = first + (last - first) * (t[a : b + 1] - t[a]) / (t[b] - t[a])
+        runs.append((int(a), int(b)))
+    return h, runs
 
 
 def _along(enu: np.ndarray) -> np.ndarray:

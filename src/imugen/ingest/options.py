@@ -15,8 +15,9 @@ class IngestOptions:
     path: str | int | None = option(
         None, help="candidate path name, or 1-based index, when the file has several; 'all': "
         "one route per path, written to OUT's name as a folder (OUT.parquet -> OUT/ID.parquet, "
-        "ids '<index>-<name>'); default: the only path, or the whole file when its paths are "
-        "segments of one track that continue each other",
+        "stable ids '<name>-<hash of name and first point>'); 'all:ID': that one route of "
+        "them; default: the only path, or the whole file when its paths are segments of one "
+        "track that continue each other",
         config="routes.*.path",
     )  # fmt: skip
     origin: str | None = option(
@@ -45,10 +46,11 @@ class IngestOptions:
         help="time gaps longer than this split the path (see --gaps)",
     )  # fmt: skip
     gaps: str = option(
-        "split", choices=("split", "bridge", "auto"), config="routes.*.gaps",
-        help="split the path at long gaps (parts are candidates; --path longest), bridge them, "
-        "or judge each by motion (auto: bridged by a straight leg when the vehicle could have "
-        "made it at the speed around the gap, else split; each gap reported)",
+        "auto", choices=("auto", "split", "bridge"), config="routes.*.gaps",
+        help="judge each long gap by motion (auto: bridged by a straight leg, or a stop where "
+        "the fixes nearly coincide, when the vehicle could have made it at the speed around "
+        "the gap, else split; each gap reported), split the path at every long gap (parts are "
+        "candidates; --path longest), or bridge them all (the truth interpolates)",
     )  # fmt: skip
     navsatfix_status: str = option(
         "lenient", choices=("lenient", "strict"),

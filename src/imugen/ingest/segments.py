@@ -2,7 +2,15 @@
 
 Gaps
     A timed path whose clock jumps by more than ``max_gap_s`` (default :data:`MAX_GAP_S`) is
-    never bridged silently. With ``gaps="split"`` (the default) it is split at every such gap
+    judged by motion with ``gaps="auto"`` (the default): bridged when the straight geodesic
+    leg across it needs a speed within the vehicle class's limit and at most
+    :data:`AUTO_SPEED_RATIO` times the speed around it (or :data:`AUTO_SPEED_FLOOR_MPS`), else
+    split. A bridged gap gets virtual fixes along that leg moving as the simplest motion
+    (:func:`leg_profile`): the speed changed at the class's acceleration to a held speed that
+    covers the leg, or, when that speed would be a creep, a stop (braking, waiting,
+    accelerating; what a car in a car park does), never a loop; every gap, its length,
+    distance and the motion chosen are in the metadata and a warning. With ``gaps="split"``
+    (the fixed-time rule) it is split at every such gap
     into parts named ``"<name> / part k"``, which become candidate paths like GPX track
     segments: ``--path`` names or indexes one (indexes count the parts), ``--path longest``
     takes the longest. When the file holds one path (or ``--path`` names a path that was
@@ -25,7 +33,7 @@ Segments of one track
 from __future__ import annotations
 
 import itertools
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -48,8 +56,24 @@ AUTO_MAX_SPEED_MPS = {"car": 60.0, "bicycle": 20.0, "pedestrian": 4.0, "aircraft
 AUTO_SPEED_RATIO = 2.0
 #: ``gaps="auto"``: speed (m/s) a gap may always need, within the class's limit.
 AUTO_SPEED_FLOOR_MPS = 1.5
-#: ``gaps="auto"``: spacing (s) of the virtual fixes along a bridged gap.
+#: ``gaps="auto"``: spacing (s) of the virtual fixes along a bridged gap (1 s while braking or
+#: accelerating: :data:`AUTO_RAMP_STEP_S`).
 AUTO_STEP_S = 5.0
+AUTO_RAMP_STEP_S = 1.0
+#: ``gaps="auto"``: no virtual fix closer than this (s) to a real one (the fit blends there).
+AUTO_END_FREE_S = 2.5
+#: ``gaps="auto"``: acceleration (m/s^2) of the braking and accelerating phases of a bridged
+#: gap, per vehicle class (the classes' comfortable figures, :mod:`imugen.truth.vehicles`); at
+#: most :data:`AUTO_ACCEL_MARGIN` times it where the fixes leave no room, never more (the speeds
+#: at the gap's ends are lowered instead).
+AUTO_ACCEL_MPS2 = {"car": 2.0, "bicycle": 1.0, "pedestrian": 0.5, "aircraft": 2.0,
+                   "airliner": 1.5, "multirotor": 2.0}  # fmt: skip
+AUTO_ACCEL_MARGIN = 2.0
+#: ``gaps="auto"``: a leg slower than this (m/s) between the braking and accelerating phases is
+#: a stop: the vehicle halts, waits and leaves (a car park, a red light), it does not creep.
+AUTO_STOP_SPEED_MPS = 0.3
+#: Duration of a half-cosine speed ramp per (speed change / peak acceleration): pi / 2.
+RAMP = np.pi / 2.0
 #: Largest distance (m) between the end of a segment and the start of the next it continues.
 JOIN_DISTANCE_M = 50.0
 #: Fastest straight-line speed (m/s) across the pause between continuing segments.
@@ -138,10 +162,20 @@ def _sole_real(cands: list[RoutePath], warnings: list[str]) -> list[RoutePath]:
     return real
 
 
+def _around(step_v: np.ndarray, ok: np.ndarray, idx) -> float:
+    """Median of the step speeds ``step_v[idx]`` that are not gaps (``ok``); 0 when none."""
+    idx = [j for j in idx if 0 <= j < len(step_v) and ok[j]]
+    return float(np.median(step_v[idx])) if idx else 0.0
+
+
 def judge_gaps(p: RoutePath, max_gap_s: float, vehicle: str) -> list[dict]:
     """Every gap longer than ``max_gap_s`` of a timed geodetic path, judged by motion (module
     docstring): ``index`` (the fix before it), ``at_s`` (from the start), ``length_s``,
-    ``distance_m``, ``speed_needed_mps``, ``speed_around_mps``, ``bridge`` (bool)."""
+    ``distance_m``, ``speed_needed_mps``, ``speed_around_mps``, ``speed_in_mps`` and
+    ``speed_out_mps`` (the step speeds just before and after), ``bridge`` (bool) and, for a
+    bridged gap, the motion across it (:func:`leg_profile`): ``kind`` (``"stop"`` or
+    ``"leg"``), ``leg_in_mps``, ``leg_speed_mps``, ``leg_out_mps``, ``stop_s``,
+    ``accel_mps2``."""
     t = p.time_unix_s
     if t is None or p.enu_m is not None or len(t) < 2 or not np.isfinite(t).all():
         return []
@@ -151,23 +185,124 @@ def judge_gaps(p: RoutePath, max_gap_s: float, vehicle: str) -> list[dict]:
     big = dts > max_gap_s
     step_v = np.where(dts > 0, d / np.where(dts > 0, dts, 1.0), 0.0)
     vmax = AUTO_MAX_SPEED_MPS.get(vehicle, max(AUTO_MAX_SPEED_MPS.values()))
+    accel = AUTO_ACCEL_MPS2.get(vehicle, 1.0)
     out = []
     for i in np.flatnonzero(big):
-        near = [j for j in range(max(0, i - 5), min(len(dts), i + 6)) if j != i and not big[j]]
-        around = float(np.median(step_v[near])) if near else 0.0
+        around = _around(step_v, ~big, [*range(i - 5, i), *range(i + 1, i + 6)])
+        v_in = _around(step_v, ~big, range(i - 3, i))
+        v_out = _around(step_v, ~big, range(i + 1, i + 4))
         need = float(d[i] / dts[i])
         ok = need <= vmax and need <= max(AUTO_SPEED_RATIO * around, AUTO_SPEED_FLOOR_MPS)
-        out.append({
+        g = {
             "index": int(i), "at_s": float(t[i] - t[0]), "length_s": float(dts[i]),
             "distance_m": float(d[i]), "speed_needed_mps": need, "speed_around_mps": around,
-            "bridge": bool(ok),
-        })  # fmt: skip
+            "speed_in_mps": v_in, "speed_out_mps": v_out, "bridge": bool(ok),
+        }  # fmt: skip
+        if ok:
+            g.update(leg_profile(float(d[i]), float(dts[i]), v_in, v_out, accel).summary())
+        out.append(g)
     return out
 
 
+@dataclass(frozen=True)
+class LegProfile:
+    """Motion along a bridged gap's geodesic: from ``v0`` to ``vc``, ``vc`` held (a stop when
+    0), then to ``v1`` (speeds m/s, ``T`` s). Each speed change is a half-cosine ramp (no step
+    in the acceleration, so no jerk spike where it starts or ends) of peak acceleration ``a``
+    (m/s^2): it lasts ``RAMP |dv| / a`` and covers the distance of a linear ramp."""
+
+    v0: float
+    vc: float
+    v1: float
+    a: float
+    T: float
+
+    @property
+    def t0(self) -> float:
+        return RAMP * abs(self.v0 - self.vc) / self.a if self.a > 0 else 0.0
+
+    @property
+    def t1(self) -> float:
+        return RAMP * abs(self.v1 - self.vc) / self.a if self.a > 0 else 0.0
+
+    def distance(self, t: np.ndarray) -> np.ndarray:
+        """Distance (m) along the leg at times ``t`` (s from its start), shape of ``t``."""
+
+        def ramp(u, dur, va, vb):  # distance of a half-cosine ramp from va to vb after u s
+            if dur <= 0.0:
+                return va * u
+            return va * u + 0.5 * (vb - va) * (u - dur / np.pi * np.sin(np.pi * u / dur))
+
+        t = np.clip(np.asarray(t, float), 0.0, self.T)
+        s = ramp(np.minimum(t, self.t0), self.t0, self.v0, self.vc)
+        s = s + self.vc * np.clip(t - self.t0, 0.0, self.T - self.t0 - self.t1)
+        return s + ramp(np.clip(t - (self.T - self.t1), 0.0, self.t1), self.t1, self.vc, self.v1)
+
+    def times(self) -> np.ndarray:
+        """Times (s) of the virtual fixes inside the leg: every :data:`AUTO_RAMP_STEP_S` while
+        the speed changes, every :data:`AUTO_STEP_S` while it is held."""
+        t_hold = self.T - self.t1
+        parts = [
+            np.arange(AUTO_RAMP_STEP_S, self.t0, AUTO_RAMP_STEP_S),
+            np.arange(self.t0, t_hold, AUTO_STEP_S),
+            np.arange(t_hold, self.T, AUTO_RAMP_STEP_S),
+        ]
+        t = np.unique(np.concatenate(parts))
+        return t[(t > AUTO_END_FREE_S) & (t < self.T - AUTO_END_FREE_S)]
+
+    def summary(self) -> dict:
+        stop = self.vc == 0.0
+        return {
+            "kind": "stop" if stop else "leg", "leg_in_mps": float(self.v0),
+            "leg_speed_mps": float(self.vc),
+            "leg_out_mps": float(self.v1),
+            "stop_s": float(self.T - self.t0 - self.t1) if stop else 0.0,
+            "accel_mps2": float(self.a),
+        }  # fmt: skip
+
+
+def leg_profile(d: float, T: float, v0: float, v1: float, a: float) -> LegProfile:
+    """The simplest motion across a gap of ``d`` m in ``T`` s entered at ``v0`` and left at
+    ``v1`` (m/s): change speed (peak acceleration ``a``, m/s^2) to a held speed that covers ``d``; when that
+    speed would be below :data:`AUTO_STOP_SPEED_MPS`, a stop (brake, wait, accelerate), the
+    acceleration lowered (or raised, at most :data:`AUTO_ACCEL_MARGIN` ``a``) so braking and
+    accelerating cover ``d``; where even that cannot, the end speeds are lowered."""
+
+    def dist(vc, acc):
+        return float(LegProfile(v0, vc, v1, acc, T).distance(np.array(T)))
+
+    def feasible(vc, acc):
+        return RAMP * (abs(v0 - vc) + abs(v1 - vc)) / acc <= T
+
+    hi = max(v0, v1, 2.0 * d / T) + 1.0
+    if not (feasible(hi, a) and dist(hi, a) >= d):  # ramps too long for the gap: held speed
+        return LegProfile(d / T, d / T, d / T, a, T)
+    leg = None
+    if feasible(0.0, a) and dist(0.0, a) < d:
+        lo = 0.0
+        for _ in range(80):  # distance grows with the held speed (module docstring)
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if dist(mid, a) < d else (lo, mid)
+        leg = LegProfile(v0, 0.5 * (lo + hi), v1, a, T)
+        if leg.vc >= AUTO_STOP_SPEED_MPS:
+            return leg
+    # a stop: braking and accelerating cover d
+    e = 0.5 * (v0**2 + v1**2)
+    if e <= 0.0 or d <= 0.0:
+        return leg or LegProfile(0.0, 0.0, 0.0, a, T)
+    acc, k = RAMP * e / d, 1.0  # braking and accelerating cover RAMP e / acc
+    if acc > AUTO_ACCEL_MARGIN * a:  # no room: lower the speeds at the ends
+        acc = AUTO_ACCEL_MARGIN * a
+        k = np.sqrt(acc * d / (RAMP * e))
+    if RAMP * k * (v0 + v1) / acc > T:  # too short a gap to stop in
+        return leg or LegProfile(d / T, d / T, d / T, a, T)
+    return LegProfile(k * v0, 0.0, k * v1, acc, T)
+
+
 def bridge_gaps(p: RoutePath, gaps: list[dict]) -> RoutePath:
-    """``p`` with virtual fixes along the geodesic of each gap to bridge (constant speed, every
-    :data:`AUTO_STEP_S`; heights linear in time); the others untouched."""
+    """``p`` with virtual fixes along the geodesic of each gap to bridge, moving as
+    :func:`leg_profile` says (a held speed, or a stop with its braking and accelerating
+    phases); heights linear in the distance along the leg; the other gaps untouched."""
     parts_lat, parts_lon, parts_alt, parts_t, parts_miss = [], [], [], [], []
     miss = p.alt_missing if p.alt_missing is not None else np.zeros(p.n_points, bool)
     start = 0
@@ -179,15 +314,23 @@ def bridge_gaps(p: RoutePath, gaps: list[dict]) -> RoutePath:
         parts_alt.append(p.alt_m[sl])
         parts_t.append(p.time_unix_s[sl])
         parts_miss.append(miss[sl])
-        n = int(np.ceil(g["length_s"] / AUTO_STEP_S)) - 1
-        if n > 0:
-            pts = _GEOD.npts(p.lon_deg[i], p.lat_deg[i], p.lon_deg[i + 1], p.lat_deg[i + 1], n)
-            f = np.arange(1, n + 1) / (n + 1)
-            parts_lon.append(np.array([q[0] for q in pts]))
-            parts_lat.append(np.array([q[1] for q in pts]))
+        leg = LegProfile(
+            g["leg_in_mps"], g["leg_speed_mps"], g["leg_out_mps"], g["accel_mps2"], g["length_s"]
+        )
+        tv = leg.times()
+        if len(tv):
+            d = g["distance_m"]
+            f = np.clip(leg.distance(tv) / d, 0.0, 1.0) if d > 0 else np.zeros(len(tv))
+            az, _, _ = _GEOD.inv(p.lon_deg[i], p.lat_deg[i], p.lon_deg[i + 1], p.lat_deg[i + 1])
+            lon, lat, _ = _GEOD.fwd(
+                np.full(len(tv), p.lon_deg[i]), np.full(len(tv), p.lat_deg[i]),
+                np.full(len(tv), az), f * d,
+            )  # fmt: skip
+            parts_lon.append(np.asarray(lon, float))
+            parts_lat.append(np.asarray(lat, float))
             parts_alt.append(p.alt_m[i] + f * (p.alt_m[i + 1] - p.alt_m[i]))
-            parts_t.append(p.time_unix_s[i] + f * g["length_s"])
-            parts_miss.append(np.full(n, bool(miss[i] or miss[i + 1])))
+            parts_t.append(p.time_unix_s[i] + tv)
+            parts_miss.append(np.full(len(tv), bool(miss[i] or miss[i + 1])))
         start = i + 1
     if start == 0:
         return p
@@ -233,9 +376,10 @@ def _split_at(p: RoutePath, cuts: np.ndarray, max_gap_s: float) -> list[RoutePat
     ]
 
 
-def _report_gaps(chosen, group, judged, limit, info, warnings) -> None:
-    """``gaps="auto"``: every judged gap of the chosen path's source in the metadata, and one
-    warning with the counts and the invented distance."""
+def _report_gaps(chosen, judged, starts, limit, info, warnings) -> None:
+    """``gaps="auto"``: every judged gap of the chosen path's source in the metadata, the
+    spans of virtual fixes (``virtual_s``), and one warning with the counts, the invented
+    distance and the first gaps in words."""
     source_name = next((n for n, g in judged.items() if chosen.name.startswith(n)), None)
     every = judged.get(source_name, [])
     bridged = [g for g in every if g["bridge"]]
@@ -245,13 +389,39 @@ def _report_gaps(chosen, group, judged, limit, info, warnings) -> None:
     info["gaps"] = every
     info["bridged_gaps"] = len(bridged)
     info["invented_m"] = invented
+    t = chosen.time_unix_s
+    if bridged and t is not None and source_name in starts:
+        # where the chosen path's fixes are virtual (s from its first fix, as ``time_s``): the
+        # truth stage estimates the fixes' noise from the real ones
+        t0 = float(t[0])
+        spans = [(starts[source_name] + g["at_s"] - t0, g["length_s"]) for g in bridged]
+        info["virtual_s"] = [
+            [a, a + n] for a, n in spans if a >= -1e-6 and a + n <= float(t[-1]) - t0 + 1e-6
+        ]
     if every:
+        shown = "; ".join(_gap_text(g) for g in every[:REPORT_GAPS])
+        more = f"; and {len(every) - REPORT_GAPS} more" if len(every) > REPORT_GAPS else ""
         warnings.append(
             f"{len(every)} time gaps longer than {limit:g} s judged by motion: {len(bridged)} "
-            f"bridged by straight legs at the speed they need ({invented:.0f} m invented, "
-            f"{100 * invented / max(total, 1e-9):.1f} % of the path), {len(split)} split "
-            f"(no plausible motion across them); each is listed in the metadata (segments.gaps)"
+            f"bridged ({sum(g.get('kind') == 'stop' for g in bridged)} as stops; "
+            f"{invented:.0f} m invented, {100 * invented / max(total, 1e-9):.1f} % of the path), "
+            f"{len(split)} split (no plausible motion across them): {shown}{more} "
+            "(each in the metadata, segments.gaps)"
         )
+
+
+#: Gaps named one by one in the warning of :func:`_report_gaps` (all are in the metadata).
+REPORT_GAPS = 5
+
+
+def _gap_text(g: dict) -> str:
+    """One gap in words: where, how long, how far, and what was done."""
+    head = f"at {g['at_s']:.0f} s, {g['length_s']:.0f} s over {g['distance_m']:.0f} m"
+    if not g["bridge"]:
+        return f"{head}: split"
+    if g["kind"] == "stop":
+        return f"{head}: a stop of {g['stop_s']:.0f} s (braking at {g['accel_mps2']:.2g} m/s^2)"
+    return f"{head}: a leg at {g['leg_speed_mps']:.2g} m/s"
 
 
 def chain(cands: list[RoutePath], max_gap_s: float) -> bool:
@@ -376,9 +546,12 @@ def choose_path(
     groups: dict[str, list[RoutePath]] = {}
     expanded: list[RoutePath] = []
     judged: dict[str, list[dict]] = {}
+    starts: dict[str, float] = {}  # unix time of the first fix of each judged path
     for p in cands:
         if gaps == "auto":
             judged[p.name] = g = judge_gaps(p, limit, vehicle)
+            if g:
+                starts[p.name] = float(p.time_unix_s[0])
             cuts = np.array([x["index"] for x in g if not x["bridge"]], int)
             parts = [
                 bridge_gaps(q, judge_gaps(q, limit, vehicle)) for q in _split_at(p, cuts, limit)
@@ -418,7 +591,7 @@ def choose_path(
     info["parts"] = len(group)
     info["not_used"] = info["not_used"] or [p.name for p in group if p is not chosen]
     if gaps == "auto":
-        _report_gaps(chosen, group, judged, limit, info, warnings)
+        _report_gaps(chosen, judged, starts, limit, info, warnings)
     t = chosen.time_unix_s
     if gaps == "bridge" and t is not None and np.isfinite(t).all():
         n_long = int((np.diff(t) > limit).sum())

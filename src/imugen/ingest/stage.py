@@ -342,6 +342,8 @@ def read(src: str | Path, options: IngestOptions) -> Ingested:
     o = options
     if isinstance(o.path, str) and o.path.strip().casefold() == ALL:
         raise InputError("--path", "all makes one route per path: use read_all (or the CLI)")
+    if isinstance(o.path, str) and o.path.strip().casefold().startswith(ALL + ":"):
+        return read_one(src, o.path.strip()[len(ALL) + 1 :], o)
     with np.errstate(over="ignore", invalid="ignore"):  # overflows are refused, not printed
         return _ingest(
             src, o.path, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km, o.gap_warn_s,
@@ -351,14 +353,64 @@ def read(src: str | Path, options: IngestOptions) -> Ingested:
 
 
 def route_ids(cands: list[RoutePath]) -> list[str]:
-    """Stable ids of a file's paths: ``<index>-<name slug>`` (``007-morning-walk``), the
-    index zero-padded to the count's width (file order; the same file gives the same ids)."""
-    width = len(str(len(cands)))
-    out = []
-    for k, p in enumerate(cands, start=1):
+    """Stable ids of a file's paths: ``<name slug>-<hash>`` (``morning-walk-3f9a2c``).
+
+    The hash is the first 6 hex digits of the SHA-256 of the path's name and its first point
+    (latitude and longitude to 1e-7 deg, or the first E N U row to 1 mm), so a path keeps its
+    id when other paths are added to or removed from the file (a file index would not). Two
+    paths with the same name and first point take ``-2``, ``-3``, ... in file order.
+    """
+    out, seen = [], {}
+    for p in cands:
+        if p.enu_m is not None and len(p.enu_m):
+            first = ",".join(f"{x:.3f}" for x in p.enu_m[0])
+        elif p.n_points:
+            first = f"{float(p.lat_deg[0]):.7f},{float(p.lon_deg[0]):.7f}"
+        else:
+            first = ""
+        digest = hashlib.sha256(f"{p.name}\0{first}".encode()).hexdigest()[:6]
         slug = re.sub(r"[^a-z0-9]+", "-", p.name.casefold()).strip("-")[:40].strip("-")
-        out.append(f"{k:0{width}d}" + (f"-{slug}" if slug else ""))
+        rid = f"{slug}-{digest}" if slug else digest
+        seen[rid] = seen.get(rid, 0) + 1
+        out.append(rid if seen[rid] == 1 else f"{rid}-{seen[rid]}")
     return out
+
+
+def _candidates(src: Path, navsatfix_status: str):
+    if src.is_dir() and (src / "metadata.yaml").is_file():  # a ROS 2 bag's folder
+        src = src / "metadata.yaml"
+    raw = limits.read_input(src)
+    return src, raw, read_route_file(src, raw, navsatfix_status=navsatfix_status)
+
+
+def path_ids(src: str | Path, navsatfix_status: str = "lenient") -> list[str]:
+    """The route ids ``--path=all`` would give ``src``'s paths (:func:`route_ids`), reading
+    the file only (no cleaning): what the workflow expands ``paths: all`` into at parse time.
+    Paths too small to be a route (fewer than two points) are left out."""
+    _, _, cands = _candidates(Path(src), navsatfix_status)
+    return [rid for rid, p in zip(route_ids(cands), cands, strict=True) if p.n_points >= 2]
+
+
+def _ingest_alone(src, cand, raw, o: IngestOptions) -> Ingested:
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _ingest(
+            src, None, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km,
+            o.gap_warn_s, o.vehicle, o.max_gap_s, o.gaps, o.navsatfix_status, o.pose_world,
+            o.pose_world_yaw_deg, [cand], raw,
+        )  # fmt: skip
+
+
+def read_one(src: str | Path, rid: str, options: IngestOptions) -> Ingested:
+    """``--path=all:ID``: the path of ``src`` whose id (:func:`route_ids`) is ``rid``, ingested
+    alone as :func:`read_all` ingests it (one route of a ``paths: all`` route in the workflow)."""
+    src, raw, cands = _candidates(Path(src), options.navsatfix_status)
+    ids = route_ids(cands)
+    if rid not in ids:
+        shown = ", ".join(ids[:LIST_CANDIDATES]) + (", ..." if len(ids) > LIST_CANDIDATES else "")
+        raise InputError(src, f"--path=all:{rid}: no path has this id (ids: {shown})")
+    ing = _ingest_alone(src, cands[ids.index(rid)], raw, options)
+    ing.meta["route_id"] = rid
+    return ing
 
 
 def read_all(src: str | Path, options: IngestOptions) -> tuple[list[tuple[str, Ingested]], list]:
@@ -368,21 +420,11 @@ def read_all(src: str | Path, options: IngestOptions) -> tuple[list[tuple[str, I
     a path that is refused is skipped. Returns ``([(id, Ingested), ...], [(id, reason), ...])``
     (ids from :func:`route_ids`); raises :class:`InputError` when no path is read.
     """
-    from dataclasses import replace as _replace
-
-    src = Path(src)
-    raw = limits.read_input(src)
-    cands = read_route_file(src, raw, navsatfix_status=options.navsatfix_status)
-    o = _replace(options, path=None)
+    src, raw, cands = _candidates(Path(src), options.navsatfix_status)
     done, refused = [], []
     for rid, cand in zip(route_ids(cands), cands, strict=True):
         try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                ing = _ingest(
-                    src, None, o.origin, o.dt, o.utm, o.max_speed_kmh, o.max_extent_km,
-                    o.gap_warn_s, o.vehicle, o.max_gap_s, o.gaps, o.navsatfix_status, o.pose_world,
-                    o.pose_world_yaw_deg, [cand], raw,
-                )  # fmt: skip
+            ing = _ingest_alone(src, cand, raw, options)
         except InputError as exc:
             refused.append((rid, str(exc)))
             continue

@@ -24,6 +24,7 @@ from imugen.truth.increments import imu_pass
 from imugen.truth.pose import PoseSettings, fit_poses, motion_figures, pose_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
+from imugen.truth.reversals import find_reversals, legs_motion
 from imugen.truth.road import motion_on_road, path_on_road
 from imugen.truth.vehicles import VehicleParams, vehicle_params
 
@@ -106,13 +107,36 @@ def pose_motion(enu: pd.DataFrame, meta: dict, settings: PoseSettings | None):
     return fit_poses(enu[tenu.TIME].to_numpy(float), y, q_n, settings)
 
 
+def _virtual(t: np.ndarray, meta: dict) -> np.ndarray | None:
+    """Coordinates of a timed route that ingestion placed, (n, 3) bool, or None: the virtual
+    fixes of bridged gaps (``segments.virtual_s`` spans, s like ``time_s``) and the heights
+    held while an aircraft stands still (``cleaning.still_runs_s``)."""
+    out = np.zeros((len(t), 3), bool)
+    for a, b in (meta.get("segments") or {}).get("virtual_s") or []:
+        out[(t > a + 1e-6) & (t < b - 1e-6)] = True
+    for a, b in (meta.get("cleaning") or {}).get("still_runs_s") or []:
+        out[(t >= a - 1e-6) & (t <= b + 1e-6), 2] = True
+    return out if out.any() else None
+
+
+def _limits(vp: VehicleParams, opts: BuildOptions) -> dict:
+    """The speed profile's limits of an untimed route: the options' or the class's."""
+    return {
+        "cruise_mps": opts.cruise_mps or vp.cruise_mps,
+        "accel_mps2": opts.accel_mps2 or vp.accel_mps2,
+        "lat_accel_mps2": opts.lat_accel_mps2 or vp.lat_accel_mps2,
+        "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
+    }
+
+
 def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOptions, E=None):
     """Fit the route: returns (motion, fit report, timing report).
 
     With ``E`` (the :class:`EarthField` of the truth), an untimed ground route's geometry
     takes the vertical of its road profile before its speed profile (:func:`_path_on_road`);
     the motion's ``profile`` holds it. A pose trajectory's motion carries its attitude
-    (:func:`pose_motion`)."""
+    (:func:`pose_motion`). An untimed ground route that doubles back is timed leg by leg with
+    a stop and a turn at each reversal (:mod:`imugen.truth.reversals`)."""
     for c in tenu.ENU:
         if c not in enu.columns:
             raise InputError(None, f"ENU table lacks column {c!r}")
@@ -124,8 +148,11 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
         raise InputError(None, "ENU table holds non-finite coordinates")
     timed = bool(meta.get("timed", col.TIME in enu.columns)) and col.TIME in enu.columns
     if timed:
-        motion, fit = fit_timed(enu[col.TIME].to_numpy(float), y, vp, opts.fit_tol_m, opts.stops)
+        t = enu[col.TIME].to_numpy(float)
+        motion, fit = fit_timed(t, y, vp, opts.fit_tol_m, opts.stops, _virtual(t, meta))
         timing = {"timed": True, "source": "input clock"}
+    elif vp.attitude == "ground" and (cuts := find_reversals(y, vp)):
+        motion, fit, timing = legs_motion(y, cuts, vp, opts.corner_m, _limits(vp, opts))
     else:
         G, L, fit, s_v = fit_path(y, vp, opts.corner_m, vertices=True)
         profile = None
@@ -135,13 +162,7 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
         if vp.phases:
             alt = enu[tenu.ALT].to_numpy(float) if tenu.ALT in enu.columns else y[:, 2]
             G, L, vmax, plan = flight_geometry(G, L, _origin(meta), alt, vp)
-        prof = {
-            "cruise_mps": opts.cruise_mps or vp.cruise_mps,
-            "accel_mps2": opts.accel_mps2 or vp.accel_mps2,
-            "lat_accel_mps2": opts.lat_accel_mps2 or vp.lat_accel_mps2,
-            "jerk_mps3": opts.jerk_mps3 or vp.jerk_mps3,
-        }
-        s_pp, rep = speed_profile(G, L, **prof, vmax_mps=vmax)
+        s_pp, rep = speed_profile(G, L, **_limits(vp, opts), vmax_mps=vmax)
         motion = PathMotion(G, s_pp, L, profile)
         timing = {"timed": False, "source": "speed profile", **rep}
         if plan is not None:
@@ -359,6 +380,8 @@ def build_truth(
     model = earth
     E = None if earth == "auto" else EarthField(ea.OriginFrame.from_deg(lat0, lon0, h0, model))
     motion, fit, timing = build_motion(enu, meta, vp, opts, E)
+    if "vertex_times_s" in timing:  # timed leg by leg: the input points' times
+        enu = enu.assign(**{col.TIME: timing.pop("vertex_times_s")})
     K = _samples(motion, rate_hz)
     if earth == "auto":
         budget = earth_budget(motion, K, math.radians(lat0), opts.grade, opts.auto_fraction)

@@ -281,8 +281,14 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
     return merged
 
 
-def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
-    """Fit the position spline of a timed route; returns (TimedMotion, report dict)."""
+def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None):
+    """Fit the position spline of a timed route; returns (TimedMotion, report dict).
+
+    ``virtual`` (bool, shape (n,) or (n, 3) per axis, or None): coordinates that ingestion
+    placed (fixes along a bridged gap, heights held while an aircraft stands still): exact,
+    noiseless; the noise of the horizontal and of the vertical is estimated from the other
+    fixes and the RMS residual target scaled by sqrt(real / all), the placed coordinates'
+    residuals being near 0."""
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     n = len(t)
@@ -291,7 +297,16 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
     dt = np.diff(t)
     if not np.all(np.isfinite(t)) or np.any(dt <= 0):
         raise InputError(None, "route times must be finite and strictly increasing")
-    sig = noise_estimate(t, y)
+    sig, share = noise_estimate(t, y), np.ones(3)
+    real = None
+    if virtual is not None:
+        virtual = np.asarray(virtual, bool)
+        real = ~(virtual if virtual.ndim == 2 else np.repeat(virtual[:, None], 3, axis=1))
+        for axes in ((0, 1), (2,)):
+            r = real[:, axes[0]]
+            if r.sum() >= 8 and not r.all():
+                sig[list(axes)] = noise_estimate(t[r], y[r])[list(axes)]
+                share[list(axes)] = math.sqrt(r.sum() / n)
     norm = float(np.linalg.norm(sig))
     if fit_tol_m is not None:
         if not fit_tol_m > 0:
@@ -307,7 +322,7 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
             f"(noise_estimate: neighbour-prediction residuals), 3-D bounded by [{vp.fit_floor_m}, "
             f"{vp.fit_tol_max_m}] m"
         )
-    target = np.maximum(target, vp.fit_floor_m / math.sqrt(3))
+    target = np.maximum(target, vp.fit_floor_m / math.sqrt(3)) * share
     ps = PenalizedSpline(t)
     loglam = np.array([ps.lam_for_rms(y[:, i], target[i]) for i in range(3)])
     lam = 10.0**loglam
@@ -331,6 +346,7 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True):
         "method": "quintic penalized smoothing spline (knots at input times, penalty on jerk)",
         "criterion": criterion,
         "noise_estimate_m": sig.tolist(),
+        "virtual_fixes": 0 if real is None else int((~real).any(axis=1).sum()),
         "target_rms_m": target.tolist(),
         "lambda_normalized": lam.tolist(),
         "time_scale_s": ps.scale,

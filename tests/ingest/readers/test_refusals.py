@@ -60,7 +60,7 @@ def test_every_part_a_single_point_after_splitting_at_gaps(tmp_path):
         "2024-01-01T02:00:00Z,40.02,-105\n"
     )
     with pytest.raises(InputError, match="no path is left after splitting at time gaps"):
-        ingest(f)
+        ingest(f, gaps="split")
     assert ingest(f, gaps="bridge").meta["points_out"] >= 3
 
 
