@@ -357,11 +357,11 @@ LIMIT_RESIDUAL_NOISE = 4.0
 ``fit_tol_max_m``): beyond it the input itself is the implausible motion (the gate refuses)."""
 
 
-def _excess(spline, x, vp, ground, timed, per=4):
+def _excess(spline, x, vp, ground, per=4):
     """Parameters (of ``x``'s range) where the curve exceeds the vehicle's limits:
     |acceleration| beyond ``max_accel_mps2`` (timed), and for ground vehicles a horizontal
     curvature beyond ``max_curvature_1pm`` while faster than twice ``stop_speed_mps``
-    (timed) or anywhere (untimed: ``x`` a length, no acceleration)."""
+    (``x`` the input times)."""
     f = np.linspace(0.0, 1.0, per, endpoint=False)
     xq = np.r_[(x[:-1, None] + f * np.diff(x)[:, None]).ravel(), x[-1]]
     d1, d2 = spline(xq, 1), spline(xq, 2)
@@ -370,13 +370,12 @@ def _excess(spline, x, vp, ground, timed, per=4):
     if ground:
         kappa = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(vh2, 1e-30) ** 1.5
         bad |= kappa > vp.max_curvature_1pm
-    if timed:
-        bad &= vh2 > (2.0 * vp.stop_speed_mps) ** 2
-        bad |= np.linalg.norm(d2, axis=1) > vp.max_accel_mps2
+    bad &= vh2 > (2.0 * vp.stop_speed_mps) ** 2
+    bad |= np.linalg.norm(d2, axis=1) > vp.max_accel_mps2
     return xq[bad]
 
 
-def _within_limits(spline, x, y, vp, make, lam, noise_m, timed=True):
+def _within_limits(spline, x, y, vp, make, lam, noise_m):
     """A fitted curve smoothed locally until it is within its vehicle's limits
     (:func:`_excess`): the weights of the input points around each place beyond them shrink
     by :data:`LIMIT_WEIGHT_STEP` per round (the smoothing there grows, the rest of the fit is
@@ -386,13 +385,11 @@ def _within_limits(spline, x, y, vp, make, lam, noise_m, timed=True):
     :class:`PenalizedSpline`, ``lam`` its smoothing (per coordinate). Returns the curve and
     a report (None when nothing was smoothed)."""
     ground = vp.attitude == "ground"
-    if not ground and not timed:
-        return spline, None
     w = np.ones(len(x))
     cap = max(LIMIT_RESIDUAL_NOISE * noise_m, vp.fit_tol_max_m)
     best, rounds = spline, 0
     for _ in range(LIMIT_ITERATIONS):
-        xb = _excess(best, x, vp, ground, timed)
+        xb = _excess(best, x, vp, ground)
         if not len(xb):
             break
         i = np.clip(np.searchsorted(x, xb), 1, len(x) - 1)
@@ -413,7 +410,7 @@ def _within_limits(spline, x, y, vp, make, lam, noise_m, timed=True):
         best, w, rounds = trial, w_try, rounds + 1
     if not rounds:
         return spline, None
-    left = _excess(best, x, vp, ground, timed)
+    left = _excess(best, x, vp, ground)
     res = np.linalg.norm(best(x) - y, axis=1)
     smoothed = w < 1.0
     return best, {
@@ -464,21 +461,6 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     lam = (ell / ps.scale) ** 6 * _CORNER_CAL
     coef = np.column_stack([ps.solve(lam, dense[:, i]) for i in range(3)])
     g = ps.bspline(coef)
-    noise = (
-        float(np.median(np.linalg.norm(np.diff(dense, 2, axis=0), axis=1)))
-        if len(dense) > 2
-        else 0.0
-    )
-    g, limited = _within_limits(
-        g,
-        u,
-        dense,
-        vp,
-        lambda w: PenalizedSpline(u, (), w),
-        np.full(3, lam),
-        max(noise, ell),
-        timed=False,
-    )
     # arc length by 5-node Gauss-Legendre on a fine parameter grid
     nfine = max(64, int(np.ceil(u[-1] / (step / 4.0))))
     uf = np.linspace(0.0, u[-1], nfine + 1)
@@ -498,7 +480,6 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
         "rms_distance_m": float(np.sqrt(np.mean(d**2))),
         "max_distance_m": float(d.max()),
         "length_m": L,
-        "limited": limited,
     }
     if vertices:
         s_v = np.interp(np.r_[0.0, np.cumsum(seg)], uf, s)
