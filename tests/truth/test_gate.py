@@ -189,7 +189,7 @@ def test_real_tracks_pass_the_gate(path):
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
 def test_mountain_pass_slips_less_after_local_smoothing(monkeypatch):
     """The timed mountain-pass drive (4 s fixes): the fit smoothed locally where it turns
-    tighter than a car can lowers the body's lateral speed (5.3 m/s before, 3.9 after)."""
+    tighter than a car can lowers the body's lateral speed (5.3 m/s before, 3.3 after)."""
     from imugen.ingest.stage import ingest
 
     path = SHARED / "e_car_colorado_mountain_pass.gpx"

@@ -493,6 +493,14 @@ def messages(tmeta: dict) -> list[str]:
             f"{fit['attitude_cutoff_hz']:.3g} Hz; outliers {fit['position_outliers']} + "
             f"{fit['attitude_outliers']}, gaps {fit['gaps']} (max {fit['max_gap_s']:.3g} s)",
         )
+    lim = fit.get("limited")
+    if lim:
+        lines.append(
+            f"truth fit: cleaned: smoothed locally at {lim['points_smoothed']} fixes where it "
+            "turned tighter than the vehicle's curvature limit or braked/accelerated beyond its "
+            f"limit (largest residual there {lim['max_residual_smoothed_m']:.2f} m, cap "
+            f"{lim['residual_cap_m']:.2f} m; {lim['places_left']} places still beyond)"
+        )
     mr = tmeta["plausibility"].get("multirotor")
     if mr:
         lines.append(

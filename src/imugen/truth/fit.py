@@ -380,13 +380,19 @@ def _within_limits(spline, x, y, vp, make, lam, noise_m):
     (:func:`_excess`): the weights of the input points around each place beyond them shrink
     by :data:`LIMIT_WEIGHT_STEP` per round (the smoothing there grows, the rest of the fit is
     unchanged); a round that leaves an input point farther from the curve than
-    :data:`LIMIT_RESIDUAL_NOISE` noise estimates (or than the fit already was) is undone and
+    :data:`LIMIT_RESIDUAL_NOISE` noise estimates (at least ``fit_tol_max_m`` and than the fit
+    already was) is undone and
     ends the smoothing: there the input itself is beyond the limits. ``make(weights)`` builds the
     :class:`PenalizedSpline`, ``lam`` its smoothing (per coordinate). Returns the curve and
     a report (None when nothing was smoothed)."""
     ground = vp.attitude == "ground"
     w = np.ones(len(x))
-    cap = max(LIMIT_RESIDUAL_NOISE * noise_m, vp.fit_tol_max_m)
+    # no fix farther than 4 noise estimates (at least fit_tol_max_m) or than the fit already was
+    cap = max(
+        LIMIT_RESIDUAL_NOISE * noise_m,
+        vp.fit_tol_max_m,
+        float(np.max(np.linalg.norm(spline(x) - y, axis=1))),
+    )
     best, rounds = spline, 0
     for _ in range(LIMIT_ITERATIONS):
         xb = _excess(best, x, vp, ground)
@@ -405,7 +411,7 @@ def _within_limits(spline, x, y, vp, make, lam, noise_m):
         ps = make(w_try)
         coef = np.column_stack([ps.solve(lam[j], y[:, j]) for j in range(y.shape[1])])
         trial = ps.bspline(coef)
-        if np.linalg.norm(trial(x) - y, axis=1).max() > max(cap, res.max()):
+        if np.linalg.norm(trial(x) - y, axis=1).max() > cap:
             break  # the input itself turns or brakes beyond the limit: keep the last round
         best, w, rounds = trial, w_try, rounds + 1
     if not rounds:
