@@ -20,6 +20,7 @@ from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
 from imugen.truth.fit import fit_path, fit_timed
 from imugen.truth.flight import flight_geometry
+from imugen.truth.gate import findings
 from imugen.truth.increments import imu_pass
 from imugen.truth.pose import PoseSettings, fit_poses, motion_figures, pose_pass
 from imugen.truth.profile import PathMotion, speed_profile
@@ -214,6 +215,14 @@ def _heights(E, enu):
     is the origin's)."""
     y = enu[list(tenu.ENU)].to_numpy(dtype=float)
     return y[:, 2] if E.flat else E.frame.with_model("wgs84").geodetic_from_n(y)[2]
+
+
+def _gate_heights(E, enu):
+    """Heights [m] of the input points as the gate takes the truth's
+    (``E.frame.geodetic_from_n``: absolute in every model)."""
+    if not E.flat:
+        return _heights(E, enu)
+    return E.frame.geodetic_from_n(enu[list(tenu.ENU)].to_numpy(dtype=float))[2]
 
 
 def _input_heights(E, enu):
@@ -444,6 +453,12 @@ def build_truth(
     plaus = plausibility(
         df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne, frame=E.frame
     )
+    # the pre-write gate (imugen.truth.gate); a pose truth is the given motion, not gated
+    gate = (
+        None
+        if pose
+        else findings(df, vp, frame=E.frame, airborne=airborne, input_heights=_gate_heights(E, enu))
+    )
     if pose or thrust:
         plaus.update(
             motion_figures(times, out[:, ci["vel"]], out[:, ci["gyro"]], out[:, ci["accel"]])
@@ -473,6 +488,7 @@ def build_truth(
         "motion": stats,
         "ground_attitude": None if ground is None else ground.report,
         "plausibility": plaus,
+        "gate": gate,
         "conventions": f"n = {col.NAV_FRAMES[model]}, b = FLU; l = ENU at the vehicle; "
         "C_lb = C_ln C_nb = Rz(yaw) Ry(-pitch) Rx(roll); quaternion scalar first; increments on "
         "the row ending their interval (row 0 zeros)",
@@ -499,6 +515,14 @@ def messages(tmeta: dict) -> list[str]:
             f"cutoffs {', '.join(f'{f:.3g}' for f in fit['position_cutoff_hz'])} Hz, attitude "
             f"{fit['attitude_cutoff_hz']:.3g} Hz; outliers {fit['position_outliers']} + "
             f"{fit['attitude_outliers']}, gaps {fit['gaps']} (max {fit['max_gap_s']:.3g} s)",
+        )
+    lim = fit.get("limited")
+    if lim:
+        lines.append(
+            f"truth fit: cleaned: smoothed locally at {lim['points_smoothed']} fixes where it "
+            "turned tighter than the vehicle's curvature limit or braked/accelerated beyond its "
+            f"limit (largest residual there {lim['max_residual_smoothed_m']:.2f} m, cap "
+            f"{lim['residual_cap_m']:.2f} m; {lim['places_left']} places still beyond)"
         )
     mr = tmeta["plausibility"].get("multirotor")
     if mr:

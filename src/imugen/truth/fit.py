@@ -340,6 +340,10 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
             ps = PenalizedSpline(t, ties)
             coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
             spline = ps.bspline(coef)
+    ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
+    spline, limited = _within_limits(
+        spline, t, y, vp, lambda w: PenalizedSpline(t, ties, w), lam, float(np.linalg.norm(sig))
+    )
     motion = TimedMotion(spline, float(t[0]), float(t[-1]))
     dist = np.linalg.norm(spline(t) - y, axis=1)
     report = {
@@ -353,8 +357,93 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         "rms_distance_m": float(np.sqrt(np.mean(dist**2))),
         "max_distance_m": float(dist.max()),
         "stops": [[float(t[i0]), float(t[i1])] for i0, i1 in stop_list],
+        "limited": limited,
     }
     return motion, report
+
+
+LIMIT_ITERATIONS = 12
+"""Rounds of local smoothing of a fit beyond its vehicle's limits (:func:`_within_limits`)."""
+
+LIMIT_WEIGHT_STEP = 0.2
+"""Factor of the weights of the points around a place beyond the limits, per round."""
+
+LIMIT_RESIDUAL_NOISE = 4.0
+"""Largest residual of a locally smoothed point, in noise estimates (3-D; at least
+``fit_tol_max_m``): beyond it the input itself is the implausible motion (the gate refuses)."""
+
+
+def _excess(spline, x, vp, ground, per=4):
+    """Parameters (of ``x``'s range) where the curve exceeds the vehicle's limits:
+    |acceleration| beyond ``max_accel_mps2`` (timed), and for ground vehicles a horizontal
+    curvature beyond ``max_curvature_1pm`` while faster than twice ``stop_speed_mps``
+    (``x`` the input times)."""
+    f = np.linspace(0.0, 1.0, per, endpoint=False)
+    xq = np.r_[(x[:-1, None] + f * np.diff(x)[:, None]).ravel(), x[-1]]
+    d1, d2 = spline(xq, 1), spline(xq, 2)
+    bad = np.zeros(len(xq), bool)
+    vh2 = d1[:, 0] ** 2 + d1[:, 1] ** 2
+    if ground:
+        kappa = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(vh2, 1e-30) ** 1.5
+        bad |= kappa > vp.max_curvature_1pm
+    bad &= vh2 > (2.0 * vp.stop_speed_mps) ** 2
+    bad |= np.linalg.norm(d2, axis=1) > vp.max_accel_mps2
+    return xq[bad]
+
+
+def _within_limits(spline, x, y, vp, make, lam, noise_m):
+    """A fitted curve smoothed locally until it is within its vehicle's limits
+    (:func:`_excess`): the weights of the input points around each place beyond them shrink
+    by :data:`LIMIT_WEIGHT_STEP` per round (the smoothing there grows, the rest of the fit is
+    unchanged); a round that leaves an input point farther from the curve than
+    :data:`LIMIT_RESIDUAL_NOISE` noise estimates (at least ``fit_tol_max_m`` and than the fit
+    already was) is undone and
+    ends the smoothing: there the input itself is beyond the limits. ``make(weights)`` builds the
+    :class:`PenalizedSpline`, ``lam`` its smoothing (per coordinate). Returns the curve and
+    a report (None when nothing was smoothed)."""
+    ground = vp.attitude == "ground"
+    w = np.ones(len(x))
+    # no fix farther than 4 noise estimates (at least fit_tol_max_m) or than the fit already was
+    cap = max(
+        LIMIT_RESIDUAL_NOISE * noise_m,
+        vp.fit_tol_max_m,
+        float(np.max(np.linalg.norm(spline(x) - y, axis=1))),
+    )
+    best, rounds = spline, 0
+    for _ in range(LIMIT_ITERATIONS):
+        xb = _excess(best, x, vp, ground)
+        if not len(xb):
+            break
+        i = np.clip(np.searchsorted(x, xb), 1, len(x) - 1)
+        near = np.zeros(len(x), bool)
+        for d in (-2, -1, 0, 1):
+            near[np.clip(i + d, 0, len(x) - 1)] = True
+        res = np.linalg.norm(best(x) - y, axis=1)
+        near &= (res < cap) & (w > 1e-6)
+        if not near.any():
+            break
+        w_try = w.copy()
+        w_try[near] *= LIMIT_WEIGHT_STEP
+        ps = make(w_try)
+        coef = np.column_stack([ps.solve(lam[j], y[:, j]) for j in range(y.shape[1])])
+        trial = ps.bspline(coef)
+        if np.linalg.norm(trial(x) - y, axis=1).max() > cap:
+            break  # the input itself turns or brakes beyond the limit: keep the last round
+        best, w, rounds = trial, w_try, rounds + 1
+    if not rounds:
+        return spline, None
+    left = _excess(best, x, vp, ground)
+    res = np.linalg.norm(best(x) - y, axis=1)
+    smoothed = w < 1.0
+    return best, {
+        "method": "local smoothing where the fit exceeds the vehicle's curvature or "
+        "acceleration limit (input weights reduced there)",
+        "rounds": rounds,
+        "points_smoothed": int(smoothed.sum()),
+        "max_residual_smoothed_m": float(res[smoothed].max()),
+        "residual_cap_m": cap,
+        "places_left": len(left),
+    }
 
 
 # ------------------------------------------------------------------------------------------

@@ -48,6 +48,11 @@ class TruthOptions:
         None, flag="--vehicle-param", many="append", metavar="NAME=VALUE", parse=_name_values,
         help="override a vehicle model parameter or limit (SI units, e.g. max_curvature_1pm=0.1)",
     )  # fmt: skip
+    allow_implausible: bool = option(
+        False,
+        help="write a truth that exceeds its vehicle's limits (the pre-write gate then only "
+        "warns; for studying implausible inputs)",
+    )
     pose_body: str = option(
         "flu", choices=("flu", "frd", "rdf"), config="routes.*.pose_body",
         help="axes of a pose trajectory's body (rdf: a camera, x right, y down, z forward)",

@@ -11,6 +11,7 @@ from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as ttable
 from imugen.truth.build import build_truth, messages
+from imugen.truth.gate import refusal
 from imugen.truth.options import TruthOptions
 from imugen.truth.pose import PoseSettings
 
@@ -58,11 +59,18 @@ def run(enu_path, out_path, options: TruthOptions | None = None, **build) -> dic
         if exc.source is None:
             raise InputError(enu_path, exc.message) from None
         raise
+    if tmeta.get("gate") and not o.allow_implausible:
+        raise InputError(enu_path, refusal(tmeta["gate"], tmeta["vehicle"]))
     tmeta["source"] = str(enu_path)
     tmeta["route_source"] = meta.get("source")
     ttable.write(df, tmeta, out_path)
     for line in messages(tmeta):
         print(line, file=sys.stderr)
+    if tmeta.get("gate"):
+        print(
+            f"imugen: warning: {refusal(tmeta['gate'], tmeta['vehicle'], written=True)}",
+            file=sys.stderr,
+        )
     return tmeta
 
 

@@ -24,9 +24,9 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   route's lowest point: a slow glider circling high is flying).
 * fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
   ``fit_floor_m``.
-* plausibility (warnings of the truth report, not enforced): ``max_speed_mps``,
-  ``max_accel_mps2``, the attitude bounds above and, in flight, ``max_pitch_airborne_rad``
-  and ``max_yaw_rate_airborne_radps`` (default unbounded).
+* plausibility (the truth's pre-write gate, :mod:`imugen.truth.gate`): ``max_speed_mps``,
+  ``max_accel_mps2``, ``max_jerk_mps3``, the attitude bounds above and, in flight, ``max_pitch_airborne_rad`` and
+  ``max_yaw_rate_airborne_radps`` (default unbounded).
 * multirotor (``attitude = "thrust"``, :mod:`imugen.truth.multirotor`): ``mass_kg``,
   ``arm_m``, ``hover_rpm``, ``blades``, ``k_m_m`` (yaw torque per thrust), ``inertia_*_kgm2``,
   ``drag_x_1ps``, ``drag_y_1ps`` (linear rotor drag, 0: none), the limits
@@ -68,6 +68,7 @@ class VehicleParams:
     grade_smooth_m: float = 50.0
     max_speed_mps: float = 70.0
     max_accel_mps2: float = 8.0
+    max_jerk_mps3: float = 30.0
     airborne_speed_mps: float = math.inf
     airborne_height_m: float = math.inf
     hold_speed_mps: tuple = (0.2, 1.0)

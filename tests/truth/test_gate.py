@@ -1,0 +1,211 @@
+"""The truth's pre-write gate (imugen.truth.gate): an impossible motion is refused in one
+line naming the file, the place and the limit, with nothing written; a plausible one (every
+shared real track but one) is written. The audit's impossible cases as synthetic routes of
+the same shape: a pedestrian diving from heights read as 0 m, a GPS spike of 325 m/s, a
+truth below the input's heights."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imugen import truth
+from imugen.core.errors import InputError
+from imugen.core.io import write_parquet
+from imugen.truth import fit as tfit
+from imugen.truth import stage
+from imugen.truth.gate import findings, refusal
+from imugen.truth.options import TruthOptions
+
+from helpers import SHARED_TRAJ
+
+ORIGIN = (46.5, 7.5, 800.0)
+SHARED = Path(os.environ.get("IMUGEN_SHARED_TRAJECTORIES", SHARED_TRAJ))
+
+
+def _walk(n=600, seed=3):
+    """A timed 1 Hz walk at 1.4 m/s along a gentle curve, 0.5 m noise (ENU, times)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=float)
+    s = 1.4 * t
+    enu = np.column_stack([s, 30.0 * np.sin(s / 200.0), np.zeros(n)])
+    return t, enu + rng.normal(0.0, 0.5, (n, 3)) * [1.0, 1.0, 0.3]
+
+
+def _enu_file(tmp_path, enu, t):
+    df, meta = truth.enu_table(enu, t, ORIGIN)
+    src = tmp_path / "walk_enu.parquet"
+    write_parquet(df, meta, src)
+    return src
+
+
+def _refused(tmp_path, enu, t, vehicle="pedestrian"):
+    src = _enu_file(tmp_path, enu, t)
+    out = tmp_path / "truth.parquet"
+    with pytest.raises(InputError) as exc:
+        stage.run(src, out, TruthOptions(rate_hz=10, earth="wgs84", vehicle=vehicle))
+    assert not out.exists()
+    msg = str(exc.value)
+    assert msg.startswith(str(src)) and "\n" not in msg
+    assert "not a motion a pedestrian makes" in msg and "nothing written" in msg
+    assert "t = " in msg and " N, " in msg and " E, " in msg and "km along the route" in msg
+    return msg
+
+
+def test_plausible_walk_is_written_without_findings(tmp_path):
+    t, enu = _walk()
+    src = _enu_file(tmp_path, enu, t)
+    meta = stage.run(
+        src, tmp_path / "ok.parquet", TruthOptions(rate_hz=10, earth="wgs84", vehicle="pedestrian")
+    )
+    assert meta["gate"] == [] and (tmp_path / "ok.parquet").exists()
+
+
+def test_pedestrian_diving_from_missing_heights_is_refused(tmp_path):
+    """60 fixes whose heights were read as 0 m on a walk 800 m up: the truth dives at ~100 m/s."""
+    t, enu = _walk()
+    enu[300:360, 2] -= ORIGIN[2]
+    msg = _refused(tmp_path, enu, t)
+    assert "speed" in msg and "beyond the pedestrian limit 12 m/s" in msg
+    t_at = float(msg.split("at t = ")[1].split(" s")[0])
+    assert 295.0 <= t_at <= 365.0  # at the dive's edges
+
+
+def test_gps_spike_is_refused(tmp_path):
+    """Five fixes 325 m off the walk (325 m/s between fixes)."""
+    t, enu = _walk()
+    enu[400:405, 0] += 325.0
+    msg = _refused(tmp_path, enu, t)
+    assert "speed" in msg or "acceleration" in msg
+
+
+def test_allow_implausible_writes_with_a_warning(tmp_path, cli):
+    t, enu = _walk()
+    enu[400:405, 0] += 325.0
+    src = _enu_file(tmp_path, enu, t)
+    out = tmp_path / "t.parquet"
+    bad = cli(
+        "truth", src, f"--output={out}", "--rate-hz=10", "--earth=wgs84", "--vehicle=pedestrian"
+    )
+    assert bad.returncode == 2 and not out.exists()
+    assert "Traceback" not in bad.stderr and "not a motion a pedestrian makes" in bad.stderr
+    ok = cli(
+        "truth", src, f"--output={out}", "--rate-hz=10", "--earth=wgs84", "--vehicle=pedestrian",
+        "--allow-implausible",
+    )  # fmt: skip
+    assert ok.returncode == 0 and out.exists()
+    assert "written anyway (--allow-implausible)" in ok.stderr
+
+
+def test_truth_below_the_input_heights_is_found():
+    """A truth 100 m under every input height (an untimed flight fitted underground)."""
+    t, enu = _walk(120)
+    df, meta = truth.enu_table(enu, t, ORIGIN)
+    tr, tmeta = truth.build_truth(
+        df, meta, rate_hz=10, earth="wgs84", vehicle="pedestrian", verbose=False
+    )
+    assert tmeta["gate"] == []
+    from imugen.core import earth as ea
+
+    frame = ea.OriginFrame.from_deg(*ORIGIN, "wgs84")
+    h_in = frame.geodetic_from_n(enu)[2]
+    vp = truth.VEHICLES["pedestrian"]
+    found = findings(tr, vp, frame=frame, input_heights=h_in + 100.0)
+    assert [f["limit"] for f in found] == ["height below the input's lowest"]
+    assert found[0]["value"] == pytest.approx(100.0, abs=5.0)
+    assert "height below the input's lowest by " in refusal(found, "pedestrian")
+
+
+# ------------------------------------------------------------------------------------------
+# real tracks
+# ------------------------------------------------------------------------------------------
+REFUSED = {
+    # 1 Hz GGA fixes whose own speeds go 39 -> 28 -> 9.5 -> 9.6 -> 18 m/s in one-second
+    # steps (t = 234-239 s): no car brakes and accelerates so (the fit, smoothed within 4
+    # noise estimates, still needs 11.9 m/s^2)
+    "g_nmea_gga_midnight_rollover.nmea": "acceleration",
+}
+
+
+def _vehicle(name: str, index: int) -> str:
+    n = name.lower()
+    if "colorado" in n:
+        return "car" if index == 1 else "pedestrian"
+    for key, veh in (("cycl", "bicycle"), ("bike", "bicycle"), ("hike", "pedestrian"),
+                     ("glider", "aircraft"), (".igc", "aircraft")):  # fmt: skip
+        if key in n:
+            return veh
+    return "car"
+
+
+def _paths():
+    if not SHARED.is_dir():
+        return []
+    return sorted(p for p in SHARED.iterdir() if p.suffix.lower() not in (".md", ".txt"))
+
+
+@pytest.mark.shared
+@pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
+@pytest.mark.parametrize("path", _paths(), ids=lambda p: p.name)
+def test_real_tracks_pass_the_gate(path):
+    """Every path of every shared real track (ingested with defaults; ground paths up to
+    500 km) passes the gate at 10 Hz, but the one whose fixes are themselves impossible."""
+    from imugen.ingest.readers import read_route_file
+    from imugen.ingest.stage import ingest
+
+    try:
+        n = len(read_route_file(path))
+    except InputError as exc:
+        pytest.skip(f"not readable here: {exc}")
+    checked = 0
+    for i in range(1, n + 1):
+        try:
+            ing = ingest(path, path=i)
+        except InputError:
+            continue
+        enu = ing.table[["e_m", "n_m"]].to_numpy()
+        if np.sum(np.linalg.norm(np.diff(enu, axis=0), axis=1)) > 500e3:
+            continue
+        try:
+            _, meta = truth.build_truth(
+                ing.table, ing.meta, rate_hz=10, vehicle=_vehicle(path.name, i), earth="wgs84",
+                verbose=False,
+            )  # fmt: skip
+        except InputError:  # too short to fit (two fixes)
+            continue
+        if path.name in REFUSED:
+            assert meta["gate"] and meta["gate"][0]["limit"] == REFUSED[path.name], path.name
+        else:
+            assert meta["gate"] == [], (path.name, i, meta["gate"])
+        checked += 1
+    if not checked:
+        pytest.skip("no path")
+
+
+@pytest.mark.shared
+@pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
+def test_mountain_pass_slips_less_after_local_smoothing(monkeypatch):
+    """The timed mountain-pass drive (4 s fixes): the fit smoothed locally where it turns
+    tighter than a car can lowers the body's lateral speed (5.3 m/s before, 3.3 after)."""
+    from imugen.ingest.stage import ingest
+
+    path = SHARED / "e_car_colorado_mountain_pass.gpx"
+    if not path.exists():
+        pytest.skip("no mountain pass")
+    ing = ingest(path, path=1)
+
+    def slip(rounds):
+        monkeypatch.setattr(tfit, "LIMIT_ITERATIONS", rounds)
+        _, m = truth.build_truth(
+            ing.table, ing.meta, rate_hz=10, vehicle="car", earth="wgs84", verbose=False
+        )
+        return m["plausibility"]["max_body_lateral_speed_mps"], m["fit"]
+
+    rounds = tfit.LIMIT_ITERATIONS
+    before, _ = slip(0)
+    after, fit = slip(rounds)
+    assert fit["limited"]["points_smoothed"] > 0
+    assert after < 0.8 * before
