@@ -22,6 +22,7 @@ import numpy as np
 from imugen.core import earth as ea
 from imugen.core import rotations as rot
 from imugen.tables import truth as col
+from imugen.truth.vehicles import has_suspension
 
 # tolerances of the consistency checks (numerical, not vehicle limits)
 RATE_INCREMENT_TOL_RADPS = 1e-3
@@ -207,12 +208,17 @@ def plausibility(
 
 def _warnings(r, vp) -> list[str]:
     out = []
-    pmax = math.degrees(vp.max_pitch_rad)
+    susp = has_suspension(vp)
+    # on a suspension the body pitches beyond the road's grade by up to the pitch gradient x
+    # the largest plausible acceleration, with the step response's overshoot (x 1.3)
+    pmax = math.degrees(
+        vp.max_pitch_rad + (1.3 * vp.pitch_gradient_radpmps2 * vp.max_accel_mps2 if susp else 0.0)
+    )
     if r["max_abs_pitch_deg"] > pmax + 1e-6:
         out.append(
             f"|pitch| on the ground reaches {r['max_abs_pitch_deg']:.1f} deg (limit {pmax:.1f})"
         )
-    rlim = math.degrees(vp.max_roll_rad if vp.lean else ROLL_ZERO_TOL_RAD)
+    rlim = math.degrees(vp.max_roll_rad if vp.lean or susp else ROLL_ZERO_TOL_RAD)
     if r["max_abs_roll_deg"] > rlim:
         out.append(
             f"|roll| on the ground reaches {r['max_abs_roll_deg']:.3g} deg (limit {rlim:.3g})"
