@@ -484,7 +484,7 @@ class GroundAttitude:
     * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
       ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
       :func:`soft_bound`;
-    * on a suspension (:func:`imugen.truth.vehicles.has_suspension`, a car by default) the
+    * on a suspension (:func:`imugen.truth.vehicles.has_suspension`: ``suspension`` ``damped``) the
       body rolls by ``phi_s(t)`` about its x axis and then pitches by ``theta_s(t)`` about its
       y axis, ``C_lb = Rz(psi) Ry(-theta) Rx(phi + phi_s) Ry(-theta_s)``
       (:class:`imugen.truth.suspension.Suspension`, driven by ``a_lat = v_h^2 Psi'(s)`` and

@@ -48,6 +48,13 @@ class TruthOptions:
         None, flag="--vehicle-param", many="append", metavar="NAME=VALUE", parse=_name_values,
         help="override a vehicle model parameter or limit (SI units, e.g. max_curvature_1pm=0.1)",
     )  # fmt: skip
+    suspension: str = option(
+        "auto", choices=("auto", "rigid", "damped"), config="routes.*.suspension",
+        help="body roll and pitch on the suspension of a ground vehicle: damped (a second-order "
+        "response to the lateral and longitudinal acceleration, passenger-car gradients; "
+        "--vehicle-param roll_gradient_radpmps2=... etc.), rigid (the path's attitude), or auto "
+        "(the vehicle class's: rigid for every class)",
+    )  # fmt: skip
     pose_body: str = option(
         "flu", choices=("flu", "frd", "rdf"), config="routes.*.pose_body",
         help="axes of a pose trajectory's body (rdf: a camera, x right, y down, z forward)",
