@@ -120,7 +120,7 @@ def test_rigid_is_bit_identical_to_zero_gradients_and_has_no_roll():
     assert "suspension" not in m1["ground_attitude"]
 
 
-@pytest.mark.parametrize("earth", ["flat", "wgs84"])
+@pytest.mark.parametrize("earth", ["flat", "wgs84", "geodetic"])
 def test_closure_with_suspension(earth):
     # S-curves with stops and speed changes, 1 Hz fixes
     t = np.arange(0.0, 200.0, 1.0)

@@ -137,8 +137,7 @@ class Suspension:
             (vp.roll_gradient_radpmps2, vp.roll_hz, vp.roll_damping, a_lat),
             (vp.pitch_gradient_radpmps2, vp.pitch_hz, vp.pitch_damping, a_lon),
         ):
-            pp = hermite(t, *response(t, K * a, f, z))
-            self.angles.append((pp, pp.derivative()))
+            self.angles.append(hermite(t, *response(t, K * a, f, z)))
         self.report = {
             "model": "damped second order",
             "grid_dt_s": float(t[1] - t[0]),
@@ -148,5 +147,5 @@ class Suspension:
 
     def __call__(self, t):
         """``(roll, roll rate, pitch, pitch rate)`` at times ``t`` (m,) [rad, rad/s]."""
-        (r, rd), (p, pd) = self.angles
-        return r(t), rd(t), p(t), pd(t)
+        r, p = self.angles
+        return r(t), r(t, 1), p(t), p(t, 1)
