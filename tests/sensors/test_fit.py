@@ -119,3 +119,42 @@ def test_adis16405_accelerometer_fit_holds_the_real_curve():
         meas = F.oavar(Y[:, a], mo)
         ratio = np.sqrt(am.avar(mo, len(Y)) / meas)[band]
         assert np.all(np.abs(ratio - 1) < 0.10), (a, np.round(ratio, 3))
+
+
+@pytest.mark.skipif(not ADIS.exists(), reason="needs ../shared/data/imu")
+@pytest.mark.parametrize("sensor", ["gyro", "accel"])
+def test_adis16405_long_tau_inside_the_real_curves_confidence(sensor):
+    """Out to 655 s (unit 1, the whole 2.78 h record: the longest octaves need it). The fit's
+    model, with the slow second Gauss-Markov hump (T 100-150 s) it finds, holds every axis
+    within 10 % at every octave 0.02-82 s and inside the real curve's own 95 % interval
+    (chi-square of Greenhall's EDF: about [0.86, 1.20] at 164 s, [0.81, 1.31] at 328 s,
+    [0.75, 1.52] at 655 s) beyond. The grade document holds no second hump (one bias process
+    per sensor plus rate random walk): without it, gyro y/z and accelerometer x/z still stay
+    inside the interval, gyro x (0.75 at 328 s) and accelerometer y (0.76 at 164 s) do not
+    (docs/how-to/fit-a-grade.md). Expected (closed-form) Allan variances: the simulator is
+    held to them by test_noise_terms."""
+    pd = pytest.importorskip("pandas")
+    df = pd.read_parquet(ADIS / "adis16405_static_imu1.parquet")
+    Y = df.iloc[:, :3] if sensor == "gyro" else df.iloc[:, 3:6]
+    Y = Y.to_numpy(np.float64)
+    K = len(Y)
+    mo = F.octaves(K, 0.1)
+    t = mo / 100.0
+    short, long_ = (t >= 0.02) & (t <= 82), t > 82
+    assert t[long_][-1] > 650
+    meas = [F.oavar(Y[:, a], mo) for a in range(3)]
+    ci = [F.adev_ci(np.ones(len(mo)), F.edf(mo, K, F.noise_alpha(mo, v))) for v in meas]
+    inside = {}
+    for slow in (True, False):
+        sf = F.fit_sensor(Y, 100.0, sensor, internal_rate_hz=819.2, slow_gm=slow)
+        for a, am in enumerate(sf.models):
+            r = np.sqrt(am.avar(mo, K) / meas[a])
+            lo, hi = ci[a]
+            ok = bool(np.all((r[long_] >= lo[long_]) & (r[long_] <= hi[long_])))
+            if slow:
+                assert np.all(np.abs(r[short] - 1) < 0.10), (a, np.round(r[short], 3))
+                assert ok, (a, np.round(r[long_], 3), np.round(lo[long_], 3))
+            else:
+                inside[a] = ok
+    # the grade's own model (no hump): the axes it holds
+    assert all(inside[a] for a in ((1, 2) if sensor == "gyro" else (0, 2))), inside

@@ -160,7 +160,7 @@ CFG = {
             "dt_s": 2.0, "max_gap_s": 30.0, "gaps": "bridge", "max_extent_km": 500.0, "path": 1,
             "pose_world": "flu", "pose_world_yaw_deg": 10.0, "pose_body": "frd",
             "imu_rotation_deg": [1.0, 2.0, 3.0], "lever_arm_m": [0.1, 0.0, 0.0],
-            "marker_offset_m": [0.0, 0.1, 0.0], "time_offset_s": 0.5,
+            "marker_offset_m": [0.0, 0.1, 0.0], "time_offset_s": 0.5, "suspension": "damped",
         },
     },
     "truth": {"rate_hz": 50, "earth": "wgs84"},

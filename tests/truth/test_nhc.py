@@ -22,6 +22,7 @@ from imugen.truth.report import _integral
 from helpers import SHARED_TRAJ
 
 ORIGIN = (31.63, -7.99, 480.6)
+RIGID = {"suspension": "rigid"}  # the path's own attitude: the constraint of the path
 SHARED = SHARED_TRAJ if SHARED_TRAJ.is_dir() else None
 
 
@@ -43,13 +44,52 @@ def _road(T=240.0, v=10.0):
     )
 
 
+def _suspension_pitch(tr, vp):
+    """Pitch on the suspension re-derived from the table: the damped second-order response
+    (:func:`imugen.truth.suspension.response`) to ``K_pitch dv_h/dt`` of the truth's own
+    velocity (finite differences), from rest."""
+    from imugen.truth.suspension import response
+
+    tt = tr[col.TIME].to_numpy()
+    v = _arr(tr, col.VEL)
+    if col.LAT in tr:  # geodetic: velocity in ECEF, up from the geodetic latitude, longitude
+        lat, lon = np.radians(tr[col.LAT].to_numpy()), np.radians(tr[col.LON].to_numpy())
+        up = np.column_stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+        v_up = np.einsum("ki,ki->k", v, up)
+        v_h = np.sqrt(np.maximum(np.einsum("ki,ki->k", v, v) - v_up**2, 0.0))
+    else:
+        v_h = np.hypot(v[:, 0], v[:, 1])
+    a_lon = np.gradient(v_h, tt)
+    return response(tt, vp.pitch_gradient_radpmps2 * a_lon, vp.pitch_hz, vp.pitch_damping)[0]
+
+
+@pytest.mark.parametrize("suspension", ["rigid", "damped"])
 @pytest.mark.parametrize("earth", ["flat", "wgs84", "geodetic"])
-def test_smooth_road_body_velocity_is_along_x(earth):
+def test_smooth_road_body_velocity_is_along_x(earth, suspension):
+    """Rigid: the body velocity is along x exactly. Damped (the car's default): the
+    suspension only rotates the body, so no y either, and z is the dive and squat of the
+    body, ``-|v| sin theta_s`` with ``theta_s`` the second-order response to ``dv_h/dt``."""
     t, enu = _road()
     df, meta = truth.enu_table(enu, t, ORIGIN)
-    tr, meta = truth.build_truth(df, meta, rate_hz=50, earth=earth, vehicle="car", verbose=False)
+    tr, meta = truth.build_truth(
+        df, meta, rate_hz=50, earth=earth, vehicle="car", verbose=False,
+        vehicle_params={"suspension": suspension},
+    )  # fmt: skip
     vb = _body_velocity(tr)
     assert np.abs(vb[:, 1]).max() < 1e-6
+    if suspension == "damped":
+        speed = np.linalg.norm(_arr(tr, col.VEL), axis=1)
+        vz = -speed * np.sin(_suspension_pitch(tr, truth.VEHICLES["car"]))
+        assert np.abs(vz).max() > 1e-3  # the road's speed changes pitch the body
+        assert np.abs(vb[:, 2] - vz).max() < 0.02 * np.abs(vz).max(), np.abs(vb[:, 2] - vz).max()
+        rep = meta["plausibility"]
+        assert rep["warnings"] == []
+        assert rep["max_body_vertical_speed_mps"] == pytest.approx(
+            np.abs(vb[:, 2]).max(), abs=1e-12
+        )
+        roll = tr["roll_rad"].to_numpy()
+        assert 0.0 < np.abs(roll).max() <= truth.VEHICLES["car"].max_roll_rad
+        return
     assert np.abs(vb[:, 2]).max() < 1e-6
     assert vb[:, 0].min() > 9.0
     rep = meta["plausibility"]
@@ -140,7 +180,9 @@ def test_paper_trajectory_nhc():
 
     ing = ingest(path, origin="31.63,-7.99,480.6", dt=1.0, vehicle="car")
     df, meta = ing.table, ing.meta
-    tr, meta = truth.build_truth(df, meta, rate_hz=50, earth="flat", vehicle="car", verbose=False)
+    tr, meta = truth.build_truth(
+        df, meta, rate_hz=50, earth="flat", vehicle="car", verbose=False, vehicle_params=RIGID
+    )
     rep = meta["plausibility"]
     assert rep["warnings"] == []
     assert rep["rms_body_vertical_speed_mps"] < 0.075 / 100
@@ -196,7 +238,9 @@ def test_untimed_path_climbs_its_road_profile_without_vertical_slip(earth):
     of the input heights, and it climbs their total."""
     y = _stepped_noisy_path()
     df, meta = truth.enu_table(y, None, ORIGIN)
-    tr, meta = truth.build_truth(df, meta, rate_hz=20, earth=earth, vehicle="car", verbose=False)
+    tr, meta = truth.build_truth(
+        df, meta, rate_hz=20, earth=earth, vehicle="car", verbose=False, vehicle_params=RIGID
+    )
     rep, vert = meta["plausibility"], meta["fit"]["vertical"]
     assert rep["warnings"] == []
     assert rep["max_rate_increment_radps"] < 1e-5

@@ -22,6 +22,7 @@ from imugen.core.io import write_parquet
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth.report import _integral
+from imugen.truth.vehicles import has_suspension, vehicle_params
 
 from helpers import SHARED_TRAJ
 
@@ -69,13 +70,17 @@ def _reversal_route(angle_deg, noise_m=0.05, seed=0):
     return t, leg1 + leg2 + rng.normal(scale=noise_m, size=(len(t), 3)) * [1, 1, 2]
 
 
+@pytest.mark.parametrize("suspension", ["rigid", "damped"])
 @pytest.mark.parametrize("angle", [90.0, 170.0, 179.0, 180.0, 181.0, 190.0, 270.0])
-def test_reversal_through_a_stop_is_continuous(angle):
+def test_reversal_through_a_stop_is_continuous(angle, suspension):
     """The old hold/target blend flipped its Log branch when the velocity reversed through a
     stop (a 2.5 rad attitude jump in 10 ms that dtheta carried and the gyro did not)."""
     t, enu = _reversal_route(angle)
     rate = 20.0
-    tr, meta = _build(enu, t, rate_hz=rate, earth="flat", vehicle="car")
+    tr, meta = _build(
+        enu, t, rate_hz=rate, earth="flat", vehicle="car",
+        vehicle_params={"suspension": suspension},
+    )  # fmt: skip
     vp = truth.VEHICLES["car"]
     rep = meta["plausibility"]
     assert rep["warnings"] == []
@@ -88,13 +93,21 @@ def test_reversal_through_a_stop_is_continuous(angle):
     v_h = np.linalg.norm(_arr(tr, col.VEL)[:, :2], axis=1)
     allowed = vp.max_curvature_1pm * np.maximum(v_h[1:], v_h[:-1]) / rate
     assert np.all(np.abs(np.diff(yaw)) <= allowed * (1 + 1e-6) + 1e-12)
-    # a real stop: attitude exactly constant
+    # a real stop: the body settles on its suspension (a damped second order, pitch
+    # envelope exp(-zeta omega_n t), 1/e in 0.33 s), then its attitude is constant
     stops = meta["fit"]["stops"]
     assert any(a <= 25 and b >= 33 for a, b in stops), stops
     tt = tr[col.TIME].to_numpy()
-    inside = (tt > 25) & (tt < 33)
-    q = _arr(tr, col.QUAT)[inside]
-    assert np.abs(q - q[0]).max() < 1e-12
+    if suspension == "rigid":  # attitude exactly constant
+        q = _arr(tr, col.QUAT)[(tt > 25) & (tt < 33)]
+        assert np.abs(q - q[0]).max() < 1e-12
+    a0 = max(a for a, b in stops if a <= 25 and b >= 33)
+    settled = (tt > a0 + 2.0) & (tt < 33)
+    q = _arr(tr, col.QUAT)[settled]
+    assert np.abs(q - q[-1]).max() < 1e-5
+    late = (tt > a0 + 5.0) & (tt < 33)
+    q = _arr(tr, col.QUAT)[late]
+    assert np.abs(q - q[-1]).max() < 1e-7
     # before: facing East; once the U-turn (radius >= 1 / max curvature) is done, facing the
     # direction of motion again, whichever way round it went
     assert abs(yaw[(tt > 3) & (tt < 18)]).max() < 0.05
@@ -102,7 +115,13 @@ def test_reversal_through_a_stop_is_continuous(angle):
     v = _arr(tr, col.VEL)[late]
     err = (yaw[late] - np.arctan2(v[:, 1], v[:, 0]) + math.pi) % (2 * math.pi) - math.pi
     assert np.abs(err).max() < 0.02
-    np.testing.assert_allclose(tr["roll_rad"], 0.0, atol=1e-12)
+    # the body rolls on its suspension in the U-turn only, within the car's roll limit
+    roll = tr["roll_rad"].to_numpy()
+    if suspension == "rigid":
+        np.testing.assert_allclose(roll, 0.0, atol=1e-12)
+    else:
+        assert np.abs(roll).max() <= vp.max_roll_rad
+        assert np.abs(roll[tt < 12]).max() < 0.1 * np.abs(roll).max()
 
 
 def test_ground_rates_match_increments_wgs84():
@@ -113,6 +132,7 @@ def test_ground_rates_match_increments_wgs84():
     # curvature up to 0.1 /m: a 20 deg lean at 6 m/s
     enu = np.column_stack([x, 40.0 * np.sin(x / 20.0), 30.0 * np.sin(x / 200.0)])
     lateral = {}
+    SUSPENSION = {"suspension": "damped"}  # the car on its suspension; the bicycle leans
     for vehicle in ("car", "bicycle"):
         # heading smoothing short against the 10 m turns: lean = atan(v^2 kappa / g) holds
         tr, meta = _build(
@@ -121,15 +141,23 @@ def test_ground_rates_match_increments_wgs84():
             rate_hz=100,
             earth="wgs84",
             vehicle=vehicle,
-            vehicle_params={"heading_smooth_m": 0.5, "heading_smooth_s": 0.05},
+            vehicle_params={"heading_smooth_m": 0.5, "heading_smooth_s": 0.05, **SUSPENSION},
         )
         assert _rate_increment_error(tr) < 1e-5  # the 4th-order rule's own error at 100 Hz
         assert meta["plausibility"]["max_attitude_step_excess_rad"] < 1e-6
         roll = tr["roll_rad"].to_numpy()
         mid = slice(len(roll) // 4, 3 * len(roll) // 4)
         lateral[vehicle] = np.abs(_arr(tr, col.ACCEL)[mid, 1]).max()
-        if vehicle == "car":
-            assert np.abs(roll).max() < 1e-9
+        if vehicle == "car":  # on its suspension: outwards, the roll gradient x a_lat
+            vp = vehicle_params("car", SUSPENSION)
+            v = _arr(tr, col.VEL)
+            yaw = np.unwrap(tr["yaw_rad"].to_numpy())
+            a_lat = np.hypot(v[:, 0], v[:, 1]) * np.gradient(yaw, tr[col.TIME].to_numpy())
+            assert 0.0 < np.abs(roll).max() <= vp.max_roll_rad
+            assert np.corrcoef(roll[mid], a_lat[mid])[0, 1] > 0.9
+            assert np.ptp(roll[mid]) == pytest.approx(
+                vp.roll_gradient_radpmps2 * np.ptp(a_lat[mid]), rel=0.3
+            )
         else:
             assert np.abs(roll).max() > 0.3
     # a car feels the centripetal force sideways; a leaning bicycle almost none
@@ -316,10 +344,14 @@ def _plausibility_at_10hz(ing, vehicle, vp, label):
         ing.table, ing.meta, rate_hz=10, vehicle=vehicle, earth="wgs84", verbose=False
     )
     rep = meta["plausibility"]
-    assert rep["max_abs_pitch_deg"] <= math.degrees(vp.max_pitch_rad) + 1e-6, label
+    # on a suspension the body pitches beyond the grade by the pitch gradient x acceleration
+    dive = 1.3 * vp.pitch_gradient_radpmps2 * vp.max_accel_mps2 if has_suspension(vp) else 0.0
+    assert rep["max_abs_pitch_deg"] <= math.degrees(vp.max_pitch_rad + dive) + 1e-6, label
     if vehicle == "car":
         assert rep["max_abs_pitch_deg"] < 20.0, label  # well under 30 deg
-    if vehicle in ("car", "pedestrian"):
+    if has_suspension(vp):  # rolls on its suspension, within the car's limit
+        assert rep["max_abs_roll_deg"] <= math.degrees(vp.max_roll_rad), label
+    elif vehicle in ("car", "pedestrian"):
         assert rep["max_abs_roll_deg"] < 1e-6, label
     if vehicle == "aircraft":  # bank <= its limit; on the ground (and blending) small
         assert rep["max_abs_roll_airborne_deg"] <= math.degrees(vp.max_roll_rad), label

@@ -267,9 +267,11 @@ def ingest_opts(wildcards):
 
 
 def truth_pose_opts(wildcards):
-    """`imugen truth` options of a pose trajectory's frames and clock for this route."""
+    """`imugen truth` options of a pose trajectory's frames and clock, and of the vehicle's
+    suspension, for this route."""
     r = config["routes"][wildcards.route]
     opts = [f"--pose-body={shlex.quote(str(r.get('pose_body', 'flu')))}"]
+    opts.append(f"--suspension={shlex.quote(str(r.get('suspension', 'auto')))}")
     for key in ("imu_rotation_deg", "lever_arm_m", "marker_offset_m"):
         xyz = ",".join(repr(float(x)) for x in r.get(key, (0.0, 0.0, 0.0)))
         opts.append(f"--{key.replace('_', '-')}={xyz}")

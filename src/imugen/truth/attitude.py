@@ -15,6 +15,8 @@ from imugen.core.errors import InputError
 from imugen.core.jit import njit
 from imugen.truth.fit import fit_height_profile
 from imugen.truth.road import distance_steps
+from imugen.truth.suspension import Suspension
+from imugen.truth.vehicles import has_suspension
 
 
 def _smoothstep(x, lo, hi):
@@ -284,7 +286,7 @@ def attitude_pass(out, ci, motion, times, E, vp, chunk, ground=None):
         steps = distance_steps(motion, ground.E, times[max(k0 - 1, 0) : k1])
         s = s_prev + (np.r_[0.0, np.cumsum(steps)] if k0 == 0 else np.cumsum(steps))
         s_prev = float(s[-1])
-        C, w = ground.attitude(s, p, v, a)
+        C, w = ground.attitude(s, p, v, a, times[k0:k1])
         if air:
             # airborne: fast, or well above the lowest point of the route (a slow glider)
             bs, dbs = _smoothstep(spd, 0.8 * vp.airborne_speed_mps, vp.airborne_speed_mps)
@@ -481,7 +483,14 @@ class GroundAttitude:
       gives the resulting slip;
     * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
       ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
-      :func:`soft_bound`.
+      :func:`soft_bound`;
+    * on a suspension (:func:`imugen.truth.vehicles.has_suspension`: ``suspension`` ``damped``) the
+      body rolls by ``phi_s(t)`` about its x axis and then pitches by ``theta_s(t)`` about its
+      y axis, ``C_lb = Rz(psi) Ry(-theta) Rx(phi + phi_s) Ry(-theta_s)``
+      (:class:`imugen.truth.suspension.Suspension`, driven by ``a_lat = v_h^2 Psi'(s)`` and
+      ``a_lon = dv_h/dt``): a rotation of the body only, so its velocity keeps no y component
+      (the vertical one is ``v sin theta_s``, the dive and squat of the body), and the angles
+      are functions of time (the body still rocks for a moment after the vehicle stops).
 
     Where the vehicle does not move, ``s`` and so the whole attitude are exactly constant.
 
@@ -526,6 +535,7 @@ class GroundAttitude:
             self.Theta = _node_spline(np.zeros(2), self.ds)
             self.W = self.Wp = _node_spline(np.zeros(2), self.ds)
             self.report["grade"] = {"method": "level (does not move)"}
+            self.suspension = None
             return
         ds = L / ns
         self.ds = ds
@@ -596,6 +606,22 @@ class GroundAttitude:
             theta, _ = soft_bound(np.arctan(H.derivative(1)(sn)), vp.max_pitch_rad)
         self.Theta = _node_spline(theta, ds)
         self.report["grade"] = grep
+        self.suspension = None
+        if has_suspension(vp):
+            self.suspension = Suspension(motion.t0, motion.t1, self._accel(motion, tg, sg), vp)
+            self.report["suspension"] = self.suspension.report
+
+    def _accel(self, motion, tg, sg):
+        """``inputs(t) -> (a_lat, a_lon)`` of the suspension: ``v_h^2 Psi'(s)`` and
+        ``dv_h/dt`` [m/s^2] (distance ``s`` interpolated on the grid ``tg``, ``sg``)."""
+
+        def inputs(t):
+            p, v, a, _ = motion.eval(t)
+            vh, vh_d = self.E.horizontal_speed(p, v, a, self.axis)
+            s = np.clip(np.interp(t, tg, sg), 0.0, self.length_m)
+            return vh * vh * self.Psi(s, 1), vh_d
+
+        return inputs
 
     def _weight(self, bad, ds):
         """Node spline of the weight of the velocity direction: exactly 0 within ``m`` nodes
@@ -608,9 +634,10 @@ class GroundAttitude:
         w[w < 1e-12] = 0.0
         return _node_spline(np.clip(w, 0.0, 1.0), ds, 0.5 * ds)
 
-    def attitude(self, s, p, v, a):
+    def attitude(self, s, p, v, a, t=None):
         """``C_nb`` (m,3,3) and ``omega_nb_b`` (m,3) at distances ``s`` (m,) with position,
-        velocity and acceleration in n (m,3)."""
+        velocity and acceleration in n (m,3), at times ``t`` (m,) [s] (needed on a
+        suspension)."""
         vp = self.vp
         C_ln, v_l, w_nl = self.E.local(p, v, self.axis)
         # ds/dt: the horizontal speed whose integral is the distance s
@@ -649,6 +676,10 @@ class GroundAttitude:
             phi_d = dphi * X_d / (1.0 + X * X)
         else:
             phi = phi_d = np.zeros_like(s)
+        susp = self.suspension is not None
+        if susp:
+            phi_s, phi_sd, theta_s, theta_sd = self.suspension(t)
+            phi, phi_d = phi + phi_s, phi_d + phi_sd
         C_lb = rot.euler_to_dcm(phi, theta, psi)
         sf, cf, st, ct = np.sin(phi), np.cos(phi), np.sin(theta), np.cos(theta)
         w_lb = np.column_stack(
@@ -658,6 +689,12 @@ class GroundAttitude:
                 theta_d * sf + psi_d * ct * cf,
             ]
         )
+        if susp:  # then the pitch on the suspension, about the rolled body's y axis
+            zero = np.zeros_like(theta_s)
+            R = rot.euler_to_dcm(zero, theta_s, zero)  # Ry(-theta_s)
+            C_lb = C_lb @ R
+            w_lb = np.einsum("mji,mj->mi", R, w_lb)
+            w_lb[:, 1] -= theta_sd
         C_nb = np.swapaxes(C_ln, 1, 2) @ C_lb
         w = w_lb + np.einsum("mji,mj->mi", C_lb, w_nl)
         return C_nb, w

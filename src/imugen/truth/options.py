@@ -53,6 +53,13 @@ class TruthOptions:
         help="write a truth that exceeds its vehicle's limits (the pre-write gate then only "
         "warns; for studying implausible inputs)",
     )
+    suspension: str = option(
+        "auto", choices=("auto", "rigid", "damped"), config="routes.*.suspension",
+        help="body roll and pitch on the suspension of a ground vehicle: damped (a second-order "
+        "response to the lateral and longitudinal acceleration, passenger-car gradients; "
+        "--vehicle-param roll_gradient_radpmps2=... etc.), rigid (the path's attitude), or auto "
+        "(the vehicle class's: rigid for every class)",
+    )  # fmt: skip
     pose_body: str = option(
         "flu", choices=("flu", "frd", "rdf"), config="routes.*.pose_body",
         help="axes of a pose trajectory's body (rdf: a camera, x right, y down, z forward)",

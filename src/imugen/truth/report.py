@@ -22,6 +22,7 @@ import numpy as np
 from imugen.core import earth as ea
 from imugen.core import rotations as rot
 from imugen.tables import truth as col
+from imugen.truth.vehicles import has_suspension
 
 # tolerances of the consistency checks (numerical, not vehicle limits)
 RATE_INCREMENT_TOL_RADPS = 1e-3
@@ -88,6 +89,21 @@ def turn_rate(p_n, w_ib_b, C_nb, frame=None):
     return np.einsum("ki,ki->k", up_n, w_n - ea.earth_rate_n(frame))
 
 
+def yaw_axis_turn_rate(p_n, w_ib_b, C_nb, frame=None):
+    """The part of :func:`turn_rate` about the body's own z axis, ``(u_b)_z (omega_eb_b)_z``,
+    shape (K,) [rad/s]: the turn of a body that rolls and pitches on a suspension, whose roll
+    and pitch rates project onto the vertical on a grade or in a lean without turning it."""
+    up_n = np.array([0.0, 0.0, 1.0]) if frame is None or frame.model == "flat" else None
+    if up_n is None:
+        up = frame.C_ln(p_n)[:, 2, :]
+        w_eb = w_ib_b - np.einsum("kji,j->ki", C_nb, ea.earth_rate_n(frame))
+    else:
+        up = np.broadcast_to(up_n, (len(C_nb), 3))
+        w_eb = w_ib_b
+    up_bz = np.einsum("ki,ki->k", C_nb[:, :, 2], up)
+    return up_bz * w_eb[:, 2]
+
+
 def _rms(x, dts, mask):
     w = dts * mask
     return float(np.sqrt(np.sum(w * x * x) / np.sum(w))) if np.sum(w) > 0 else 0.0
@@ -142,7 +158,10 @@ def plausibility(
     jerk = np.diff(acc, axis=0) / (0.5 * (dt[1:] + dt[:-1]))[:, None] if K > 2 else acc[:0]
     C_nb = rot.quat_to_dcm(df[list(col.QUAT)].to_numpy())
     yaw_rate = turn_rate(p, w, C_nb, frame)
-    yaw_excess = np.abs(yaw_rate) - vp.max_curvature_1pm * vh
+    # on a suspension the body's roll and pitch rates project onto the vertical on a grade:
+    # the turn is judged by the body's yaw axis
+    turn = yaw_axis_turn_rate(p, w, C_nb, frame) if has_suspension(vp) else yaw_rate
+    yaw_excess = np.abs(turn) - vp.max_curvature_1pm * vh
     wn = np.linalg.norm(w, axis=1)
     i4, itrap = _integral(w, dt)
     # beyond the quadrature's own error (4th-order rule against the trapezoid) ...
@@ -207,12 +226,17 @@ def plausibility(
 
 def _warnings(r, vp) -> list[str]:
     out = []
-    pmax = math.degrees(vp.max_pitch_rad)
+    susp = has_suspension(vp)
+    # on a suspension the body pitches beyond the road's grade by up to the pitch gradient x
+    # the largest plausible acceleration, with the step response's overshoot (x 1.3)
+    pmax = math.degrees(
+        vp.max_pitch_rad + (1.3 * vp.pitch_gradient_radpmps2 * vp.max_accel_mps2 if susp else 0.0)
+    )
     if r["max_abs_pitch_deg"] > pmax + 1e-6:
         out.append(
             f"|pitch| on the ground reaches {r['max_abs_pitch_deg']:.1f} deg (limit {pmax:.1f})"
         )
-    rlim = math.degrees(vp.max_roll_rad if vp.lean else ROLL_ZERO_TOL_RAD)
+    rlim = math.degrees(vp.max_roll_rad if vp.lean or susp else ROLL_ZERO_TOL_RAD)
     if r["max_abs_roll_deg"] > rlim:
         out.append(
             f"|roll| on the ground reaches {r['max_abs_roll_deg']:.3g} deg (limit {rlim:.3g})"

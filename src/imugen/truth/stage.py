@@ -43,6 +43,14 @@ def read_enu(path) -> tuple[pd.DataFrame, dict]:
     return tenu.read(path)
 
 
+def _vehicle_params(o: TruthOptions) -> dict | None:
+    """The vehicle parameter overrides of ``o`` with its suspension model (``auto``: the
+    vehicle class's)."""
+    if o.suspension == "auto":
+        return o.vehicle_params
+    return {**(o.vehicle_params or {}), "suspension": o.suspension}
+
+
 def run(enu_path, out_path, options: TruthOptions | None = None, **build) -> dict:
     """Read the ENU Parquet, build the truth with ``options`` (and ``build``: further keywords
     of :func:`~imugen.truth.build.build_truth`), write it atomically, then print the Earth
@@ -52,7 +60,8 @@ def run(enu_path, out_path, options: TruthOptions | None = None, **build) -> dic
     try:
         df, tmeta = build_truth(
             enu, meta, rate_hz=o.rate_hz, earth=o.earth, vehicle=o.vehicle,
-            grade=list(o.grade) or None, vehicle_params=o.vehicle_params, pose=pose_settings(o), verbose=False,
+            grade=list(o.grade) or None, vehicle_params=_vehicle_params(o), pose=pose_settings(o),
+            verbose=False,
             **build,
         )  # fmt: skip
     except InputError as exc:

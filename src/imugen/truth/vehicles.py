@@ -22,6 +22,15 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   perpendicular-force thresholds), ``airborne_speed_mps``, ``airborne_height_m`` (blend from
   ground to flight between 0.8x and 1x this speed, or 0.5x and 1x this height above the
   route's lowest point: a slow glider circling high is flying).
+* suspension (ground vehicles without ``lean``, :mod:`imugen.truth.suspension`):
+  ``suspension`` (``"rigid"``: the body keeps the path's attitude; ``"damped"``: it rolls and
+  pitches on its suspension, a damped second-order response to the lateral and longitudinal
+  acceleration), ``roll_gradient_radpmps2``, ``pitch_gradient_radpmps2`` (steady roll and pitch
+  per m/s^2; 0 turns that angle off), ``roll_hz``, ``pitch_hz`` (natural frequencies),
+  ``roll_damping``, ``pitch_damping`` (damping ratios); every class is ``rigid`` by default
+  (``imugen truth --suspension=damped``, config ``routes.<name>.suspension``), the figures are
+  passenger-car ones (5 deg/g roll, 2 deg/g pitch, 1.5 / 1.2 Hz, 0.5 / 0.4), and a car's roll
+  limit ``max_roll_rad`` (8 deg) then bounds the suspension roll.
 * fit and stops: ``stop_speed_mps``, ``stop_min_s``, ``stop_radius_m``, ``fit_tol_max_m``,
   ``fit_floor_m``.
 * plausibility (the truth's pre-write gate, :mod:`imugen.truth.gate`): ``max_speed_mps``,
@@ -109,15 +118,33 @@ class VehicleParams:
     yaw_rad: float = 0.0
     yaw_speed_mps: float = 0.5
     yaw_cutoff_hz: float = 1.0
+    suspension: str = "rigid"
+    roll_gradient_radpmps2: float = math.radians(5.0) / 9.80665
+    pitch_gradient_radpmps2: float = math.radians(2.0) / 9.80665
+    roll_hz: float = 1.5
+    pitch_hz: float = 1.2
+    roll_damping: float = 0.5
+    pitch_damping: float = 0.4
 
 
 VEHICLES = {
     # car: 50 km/h cruise, 0.2 g longitudinal, 0.3 g lateral, 1 m/s^3 comfort jerk; turning
     # radius >= 5 m; road grade within +-20 deg (steepest public roads ~35 %), changing over
     # vertical curves of 50 m at least; roll 0;
-    # plausible up to 250 km/h and 0.8 g
+    # plausible up to 250 km/h and 0.8 g; rigid by default, with suspension="damped" the body
+    # rolls and pitches on its suspension (imugen.truth.suspension: 5 deg/g roll, 2 deg/g
+    # pitch), roll plausible to 8 deg (0.8 g x 5 deg/g with the step response's overshoot,
+    # and a margin)
     "car": VehicleParams(
-        "ground", 13.9, 2.0, 3.0, 1.0, 10.0, max_curvature_1pm=0.2, max_pitch_rad=0.35
+        "ground",
+        13.9,
+        2.0,
+        3.0,
+        1.0,
+        10.0,
+        max_curvature_1pm=0.2,
+        max_pitch_rad=0.35,
+        max_roll_rad=0.14,
     ),
     # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
     "bicycle": VehicleParams(
@@ -241,7 +268,17 @@ VEHICLES = {
 }
 
 
-_MAY_BE_ZERO = ("max_roll_rad", "heading_smooth_s", "drag_x_1ps", "drag_y_1ps", "yaw_rad")
+_MAY_BE_ZERO = (
+    "max_roll_rad",
+    "heading_smooth_s",
+    "drag_x_1ps",
+    "drag_y_1ps",
+    "yaw_rad",
+    "roll_gradient_radpmps2",
+    "pitch_gradient_radpmps2",
+)
+SUSPENSIONS = ("rigid", "damped")
+"""Suspension models of ground vehicles (:mod:`imugen.truth.suspension`)."""
 
 
 def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams:
@@ -261,6 +298,8 @@ def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams
             if isinstance(old, tuple):
                 value = tuple(float(x) for x in value)
                 ok = len(value) == 2 and 0 <= value[0] < value[1]
+            elif name == "suspension":
+                ok = value in SUSPENSIONS
             elif isinstance(old, bool):
                 text = str(value).lower()
                 ok = text in ("true", "false", "1", "0")
@@ -277,3 +316,13 @@ def vehicle_params(vehicle: str, overrides: dict | None = None) -> VehicleParams
     if vp.lean and not vp.max_roll_rad > 0:
         raise InputError("--vehicle-param", "a leaning vehicle needs max_roll_rad > 0")
     return vp
+
+
+def has_suspension(vp: VehicleParams) -> bool:
+    """Whether the ground attitude of ``vp`` rolls and pitches on a suspension."""
+    return (
+        vp.suspension == "damped"
+        and vp.attitude != "thrust"
+        and not vp.lean
+        and (vp.roll_gradient_radpmps2 != 0.0 or vp.pitch_gradient_radpmps2 != 0.0)
+    )

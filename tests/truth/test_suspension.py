@@ -1,0 +1,162 @@
+"""Body roll and pitch of a car on its suspension (:mod:`imugen.truth.suspension`).
+
+Oracles: the second-order step response (overshoot ``exp(-pi zeta / sqrt(1 - zeta^2))`` at
+the half damped period), the steady roll of a constant-radius turn (gradient x ``v^2 / R``),
+the sign of braking and accelerating pitch, the interpolant's derivatives against the ODE,
+a rigid truth bit-identical to one with zero gradients, the lateral non-holonomic constraint
+(zero), the vertical body velocity (``v sin theta_s``), zero-error closure with the suspension
+on, and a real shared car track: plausible, with roll that follows the lateral acceleration.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from imugen import truth
+from imugen.closure import closure_of_truth
+from imugen.core import rotations as rot
+from imugen.tables import truth as col
+from imugen.truth.suspension import hermite, response
+from imugen.truth.vehicles import VEHICLES
+
+from helpers import SHARED_TRAJ
+
+ORIGIN = (31.63, -7.99, 480.6)
+DAMPED = {"suspension": "damped"}
+
+
+def _build(enu, t, vehicle_params=DAMPED, **kw):
+    df, meta = truth.enu_table(enu, t, ORIGIN)
+    kw.setdefault("verbose", False)
+    kw.setdefault("earth", "flat")
+    return truth.build_truth(df, meta, vehicle="car", vehicle_params=vehicle_params, **kw)
+
+
+def _arr(tr, cols):
+    return tr[list(cols)].to_numpy()
+
+
+@pytest.mark.parametrize("zeta", [0.3, 0.5])
+def test_step_response_overshoot_and_period(zeta):
+    f_n, K = 1.5, 0.02
+    t = np.arange(0.0, 6.0, 1e-3)
+    u = np.where(t >= 1.0, K, 0.0)
+    u[t < 1.0] = 0.0
+    x, xd, xdd = response(t, u, f_n, zeta)
+    wd = 2 * math.pi * f_n * math.sqrt(1 - zeta * zeta)
+    k = int(np.argmax(x))
+    overshoot = x[k] / K - 1.0
+    assert overshoot == pytest.approx(math.exp(-math.pi * zeta / math.sqrt(1 - zeta**2)), rel=2e-3)
+    assert t[k] - 1.0 == pytest.approx(math.pi / wd, abs=2e-3)
+    assert x[-1] == pytest.approx(K, rel=1e-4)  # settles at gradient x input
+    # the C^2 interpolant carries the ODE's derivatives between the nodes
+    tc = np.arange(1.5, 5.0, 0.02)
+    pp = hermite(tc, *(np.interp(tc, t, y) for y in (x, xd, xdd)))
+    tm = tc[:-1] + 0.01
+    assert np.abs(pp(tm) - np.interp(tm, t, x)).max() < 1e-4 * K
+    assert np.abs(pp.derivative()(tm) - np.interp(tm, t, xd)).max() < 2e-3 * K * wd
+
+
+def _circle(R=50.0, v=15.0, T=120.0):
+    t = np.arange(0.0, T, 0.5)
+    th = v * t / R
+    return t, np.column_stack([R * np.sin(th), R * (1 - np.cos(th)), 0 * t])
+
+
+def test_constant_turn_steady_roll_is_gradient_times_lateral_accel():
+    t, enu = _circle()
+    tr, meta = _build(enu, t)
+    vp = VEHICLES["car"]
+    roll, pitch = tr["roll_rad"].to_numpy(), tr["pitch_rad"].to_numpy()
+    v = _arr(tr, col.VEL)
+    a_lat = np.hypot(v[:, 0], v[:, 1]) ** 2 / 50.0
+    tt = tr[col.TIME].to_numpy()
+    mid = (tt > 25.0) & (tt < 95.0)  # steady turning
+    # turning left (+y): the body rolls outwards, right side down (roll > 0)
+    np.testing.assert_allclose(roll[mid], vp.roll_gradient_radpmps2 * a_lat[mid], rtol=5e-3)
+    assert np.abs(pitch[mid]).max() < 1e-6
+    assert meta["plausibility"]["warnings"] == []
+    assert meta["plausibility"]["max_body_lateral_speed_mps"] < 1e-9  # NHC: no lateral slip
+
+
+def test_braking_dips_the_nose_and_accelerating_squats():
+    # straight road: accelerate at 2 m/s^2 to 20 m/s, cruise, brake at 4 m/s^2 to 8 m/s
+    t = np.arange(0.0, 40.0, 0.1)
+    v = np.clip(np.minimum(np.minimum(2.0 * t, 20.0), 20.0 - 4.0 * (t - 25.0)), 8.0, None)
+    v[t < 4.0] = 2.0 * t[t < 4.0]
+    x = np.r_[0.0, np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.1)]
+    enu = np.column_stack([x, 0 * x, 0 * x])
+    tr, meta = _build(enu, t)
+    tt = tr[col.TIME].to_numpy()
+    pitch = tr["pitch_rad"].to_numpy()
+    K = VEHICLES["car"].pitch_gradient_radpmps2
+    acc = (tt > 5) & (tt < 8)
+    brake = (tt > 25.5) & (tt < 28.0)
+    assert np.all(pitch[acc] > 0.5 * K * 2.0)  # squat: nose up
+    assert np.all(pitch[brake] < -0.5 * K * 4.0)  # dive: nose down
+    assert np.median(pitch[(tt > 26.5) & (tt < 28.0)]) == pytest.approx(-K * 4.0, rel=0.1)
+    assert np.abs(tr["roll_rad"].to_numpy()).max() < 1e-9
+    # a body rotation only: the body velocity keeps no y; its z is v sin(theta_s)
+    C = rot.quat_to_dcm(_arr(tr, col.QUAT))
+    v_b = np.einsum("kji,kj->ki", C, _arr(tr, col.VEL))
+    assert np.abs(v_b[:, 1]).max() < 1e-9
+    speed = np.linalg.norm(_arr(tr, col.VEL), axis=1)
+    np.testing.assert_allclose(v_b[:, 2], -speed * np.sin(pitch), atol=1e-6)
+    assert not [w for w in meta["plausibility"]["warnings"] if "pitch" in w or "roll" in w]
+
+
+def test_rigid_is_bit_identical_to_zero_gradients_and_has_no_roll():
+    t, enu = _circle(T=40.0)
+    rigid, m1 = _build(enu, t, vehicle_params={"suspension": "rigid"})
+    default, _ = _build(enu, t, vehicle_params=None)
+    zero, _ = _build(
+        enu, t, vehicle_params={**DAMPED, "roll_gradient_radpmps2": 0, "pitch_gradient_radpmps2": 0}
+    )
+    assert rigid.equals(default) and rigid.equals(zero)
+    assert np.all(rigid["roll_rad"].to_numpy() == 0.0)
+    assert "suspension" not in m1["ground_attitude"]
+
+
+@pytest.mark.parametrize("earth", ["flat", "wgs84", "geodetic"])
+def test_closure_with_suspension(earth):
+    # S-curves with stops and speed changes, 1 Hz fixes
+    t = np.arange(0.0, 200.0, 1.0)
+    speed = np.where((t < 10) | ((t >= 90) & (t < 100)), 0.0, 12.0)
+    s = np.cumsum(speed)
+    enu = np.column_stack([s, 60.0 * np.sin(s / 50.0), 5.0 * np.sin(s / 300.0)])
+    tr, meta = _build(enu, t, earth=earth)
+    assert np.abs(tr["roll_rad"].to_numpy()).max() > math.radians(1.0)
+    res = closure_of_truth(tr, meta)
+    assert res["final_position_error_m"] < 1e-6
+    assert res["max_attitude_error_rad"] < 1e-9
+    assert meta["plausibility"]["max_rate_increment_radps"] < 1e-4
+
+
+@pytest.mark.shared
+@pytest.mark.skipif(not SHARED_TRAJ.is_dir(), reason="needs ../shared/data/trajectories")
+def test_real_car_track_rolls_with_lateral_acceleration():
+    from imugen.ingest.stage import ingest
+
+    path = SHARED_TRAJ / "e_car_colorado_mountain_pass.gpx"
+    if not path.is_file():
+        pytest.skip("no shared car track")
+    ing = ingest(path, path=1)  # ACTIVE LOG #2: 4.4 km over the pass
+    tr, meta = truth.build_truth(
+        ing.table, ing.meta, rate_hz=10, vehicle="car", earth="wgs84", verbose=False,
+        vehicle_params=DAMPED,
+    )  # fmt: skip
+    rep = meta["plausibility"]
+    assert rep["warnings"] == [], rep["warnings"]
+    vp = VEHICLES["car"]
+    roll = tr["roll_rad"].to_numpy()
+    assert 0.1 < math.degrees(np.abs(roll).max()) <= math.degrees(vp.max_roll_rad)
+    # lateral acceleration of the path: horizontal speed x turn rate about the vertical
+    v = _arr(tr, col.VEL)
+    vh = np.hypot(v[:, 0], v[:, 1])
+    yaw = np.unwrap(tr["yaw_rad"].to_numpy())
+    a_lat = vh * np.gradient(yaw, tr[col.TIME].to_numpy())
+    r = np.corrcoef(roll, vp.roll_gradient_radpmps2 * a_lat)[0, 1]
+    assert r > 0.9, r
