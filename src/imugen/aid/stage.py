@@ -353,6 +353,53 @@ def filter_estimates(ids, res: A.AidedResult) -> dict:
     return rows
 
 
+def filter_block(
+    truth: ttruth.Truth, ids, dth, dvb, params: AidOptions, seed: int, tun, opts, mount=None,
+    *, learned=None, store_correction: bool = False,
+):  # fmt: skip
+    """The aided filter over a block of sequences, as the stage runs it: their GNSS
+    (:func:`gnss_for`) and companions (:func:`companions_for`), the tuning, the alignment
+    (:func:`imugen.aid.filter.align`) and :func:`imugen.aid.filter.run`.
+
+    Parameters
+    ----------
+    truth : imugen.tables.truth.Truth
+    ids : (S,) int64  global sequence ids (:func:`imugen.tables.shard.sequence_ids`)
+    dth, dvb : (S, K, 3)  the increments the filter is given [rad, m/s] (row 0 unused)
+    params : AidOptions;  seed : int  the simulation's seed
+    tun, opts : the filter's tuning (:meth:`imugen.aid.filter.Tuning.from_grade`) and options
+        (:func:`filter_options`)
+    mount : the sequences' ``(angles, lever)`` of a mounted IMU, or None
+    learned : callable ``scen -> imugen.aid.filter.LearnedInputs``, optional
+
+    Returns
+    -------
+    ``(scen, odometer, barometer, init, res)``: the scenario result, the companions' data,
+    the alignment and the filter's :class:`imugen.aid.filter.AidedResult`.
+    """
+    frame = truth.origin_frame()
+    scen = gnss_for(truth, ids, params, seed, mount)
+    odo, baro = companions_for(truth, ids, params, seed)
+    ce = CP.filter_input(
+        scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,
+        lever_arm_b_m=params.odometer_lever_b_m,
+    )  # fmt: skip
+    T = A.companion_tuning(
+        A.tuning_matrix(
+            tun, len(ids), gnss_receiver=scen.gnss.receiver,
+            gnss_level="law" if params.tuning_level == "law" else "nominal",
+        ),
+        ce,
+    )  # fmt: skip
+    init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
+                   speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
+    res = A.run(
+        dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce,
+        learned=None if learned is None else learned(scen), store_correction=store_correction,
+    )  # fmt: skip
+    return scen, odo, baro, init, res
+
+
 def aid(
     truth_path, shard_path, params: AidOptions, *, batch: int | None = None, sink=None,
     aided_sink=None, companion_sink=None, correction_in=None, correction_sink=None,
@@ -398,7 +445,6 @@ def aid(
     shard_ids = None
     if learned_in is not None:
         shard_ids = tshard.read_labels(shard_path, smeta)[SEQUENCE].to_numpy(np.int64)
-    frame = truth.origin_frame()
     columns, kind = tshard.measurement(shard_path)
     raw = kind == "increments" and tshard.increment_kind(smeta) == "raw"
     every = max(1, round(truth.rate_hz / params.eval_rate_hz))
@@ -432,33 +478,23 @@ def aid(
         ids = ids.copy()
         dth, dvb = _increments(a, c, kind, raw, truth.dt)
         mount = tshard.mounting(mlabels, ids)
-        scen = gnss_for(truth, ids, params, seed, mount)
-        odo, baro = companions_for(truth, ids, params, seed)
-        ce = CP.filter_input(
-            scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,
-            lever_arm_b_m=params.odometer_lever_b_m,
-        )  # fmt: skip
-        T = A.companion_tuning(
-            A.tuning_matrix(
-                tun, len(ids), gnss_receiver=scen.gnss.receiver,
-                gnss_level="law" if params.tuning_level == "law" else "nominal",
-            ),
-            ce,
-        )  # fmt: skip
-        init = A.align(dth, dvb, truth.dt, scen.gnss, tun, opts, frame,
-                       speed_mps=params.align_speed_mps, tuning_T=T)  # fmt: skip
-        never += int(np.sum(init.k0 >= K))
         learned = None
         if correction_in is not None or learned_in is not None:
-            corr = (None, None) if correction_in is None else tcorr.arrays(correction_in, ids, K)
-            meas = {}
-            if learned_in is not None:
-                meas = tlearned.arrays(learned_in, ids, scen.gnss.time_s, shard_ids)
-            learned = A.LearnedInputs(*corr, **meas)
-        res = A.run(
-            dth, dvb, truth.dt, frame, scen.gnss, tun, opts, init, tuning_T=T, companions=ce,
-            learned=learned, store_correction=correction_sink is not None,
+
+            def learned(scen, ids=ids):
+                corr = (
+                    (None, None) if correction_in is None else tcorr.arrays(correction_in, ids, K)
+                )
+                meas = {}
+                if learned_in is not None:
+                    meas = tlearned.arrays(learned_in, ids, scen.gnss.time_s, shard_ids)
+                return A.LearnedInputs(*corr, **meas)
+
+        scen, odo, baro, init, res = filter_block(
+            truth, ids, dth, dvb, params, seed, tun, opts, mount, learned=learned,
+            store_correction=correction_sink is not None,
         )  # fmt: skip
+        never += int(np.sum(init.k0 >= K))
         if correction_sink is not None:
             correction_sink(tcorr.frame(ids, res.correction))
         if estimates_sink is not None:
@@ -589,7 +625,8 @@ def main(
 
 
 __all__ = [
-    "AidOptions", "aid", "aided_errors", "companions_for", "eval_mask", "filter_estimates",
+    "AidOptions", "aid", "aided_errors", "companions_for", "eval_mask", "filter_block",
+    "filter_estimates",
     "filter_options",
     "gnss_for", "run",
 ]  # fmt: skip
