@@ -191,7 +191,7 @@ EXTRAS: dict[str, Extra] = {
 }
 """Streams ``extras`` may name (``*_error``: labels, the companion's true error)."""
 EXTRA_ALIGN = ("hold", "event")
-_HELD = Extra("estimates", testim.read, testim.VALUES[:24], fill=0.0)
+_HELD = Extra("estimates", testim.read, testim.CORRECTION, fill=0.0)
 """The estimates the filter corrects the increments with (the filter-aware target's)."""
 
 
@@ -639,9 +639,9 @@ class WindowDataset:
         self._labels = np.concatenate(lab).astype(self.dtype) if lab else None
         dts = [float((c[-1] - c[0]) / (len(c) - 1)) if len(c) > 1 else 0.0 for c in clocks]
         self._dt = np.array(dts, float)[self._route] if need_clock and len(self._route) else None
-        self._epochs = {n: _EpochIndex.concat(v, len(EXTRAS[n].columns)) for n, v in epochs.items()}
+        self._epochs = {n: EpochIndex.concat(v, len(EXTRAS[n].columns)) for n, v in epochs.items()}
         self._held = (
-            _EpochIndex.concat(held, len(_HELD.columns))
+            EpochIndex.concat(held, len(_HELD.columns))
             if self.target == "filter_aware_error" else None
         )  # fmt: skip
         # per window entry (angles, lever arm) of a mounted IMU (imugen.sensors.mounting), else None
@@ -764,11 +764,8 @@ class WindowDataset:
         rows = k0[:, None] + np.arange(self.window)[None, :] - 1  # held since before the row
         h = self._held.gather(e, rows, self._dt[e], "hold", np.float64)
         C = len(_HELD.columns)
-        xx = x.astype(np.float64)
         dt = self._dt[e][:, None, None]
-        th, dv = testim.corrected_increments(xx[..., :3], xx[..., 3:6], h[..., :C], dt)
-        out = y.astype(np.float64) - (xx - np.concatenate([th, dv], -1))
-        out[h[..., C + 1] == 0] = np.nan
+        out = testim.filter_aware_error(x, y, h[..., :C], h[..., C + 1] != 0, dt)
         return out.astype(self.dtype)
 
     def __getitem__(self, i):
@@ -850,9 +847,10 @@ def _label_rows(shard: Path, names, ids) -> np.ndarray:
 
 # --- optional epoch streams ------------------------------------------------------------------
 @dataclass
-class _EpochIndex:
+class EpochIndex:
     """Epochs of one stream for every dataset entry, compact: sorted ``key = entry * KP + k``
-    (``k`` the IMU row of the epoch), the entry and row of each key and its values."""
+    (``k`` the IMU row of the epoch), the entry and row of each key and its values (also the
+    stream's filter targets, :mod:`imugen.stream.stream`)."""
 
     key: np.ndarray
     entry: np.ndarray
@@ -863,7 +861,7 @@ class _EpochIndex:
     KP = np.int64(1) << 40  # rows per entry in the key: more than any sequence holds
 
     @classmethod
-    def concat(cls, parts, ncols: int) -> _EpochIndex:
+    def concat(cls, parts, ncols: int) -> EpochIndex:
         if not parts:
             z = np.zeros(0, np.int64)
             return cls(z, z, z, np.zeros((0, ncols)), np.zeros(0, bool))

@@ -355,7 +355,7 @@ def filter_estimates(ids, res: A.AidedResult) -> dict:
 
 def filter_block(
     truth: ttruth.Truth, ids, dth, dvb, params: AidOptions, seed: int, tun, opts, mount=None,
-    *, learned=None, store_correction: bool = False,
+    *, learned=None, store_correction: bool = False, scen=None,
 ):  # fmt: skip
     """The aided filter over a block of sequences, as the stage runs it: their GNSS
     (:func:`gnss_for`) and companions (:func:`companions_for`), the tuning, the alignment
@@ -371,6 +371,8 @@ def filter_block(
         (:func:`filter_options`)
     mount : the sequences' ``(angles, lever)`` of a mounted IMU, or None
     learned : callable ``scen -> imugen.aid.filter.LearnedInputs``, optional
+    scen : imugen.aid.scenarios.ScenarioResult, optional
+        The sequences' GNSS when already drawn (default :func:`gnss_for`)
 
     Returns
     -------
@@ -378,7 +380,8 @@ def filter_block(
     the alignment and the filter's :class:`imugen.aid.filter.AidedResult`.
     """
     frame = truth.origin_frame()
-    scen = gnss_for(truth, ids, params, seed, mount)
+    if scen is None:
+        scen = gnss_for(truth, ids, params, seed, mount)
     odo, baro = companions_for(truth, ids, params, seed)
     ce = CP.filter_input(
         scen.gnss.index, len(ids), odo, baro, h0_m=frame.h0_m, level=params.tuning_level,

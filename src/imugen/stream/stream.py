@@ -31,7 +31,9 @@ from imugen.stream.windows import (
 from imugen.tables import shard as tshard
 
 INPUTS = ("increments", "rates")
-TARGETS = ("effective_error", "increments", "bias", "labels", "gnss")
+FILTER_TARGETS = ("filter", "filter_sd", "filter_aware_error")
+"""Targets of the aided filter's run over each sequence (exact mode only)."""
+TARGETS = ("effective_error", "increments", "bias", "labels", "gnss", *FILTER_TARGETS)
 
 
 class Stream:
@@ -57,10 +59,14 @@ class Stream:
         Root seed: with the same seed, a key gives the numbers of the simulate stage.
     inputs : {"increments", "rates"}
         ``x``: measured ``dtheta, dv`` or ``gyro, accel`` rows ``(B, W, 6)``.
-    targets : iterable of {"effective_error", "increments", "bias", "labels"}
+    targets : iterable of :data:`TARGETS`
         As :class:`imugen.dataset.WindowDataset` gives them: the effective error of the
         inputs, the true increments, the true slow bias (``(B, W, 6)`` each), the sequence's
-        drawn parameters ``(B, L)`` (names in :attr:`label_names`).
+        drawn parameters ``(B, L)`` (names in :attr:`label_names`); ``gnss`` the aid stage's
+        fixes (:mod:`imugen.stream.gnss`); ``filter``, ``filter_sd`` ``(B, W, C + 3)`` the
+        aided filter's held estimates and sigmas and ``filter_aware_error`` ``(B, W, 6)`` the
+        filter-aware target, as the loader's extras and target of the same names (columns in
+        :attr:`filter_columns`; exact mode only, :meth:`_filter`).
     exact : bool
         Generate each sequence from its turn-on (the shard's numbers, bit for bit) instead of
         drawing the slow states at each window's start (:mod:`imugen.stream.windows`).
@@ -77,9 +83,10 @@ class Stream:
         ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Exact mode only (their
         draws are the shard's, streams ``vibration`` and ``mounting``).
     gnss : AidOptions or dict, optional
-        Receiver and scenarios of the ``gnss`` target (:class:`imugen.aid.options.AidOptions`
-        or its fields; default the aid stage's defaults): the aid stage's draws for the same
-        sequence (:mod:`imugen.stream.gnss`). Needs routes given as truth files.
+        Receiver and scenarios of the ``gnss`` target and the filter of the filter targets
+        (:class:`imugen.aid.options.AidOptions` or its fields; default the aid stage's
+        defaults): the aid stage's draws for the same sequence (:mod:`imugen.stream.gnss`).
+        Needs routes given as truth files.
     shard_size : int, optional
         Sequences per written shard, for the ``gnss`` target of written keys (a sequence's
         index in its route is ``shard * shard_size + j``); default the batch's sequences.
@@ -121,6 +128,12 @@ class Stream:
         bad = [t for t in self.targets if t not in TARGETS]
         if bad:
             raise InputError("targets", f"unknown {bad}; one of {', '.join(TARGETS)}")
+        self._filt = [t for t in self.targets if t in FILTER_TARGETS]
+        if self._filt and not exact:
+            raise InputError("exact", f"the {self._filt[0]} target needs exact=True (the filter "
+                             "runs over the whole sequence)")  # fmt: skip
+        if "filter_aware_error" in self.targets and inputs != "increments":
+            raise InputError("targets", "filter_aware_error needs inputs='increments'")
         self.per_seq = int(windows_per_sequence)
         self.batch_size = int(batch_size)
         if self.per_seq < 1 or self.batch_size < 1 or self.batch_size % self.per_seq:
@@ -268,7 +281,8 @@ class Stream:
             "rate": rate,
             "inc": not rate,
             "err_rate": rate and "effective_error" in self.targets,
-            "err_inc": not rate and "effective_error" in self.targets,
+            "err_inc": not rate
+            and ("effective_error" in self.targets or "filter_aware_error" in self.targets),
             "bias": "bias" in self.targets,
         }
         # the kernels write the returned dtype (one rounding of float64 values, as the shard's
@@ -295,8 +309,12 @@ class Stream:
             )  # fmt: skip
         if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
             raise InputError("exact", "vibration and mounting are streamed in exact mode only")
+        if not exact and self._filt:
+            raise InputError("exact", f"the {self._filt[0]} target needs exact=True (the filter "
+                             "runs over the whole sequence)")  # fmt: skip
+        filt = {}
         if exact:
-            self._exact(sk, seq_start, draws, want, outs)
+            self._exact(sk, seq_start, draws, want, outs, filt)
         else:
             for gi in np.unique(sk["grade"]):
                 seqs = np.flatnonzero(sk["grade"][seq_start] == gi)
@@ -336,6 +354,10 @@ class Stream:
                 out[t] = np.concatenate([self._tr[2][idx], self._tr[3][idx]], axis=2).astype(dt)
             elif t == "labels":
                 out[t] = self._labels(draws, seq_of)[inv].astype(dt)
+            elif t in ("filter", "filter_sd"):
+                out[t] = filt[t][inv]
+            elif t == "filter_aware_error":
+                out[t] = self._filter_aware(sk, seq_of, outs, filt)[inv]
             elif t == "gnss":
                 g = {}
                 self._gnss(sk, seq_start, seq_of, g)
@@ -391,7 +413,7 @@ class Stream:
         n_seq = self.batch_size // self.per_seq
         if self.shard_size is not None and self.shard_size < n_seq:
             raise InputError("shard_size", f"must be >= the batch's {n_seq} sequences")
-        if "gnss" not in self.targets:
+        if "gnss" not in self.targets and not self._filt:
             return
         from imugen.aid.options import AidOptions
         from imugen.tables import truth as ttruth
@@ -400,7 +422,9 @@ class Stream:
             gnss = AidOptions(**gnss)
         self.gnss = gnss if gnss is not None else AidOptions()
         if self._mount_spec is not None:
-            raise InputError("gnss", "the gnss target is not streamed with mounting")
+            raise InputError("gnss", "the gnss and filter targets are not streamed with mounting")
+        if self._filt and (self.gnss.odometer or self.gnss.barometer):
+            raise InputError("gnss", "the filter targets are not streamed with companions")
         if any(src is None for src in sources):
             raise InputError("routes", "the gnss target needs routes given as truth files")
         self._full = [ttruth.read(src) for src in sources]
@@ -445,18 +469,96 @@ class Stream:
             rows.append([float(lab[c][0]) for c in cols])
         return np.asarray(rows)[seq_of]
 
-    def _exact(self, sk, seq_start, draws, want, outs):
+    @property
+    def filter_columns(self) -> dict[str, list[str]]:
+        """Columns of the ``filter`` and ``filter_sd`` targets (the loader's
+        ``extra_columns``): the table's, then ``<name>_new``, ``<name>_valid``,
+        ``<name>_age_s``."""
+        from imugen.dataset import EXTRAS
+
+        return {
+            n: [*EXTRAS[n].columns, f"{n}_new", f"{n}_valid", f"{n}_age_s"]
+            for n in ("filter", "filter_sd")
+        }
+
+    def _filter(self, r, gi, k, data) -> dict:
+        """The aided filter over one whole sequence (``data``: its rows from turn-on), as the aid
+        stage runs it on the written shard (:func:`imugen.aid.stage.filter_block`, the stage's
+        tuning and options, the ``gnss`` target's fixes): the filter-estimates table's columns
+        (:func:`imugen.aid.stage.filter_estimates`), its float32 columns rounded as written.
+        The increments are the shard's float32 values."""
+        from imugen.aid import filter as A
+        from imugen.aid import stage as AID
+        from imugen.stream import gnss as SG
+        from imugen.tables import filter_estimates as testim
+
+        truth, p = self._full[r], self.gnss
+        size = self.shard_size or self.batch_size // self.per_seq
+        index = int(k["shard"]) * size + int(k["j"])
+        scen = SG.sequence_gnss(truth, p, self.seed, self.route_ids[r], index)
+        sid = (self.route_ids[r] << 31) | index if index < (1 << 31) else -1
+        tun = A.Tuning.from_grade(self.grades[gi], p.tuning_level)
+        opts = AID.filter_options(p, truth.meta.get("vehicle"), None,
+                                  truth.meta.get("plausibility"))  # fmt: skip
+        dth, dvb = (data[n].astype(np.float32).astype(np.float64)[None] for n in ("dtheta", "dv"))
+        ids = np.array([sid], np.int64)
+        res = AID.filter_block(truth, ids, dth, dvb, p, self.seed, tun, opts, scen=scen)[4]
+        cols = AID.filter_estimates(ids, res)
+        for c in (*testim.VALUES, *testim.SIGMAS):
+            cols[c] = np.asarray(cols[c], np.float32).astype(np.float64)
+        return cols
+
+    def _filter_index(self, ests, seq_of, k0, filt):
+        """The ``filter``, ``filter_sd`` targets (sorted-key order) into ``filt``, and the
+        estimates the filter-aware target holds (``filt["held"]``)."""
+        from imugen.dataset import EXTRAS, EpochIndex
+        from imugen.tables import filter_estimates as testim
+
+        W = self.window
+        e = np.asarray(seq_of, np.int64)
+        dt = np.array([c[1] for c in ests])[e]
+        rows = np.asarray(k0, np.int64)[:, None] + np.arange(W)[None, :]
+
+        def index(columns):
+            parts = []
+            for s, (cols, _) in enumerate(ests):
+                v = np.column_stack([cols[c] for c in columns])
+                kk = np.asarray(cols[testim.SAMPLE], np.int64)
+                parts.append((np.full(len(kk), s, np.int64), kk, np.where(np.isnan(v), 0.0, v)))
+            return EpochIndex.concat(parts, len(columns))
+
+        for n in ("filter", "filter_sd"):
+            if n in self.targets:
+                filt[n] = index(EXTRAS[n].columns).gather(e, rows, dt, "hold", self.dtype)
+        if "filter_aware_error" in self.targets:
+            filt["held"] = index(testim.CORRECTION).gather(e, rows - 1, dt, "hold", np.float64)
+            filt["dt"] = dt
+
+    def _filter_aware(self, sk, seq_of, outs, filt) -> np.ndarray:
+        """The filter-aware target (sorted-key order), by the loader's definition
+        (:func:`imugen.tables.filter_estimates.filter_aware_error`)."""
+        from imugen.tables import filter_estimates as testim
+
+        h, C = filt["held"], len(testim.CORRECTION)
+        out = testim.filter_aware_error(outs["inc"], outs["err_inc"], h[..., :C],
+                                        h[..., C + 1] != 0, filt["dt"][:, None, None])  # fmt: skip
+        return out.astype(self.dtype)
+
+    def _exact(self, sk, seq_start, draws, want, outs, filt):
         names = {
             "rate": ("gyro", "accel"), "inc": ("dtheta", "dv"), "bias": ("gyro_bias", "accel_bias"),
             "err_rate": ("err_gyro", "err_accel"), "err_inc": ("err_dtheta", "err_dv"),
         }  # fmt: skip
         groups = [g for n in outs for g in names[n]]
+        if self._filt:
+            groups = list(dict.fromkeys([*groups, "dtheta", "dv"]))
         W = self.window
         ends = [*seq_start[1:], len(sk)]
+        ests = []
         for s, (a, b) in enumerate(zip(seq_start, ends, strict=True)):
             k = sk[a]
-            kmax = int(sk["k0"][a:b].max()) + W
             r, gi = int(k["route"]), int(k["grade"])
+            kmax = self.truths[r].K if self._filt else int(sk["k0"][a:b].max()) + W
             key = (self.seed, self.route_ids[r], self.grades[gi].id, int(k["shard"]), int(k["j"]))
             vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
             mount = None
@@ -472,6 +574,12 @@ class Stream:
                     g0, g1 = names[n]
                     outs[n][i, :, :3] = data[g0][k0 : k0 + W]
                     outs[n][i, :, 3:] = data[g1][k0 : k0 + W]
+            if self._filt:
+                t = self._full[r].time_s  # the loader's interval (its clock's)
+                ests.append((self._filter(r, gi, k, data), (t[-1] - t[0]) / max(len(t) - 1, 1)))
+        if self._filt:
+            seq_of = np.repeat(np.arange(len(seq_start)), np.diff([*seq_start, len(sk)]))
+            self._filter_index(ests, seq_of, sk["k0"], filt)
 
 
 def load_truths(paths: Iterable) -> dict[str, ArrayTruth]:

@@ -81,6 +81,9 @@ SD = {
 NAV = (*POS, *VEL, *QUAT)
 VALUES = tuple(c for cols in ESTIMATES.values() for c in cols)
 SIGMAS = tuple(c for cols in SD.values() for c in cols)
+CORRECTION = VALUES[: 2 * 3 + 2 * 3 + 2 * 6]
+"""The estimates the filter corrects the increments with (biases, scale factors,
+cross-coupling): those :func:`corrected_increments` takes."""
 COLUMNS = (SEQUENCE, TIME, SAMPLE, FLAGS, *NAV, *VALUES, *SIGMAS)
 UNITS = {
     SEQUENCE: "1",
@@ -144,14 +147,38 @@ def corrected_increments(dtheta, dv, est, dt: float) -> tuple[np.ndarray, np.nda
     Parameters
     ----------
     dtheta, dv : (..., 3)  the increments the filter was given [rad, m/s]
-    est : (..., 24)  per row, the held estimates in the order of :data:`VALUES` up to
-        ``ACCEL_CC`` (biases, scale factors, cross-coupling)
+    est : (..., 24)  per row, the held estimates :data:`CORRECTION` (biases, scale factors,
+        cross-coupling)
     dt : float  IMU interval [s]
     """
     e = np.nan_to_num(np.asarray(est, float))
     bg, ba, sg, sa, cg, ca = (e[..., i : i + n] for i, n in
                               ((0, 3), (3, 3), (6, 3), (9, 3), (12, 6), (18, 6)))  # fmt: skip
     return _cc((dtheta - bg * dt) / (1.0 + sg), cg), _cc((dv - ba * dt) / (1.0 + sa), ca)
+
+
+def filter_aware_error(x, err, held, valid, dt) -> np.ndarray:
+    """The **filter-aware target**: the effective error left after the filter's own correction,
+    ``err - (x - x_hat)`` with ``x_hat`` the increments corrected as the filter does
+    (:func:`corrected_increments`), NaN where no estimate is held.
+
+    Parameters
+    ----------
+    x, err : (..., 6)  measured increments ``dtheta, dv`` and their effective error [rad, m/s]
+    held : (..., 24)  the estimates :data:`CORRECTION` held at each row (those of the last
+        filter epoch strictly before it)
+    valid : (...) bool  rows holding an estimate
+    dt : float or broadcastable  IMU interval [s]
+
+    Returns
+    -------
+    (..., 6) float64
+    """
+    xx = np.asarray(x, np.float64)
+    th, dv = corrected_increments(xx[..., :3], xx[..., 3:6], held, dt)
+    out = np.asarray(err, np.float64) - (xx - np.concatenate([th, dv], -1))
+    out[~np.asarray(valid, bool)] = np.nan
+    return out
 
 
 def _cc(u, c):
