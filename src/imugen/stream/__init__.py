@@ -2,7 +2,8 @@
 
 :class:`Stream` draws ``(route, grade, sequence, window)`` keys and generates each window's
 measured IMU rows and the loader's targets (:class:`imugen.dataset.WindowDataset`: effective
-error, true increments, true slow bias, the sequence's drawn parameters as labels) in memory;
+error, true increments, true slow bias, the sequence's drawn parameters as labels, the
+filter's estimates and the filter-aware target) in memory;
 :class:`imugen.stream.torch.StreamDataset` serves it as a PyTorch ``IterableDataset`` (the
 optional ``torch`` extra).
 
@@ -35,8 +36,12 @@ Example
 Grades with an output bandwidth or rounding quantization (``adis16405``, ``phone``, ...) stream
 in both modes (window mode warms each window's output filter up, :mod:`imugen.stream.windows`);
 vibration and mounting stream in exact mode; the ``gnss`` target gives the aid stage's GNSS
-fixes, scenario states and receiver labels on the window's rows (:mod:`imugen.stream.gnss`).
-Not streamed: raw increments; vibration and mounting in window mode.
+fixes, scenario states and receiver labels on the window's rows (:mod:`imugen.stream.gnss`);
+in exact mode the ``filter``, ``filter_sd`` and ``filter_aware_error`` targets run the aid
+stage's filter (:func:`imugen.aid.stage.filter_block`) over each whole sequence and give the
+loader's extras and target of those names (the held estimates, their sigmas, the filter-aware
+target), bit for bit for a written key.
+Not streamed: raw increments; vibration, mounting and the filter targets in window mode.
 """
 
 from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0

@@ -66,7 +66,7 @@ class Stream:
         fixes (:mod:`imugen.stream.gnss`); ``filter``, ``filter_sd`` ``(B, W, C + 3)`` the
         aided filter's held estimates and sigmas and ``filter_aware_error`` ``(B, W, 6)`` the
         filter-aware target, as the loader's extras and target of the same names (columns in
-        :attr:`filter_columns`; exact mode only, :meth:`_filter`).
+        :attr:`filter_columns`; exact mode only, :mod:`imugen.stream`).
     exact : bool
         Generate each sequence from its turn-on (the shard's numbers, bit for bit) instead of
         drawing the slow states at each window's start (:mod:`imugen.stream.windows`).
