@@ -322,3 +322,39 @@ def test_a_long_gap_between_close_fixes_is_a_stop_within_the_cars_limits(tmp_pat
     assert pos[gap, 2].min() >= min(lo, hi) - 0.5 and pos[gap, 2].max() <= max(lo, hi) + 0.5
     speed = np.linalg.norm(v[:, :2], axis=1)
     assert (speed[gap] < 0.05).sum() * 0.1 > 800  # standing still, not creeping
+
+
+def test_a_gap_of_years_is_split_not_bridged():
+    """A logger's clock jumping by years between close fixes is no motion to invent: the gap
+    is split (bridging it made ~3.4e8 virtual fixes and exhausted memory in the fuzz test)."""
+    from imugen.ingest.segments import AUTO_MAX_BRIDGE_S, judge_gaps
+
+    n = 12
+    t = np.arange(n, dtype=float)
+    t[6:] += 10 * 365 * 86400.0
+    lat = 48.0 + 1e-5 * np.arange(n)
+    p = RoutePath(
+        name="gap",
+        kind="trkseg",
+        lat_deg=lat,
+        lon_deg=np.full(n, 11.0),
+        alt_m=np.zeros(n),
+        time_unix_s=t,
+    )
+    (gap,) = judge_gaps(p, 60.0, "car")
+    assert gap["length_s"] > AUTO_MAX_BRIDGE_S and not gap["bridge"]
+    t2 = t.copy()
+    t2[6:] -= 10 * 365 * 86400.0 - 600.0
+    (short,) = judge_gaps(
+        RoutePath(
+            name="gap",
+            kind="trkseg",
+            lat_deg=lat,
+            lon_deg=np.full(n, 11.0),
+            alt_m=np.zeros(n),
+            time_unix_s=t2,
+        ),
+        60.0,
+        "car",
+    )
+    assert short["bridge"] and short["kind"] == "stop"

@@ -4,8 +4,8 @@ Gaps
     A timed path whose clock jumps by more than ``max_gap_s`` (default :data:`MAX_GAP_S`) is
     judged by motion with ``gaps="auto"`` (the default): bridged when the straight geodesic
     leg across it needs a speed within the vehicle class's limit and at most
-    :data:`AUTO_SPEED_RATIO` times the speed around it (or :data:`AUTO_SPEED_FLOOR_MPS`), else
-    split. A bridged gap gets virtual fixes along that leg moving as the simplest motion
+    :data:`AUTO_SPEED_RATIO` times the speed around it (or :data:`AUTO_SPEED_FLOOR_MPS`) and
+    it lasts at most :data:`AUTO_MAX_BRIDGE_S`, else split. A bridged gap gets virtual fixes along that leg moving as the simplest motion
     (:func:`leg_profile`): the speed changed at the class's acceleration to a held speed that
     covers the leg, or, when that speed would be a creep, a stop (braking, waiting,
     accelerating; what a car in a car park does), never a loop; every gap, its length,
@@ -60,6 +60,9 @@ AUTO_SPEED_FLOOR_MPS = 1.5
 #: accelerating: :data:`AUTO_RAMP_STEP_S`).
 AUTO_STEP_S = 5.0
 AUTO_RAMP_STEP_S = 1.0
+#: ``gaps="auto"``: longest gap (s) bridged; a longer one is split (a logger left off for hours
+#: is no motion to invent, and its virtual fixes and truth would grow without bound).
+AUTO_MAX_BRIDGE_S = 3600.0
 #: ``gaps="auto"``: no virtual fix closer than this (s) to a real one (the fit blends there).
 AUTO_END_FREE_S = 2.5
 #: ``gaps="auto"``: acceleration (m/s^2) of the braking and accelerating phases of a bridged
@@ -193,6 +196,7 @@ def judge_gaps(p: RoutePath, max_gap_s: float, vehicle: str) -> list[dict]:
         v_out = _around(step_v, ~big, range(i + 1, i + 4))
         need = float(d[i] / dts[i])
         ok = need <= vmax and need <= max(AUTO_SPEED_RATIO * around, AUTO_SPEED_FLOOR_MPS)
+        ok = ok and dts[i] <= AUTO_MAX_BRIDGE_S
         g = {
             "index": int(i), "at_s": float(t[i] - t[0]), "length_s": float(dts[i]),
             "distance_m": float(d[i]), "speed_needed_mps": need, "speed_around_mps": around,
