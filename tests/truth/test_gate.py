@@ -128,6 +128,16 @@ REFUSED = {
     # noise estimates, still needs 11.9 m/s^2)
     "g_nmea_gga_midnight_rollover.nmea": "acceleration",
 }
+REVERSALS = {
+    # Known defect, open (issue 27): untimed paths that double back are timed leg by leg with a
+    # stop between (truth.reversals); on these paths the joined legs exceed the (untuned, every
+    # class) 30 m/s^3 jerk bound slightly, and the hike's two adjacent reversals need 12.5 m/s^2
+    # of a pedestrian. The gate refuses them, as it must; the set of limits exceeded is pinned
+    # so that a fix (or a new excess) shows here.
+    ("c_limassol_tour_newline_coords.kml", 1): {"jerk"},
+    ("f_hike_identical_1901_timestamps.gpx", 1): {"acceleration", "jerk"},
+    ("g_segmented_tracks.geojson", 2): {"jerk", "acceleration"},
+}
 
 
 def _vehicle(name: str, index: int) -> str:
@@ -178,6 +188,8 @@ def test_real_tracks_pass_the_gate(path):
             continue
         if path.name in REFUSED:
             assert meta["gate"] and meta["gate"][0]["limit"] == REFUSED[path.name], path.name
+        elif (path.name, i) in REVERSALS:
+            assert {g["limit"] for g in meta["gate"]} == REVERSALS[(path.name, i)], (path.name, i)
         else:
             assert meta["gate"] == [], (path.name, i, meta["gate"])
         checked += 1
