@@ -109,3 +109,12 @@ def test_presets_and_errors():
         gnss.simulate_gnss(t, p, v, q, w, "standalone", rate_hz=3.0)
     with pytest.raises(InputError, match="unknown receiver"):
         gnss.get_receiver("survey")
+
+
+def test_labels_carry_global_sequence_ids_beyond_int32():
+    """A route id beyond 0 puts global ids past 2^31 (``route_id << 31 | index``): the labels
+    keep them whole (an int32 cast wrapped them negative)."""
+    t, p, v, q, w = circle(T=5.0)
+    first = (3 << 31) + 4
+    g = gnss.simulate_gnss(t, p, v, q, w, "phone", sequences=2, seed=7, first=first)
+    assert g.labels["sequence"].to_numpy().tolist() == [first, first + 1]

@@ -412,7 +412,7 @@ def simulate_gnss(
         fix[j] = np.where(ok, rec.fix_quality, FIX_NONE)
     first = shard * M if first is None else int(first)
     lab = {
-        "sequence": (first + np.arange(M)).astype(np.int32),
+        "sequence": (first + np.arange(M)).astype(np.int64),
         "gnss_receiver_id": np.full(M, rec.id, np.int32),
         "gnss_rate_hz": np.full(M, rate),
         **par.labels(),
