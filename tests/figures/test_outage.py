@@ -201,3 +201,7 @@ def test_outage_drift_command_writes_table_markdown_and_figure(tmp_path):
         "consumer: aided (GNSS lost)", "consumer: free inertial",
         "tactical: aided (GNSS lost)", "tactical: free inertial",
     ]  # fmt: skip
+    fig.canvas.draw()  # the legend sits outside the axes: it hides no curve
+    (legend,) = fig.legends
+    box, axes_box = legend.get_window_extent(), ax.get_window_extent()
+    assert not box.overlaps(axes_box)

@@ -82,6 +82,13 @@ def test_table_columns_and_figures(tmp_path):
     md = (tmp_path / "table.md").read_text()
     assert "| test | park | consumer | aided_learned |" in md
     assert (tmp_path / "fig.png").stat().st_size > 1000
+    from imugen.core.plotting import style
+
+    with style():
+        fig = T.draw(df)
+    fig.canvas.draw()  # the legend sits below the axes: it hides no curve
+    (legend,) = fig.legends
+    assert not any(legend.get_window_extent().overlaps(ax.get_window_extent()) for ax in fig.axes)
 
 
 @needs_torch

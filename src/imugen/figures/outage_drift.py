@@ -130,7 +130,8 @@ def outage_drift_figure(table: pd.DataFrame):
     ax.set_ylabel("error at the end of the outage [m]")
     ax.set_title("Drift at the end of each GNSS outage (median, 5-95 %)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    handles, labels = ax.get_legend_handles_labels()  # below the axes: never over a curve
+    fig.legend(handles, labels, loc="outside lower center", ncols=2, fontsize="small")
     return fig
 
 

@@ -102,7 +102,8 @@ def draw(df: pd.DataFrame):
         ax.set_xlabel("outage length [s]")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("horizontal error at the outage end [m]\n(median; thin: 95th pct.)")
-    axes[-1].legend(fontsize=6, loc="upper left")
+    handles, labels = axes[-1].get_legend_handles_labels()  # below the axes: never over a curve
+    fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=6)
     return fig
 
 
