@@ -51,7 +51,7 @@ include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/export.smk"
 include: "workflow/rules/allan.smk"
-include: "workflow/rules/benchmark.smk"
+include: "workflow/rules/learn.smk"
 
 
 onstart:

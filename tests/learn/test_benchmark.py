@@ -1,5 +1,5 @@
 """The GNSS-denied benchmark: its config, the table's columns, the network's correction, and a
-tiny variant of its workflow end to end (src/imugen/learn, workflow/rules/benchmark.smk)."""
+tiny variant of its workflow end to end (src/imugen/learn, workflow/rules/learn.smk)."""
 
 import importlib.util
 

@@ -312,7 +312,7 @@ def shard_paths(kind):
 
 
 def bench_shard(kind, shard="{shard}"):
-    """A benchmark table of a route's shard (workflow/rules/benchmark.smk):
+    """A benchmark table of a route's shard (workflow/rules/learn.smk):
     results/<route>/benchmark/<kind>/<grade>/shard-<shard>.parquet."""
     return f"{layout.route_dir()}/benchmark/{kind}/{{grade}}/shard-{shard}.parquet"
 
