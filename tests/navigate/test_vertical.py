@@ -81,7 +81,7 @@ GAMMA = V.gravity_gradient_up(WGS.lat0_rad, WGS.h0_m)
 )
 def test_loop_response_is_the_closed_form(order, tau, dh0, dv0):
     """A step (dh0) or a ramp (dv0) in the height error decays as the designed loop: the
-    kernel's impulses every 0.4 s follow their discrete closed form to 1e-4 of the initial
+    kernel's impulses every 0.2 s follow their discrete closed form to 1e-4 of the initial
     error (what is left: the Coriolis coupling with the horizontal, ``(2 Omega t)^2``), and the continuous loop (every pole at -1/tau) within its sampling (k1 T = 1.2 %
     per update at tau = 100 s)."""
     gains = V.loop_gains(tau, order, GAMMA)

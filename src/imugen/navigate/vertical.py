@@ -26,7 +26,7 @@ Error dynamics ``s^3 + k1 s^2 + (k2 - Gamma) s + k3 = 0``; the gains place every
 second order ``k1 = 2/tau_v``, ``k2 = 1/tau_v^2 + Gamma``, ``k3 = 0`` (steady error
 ``da tau_v^2``). Default: third order, ``tau_v = 100 s`` (0.03 1/s, 3.03e-4 1/s^2, 1e-6 1/s^3).
 The kernel (:func:`imugen.navigate._kernel.kernel`) applies the loop as impulses at every
-gravitation node (``T = m dt``, 0.4 s; every step in ``flat``), from the reference height of
+gravitation node (``T = m dt``, 0.2 s; every step in ``flat``), from the reference height of
 that sample; attitude is untouched.
 
 Rule (``auto``): damped when the route's duration exceeds :data:`AUTO_FACTOR` growth times
