@@ -143,6 +143,22 @@ def test_default_rule():
         V.resolve("baro", WGS, 10.0)
 
 
+def test_the_record_says_how_the_rule_decided():
+    tau = V.growth_time_s(WGS.lat0_rad, WGS.h0_m)
+    rule = V.resolve("auto", WGS, 19268.0).meta()["rule"]
+    assert rule.startswith(
+        "auto: damped when duration > 3 x growth time on a rotating Earth: damped"
+    )
+    factor = V.resolve("auto", WGS, 19268.0).growth_factor
+    assert f"19,268 s > {3 * tau:,.0f} s = 3 x {tau:.0f} s" in rule and f"x{factor:.3g} " in rule
+    rule = V.resolve("auto", WGS, 619.0).meta()["rule"]
+    assert ": free (619 s <= " in rule
+    rule = V.resolve("free", WGS, 19268.0).meta()["rule"]
+    assert rule.startswith("free, as requested") and "19,268 s > " in rule
+    rule = V.resolve("auto", WGS.with_model("flat"), 1e5).meta()["rule"]
+    assert ": free (flat Earth: constant gravity, the free channel is neutral" in rule
+
+
 def test_meaningless_reason_explains_itself():
     msg = V.meaningless_reason(V.resolve("free", WGS, 19268.0).meta())
     assert "cosh(t / 569 s)" in msg and "19,268 s" in msg and "damped" in msg

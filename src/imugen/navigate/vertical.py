@@ -136,10 +136,26 @@ class VerticalChannel:
                 "growth_time_s": self.growth_time_s,
                 "growth_factor": self.growth_factor,
                 "duration_s": self.duration_s,
-                "rule": f"auto: damped when duration > {AUTO_FACTOR:g} x growth time "
-                f"({AUTO_FACTOR * self.growth_time_s:.0f} s) on a rotating Earth",
+                "rule": self.why(),
             }
         )
+
+    def why(self) -> str:
+        """The rule and how it decided for this scene (one line, for the metadata)."""
+        rule = f"auto: damped when duration > {AUTO_FACTOR:g} x growth time on a rotating Earth"
+        D = self.duration_s
+        if not math.isfinite(self.growth_time_s):
+            case = "flat Earth: constant gravity, the free channel is neutral, not unstable"
+        else:
+            lim = AUTO_FACTOR * self.growth_time_s
+            cmp = ">" if D > lim else "<="
+            case = (
+                f"{D:,.0f} s {cmp} {lim:,.0f} s = {AUTO_FACTOR:g} x {self.growth_time_s:.0f} s; "
+                f"free, a height error grows x{self.growth_factor:.3g} over the route"
+            )
+        if self.requested != "auto":
+            return f"{self.requested}, as requested ({rule}; here {case})"
+        return f"{rule}: {self.mode} ({case})"
 
 
 def _finite(d: dict) -> dict:
