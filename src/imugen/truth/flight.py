@@ -57,7 +57,7 @@ class _Climb:
     ``d(x) = int_0^x v(h0 + xi) / roc dxi`` is a quadratic on each piece of the schedule, so
     the height is a closed form of the distance: smooth within each piece. (A linear
     interpolation of the inverse on a grid of heights put a kink every grid step into the
-    climb: +-6e-5 m every ~50 m, which the geometry's quintic turned into a 2 mg vertical
+    climb, up to 1.7e-4 m off, every ~50 m, which the geometry's quintic turned into a 2 mg vertical
     acceleration at ~4 Hz, beyond what a 10 Hz IMU integrates.)
 
     Parameters
