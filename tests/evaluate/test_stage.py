@@ -172,3 +172,36 @@ def test_evaluate_segments_command_and_tables(tmp_path):
     assert r.returncode == 2 and "needs the IMU shards" in r.stderr
     r = subprocess.run([*cmd, "--grade", "t", "--segments", "0,x"], capture_output=True, text=True)
     assert r.returncode == 2 and "--segments" in r.stderr and not out.with_name("x").exists()
+
+
+def test_navigation_and_metrics_record_the_vertical_channel(tmp_path):
+    """The vertical channel navigation used is recorded in the navigation table's metadata and
+    carried into the metrics' (issue 27): ``auto`` on a 300 s flat scene stays free (the rule
+    says why), ``damped`` is damped; ``imugen tables`` reads it from there."""
+    import warnings
+
+    from imugen.evaluate.options import EvaluateOptions
+    from imugen.evaluate.stage import run as evaluate
+    from imugen.navigate.options import NavigateOptions
+    from imugen.navigate.stage import run as navigate
+    from imugen.tables import metrics as tmetrics
+    from imugen.tables import nav as tnav
+
+    truth, shard = static_scene(tmp_path)
+    for mode, expect in (("auto", "free"), ("damped", "damped")):
+        nav = navigate(
+            truth, shard, tmp_path / f"nav_{mode}.parquet", NavigateOptions(vertical=mode)
+        )
+        rec = tnav.read_meta(nav)["vertical_channel"]
+        assert rec["requested"] == mode and rec["mode"] == expect
+        assert rec["duration_s"] == pytest.approx(DURATION_S)
+        assert rec["reference"] == "truth"
+        if expect == "damped":
+            assert rec["order"] == 3 and rec["time_constant_s"] == 100.0
+        assert "damped when duration > 3 x growth time" in rec["rule"]
+        assert ("free channel is neutral" in rec["rule"]) and (mode in rec["rule"])
+        out = tmp_path / f"metrics_{mode}.parquet"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a static scene has no extent: flagged meaningless
+            evaluate(truth, [nav], out, EvaluateOptions(grade="test"))
+        assert tmetrics.read_meta(out)["vertical_channel"] == rec

@@ -93,12 +93,12 @@ def block_errors(path, T, sub=20, span=40.0):
 
 
 def test_node_spacing_meets_the_tolerance_for_its_design_snap():
-    """T = 0.4 s: the cubic's bound T^4/24 Gamma snap is within 1e-8 m/s^2 up to 3 m/s^4."""
+    """T = 0.2 s: the cubic's bound T^4/24 Gamma snap is within 1e-8 m/s^2 up to 48 m/s^4."""
     T, tol = M.GRAVITY_NODE_S, M.GRAVITY_TOL_MPS2
     snap_design = 24.0 * tol / (M.GAMMA_MAX * T**4)
     assert 3.05e-6 < M.GAMMA_MAX < 3.15e-6
-    assert snap_design >= 2.9
-    for dt, m in ((0.05, 8), (0.02, 20), (0.01, 40), (0.001, 400), (1.0, 1)):
+    assert snap_design >= 47.0
+    for dt, m in ((0.1, 2), (0.05, 4), (0.02, 10), (0.01, 20), (0.001, 200), (1.0, 1)):
         assert int(M.kernel_params(WGS, dt)[M.K_MB]) == m
     assert M.kernel_params(WGS, 0.01)[M.K_D4] == 24.0 * tol / M.GRAVITY_CHECK_MARGIN
 
@@ -184,13 +184,13 @@ def run_kernel(path, dt, span, node_s, every):
 
 
 @pytest.mark.parametrize("rate_hz", [20.0, 100.0])
-@pytest.mark.parametrize("amp", [2.0, 20.0])
-def test_kernel_within_the_bound_of_exact_gravity_every_step(rate_hz, amp):
-    """Height weaves of 10 s at 214 m/s over 120 s, snap 0.31 m/s^4 (every block interpolated)
-    and 3.1 m/s^4 (at the design snap: some blocks fall back): positions vs the exact
+@pytest.mark.parametrize("amp, period_s", [(2.0, 10.0), (1.0, 2.5)])
+def test_kernel_within_the_bound_of_exact_gravity_every_step(rate_hz, amp, period_s):
+    """Height weaves at 214 m/s over 120 s, 2 m of 10 s: snap 0.31 m/s^4 (every block
+    interpolated), 1 m of 2.5 s: 39 m/s^4 (near the design snap: some blocks fall back): positions vs the exact
     gravitation every step within tol tau^2 (cosh(t/tau) - 1) (+ rounding of ~3e4 m),
     velocities within tol t (the closure error itself is the 3-point rule's, ``O(dt^3)``)."""
-    path = Weave(amp, 10.0, 2)
+    path = Weave(amp, period_s, 2)
     dt, span = 1.0 / rate_hz, 120.0
     every = int(rate_hz) // 4
     p, v, nfb = run_kernel(path, dt, span, M.GRAVITY_NODE_S, every)

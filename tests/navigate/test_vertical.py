@@ -81,7 +81,7 @@ GAMMA = V.gravity_gradient_up(WGS.lat0_rad, WGS.h0_m)
 )
 def test_loop_response_is_the_closed_form(order, tau, dh0, dv0):
     """A step (dh0) or a ramp (dv0) in the height error decays as the designed loop: the
-    kernel's impulses every 0.4 s follow their discrete closed form to 1e-4 of the initial
+    kernel's impulses every 0.2 s follow their discrete closed form to 1e-4 of the initial
     error (what is left: the Coriolis coupling with the horizontal, ``(2 Omega t)^2``), and the continuous loop (every pole at -1/tau) within its sampling (k1 T = 1.2 %
     per update at tau = 100 s)."""
     gains = V.loop_gains(tau, order, GAMMA)
@@ -141,6 +141,22 @@ def test_default_rule():
     assert V.resolve("free", WGS, 1e5).mode == "free"
     with pytest.raises(ValueError, match="vertical channel"):
         V.resolve("baro", WGS, 10.0)
+
+
+def test_the_record_says_how_the_rule_decided():
+    tau = V.growth_time_s(WGS.lat0_rad, WGS.h0_m)
+    rule = V.resolve("auto", WGS, 19268.0).meta()["rule"]
+    assert rule.startswith(
+        "auto: damped when duration > 3 x growth time on a rotating Earth: damped"
+    )
+    factor = V.resolve("auto", WGS, 19268.0).growth_factor
+    assert f"19,268 s > {3 * tau:,.0f} s = 3 x {tau:.0f} s" in rule and f"x{factor:.3g} " in rule
+    rule = V.resolve("auto", WGS, 619.0).meta()["rule"]
+    assert ": free (619 s <= " in rule
+    rule = V.resolve("free", WGS, 19268.0).meta()["rule"]
+    assert rule.startswith("free, as requested") and "19,268 s > " in rule
+    rule = V.resolve("auto", WGS.with_model("flat"), 1e5).meta()["rule"]
+    assert ": free (flat Earth: constant gravity, the free channel is neutral" in rule
 
 
 def test_meaningless_reason_explains_itself():

@@ -26,7 +26,7 @@ Error dynamics ``s^3 + k1 s^2 + (k2 - Gamma) s + k3 = 0``; the gains place every
 second order ``k1 = 2/tau_v``, ``k2 = 1/tau_v^2 + Gamma``, ``k3 = 0`` (steady error
 ``da tau_v^2``). Default: third order, ``tau_v = 100 s`` (0.03 1/s, 3.03e-4 1/s^2, 1e-6 1/s^3).
 The kernel (:func:`imugen.navigate._kernel.kernel`) applies the loop as impulses at every
-gravitation node (``T = m dt``, 0.4 s; every step in ``flat``), from the reference height of
+gravitation node (``T = m dt``, 0.2 s; every step in ``flat``), from the reference height of
 that sample; attitude is untouched.
 
 Rule (``auto``): damped when the route's duration exceeds :data:`AUTO_FACTOR` growth times
@@ -136,10 +136,26 @@ class VerticalChannel:
                 "growth_time_s": self.growth_time_s,
                 "growth_factor": self.growth_factor,
                 "duration_s": self.duration_s,
-                "rule": f"auto: damped when duration > {AUTO_FACTOR:g} x growth time "
-                f"({AUTO_FACTOR * self.growth_time_s:.0f} s) on a rotating Earth",
+                "rule": self.why(),
             }
         )
+
+    def why(self) -> str:
+        """The rule and how it decided for this scene (one line, for the metadata)."""
+        rule = f"auto: damped when duration > {AUTO_FACTOR:g} x growth time on a rotating Earth"
+        D = self.duration_s
+        if not math.isfinite(self.growth_time_s):
+            case = "flat Earth: constant gravity, the free channel is neutral, not unstable"
+        else:
+            lim = AUTO_FACTOR * self.growth_time_s
+            cmp = ">" if D > lim else "<="
+            case = (
+                f"{D:,.0f} s {cmp} {lim:,.0f} s = {AUTO_FACTOR:g} x {self.growth_time_s:.0f} s; "
+                f"free, a height error grows x{self.growth_factor:.3g} over the route"
+            )
+        if self.requested != "auto":
+            return f"{self.requested}, as requested ({rule}; here {case})"
+        return f"{rule}: {self.mode} ({case})"
 
 
 def _finite(d: dict) -> dict:
