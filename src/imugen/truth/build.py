@@ -457,7 +457,14 @@ def build_truth(
     gate = (
         None
         if pose
-        else findings(df, vp, frame=E.frame, airborne=airborne, input_heights=_gate_heights(E, enu))
+        else findings(
+            df,
+            vp,
+            frame=E.frame,
+            airborne=airborne,
+            input_heights=_gate_heights(E, enu),
+            slip=not timing.get("timed", True),
+        )
     )
     if pose or thrust:
         plaus.update(

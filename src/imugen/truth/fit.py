@@ -8,7 +8,12 @@ import math
 import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import BSpline, make_interp_spline
-from scipy.ndimage import binary_dilation, maximum_filter1d, minimum_filter1d
+from scipy.ndimage import (
+    binary_dilation,
+    maximum_filter1d,
+    minimum_filter1d,
+    uniform_filter1d,
+)
 from scipy.optimize import brentq
 from scipy.sparse.linalg import splu
 
@@ -90,9 +95,11 @@ class PenalizedSpline:
 
     ``ties``: list of (i0, i1) coefficient ranges forced equal (constant stretches).
     ``weights``: per-site weights of the squared residuals (default 1).
+    ``stiffness``: per-site factors of the penalty on the knot interval that starts at the
+    site (default 1): a locally stiffer curve (bandwidth ~ stiffness^(1/6) there).
     """
 
-    def __init__(self, x, ties=(), weights=None):
+    def __init__(self, x, ties=(), weights=None, stiffness=None):
         x = np.asarray(x, float)
         k = K_SPLINE
         self.x0 = x[0]
@@ -119,6 +126,7 @@ class PenalizedSpline:
         cols_ = red_index
         self.M = sp.csc_matrix((np.ones(n), (rows, cols_)), shape=(n, keep.sum()))
         self.B = (B @ self.M).tocsc()
+        self.stiffness = None if stiffness is None else np.asarray(stiffness, float)
         self.P = (self.M.T @ self._penalty() @ self.M).tocsc()
         self.BtB = (self.B.T @ self.B).tocsc()
 
@@ -137,6 +145,9 @@ class PenalizedSpline:
         a, b = a[nz], b[nz]
         xq = (0.5 * (b - a)[:, None] * xg + 0.5 * (b + a)[:, None]).ravel()
         wq = (0.5 * (b - a)[:, None] * wg).ravel()
+        if self.stiffness is not None:
+            site = np.clip(np.searchsorted(self.u, xq, side="right") - 1, 0, len(self.u) - 1)
+            wq = wq * self.stiffness[site]
         Bq = BSpline.design_matrix(xq, tt, kd)
         G = Bq.T @ sp.diags(wq) @ Bq
         return D.T @ G @ D
@@ -483,6 +494,9 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     lam = (ell / ps.scale) ** 6 * _CORNER_CAL
     coef = np.column_stack([ps.solve(lam, dense[:, i]) for i in range(3)])
     g = ps.bspline(coef)
+    bound = None
+    if vp.attitude == "ground":
+        g, bound = _bound_curvature(g, u, dense, lam, vp.max_curvature_1pm)
     # arc length by 5-node Gauss-Legendre on a fine parameter grid
     nfine = max(64, int(np.ceil(u[-1] / (step / 4.0))))
     uf = np.linspace(0.0, u[-1], nfine + 1)
@@ -503,10 +517,124 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
         "max_distance_m": float(d.max()),
         "length_m": L,
     }
+    if bound is not None:
+        report["curvature_bound"] = bound
     if vertices:
         s_v = np.interp(np.r_[0.0, np.cumsum(seg)], uf, s)
         return G, L, report, s_v[kept]
     return G, L, report
+
+
+CURVATURE_MARGIN = 0.85
+"""Share of a ground vehicle's ``max_curvature_1pm`` that an untimed path's geometry may
+reach (:func:`_bound_curvature`): the margin covers the re-parameterization by arc length and
+the heading's sampling (:class:`imugen.truth.attitude.GroundAttitude`)."""
+
+CURVATURE_ITERATIONS = 20
+"""Rounds of local smoothing of an untimed ground path beyond its curvature bound."""
+
+CURVATURE_STIFFNESS_STEP = 1.0
+"""log10 of the factor of the smoothing penalty around a bend too tight, per round (its
+bandwidth grows by ``10^(1/6)``, 1.47, per round there)."""
+
+CURVATURE_RESIDUAL_RADII = 6.0
+"""Farthest a widened bend strays from the input polyline, in least turning radii
+(``1 / max_curvature_1pm``; at least the corner rounding's own distance): a bend that needs
+more (two legs closer than the turning diameter) is left tight, and the gate refuses the
+truth's slip there."""
+
+CURVATURE_STIFFNESS_MAX = 9.0
+"""Largest log10 of that factor (bandwidth x 32): beyond, the bend stays too tight (the
+gate refuses the truth's slip)."""
+
+
+def _horizontal_curvature(g, x):
+    """Horizontal curvature [1/m] of the curve ``g`` at the parameters ``x``."""
+    d1, d2 = g(x, 1), g(x, 2)
+    vh2 = d1[:, 0] ** 2 + d1[:, 1] ** 2
+    return np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(vh2, 1e-30) ** 1.5
+
+
+def _bound_curvature(g, u, dense, lam, max_curvature_1pm, per=4):
+    """An untimed ground path's smoothed polyline ``g(u)`` (u: chord length of the densified
+    polyline ``dense``) with its horizontal curvature bounded by :data:`CURVATURE_MARGIN`
+    x ``max_curvature_1pm`` (the vehicle's least turning radius): where a bend is tighter
+    (a hairpin, an acute corner that the corner rounding leaves tight) the spline's penalty
+    grows by :data:`CURVATURE_STIFFNESS_STEP` decades per round over a few bandwidths around it
+    (tapered), so the smoothing spline takes the bend wider there (the rest of the path is
+    unchanged) until the bound holds; a bend that would stray farther than
+    :data:`CURVATURE_RESIDUAL_RADII` turning radii from the polyline (two legs closer than
+    the turning diameter) is left as it was, and the gate refuses the slip it causes. The speed profile then slows the vehicle
+    through the bend to its lateral-acceleration limit (:func:`imugen.truth.profile.speed_profile`),
+    so the body follows the path without sliding sideways. Returns the curve and a report
+    (None when no bend was too tight)."""
+    kmax = CURVATURE_MARGIN * max_curvature_1pm
+    f = np.linspace(0.0, 1.0, per, endpoint=False)
+    uq = np.r_[(u[:-1, None] + f * np.diff(u)[:, None]).ravel(), u[-1]]
+    k0 = _horizontal_curvature(g, uq)
+    if not k0.max() > kmax:
+        return g, None
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(dense[:, :2])
+
+    def off(g):  # distance of the curve from the densified polyline (its nearest point)
+        return tree.query(g(uq)[:, :2])[0]
+
+    cap = max(CURVATURE_RESIDUAL_RADII / max_curvature_1pm, float(off(g).max()))
+    raw = np.zeros(len(u))  # log10 of the stiffness asked for at each site
+    frozen = np.zeros(len(u), bool)  # bends that cannot be widened within the cap
+    best, best_k, best_field, rounds = g, float(k0.max()), raw, 0
+    kq = k0
+
+    def solve(raw):
+        reach = math.ceil(4.0 * lam ** (1.0 / 6.0) * 10.0 ** (raw.max() / 6.0))
+        # the stiffer stretch spans a few bandwidths around each bend too tight, and its
+        # stiffness tapers linearly over as much (a step would turn the curve at its edges)
+        field = uniform_filter1d(maximum_filter1d(raw, 2 * reach + 1), 2 * reach + 1)
+        ps = PenalizedSpline(u, stiffness=10.0**field)
+        return (
+            ps.bspline(np.column_stack([ps.solve(lam, dense[:, j]) for j in range(3)])),
+            field,
+            reach,
+        )
+
+    for rounds in range(1, CURVATURE_ITERATIONS + 1):  # noqa: B007 (reported below)
+        bad = np.clip(np.searchsorted(u, uq[kq > kmax]), 0, len(u) - 1)
+        bad = bad[~frozen[bad]]
+        if not len(bad):
+            break
+        trial = raw.copy()
+        trial[bad] += CURVATURE_STIFFNESS_STEP
+        g, field, reach = solve(trial)
+        over = off(g) > cap
+        if over.any():  # a bend the vehicle cannot take within the cap: left as it was
+            at = np.zeros(len(u), bool)
+            at[np.clip(np.searchsorted(u, uq[over]), 0, len(u) - 1)] = True
+            grown = maximum_filter1d(at.astype(np.int8), 4 * reach + 1).astype(bool)
+            frozen |= grown
+            trial = np.where(grown, raw, trial)
+            g, field, reach = solve(trial)
+        raw = trial
+        kq = _horizontal_curvature(g, uq)
+        if kq.max() < best_k:
+            best, best_k, best_field = g, float(kq.max()), field
+        if not best_k > kmax or raw.max() >= CURVATURE_STIFFNESS_MAX:
+            break
+    g = best
+    return g, {
+        "method": "local smoothing of the bends tighter than the vehicle's least turning "
+        "radius (the spline's penalty raised there)",
+        "curvature_limit_1pm": kmax,
+        "max_curvature_before_1pm": float(k0.max()),
+        "max_curvature_1pm": best_k,
+        "rounds": rounds,
+        "points_smoothed": int((best_field > 0.0).sum()),
+        "residual_cap_m": cap,
+        "bends_left": int(np.sum(np.diff(np.r_[0, (kq > kmax).astype(np.int8)]) > 0))
+        if best_k > kmax
+        else 0,
+    }
 
 
 def distance_to_curve(G, L, y, spacing):
