@@ -460,12 +460,17 @@ def _within_limits(spline, x, y, vp, make, lam, noise_m):
 # ------------------------------------------------------------------------------------------
 # untimed routes: geometry
 # ------------------------------------------------------------------------------------------
-def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
+def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False, max_curvature=None):
     """Smooth a polyline and re-parameterize by arc length.
 
     Returns (G BSpline of s, length L, report dict) and, with ``vertices``, the arc length
     [m] of the curve's point nearest each input point (N,): the smoothed point of its chord
     length (repeated points share it), monotonic along the path.
+
+    ``max_curvature`` (callable of the polyline's chord length [m], optional): the largest
+    horizontal curvature [1/m] along the path (an aircraft's turn at its bank limit and the
+    speed it flies there, :func:`imugen.truth.flight.turn_curvature`); ground vehicles take
+    their ``max_curvature_1pm``. Bends tighter are widened (:func:`_bound_curvature`).
     """
     y = np.asarray(y, float)
     seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
@@ -495,8 +500,10 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     coef = np.column_stack([ps.solve(lam, dense[:, i]) for i in range(3)])
     g = ps.bspline(coef)
     bound = None
-    if vp.attitude == "ground":
-        g, bound = _bound_curvature(g, u, dense, lam, vp.max_curvature_1pm)
+    if max_curvature is None and vp.attitude == "ground":
+        max_curvature = lambda x: np.full(len(x), vp.max_curvature_1pm)  # noqa: E731
+    if max_curvature is not None:
+        g, bound = _bound_curvature(g, u, dense, lam, max_curvature)
     # arc length by 5-node Gauss-Legendre on a fine parameter grid
     nfine = max(64, int(np.ceil(u[-1] / (step / 4.0))))
     uf = np.linspace(0.0, u[-1], nfine + 1)
@@ -555,10 +562,10 @@ def _horizontal_curvature(g, x):
     return np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(vh2, 1e-30) ** 1.5
 
 
-def _bound_curvature(g, u, dense, lam, max_curvature_1pm, per=4):
+def _bound_curvature(g, u, dense, lam, max_curvature, per=4):
     """An untimed ground path's smoothed polyline ``g(u)`` (u: chord length of the densified
     polyline ``dense``) with its horizontal curvature bounded by :data:`CURVATURE_MARGIN`
-    x ``max_curvature_1pm`` (the vehicle's least turning radius): where a bend is tighter
+    x ``max_curvature(u)`` (the vehicle's least turning radius there): where a bend is tighter
     (a hairpin, an acute corner that the corner rounding leaves tight) the spline's penalty
     grows by :data:`CURVATURE_STIFFNESS_STEP` decades per round over a few bandwidths around it
     (tapered), so the smoothing spline takes the bend wider there (the rest of the path is
@@ -568,11 +575,11 @@ def _bound_curvature(g, u, dense, lam, max_curvature_1pm, per=4):
     through the bend to its lateral-acceleration limit (:func:`imugen.truth.profile.speed_profile`),
     so the body follows the path without sliding sideways. Returns the curve and a report
     (None when no bend was too tight)."""
-    kmax = CURVATURE_MARGIN * max_curvature_1pm
     f = np.linspace(0.0, 1.0, per, endpoint=False)
     uq = np.r_[(u[:-1, None] + f * np.diff(u)[:, None]).ravel(), u[-1]]
+    kmax = CURVATURE_MARGIN * np.asarray(max_curvature(uq), float)
     k0 = _horizontal_curvature(g, uq)
-    if not k0.max() > kmax:
+    if not np.any(k0 > kmax):
         return g, None
     from scipy.spatial import cKDTree
 
@@ -581,10 +588,10 @@ def _bound_curvature(g, u, dense, lam, max_curvature_1pm, per=4):
     def off(g):  # distance of the curve from the densified polyline (its nearest point)
         return tree.query(g(uq)[:, :2])[0]
 
-    cap = max(CURVATURE_RESIDUAL_RADII / max_curvature_1pm, float(off(g).max()))
+    cap = np.maximum(CURVATURE_RESIDUAL_RADII * CURVATURE_MARGIN / kmax, off(g))
     raw = np.zeros(len(u))  # log10 of the stiffness asked for at each site
     frozen = np.zeros(len(u), bool)  # bends that cannot be widened within the cap
-    best, best_k, best_field, rounds = g, float(k0.max()), raw, 0
+    best, best_k, best_field, rounds = g, float(np.max(k0 / kmax)), raw, 0
     kq = k0
 
     def solve(raw):
@@ -617,24 +624,70 @@ def _bound_curvature(g, u, dense, lam, max_curvature_1pm, per=4):
             g, field, reach = solve(trial)
         raw = trial
         kq = _horizontal_curvature(g, uq)
-        if kq.max() < best_k:
-            best, best_k, best_field = g, float(kq.max()), field
-        if not best_k > kmax or raw.max() >= CURVATURE_STIFFNESS_MAX:
+        if np.max(kq / kmax) < best_k:
+            best, best_k, best_field = g, float(np.max(kq / kmax)), field
+        if not best_k > 1.0 or raw.max() >= CURVATURE_STIFFNESS_MAX:
             break
-    g = best
-    return g, {
+    over = _horizontal_curvature(best, uq) > kmax
+    return best, {
         "method": "local smoothing of the bends tighter than the vehicle's least turning "
         "radius (the spline's penalty raised there)",
-        "curvature_limit_1pm": kmax,
-        "max_curvature_before_1pm": float(k0.max()),
-        "max_curvature_1pm": best_k,
+        "curvature_margin": CURVATURE_MARGIN,
+        "least_curvature_limit_1pm": float(kmax.min()),
+        "max_curvature_ratio_before": float(np.max(k0 / kmax)),
+        "max_curvature_ratio": best_k,
         "rounds": rounds,
         "points_smoothed": int((best_field > 0.0).sum()),
-        "residual_cap_m": cap,
-        "bends_left": int(np.sum(np.diff(np.r_[0, (kq > kmax).astype(np.int8)]) > 0))
-        if best_k > kmax
-        else 0,
+        "least_residual_cap_m": float(cap.min()),
+        "bends_left": int(np.sum(np.diff(np.r_[0, over.astype(np.int8)]) > 0)),
     }
+
+
+def floor_heights(G, L, s_v, h_v, window_m, taper_m, spacing_m):
+    """A path ``G(s)`` (arc length, ENU) raised where it runs below the input's heights.
+
+    The floor at ``s`` is the lowest input height (``h_v`` at arc lengths ``s_v``, the
+    vertical of the input points) within ``window_m`` of it: the terrain or runway the input
+    stood on, and in the air the lower edge of its noise. Where the path is below it, the
+    deficit is spread over ``taper_m`` either side (a running maximum, then two running
+    means: quadratic ramps, so the vertical acceleration of the correction stays small) and
+    added to the path's vertical; the result is re-parameterized by arc length on a grid
+    ``spacing_m`` apart.
+
+    Returns
+    -------
+    (BSpline, float, dict or None)
+        The path, its length, and a report (None when nothing was below the floor).
+    """
+    n = max(8, math.ceil(L / spacing_m))
+    s = np.linspace(0.0, L, n + 1)
+    ds = s[1] - s[0]
+    order = np.argsort(s_v, kind="stable")
+    sv, hv = np.asarray(s_v, float)[order], np.asarray(h_v, float)[order]
+    # lowest input height within the window of each grid point
+    m = max(1, math.ceil(window_m / ds))
+    floor = minimum_filter1d(np.interp(s, sv, hv), 2 * m + 1, mode="nearest")
+    P = G(s)
+    deficit = np.maximum(floor - P[:, 2], 0.0)
+    if not deficit.max() > 0.0:
+        return G, L, None
+    w = 2 * max(1, math.ceil(taper_m / ds)) + 1
+    bump = maximum_filter1d(deficit, 2 * w + 1, mode="nearest")
+    bump = uniform_filter1d(uniform_filter1d(bump, w, mode="nearest"), w, mode="nearest")
+    P[:, 2] += bump
+    u = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+    G2 = make_interp_spline(u, P, k=K_SPLINE)
+    return (
+        G2,
+        float(u[-1]),
+        {
+            "method": "raised to the lowest input height within the window, ramps tapered",
+            "window_m": window_m,
+            "taper_m": taper_m,
+            "max_deficit_m": float(deficit.max()),
+            "raised_length_m": float(ds * np.count_nonzero(bump > 0.0)),
+        },
+    )
 
 
 def distance_to_curve(G, L, y, spacing):
