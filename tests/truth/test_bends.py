@@ -59,7 +59,7 @@ def _truth(y, vehicle="car"):
     [
         ("right angle", _corner(90.0), 1.0 * R_MIN),
         ("hairpin", _hairpin(20.0), 1.0 * R_MIN),
-        ("140 deg corner", _corner(140.0), 3.0 * R_MIN),
+        ("140 deg corner", _corner(140.0), 2.0 * R_MIN),
     ],
 )
 def test_bends_are_taken_within_the_turning_radius_without_slip(name, y, within):

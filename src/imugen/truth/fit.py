@@ -550,6 +550,10 @@ CURVATURE_RESIDUAL_RADII = 6.0
 more (two legs closer than the turning diameter) is left tight, and the gate refuses the
 truth's slip there."""
 
+CURVATURE_REACH = 1.0
+"""Half-width of the stiffer stretch around a bend too tight, in bandwidths of the spline
+there (``lam^(1/6)`` samples times ``stiffness^(1/6)``); its stiffness tapers over as much."""
+
 CURVATURE_STIFFNESS_MAX = 9.0
 """Largest log10 of that factor (bandwidth x 32): beyond, the bend stays too tight (the
 gate refuses the truth's slip)."""
@@ -595,7 +599,7 @@ def _bound_curvature(g, u, dense, lam, max_curvature, per=4):
     kq = k0
 
     def solve(raw):
-        reach = math.ceil(4.0 * lam ** (1.0 / 6.0) * 10.0 ** (raw.max() / 6.0))
+        reach = math.ceil(CURVATURE_REACH * lam ** (1.0 / 6.0) * 10.0 ** (raw.max() / 6.0))
         # the stiffer stretch spans a few bandwidths around each bend too tight, and its
         # stiffness tapers linearly over as much (a step would turn the curve at its edges)
         field = uniform_filter1d(maximum_filter1d(raw, 2 * reach + 1), 2 * reach + 1)
