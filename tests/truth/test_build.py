@@ -469,7 +469,9 @@ def test_run_writes_parquet_atomically(tmp_path):
 
     from imugen.tables import enu as tenu
 
-    df, meta = truth.enu_table(POLY, None, ORIGIN)
+    y = POLY.copy()
+    y[6:, 1] += 10.0  # legs 20 m apart at the hairpin: a bend a car takes (10 m: refused)
+    df, meta = truth.enu_table(y, None, ORIGIN)
     enu_path = tmp_path / "enu.parquet"
     tenu.write(df, meta, enu_path)
     out = tmp_path / "sub" / "truth.parquet"

@@ -18,8 +18,8 @@ from imugen.tables import truth as col
 from imugen.truth import multirotor
 from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
-from imugen.truth.fit import fit_path, fit_timed
-from imugen.truth.flight import flight_geometry
+from imugen.truth.fit import fit_path, fit_timed, floor_heights
+from imugen.truth.flight import flight_corner, flight_geometry
 from imugen.truth.gate import findings
 from imugen.truth.increments import imu_pass
 from imugen.truth.pose import PoseSettings, fit_poses, motion_figures, pose_pass
@@ -120,6 +120,18 @@ def _virtual(t: np.ndarray, meta: dict) -> np.ndarray | None:
     return out if out.any() else None
 
 
+FLOOR_RISE_M = 50.0
+"""Height deficit [m] whose correction by :func:`imugen.truth.fit.floor_heights` stays within
+the class's ``vertical_accel_mps2`` at cruise speed (:func:`_floor_taper`)."""
+
+
+def _floor_taper(vp: VehicleParams) -> float:
+    """Taper [m] of the height floor's ramps: ``v sqrt(8 FLOOR_RISE_M / vertical_accel)`` at
+    ``cruise_mps`` (the distance over which a quadratic ramp rises that much at that
+    acceleration)."""
+    return vp.cruise_mps * math.sqrt(8.0 * FLOOR_RISE_M / vp.vertical_accel_mps2)
+
+
 def _limits(vp: VehicleParams, opts: BuildOptions) -> dict:
     """The speed profile's limits of an untimed route: the options' or the class's."""
     return {
@@ -155,7 +167,15 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
     elif vp.attitude == "ground" and (cuts := find_reversals(y, vp)):
         motion, fit, timing = legs_motion(y, cuts, vp, opts.corner_m, _limits(vp, opts))
     else:
-        G, L, fit, s_v = fit_path(y, vp, opts.corner_m, vertices=True)
+        corner, kmax = opts.corner_m, None
+        if vp.phases:  # a flight: rounded at the input's spacing, turns at the bank limit
+            alt = enu[tenu.ALT].to_numpy(float) if tenu.ALT in enu.columns else y[:, 2]
+            corner, kmax = flight_corner(y, alt, vp, opts.corner_m)
+        G, L, fit, s_v = fit_path(y, vp, corner, vertices=True, max_curvature=kmax)
+        if vp.phases:  # never below the input's heights (the terrain, the runway)
+            G, L, fit["height_floor"] = floor_heights(
+                G, L, s_v, y[:, 2], corner, _floor_taper(vp), fit["densify_step_m"] / 4.0
+            )
         profile = None
         if E is not None and vp.attitude == "ground":
             G, L, profile = _path_on_road(G, L, E, vp, enu, fit, s_v)
@@ -457,7 +477,14 @@ def build_truth(
     gate = (
         None
         if pose
-        else findings(df, vp, frame=E.frame, airborne=airborne, input_heights=_gate_heights(E, enu))
+        else findings(
+            df,
+            vp,
+            frame=E.frame,
+            airborne=airborne,
+            input_heights=_gate_heights(E, enu),
+            slip=not timing.get("timed", True),
+        )
     )
     if pose or thrust:
         plaus.update(

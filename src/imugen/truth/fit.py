@@ -8,7 +8,12 @@ import math
 import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import BSpline, make_interp_spline
-from scipy.ndimage import binary_dilation, maximum_filter1d, minimum_filter1d
+from scipy.ndimage import (
+    binary_dilation,
+    maximum_filter1d,
+    minimum_filter1d,
+    uniform_filter1d,
+)
 from scipy.optimize import brentq
 from scipy.sparse.linalg import splu
 
@@ -90,9 +95,11 @@ class PenalizedSpline:
 
     ``ties``: list of (i0, i1) coefficient ranges forced equal (constant stretches).
     ``weights``: per-site weights of the squared residuals (default 1).
+    ``stiffness``: per-site factors of the penalty on the knot interval that starts at the
+    site (default 1): a locally stiffer curve (bandwidth ~ stiffness^(1/6) there).
     """
 
-    def __init__(self, x, ties=(), weights=None):
+    def __init__(self, x, ties=(), weights=None, stiffness=None):
         x = np.asarray(x, float)
         k = K_SPLINE
         self.x0 = x[0]
@@ -119,6 +126,7 @@ class PenalizedSpline:
         cols_ = red_index
         self.M = sp.csc_matrix((np.ones(n), (rows, cols_)), shape=(n, keep.sum()))
         self.B = (B @ self.M).tocsc()
+        self.stiffness = None if stiffness is None else np.asarray(stiffness, float)
         self.P = (self.M.T @ self._penalty() @ self.M).tocsc()
         self.BtB = (self.B.T @ self.B).tocsc()
 
@@ -137,6 +145,9 @@ class PenalizedSpline:
         a, b = a[nz], b[nz]
         xq = (0.5 * (b - a)[:, None] * xg + 0.5 * (b + a)[:, None]).ravel()
         wq = (0.5 * (b - a)[:, None] * wg).ravel()
+        if self.stiffness is not None:
+            site = np.clip(np.searchsorted(self.u, xq, side="right") - 1, 0, len(self.u) - 1)
+            wq = wq * self.stiffness[site]
         Bq = BSpline.design_matrix(xq, tt, kd)
         G = Bq.T @ sp.diags(wq) @ Bq
         return D.T @ G @ D
@@ -449,12 +460,17 @@ def _within_limits(spline, x, y, vp, make, lam, noise_m):
 # ------------------------------------------------------------------------------------------
 # untimed routes: geometry
 # ------------------------------------------------------------------------------------------
-def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
+def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False, max_curvature=None):
     """Smooth a polyline and re-parameterize by arc length.
 
     Returns (G BSpline of s, length L, report dict) and, with ``vertices``, the arc length
     [m] of the curve's point nearest each input point (N,): the smoothed point of its chord
     length (repeated points share it), monotonic along the path.
+
+    ``max_curvature`` (callable of the polyline's chord length [m], optional): the largest
+    horizontal curvature [1/m] along the path (an aircraft's turn at its bank limit and the
+    speed it flies there, :func:`imugen.truth.flight.turn_curvature`); ground vehicles take
+    their ``max_curvature_1pm``. Bends tighter are widened (:func:`_bound_curvature`).
     """
     y = np.asarray(y, float)
     seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
@@ -483,6 +499,11 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
     lam = (ell / ps.scale) ** 6 * _CORNER_CAL
     coef = np.column_stack([ps.solve(lam, dense[:, i]) for i in range(3)])
     g = ps.bspline(coef)
+    bound = None
+    if max_curvature is None and vp.attitude == "ground":
+        max_curvature = lambda x: np.full(len(x), vp.max_curvature_1pm)  # noqa: E731
+    if max_curvature is not None:
+        g, bound = _bound_curvature(g, u, dense, lam, max_curvature)
     # arc length by 5-node Gauss-Legendre on a fine parameter grid
     nfine = max(64, int(np.ceil(u[-1] / (step / 4.0))))
     uf = np.linspace(0.0, u[-1], nfine + 1)
@@ -503,10 +524,174 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False):
         "max_distance_m": float(d.max()),
         "length_m": L,
     }
+    if bound is not None:
+        report["curvature_bound"] = bound
     if vertices:
         s_v = np.interp(np.r_[0.0, np.cumsum(seg)], uf, s)
         return G, L, report, s_v[kept]
     return G, L, report
+
+
+CURVATURE_MARGIN = 0.85
+"""Share of a ground vehicle's ``max_curvature_1pm`` that an untimed path's geometry may
+reach (:func:`_bound_curvature`): the margin covers the re-parameterization by arc length and
+the heading's sampling (:class:`imugen.truth.attitude.GroundAttitude`)."""
+
+CURVATURE_ITERATIONS = 20
+"""Rounds of local smoothing of an untimed ground path beyond its curvature bound."""
+
+CURVATURE_STIFFNESS_STEP = 1.0
+"""log10 of the factor of the smoothing penalty around a bend too tight, per round (its
+bandwidth grows by ``10^(1/6)``, 1.47, per round there)."""
+
+CURVATURE_RESIDUAL_RADII = 6.0
+"""Farthest a widened bend strays from the input polyline, in least turning radii
+(``1 / max_curvature_1pm``; at least the corner rounding's own distance): a bend that needs
+more (two legs closer than the turning diameter) is left tight, and the gate refuses the
+truth's slip there."""
+
+CURVATURE_REACH = 1.0
+"""Half-width of the stiffer stretch around a bend too tight, in bandwidths of the spline
+there (``lam^(1/6)`` samples times ``stiffness^(1/6)``); its stiffness tapers over as much."""
+
+CURVATURE_STIFFNESS_MAX = 9.0
+"""Largest log10 of that factor (bandwidth x 32): beyond, the bend stays too tight (the
+gate refuses the truth's slip)."""
+
+
+def _horizontal_curvature(g, x):
+    """Horizontal curvature [1/m] of the curve ``g`` at the parameters ``x``."""
+    d1, d2 = g(x, 1), g(x, 2)
+    vh2 = d1[:, 0] ** 2 + d1[:, 1] ** 2
+    return np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(vh2, 1e-30) ** 1.5
+
+
+def _bound_curvature(g, u, dense, lam, max_curvature, per=4):
+    """An untimed ground path's smoothed polyline ``g(u)`` (u: chord length of the densified
+    polyline ``dense``) with its horizontal curvature bounded by :data:`CURVATURE_MARGIN`
+    x ``max_curvature(u)`` (the vehicle's least turning radius there): where a bend is tighter
+    (a hairpin, an acute corner that the corner rounding leaves tight) the spline's penalty
+    grows by :data:`CURVATURE_STIFFNESS_STEP` decades per round over a few bandwidths around it
+    (tapered), so the smoothing spline takes the bend wider there (the rest of the path is
+    unchanged) until the bound holds; a bend that would stray farther than
+    :data:`CURVATURE_RESIDUAL_RADII` turning radii from the polyline (two legs closer than
+    the turning diameter) is left as it was, and the gate refuses the slip it causes. The speed profile then slows the vehicle
+    through the bend to its lateral-acceleration limit (:func:`imugen.truth.profile.speed_profile`),
+    so the body follows the path without sliding sideways. Returns the curve and a report
+    (None when no bend was too tight)."""
+    f = np.linspace(0.0, 1.0, per, endpoint=False)
+    uq = np.r_[(u[:-1, None] + f * np.diff(u)[:, None]).ravel(), u[-1]]
+    kmax = CURVATURE_MARGIN * np.asarray(max_curvature(uq), float)
+    k0 = _horizontal_curvature(g, uq)
+    if not np.any(k0 > kmax):
+        return g, None
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(dense[:, :2])
+
+    def off(g):  # distance of the curve from the densified polyline (its nearest point)
+        return tree.query(g(uq)[:, :2])[0]
+
+    cap = np.maximum(CURVATURE_RESIDUAL_RADII * CURVATURE_MARGIN / kmax, off(g))
+    raw = np.zeros(len(u))  # log10 of the stiffness asked for at each site
+    frozen = np.zeros(len(u), bool)  # bends that cannot be widened within the cap
+    best, best_k, best_field, rounds = g, float(np.max(k0 / kmax)), raw, 0
+    kq = k0
+
+    def solve(raw):
+        reach = math.ceil(CURVATURE_REACH * lam ** (1.0 / 6.0) * 10.0 ** (raw.max() / 6.0))
+        # the stiffer stretch spans a few bandwidths around each bend too tight, and its
+        # stiffness tapers linearly over as much (a step would turn the curve at its edges)
+        field = uniform_filter1d(maximum_filter1d(raw, 2 * reach + 1), 2 * reach + 1)
+        ps = PenalizedSpline(u, stiffness=10.0**field)
+        return (
+            ps.bspline(np.column_stack([ps.solve(lam, dense[:, j]) for j in range(3)])),
+            field,
+            reach,
+        )
+
+    for rounds in range(1, CURVATURE_ITERATIONS + 1):  # noqa: B007 (reported below)
+        bad = np.clip(np.searchsorted(u, uq[kq > kmax]), 0, len(u) - 1)
+        bad = bad[~frozen[bad]]
+        if not len(bad):
+            break
+        trial = raw.copy()
+        trial[bad] += CURVATURE_STIFFNESS_STEP
+        g, field, reach = solve(trial)
+        over = off(g) > cap
+        if over.any():  # a bend the vehicle cannot take within the cap: left as it was
+            at = np.zeros(len(u), bool)
+            at[np.clip(np.searchsorted(u, uq[over]), 0, len(u) - 1)] = True
+            grown = maximum_filter1d(at.astype(np.int8), 4 * reach + 1).astype(bool)
+            frozen |= grown
+            trial = np.where(grown, raw, trial)
+            g, field, reach = solve(trial)
+        raw = trial
+        kq = _horizontal_curvature(g, uq)
+        if np.max(kq / kmax) < best_k:
+            best, best_k, best_field = g, float(np.max(kq / kmax)), field
+        if not best_k > 1.0 or raw.max() >= CURVATURE_STIFFNESS_MAX:
+            break
+    over = _horizontal_curvature(best, uq) > kmax
+    return best, {
+        "method": "local smoothing of the bends tighter than the vehicle's least turning "
+        "radius (the spline's penalty raised there)",
+        "curvature_margin": CURVATURE_MARGIN,
+        "least_curvature_limit_1pm": float(kmax.min()),
+        "max_curvature_ratio_before": float(np.max(k0 / kmax)),
+        "max_curvature_ratio": best_k,
+        "rounds": rounds,
+        "points_smoothed": int((best_field > 0.0).sum()),
+        "least_residual_cap_m": float(cap.min()),
+        "bends_left": int(np.sum(np.diff(np.r_[0, over.astype(np.int8)]) > 0)),
+    }
+
+
+def floor_heights(G, L, s_v, h_v, window_m, taper_m, spacing_m):
+    """A path ``G(s)`` (arc length, ENU) raised where it runs below the input's heights.
+
+    The floor at ``s`` is the lowest input height (``h_v`` at arc lengths ``s_v``, the
+    vertical of the input points) within ``window_m`` of it: the terrain or runway the input
+    stood on, and in the air the lower edge of its noise. Where the path is below it, the
+    deficit is spread over ``taper_m`` either side (a running maximum, then two running
+    means: quadratic ramps, so the vertical acceleration of the correction stays small) and
+    added to the path's vertical; the result is re-parameterized by arc length on a grid
+    ``spacing_m`` apart.
+
+    Returns
+    -------
+    (BSpline, float, dict or None)
+        The path, its length, and a report (None when nothing was below the floor).
+    """
+    n = max(8, math.ceil(L / spacing_m))
+    s = np.linspace(0.0, L, n + 1)
+    ds = s[1] - s[0]
+    order = np.argsort(s_v, kind="stable")
+    sv, hv = np.asarray(s_v, float)[order], np.asarray(h_v, float)[order]
+    # lowest input height within the window of each grid point
+    m = max(1, math.ceil(window_m / ds))
+    floor = minimum_filter1d(np.interp(s, sv, hv), 2 * m + 1, mode="nearest")
+    P = G(s)
+    deficit = np.maximum(floor - P[:, 2], 0.0)
+    if not deficit.max() > 0.0:
+        return G, L, None
+    w = 2 * max(1, math.ceil(taper_m / ds)) + 1
+    bump = maximum_filter1d(deficit, 2 * w + 1, mode="nearest")
+    bump = uniform_filter1d(uniform_filter1d(bump, w, mode="nearest"), w, mode="nearest")
+    P[:, 2] += bump
+    u = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+    G2 = make_interp_spline(u, P, k=K_SPLINE)
+    return (
+        G2,
+        float(u[-1]),
+        {
+            "method": "raised to the lowest input height within the window, ramps tapered",
+            "window_m": window_m,
+            "taper_m": taper_m,
+            "max_deficit_m": float(deficit.max()),
+            "raised_length_m": float(ds * np.count_nonzero(bump > 0.0)),
+        },
+    )
 
 
 def distance_to_curve(G, L, y, spacing):

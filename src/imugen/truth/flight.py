@@ -253,3 +253,91 @@ def flight_geometry(G, L, origin, alt_m, vp: VehicleParams):
     Gf = make_interp_spline(u, P, k=5)
     d = plan.d
     return Gf, float(u[-1]), lambda s: plan.cap(np.interp(s, u, d)), plan.report
+
+
+def turn_curvature(s_m, alt_m, vp: VehicleParams):
+    """The largest horizontal curvature [1/m] of an untimed flight's path, against the input
+    polyline's chord length: a turn at the lateral-acceleration (bank) limit
+    ``lat_accel_mps2`` at the speed flown there (``v^2 kappa <= lat_accel``), and on the
+    ground at most ``max_curvature_1pm`` (taxiing).
+
+    The speed is that of the plan (:class:`FlightPlan`) on a route without heights; on a route
+    with its own heights, the speed schedule at the input's height above the nearer end
+    (``rotate_mps`` at the runway to ``cruise_mps`` at ``cruise_alt_m``) where the input is more
+    than ``airborne_height_m`` above it, else taxiing (``taxi_mps``): a logger's taxi turns
+    stay tight wherever the plan lays its taxi distance.
+
+    Parameters
+    ----------
+    s_m : ndarray, shape (N,)
+        Chord length of the input points [m] (non-decreasing).
+    alt_m : ndarray, shape (N,)
+        Their heights [m].
+    vp : VehicleParams
+
+    Returns
+    -------
+    callable
+        Curvature limit [1/m] at chord length(s) [m].
+    """
+    s_m = np.asarray(s_m, float)
+    alt_m = np.asarray(alt_m, float)
+    plan = FlightPlan(float(s_m[-1]), float(alt_m[0]), float(alt_m[-1]), vp)
+    if np.ptp(alt_m) < vp.airborne_height_m:  # the plan's heights: its speeds
+
+        def speed(x):
+            return plan.cap(x)
+
+    else:
+
+        def speed(x):
+            h = np.interp(x, s_m, alt_m)
+            first = x < 0.5 * s_m[-1]
+            h_rwy = np.where(first, alt_m[0], alt_m[-1])
+            v_air = np.where(first, 1.0, 0.0) * plan._sched(h, alt_m[0], vp.rotate_mps) + np.where(
+                first, 0.0, 1.0
+            ) * plan._sched(h, alt_m[-1], vp.approach_mps)
+            return np.where(h > h_rwy + vp.airborne_height_m, v_air, vp.taxi_mps)
+
+    def limit(x):
+        v = np.maximum(speed(np.asarray(x, float)), vp.taxi_mps)
+        return np.minimum(vp.lat_accel_mps2 / v**2, vp.max_curvature_1pm)
+
+    return limit
+
+
+FLIGHT_CORNER_MIN_M = 100.0
+"""Least corner-rounding length of an untimed flight [m] (:func:`flight_corner`)."""
+
+
+def flight_corner(y, alt_m, vp: VehicleParams, corner_m=None):
+    """Corner rounding and turn limit of an untimed flight's path (:func:`fit_path`).
+
+    The rounding is the input's short point spacing (10th percentile), within [:data:`FLIGHT_CORNER_MIN_M`,
+    ``corner_m`` of the class] (``corner_m`` given: that): a logger's dense path is followed
+    within its noise, a waypoint route is rounded as before; the turns are then bounded by the
+    bank limit at the speed flown (:func:`turn_curvature`), which widens a waypoint's corner to
+    a fly-by turn and a noisy wiggle to what the aircraft can fly.
+
+    Parameters
+    ----------
+    y : ndarray, shape (N, 3)
+        Input points (ENU) [m].
+    alt_m : ndarray, shape (N,)
+        Their heights [m].
+    vp : VehicleParams
+    corner_m : float, optional
+
+    Returns
+    -------
+    (float, callable)
+        Corner-rounding length [m] and the curvature limit against chord length.
+    """
+    y = np.asarray(y, float)
+    seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    s_m = np.r_[0.0, np.cumsum(seg)]
+    if corner_m is None:
+        moved = seg[seg > 1e-9]
+        spacing = float(np.percentile(moved, 10)) if len(moved) else vp.corner_m
+        corner_m = min(vp.corner_m, max(FLIGHT_CORNER_MIN_M, spacing))
+    return float(corner_m), turn_curvature(s_m, alt_m, vp)

@@ -35,7 +35,10 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   ``fit_floor_m``.
 * plausibility (the truth's pre-write gate, :mod:`imugen.truth.gate`): ``max_speed_mps``,
   ``max_accel_mps2``, ``max_jerk_mps3``, the attitude bounds above and, in flight, ``max_pitch_airborne_rad`` and
-  ``max_yaw_rate_airborne_radps`` (default unbounded).
+  ``max_yaw_rate_airborne_radps`` (default unbounded); on the ground ``max_slip_mps``, the
+  body's largest lateral speed (sideways slide) of an untimed path's truth: a car's tyres
+  slip a few degrees at most in ordinary driving (2 deg at 50 km/h: 0.5 m/s), a bicycle's
+  and a walker's less (0.3 m/s).
 * multirotor (``attitude = "thrust"``, :mod:`imugen.truth.multirotor`): ``mass_kg``,
   ``arm_m``, ``hover_rpm``, ``blades``, ``k_m_m`` (yaw torque per thrust), ``inertia_*_kgm2``,
   ``drag_x_1ps``, ``drag_y_1ps`` (linear rotor drag, 0: none), the limits
@@ -78,6 +81,7 @@ class VehicleParams:
     max_speed_mps: float = 70.0
     max_accel_mps2: float = 8.0
     max_jerk_mps3: float = 30.0
+    max_slip_mps: float = 0.5
     airborne_speed_mps: float = math.inf
     airborne_height_m: float = math.inf
     hold_speed_mps: tuple = (0.2, 1.0)
@@ -162,6 +166,7 @@ VEHICLES = {
         grade_smooth_m=10.0,
         max_speed_mps=25.0,
         max_accel_mps2=5.0,
+        max_slip_mps=0.3,
     ),
     # pedestrian: 5 km/h, gentle accelerations, corners rounded over ~1 m; turns on a 0.5 m
     # radius at least; slopes up to 35 deg (stairs); plausible up to a 12 m/s sprint
@@ -178,6 +183,7 @@ VEHICLES = {
         grade_smooth_m=5.0,
         max_speed_mps=12.0,
         max_accel_mps2=5.0,
+        max_slip_mps=0.3,
         hold_speed_mps=(0.1, 0.5),
         stop_speed_mps=0.1,
         stop_radius_m=1.0,
