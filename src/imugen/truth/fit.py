@@ -218,7 +218,7 @@ class TimedMotion:
         return tuple(self._at(nu, t) for nu in range(4))
 
 
-def _find_stops(t, y, noise_m, vp: VehicleParams):
+def _find_stops(t, y, noise_m, vp: VehicleParams, exact=None):
     """Index ranges (i0, i1) of input points that are stops, from the horizontal motion.
 
     ``y`` holds the coordinates that decide (N, d): horizontal for ground vehicles (GNSS
@@ -229,6 +229,11 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
     third) is below ``r / 2`` and ``stop_speed_mps`` times the duration are stops; so is
     the interval between two consecutive fixes at least ``stop_min_s`` apart that moved less
     than that (sparse fixes). Overlapping stops are merged.
+
+    ``exact`` (bool, shape (N,), optional) marks points placed exactly (the virtual fixes of a
+    bridged gap, :func:`imugen.ingest.segments.bridge_gaps`): a stop does not reach into their
+    braking or accelerating ramps (:func:`_off_ramps`), where they still move by less than the
+    radius: a spline held still from there would brake harder than the ramp does.
     """
     n = len(t)
     if n < 3:
@@ -278,7 +283,29 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
             merged[-1] = (merged[-1][0], max(merged[-1][1], i1))
         else:
             merged.append((i0, i1))
+    if exact is not None and np.any(exact):
+        merged = [
+            (a, b)
+            for a, b in (_off_ramps(i0, i1, step, exact) for i0, i1 in merged)
+            if b > a and t[b] - t[a] >= vp.stop_min_s
+        ]
     return merged
+
+
+#: Largest step (m) between two exactly placed points that stand still (a bridged stop's held
+#: fixes are one position; its ramps' fixes move by far more).
+STILL_STEP_M = 1e-3
+
+
+def _off_ramps(i0, i1, step, exact):
+    """The stop ``(i0, i1)`` without the exactly placed points at its ends that move (a
+    bridged gap's braking and accelerating ramps): it starts at the first point that the next
+    exact point does not move from, and ends at the last that the previous does not."""
+    while i1 > i0 and exact[i0 + 1] and step[i0] > STILL_STEP_M:
+        i0 += 1
+    while i1 > i0 and exact[i1 - 1] and step[i1 - 1] > STILL_STEP_M:
+        i1 -= 1
+    return i0, i1
 
 
 def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None):
@@ -333,7 +360,8 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         # ground vehicles stop horizontally (heights step at stops); aircraft also climb
         # vertically, so their stops are 3-D
         d = 2 if vp.attitude == "ground" else 3
-        stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp)
+        exact = None if real is None else ~real[:, :d].any(axis=1)
+        stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp, exact)
         if stop_list:
             # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
             ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
