@@ -222,3 +222,48 @@ def test_mountain_pass_slips_less_after_local_smoothing(monkeypatch):
     after, fit = slip(rounds)
     assert fit["limited"]["points_smoothed"] > 0
     assert after < 0.8 * before
+
+
+def _abrupt_stop(seed=0):
+    """A 1 Hz car logger (0.5 m noise): 5.7 m/s, braking to rest within the last second
+    before the fix at 60 s (5.7 m/s^2), 30 s still, then pulling away at 2 m/s^2."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 120.0)
+    v0, u = 5.7, np.clip(t - 90.0, 0.0, None)
+    s_stop = v0 * 59.0 + 0.5 * v0
+    s = np.where(t <= 59.0, v0 * t, s_stop)
+    s = s + np.where(u < v0 / 2.0, u * u, (v0 / 2.0) ** 2 + v0 * (u - v0 / 2.0))
+    enu = np.column_stack([s, np.zeros_like(s), np.zeros_like(s)])
+    return t, enu + rng.normal(0.0, 0.5, enu.shape) * [1.0, 1.0, 0.3]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_abrupt_stop_brakes_without_a_speed_bounce(tmp_path, seed):
+    """Issue 27: the timed fit turned an abrupt stop of sparse fixes into a speed bounce
+    (up to 5.7 -> 10.2 -> 0 m/s on this shape; 5.7 -> 10.7 -> 0 on a shared track): the stop took
+    in the last moving fix, and a quintic joined to it with a simple knot at 1 s fixes brakes
+    over seconds and speeds up before to make up the distance. Now the stop starts at the
+    first still fix and the spline joins it as a vehicle does (zero speed and acceleration):
+    the speed rises no more than the noise allows, falls monotonically into the stop, and the
+    braking stays within the car's limit and the fixes within a few noise estimates."""
+    t, enu = _abrupt_stop(seed)
+    src = _enu_file(tmp_path, enu, t)
+    meta = stage.run(
+        src, tmp_path / "truth.parquet", TruthOptions(rate_hz=10, earth="wgs84", vehicle="car")
+    )
+    assert meta["gate"] == []
+    ((a, b),) = meta["fit"]["stops"]
+    assert a == 60.0 and 89.0 <= b <= 91.0
+    from imugen.tables import truth as col
+
+    tr = col.read(tmp_path / "truth.parquet").frame
+    tt = tr[col.TIME].to_numpy()
+    speed = np.linalg.norm(tr[list(col.VEL)].to_numpy()[:, :2], axis=1)
+    near = (tt > 45.0) & (tt < 60.0)
+    assert speed[near].max() < 1.2 * 5.7  # no bounce (was 10.2 m/s)
+    k = int(np.argmax(np.where(near, speed, 0.0)))
+    braking = speed[k : np.searchsorted(tt, 60.0)]
+    assert np.all(np.diff(braking) <= 1e-3)  # monotone into the stop
+    acc = np.linalg.norm(np.diff(tr[list(col.VEL)].to_numpy(), axis=0), axis=1) / np.diff(tt)
+    assert acc.max() <= truth.VEHICLES["car"].max_accel_mps2
+    assert meta["fit"]["max_distance_m"] < 3.0 * np.linalg.norm(meta["fit"]["noise_estimate_m"])
