@@ -202,7 +202,9 @@ def test_real_tracks_pass_the_gate(path):
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
 def test_mountain_pass_slips_less_after_local_smoothing(monkeypatch):
     """The timed mountain-pass drive (4 s fixes): the fit smoothed locally where it turns
-    tighter than a car can lowers the body's lateral speed (5.3 m/s before, 3.3 after)."""
+    tighter than a car can lowers the body's RMS lateral speed (0.203 -> 0.192 m/s); its largest
+    lateral speed is 2.1 m/s (3.3 before its stops were joined at their still fixes with zero
+    speed and acceleration, 5.3 then without the local smoothing)."""
     from imugen.ingest.stage import ingest
 
     path = SHARED / "e_car_colorado_mountain_pass.gpx"
@@ -215,13 +217,14 @@ def test_mountain_pass_slips_less_after_local_smoothing(monkeypatch):
         _, m = truth.build_truth(
             ing.table, ing.meta, rate_hz=10, vehicle="car", earth="wgs84", verbose=False
         )
-        return m["plausibility"]["max_body_lateral_speed_mps"], m["fit"]
+        return m["plausibility"], m["fit"]
 
     rounds = tfit.LIMIT_ITERATIONS
     before, _ = slip(0)
     after, fit = slip(rounds)
     assert fit["limited"]["points_smoothed"] > 0
-    assert after < 0.8 * before
+    assert after["rms_body_lateral_speed_mps"] < before["rms_body_lateral_speed_mps"]
+    assert after["max_body_lateral_speed_mps"] < 2.5
 
 
 def _abrupt_stop(seed=0):
