@@ -90,11 +90,9 @@ class PenalizedSpline:
 
     ``ties``: list of (i0, i1) coefficient ranges forced equal (constant stretches).
     ``weights``: per-site weights of the squared residuals (default 1).
-    ``relax``: per-interval factors of the penalty, shape (len(x) - 1,) (default 1): the fit
-    bends more freely where it is below 1 (the edges of an abrupt stop, :func:`fit_timed`).
     """
 
-    def __init__(self, x, ties=(), weights=None, relax=None):
+    def __init__(self, x, ties=(), weights=None):
         x = np.asarray(x, float)
         k = K_SPLINE
         self.x0 = x[0]
@@ -104,7 +102,6 @@ class PenalizedSpline:
         self.tau = np.r_[[u[0]] * k, u, [u[-1]] * k]
         n = len(self.tau) - k - 1
         self.n = n
-        self.relax = None if relax is None else np.asarray(relax, float)
         B = BSpline.design_matrix(u, self.tau, k).tocsc()
         self.sw = None if weights is None else np.sqrt(np.asarray(weights, float))
         if self.sw is not None:
@@ -139,10 +136,7 @@ class PenalizedSpline:
         nz = b > a
         a, b = a[nz], b[nz]
         xq = (0.5 * (b - a)[:, None] * xg + 0.5 * (b + a)[:, None]).ravel()
-        wq = 0.5 * (b - a)[:, None] * wg
-        if self.relax is not None:  # the intervals of positive length between the sites
-            wq = wq * self.relax[np.diff(self.u) > 0][:, None]
-        wq = wq.ravel()
+        wq = (0.5 * (b - a)[:, None] * wg).ravel()
         Bq = BSpline.design_matrix(xq, tt, kd)
         G = Bq.T @ sp.diags(wq) @ Bq
         return D.T @ G @ D
@@ -291,7 +285,7 @@ def _find_stops(t, y, noise_m, vp: VehicleParams, exact=None):
         else:
             merged.append((i0, i1))
     exact = np.zeros(n, bool) if exact is None else np.asarray(exact, bool)
-    edge = max(STOP_EDGE_NOISE * noise_m, STILL_STEP_M)
+    edge = max(STOP_EDGE_NOISE * noise_m, 0.5 * vp.stop_radius_m)
     merged = [
         (a, b)
         for a, b in (_off_ramps(i0, i1, y, step, exact, edge) for i0, i1 in merged)
@@ -308,16 +302,17 @@ STILL_STEP_M = 1e-3
 #: still fix, ``noise_m``) of the stop's position (the median of its other fixes): one farther
 #: is still braking or already pulling away (a still fix of 2-D Gaussian noise lies beyond with
 #: probability ``exp(-1)``, and then only shortens the stop by that fix, which the fit still
-#: follows within its noise).
+#: follows within its noise); at least half ``stop_radius_m`` (noiseless fixes that creep).
 STOP_EDGE_NOISE = 1.0
 
 
 def _off_ramps(i0, i1, y, step, exact, edge_m):
-    """The stop ``(i0, i1)`` without the fixes at its ends inside the route that still move: an exactly placed
-    point (a bridged gap's braking and accelerating ramps) from which the next one moves, a
-    measured fix farther than ``edge_m`` from the stop's other fixes' median (an abrupt stop
-    whose last moving fix the window test took in: a spline held still from there brakes
-    earlier and harder than the vehicle, and makes up the distance by speeding up before)."""
+    """The stop ``(i0, i1)`` without the fixes at its ends inside the route that still move:
+    an exactly placed point (a bridged gap's braking and accelerating ramps) from which the
+    next one moves, a measured fix farther than ``edge_m`` from the stop's other fixes' median
+    (an abrupt stop whose last moving fix the window test took in: a spline held still from
+    there brakes earlier and harder than the vehicle, and makes up the distance by speeding up
+    before)."""
 
     def moving(i, j, inner):  # fix i at an end of the stop, j its neighbour inside
         if exact[j]:
@@ -385,15 +380,16 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         d = 2 if vp.attitude == "ground" else 3
         exact = None if real is None else ~real[:, :d].any(axis=1)
         stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp, exact)
-    held = _Held(t, stop_list)
-    relaxed = []
-    if stop_list:
-        spline = held.fit(y, lam)
-        relaxed = held.abrupt(spline, y[:, :d], float(np.linalg.norm(sig[:d])))
-        if relaxed:
-            held = _Held(t, stop_list, relaxed)
-            spline = held.fit(y, lam)
-    spline, limited = _within_limits(spline, t, y, vp, held.spline, lam, float(np.linalg.norm(sig)))
+        if stop_list:
+            # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
+            ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
+            ps = PenalizedSpline(t, ties)
+            coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
+            spline = ps.bspline(coef)
+    ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
+    spline, limited = _within_limits(
+        spline, t, y, vp, lambda w: PenalizedSpline(t, ties, w), lam, float(np.linalg.norm(sig))
+    )
     motion = TimedMotion(spline, float(t[0]), float(t[-1]))
     dist = np.linalg.norm(spline(t) - y, axis=1)
     report = {
@@ -407,114 +403,9 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         "rms_distance_m": float(np.sqrt(np.mean(dist**2))),
         "max_distance_m": float(dist.max()),
         "stops": [[float(t[i0]), float(t[i1])] for i0, i1 in stop_list],
-        "abrupt_stop_edges_s": [float(t[i]) for i in relaxed],
         "limited": limited,
     }
     return motion, report
-
-
-#: Fixes next to a stop's edge farther from the fit than this many noise estimates (the RMS
-#: radius of a fix) make it an abrupt stop (:class:`_Held`).
-ABRUPT_RESIDUAL_NOISE = 3.0
-#: Intervals next to an abrupt stop's edge whose penalty is relaxed, and the factor.
-ABRUPT_INTERVALS = 2
-ABRUPT_RELAX = 0.01
-#: Shortest interval (s) between the fixes next to a stop's edge for which the penalty is
-#: relaxed there: sparser fixes than a vehicle brakes within (denser ones resolve the braking
-#: with their knots, and a relaxed fit there would follow their noise).
-ABRUPT_MIN_STEP_S = 0.5
-
-
-class _Held:
-    """Penalized splines of a timed route held still over ``stops`` (index ranges of the
-    input times ``t``).
-
-    The spline is constant over each stop. Each stop edge inside the route is a triple knot
-    (two zero-weight sites added): the spline joins the stop with zero velocity and acceleration
-    (C2), as a vehicle does, instead of the C4 join of a simple knot, which leaves a quintic with
-    knots at sparse fixes one free coefficient in the interval before the stop, so that it brakes
-    over several intervals and makes up the distance by speeding up before (a speed bounce:
-    5.7 -> 10.3 -> 0 m/s on an abrupt stop of a 1 Hz logger). At the edges ``relaxed`` (input
-    indexes: an abrupt stop, :meth:`abrupt`), the penalty of the :data:`ABRUPT_INTERVALS`
-    intervals outside the stop is multiplied by :data:`ABRUPT_RELAX`: the fit can brake (or pull
-    away) within the last interval the fixes show.
-    """
-
-    def __init__(self, t, stops, relaxed=()):
-        n = len(t)
-        self.t, self.n, self.stops = t, n, stops
-        edges = sorted({i for i0, i1 in stops for i in (i0, i1) if 0 < i < n - 1})
-        extra = np.zeros(n, int)  # zero-weight copies after each input site
-        extra[edges] = 2
-        self.take = np.repeat(np.arange(n), 1 + extra)  # input index of each site
-        self.pos = np.searchsorted(self.take, np.arange(n))  # site of each input point
-        self.real = np.r_[True, np.diff(self.take) > 0]
-        last = self.pos + extra  # last copy of each site
-        self.ties = [(last[i0] if i0 > 0 else self.pos[i0], self.pos[i1] + K_SPLINE - 1)
-                     for i0, i1 in stops]  # fmt: skip
-        self.relax = None
-        if len(relaxed):
-            self.relax = np.ones(len(self.take) - 1)
-            starts = {i0 for i0, _ in stops}
-            for i in relaxed:
-                if i in starts:  # the intervals before the stop
-                    a, b = self.pos[max(0, i - ABRUPT_INTERVALS)], self.pos[i]
-                else:  # after it
-                    a, b = last[i], self.pos[min(n - 1, i + ABRUPT_INTERVALS)]
-                self.relax[a:b] = ABRUPT_RELAX
-
-    def spline(self, weights=None):
-        """The :class:`PenalizedSpline` with input ``weights`` (n,) (default 1)."""
-        w = np.ones(self.n) if weights is None else np.asarray(weights, float)
-        return _HeldSpline(self, PenalizedSpline(
-            self.t[self.take], self.ties, np.where(self.real, w[self.take], 0.0), self.relax
-        ))  # fmt: skip
-
-    def fit(self, y, lam):
-        """The fitted curve (BSpline) of ``y`` (n, 3) with smoothing ``lam`` (3,)."""
-        ps = self.spline()
-        return ps.bspline(np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)]))
-
-    def abrupt(self, spline, y, noise_m):
-        """Stop edges (input indexes) whose :data:`ABRUPT_INTERVALS` fixes outside the stop
-        lie farther than :data:`ABRUPT_RESIDUAL_NOISE` noise estimates ``noise_m`` from
-        ``spline`` (in the coordinates of ``y``, (n, d): those that decide stops): the fit
-        cannot brake or pull away as abruptly as the fixes do, and they are sparse (at least
-        :data:`ABRUPT_MIN_STEP_S` apart)."""
-        d = y.shape[1]
-        res = np.linalg.norm(spline(self.t)[:, :d] - y, axis=1)
-        tol = ABRUPT_RESIDUAL_NOISE * max(noise_m, 1e-3)
-        t, k = self.t, ABRUPT_INTERVALS
-        out = []
-        for i0, i1 in self.stops:
-            a = max(0, i0 - k)
-            if (
-                i0 > 0
-                and res[a:i0].max() > tol
-                and np.diff(t[a : i0 + 1]).min() >= ABRUPT_MIN_STEP_S
-            ):
-                out.append(i0)
-            b = min(self.n - 1, i1 + k)
-            if (
-                i1 < self.n - 1
-                and res[i1 + 1 : b + 1].max() > tol
-                and np.diff(t[i1 : b + 1]).min() >= ABRUPT_MIN_STEP_S
-            ):
-                out.append(i1)
-        return out
-
-
-class _HeldSpline:
-    """A :class:`PenalizedSpline` of :class:`_Held` solved for values at the input points."""
-
-    def __init__(self, held, ps):
-        self.held, self.ps = held, ps
-
-    def solve(self, lam, y):
-        return self.ps.solve(lam, np.asarray(y, float)[self.held.take])
-
-    def bspline(self, c):
-        return self.ps.bspline(c)
 
 
 LIMIT_ITERATIONS = 12
