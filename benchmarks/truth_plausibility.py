@@ -10,7 +10,9 @@ before and after are measured alike. Tracks: the shipped example route and paper
 and every file in ``../shared/data/trajectories`` (the Colorado GPX holds a drive and then a
 walk: both); a file no reader of that code reads is listed as such. The last columns are the
 body-frame velocity on the ground (the non-holonomic constraint): RMS and max of its lateral and
-vertical components and the moving time slipping beyond 0.1 deg.
+vertical components and the moving time slipping beyond 0.1 deg. ``gate findings``: the limits
+the truth's pre-write gate (:mod:`imugen.truth.gate`) finds exceeded; ``build s`` and ``build
+CPU-s``: wall and CPU time of the truth, printed with the machine's load.
 """
 
 from __future__ import annotations
@@ -91,11 +93,11 @@ def main():
         except InputError as exc:
             rows.append(f"| {label} | {veh} | not read: {str(exc.message)[:60]} |")
             continue
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         df, meta = truth.build_truth(
             ing.table, ing.meta, rate_hz=a.rate_hz, earth="wgs84", vehicle=used, verbose=False
         )
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
         timed = bool(ing.meta["timed"]) and "time_s" in ing.table
         air = None
         if used == "aircraft":  # same classification for before and after
@@ -122,7 +124,8 @@ def main():
             f"| {r['max_accel_mps2']:.2f} | {r['max_jerk_mps3']:.1f} "
             f"| {r['max_rate_increment_radps']:.2g} | {r['max_attitude_step_excess_rad']:.2g} "
             f"| {r['length_ratio']:.3f} | {inv} | {r['time_stopped_s']:.0f}/{r['time_moving_s']:.0f}"
-            f"/{r['time_airborne_s']:.0f} | {len(r['warnings'])} | {dt:.1f} "
+            f"/{r['time_airborne_s']:.0f} | {len(r['warnings'])} | {len(meta['gate'])} "
+            f"| {dt:.1f} | {cpu:.1f} "
             f"| {r['rms_body_lateral_speed_mps']:.2g} | {r['max_body_lateral_speed_mps']:.2g} "
             f"| {r['rms_body_vertical_speed_mps']:.2g} | {r['max_body_vertical_speed_mps']:.2g} "
             f"| {100 * r['slip_fraction']:.1f} |"
@@ -132,11 +135,20 @@ def main():
         "| track | vehicle | max abs pitch deg | max abs roll deg | max yaw rate deg/s "
         "| yaw rate beyond v k_max deg/s | max accel m/s^2 | max jerk m/s^3 "
         "| dtheta vs gyro rad/s | attitude step excess rad | length truth/input "
-        "| invented % | stopped/moving/airborne s | warnings | build s "
-        "| body lateral RMS m/s | max | body vertical RMS m/s | max | slip > 0.1 deg % |\n"
-        "|" + "---|" * 20
+        "| invented % | stopped/moving/airborne s | warnings | gate findings | build s "
+        "| build CPU-s | body lateral RMS m/s | max | body vertical RMS m/s | max "
+        "| slip > 0.1 deg % |\n"
+        "|" + "---|" * 22
     )
-    text = head + "\n" + "\n".join(rows) + "\n"
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    text = (
+        f"{time.strftime('%Y-%m-%d', time.gmtime())}, {a.rate_hz:g} Hz, wgs84; machine load "
+        f"(1/5/15 min) {load} at the end; build s is wall time, CPU-s this process's\n\n"
+        + head
+        + "\n"
+        + "\n".join(rows)
+        + "\n"
+    )
     print(text)
     if a.md:
         Path(a.md).write_text(text)

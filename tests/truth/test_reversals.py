@@ -56,3 +56,42 @@ def test_doubled_back_untimed_path_stops_and_turns(offset_m):
     yaw = tr[col.EULER[2]].to_numpy()
     late = (t > t[-1] - 150.0) & (t < t[-1] - 60.0)
     assert np.all(np.cos(yaw[late]) < -0.9)
+
+
+def _there_back_and_on():
+    """The hike's shape: a walk 300 m east (a vertex every 5 m), 15 m back west a metre to the
+    side, then on east for 100 m: two reversals 15 m apart."""
+    out = np.column_stack([np.arange(0.0, 300.0, 5.0), np.zeros(60), np.zeros(60)])
+    back = np.column_stack([295.0 - np.arange(5.0, 20.0, 5.0), np.ones(3), np.zeros(3)])
+    on = np.column_stack([285.0 + np.arange(0.0, 105.0, 5.0), np.full(21, 2.0), np.zeros(21)])
+    return np.vstack([out, back, on])
+
+
+def test_two_close_reversals_are_walked_within_the_pedestrian_limits():
+    """Issue 27: the hike's two reversals 17 m apart needed 12.5 m/s^2 and 33 m/s^3 of a
+    pedestrian when the legs were refitted with stop detection (the stop moved into the
+    ramps); now each leg is walked from rest to rest at the class's comfortable 0.5 m/s^2 and
+    the whole passes the gate: walking, not a stagger."""
+    vp = truth.VEHICLES["pedestrian"]
+    enu = _there_back_and_on()
+    assert len(find_reversals(enu, vp)) == 2
+    df, meta = truth.enu_table(enu, None, ORIGIN)
+    tr, m = truth.build_truth(
+        df, meta, rate_hz=10.0, earth="flat", vehicle="pedestrian", verbose=False
+    )
+    assert m["timing"]["reversals"] == 2 and m["gate"] == []
+    t = tr[col.TIME].to_numpy()
+    v = tr[list(col.VEL)].to_numpy()
+    acc = np.diff(v, axis=0) / np.diff(t)[:, None]
+    jerk = np.diff(acc, axis=0) / np.diff(t)[1:, None]
+    assert np.linalg.norm(acc, axis=1).max() <= 1.0  # walking: the comfortable 0.5 m/s^2
+    assert np.linalg.norm(jerk, axis=1).max() <= 0.5 * vp.max_jerk_mps3
+    assert np.linalg.norm(v, axis=1).max() <= 1.05 * vp.cruise_mps
+    # the legs meet at the reversals' vertexes: the truth stands still on them
+    fit = m["fit"]
+    assert [len(s) for s in fit["stops"]] == [2, 2]
+    pos = tr[list(col.POS)].to_numpy()
+    for (a, b), vertex in zip(fit["stops"], (enu[59], enu[62]), strict=True):
+        still = (t > a + 0.5) & (t < b - 0.5)
+        assert np.linalg.norm(v[still], axis=1).max() < 1e-3
+        assert np.linalg.norm(pos[still] - vertex, axis=1).max() < 0.05

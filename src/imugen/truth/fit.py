@@ -229,7 +229,7 @@ class TimedMotion:
         return tuple(self._at(nu, t) for nu in range(4))
 
 
-def _find_stops(t, y, noise_m, vp: VehicleParams):
+def _find_stops(t, y, noise_m, vp: VehicleParams, exact=None):
     """Index ranges (i0, i1) of input points that are stops, from the horizontal motion.
 
     ``y`` holds the coordinates that decide (N, d): horizontal for ground vehicles (GNSS
@@ -240,6 +240,12 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
     third) is below ``r / 2`` and ``stop_speed_mps`` times the duration are stops; so is
     the interval between two consecutive fixes at least ``stop_min_s`` apart that moved less
     than that (sparse fixes). Overlapping stops are merged.
+
+    A stop does not reach into the braking or pulling away around it (:func:`_off_ramps`):
+    its end fixes lie within :data:`STOP_EDGE_NOISE` noise estimates of its position, and
+    ``exact`` (bool, shape (N,), optional) marks points placed exactly (the virtual fixes of a
+    bridged gap, :func:`imugen.ingest.segments.bridge_gaps`), which end a stop where they
+    start to move.
     """
     n = len(t)
     if n < 3:
@@ -289,7 +295,46 @@ def _find_stops(t, y, noise_m, vp: VehicleParams):
             merged[-1] = (merged[-1][0], max(merged[-1][1], i1))
         else:
             merged.append((i0, i1))
+    exact = np.zeros(n, bool) if exact is None else np.asarray(exact, bool)
+    edge = max(STOP_EDGE_NOISE * noise_m, 0.5 * vp.stop_radius_m)
+    merged = [
+        (a, b)
+        for a, b in (_off_ramps(i0, i1, y, step, exact, edge) for i0, i1 in merged)
+        if b > a and t[b] - t[a] >= vp.stop_min_s
+    ]
     return merged
+
+
+#: Largest step (m) between two exactly placed points that stand still (a bridged stop's held
+#: fixes are one position; its ramps' fixes move by far more).
+STILL_STEP_M = 1e-3
+
+#: A stop's first and last fixes lie within this many noise estimates (the RMS radius of a
+#: still fix, ``noise_m``) of the stop's position (the median of its other fixes): one farther
+#: is still braking or already pulling away (a still fix of 2-D Gaussian noise lies beyond with
+#: probability ``exp(-1)``, and then only shortens the stop by that fix, which the fit still
+#: follows within its noise); at least half ``stop_radius_m`` (noiseless fixes that creep).
+STOP_EDGE_NOISE = 1.0
+
+
+def _off_ramps(i0, i1, y, step, exact, edge_m):
+    """The stop ``(i0, i1)`` without the fixes at its ends inside the route that still move:
+    an exactly placed point (a bridged gap's braking and accelerating ramps) from which the
+    next one moves, a measured fix farther than ``edge_m`` from the stop's other fixes' median
+    (an abrupt stop whose last moving fix the window test took in: a spline held still from
+    there brakes earlier and harder than the vehicle, and makes up the distance by speeding up
+    before)."""
+
+    def moving(i, j, inner):  # fix i at an end of the stop, j its neighbour inside
+        if exact[j]:
+            return step[min(i, j)] > STILL_STEP_M
+        return not exact[i] and np.linalg.norm(y[i] - np.median(y[inner], axis=0)) > edge_m
+
+    while i0 > 0 and i1 - i0 > 1 and moving(i0, i0 + 1, slice(i0 + 1, i1 + 1)):
+        i0 += 1
+    while i1 < len(y) - 1 and i1 - i0 > 1 and moving(i1, i1 - 1, slice(i0, i1)):
+        i1 -= 1
+    return i0, i1
 
 
 def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None):
@@ -344,7 +389,8 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         # ground vehicles stop horizontally (heights step at stops); aircraft also climb
         # vertically, so their stops are 3-D
         d = 2 if vp.attitude == "ground" else 3
-        stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp)
+        exact = None if real is None else ~real[:, :d].any(axis=1)
+        stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp, exact)
         if stop_list:
             # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
             ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]

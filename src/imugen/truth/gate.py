@@ -2,7 +2,8 @@
 
 :func:`findings` checks every sample of a built truth against its vehicle class's limits
 (:class:`imugen.truth.vehicles.VehicleParams`) and finds, per limit, the worst place that
-exceeds it: speed (3-D), |acceleration| and |jerk| (finite differences of the velocity),
+exceeds it: speed (3-D), |acceleration| and |jerk| (finite differences of the velocity;
+the jerk limit is the class's own, :data:`imugen.truth.vehicles.JERK_SOURCES`),
 on the ground the pitch, the roll (zero, or a leaning vehicle's lean), the turn rate beyond
 ``horizontal speed x max curvature`` (turning on the spot); in flight the pitch, the bank and the turn rate; everywhere an attitude step beyond
 what the rates allow; and the height against the input's: never below the lowest input

@@ -38,7 +38,11 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   ``max_yaw_rate_airborne_radps`` (default unbounded); on the ground ``max_slip_mps``, the
   body's largest lateral speed (sideways slide) of an untimed path's truth: a car's tyres
   slip a few degrees at most in ordinary driving (2 deg at 50 km/h: 0.5 m/s), a bicycle's
-  and a walker's less (0.3 m/s).
+  and a walker's less (0.3 m/s). The jerk limit is per class
+  (:data:`JERK_SOURCES`): the class's acceleration limit reached in the shortest rise time
+  the vehicle has (its brakes, a step, its thrust vector's rotation), an engineering bound
+  checked against published figures where there are some; the comfortable ``jerk_mps3``
+  (untimed speed profiles, reversals) stays far below it.
 * multirotor (``attitude = "thrust"``, :mod:`imugen.truth.multirotor`): ``mass_kg``,
   ``arm_m``, ``hover_rpm``, ``blades``, ``k_m_m`` (yaw torque per thrust), ``inertia_*_kgm2``,
   ``drag_x_1ps``, ``drag_y_1ps`` (linear rotor drag, 0: none), the limits
@@ -149,6 +153,7 @@ VEHICLES = {
         max_curvature_1pm=0.2,
         max_pitch_rad=0.35,
         max_roll_rad=0.14,
+        max_jerk_mps3=30.0,
     ),
     # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
     "bicycle": VehicleParams(
@@ -167,6 +172,8 @@ VEHICLES = {
         max_speed_mps=25.0,
         max_accel_mps2=5.0,
         max_slip_mps=0.3,
+
+        max_jerk_mps3=15.0,
     ),
     # pedestrian: 5 km/h, gentle accelerations, corners rounded over ~1 m; turns on a 0.5 m
     # radius at least; slopes up to 35 deg (stairs); plausible up to a 12 m/s sprint
@@ -184,6 +191,8 @@ VEHICLES = {
         max_speed_mps=12.0,
         max_accel_mps2=5.0,
         max_slip_mps=0.3,
+
+        max_jerk_mps3=10.0,
         hold_speed_mps=(0.1, 0.5),
         stop_speed_mps=0.1,
         stop_radius_m=1.0,
@@ -204,6 +213,7 @@ VEHICLES = {
         max_roll_rad=1.05,
         max_speed_mps=300.0,
         max_accel_mps2=30.0,
+        max_jerk_mps3=30.0,
         airborne_speed_mps=25.0,
         airborne_height_m=40.0,
         hold_speed_mps=(0.5, 2.0),
@@ -240,6 +250,7 @@ VEHICLES = {
         max_yaw_rate_airborne_radps=0.087,
         max_speed_mps=300.0,
         max_accel_mps2=30.0,
+        max_jerk_mps3=30.0,
         airborne_speed_mps=100.0,
         airborne_height_m=40.0,
         hold_speed_mps=(0.5, 2.0),
@@ -266,6 +277,7 @@ VEHICLES = {
         grade_smooth_m=5.0,
         max_speed_mps=20.0,
         max_accel_mps2=25.0,
+        max_jerk_mps3=150.0,
         hold_speed_mps=(0.1, 0.5),
         stop_speed_mps=0.1,
         stop_radius_m=0.5,
@@ -273,6 +285,23 @@ VEHICLES = {
     ),
 }
 
+
+JERK_SOURCES = {
+    "car": "30 m/s^3: the 0.8 g limit reached in 0.27 s of brake build-up, an emergency stop "
+    "(engineering bound); emergency braking is classed from 14-21 m/s^3 at 50-80 km/h "
+    "(Sensors 21(4):1427, 2021, table 8), UN R157's reference driver brakes at 1.2 g/s "
+    "(11.8 m/s^3) and AEB at 1.44 g/s (14.1 m/s^3); comfort is ~1 m/s^3",
+    "bicycle": "15 m/s^3: its 5 m/s^2 limit (a hard stop on a dry road) reached in 0.33 s of "
+    "braking (engineering bound)",
+    "pedestrian": "10 m/s^3: its 5 m/s^2 limit (a sprint start) reached within one step, "
+    "0.5 s (engineering bound; the truth is the body's path, not its gait)",
+    "aircraft": "30 m/s^3: its 3 g limit (a pull-up) reached in 1 s (engineering bound)",
+    "airliner": "30 m/s^3: its 3 g limit (a firm touchdown, the flare) reached in 1 s "
+    "(engineering bound)",
+    "multirotor": "150 m/s^3: its 25 m/s^2 thrust acceleration turned at its 6 rad/s "
+    "roll/pitch rate limit (engineering bound)",
+}
+"""The per-class jerk limit of the gate (``max_jerk_mps3``): figure, derivation and source."""
 
 _MAY_BE_ZERO = (
     "max_roll_rad",
