@@ -25,7 +25,7 @@ from imugen.stream.windows import (
     warmup_rows,
     window_band_rng,
     window_batch,
-    window_rngs,
+    window_state,
     without_output_stage,
 )
 from imugen.tables import shard as tshard
@@ -323,19 +323,19 @@ class Stream:
                 remap[seqs] = np.arange(len(seqs))
                 one = len(sel) == B  # a single grade: write in place
                 sub = outs if one else {n: np.empty((len(sel), W, 6), self.dtype) for n in outs}
-                rngs = [
-                    window_rngs(self.seed, self.route_ids[sk["route"][seq_start[s]]],
+                states = [
+                    window_state(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                                 self.grades[gi].id, int(sk["shard"][seq_start[s]]),
                                 int(sk["j"][seq_start[s]]))
                     for s in seqs
                 ]  # fmt: skip
                 if self._post(gi):
-                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]], rngs,
-                                      [draws[s] for s in seqs], want, sub)  # fmt: skip
+                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]],
+                                      states, [draws[s] for s in seqs], want, sub)  # fmt: skip
                 else:
                     rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
-                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
-                                 sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
+                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], states,
+                                 sk["k0"][sel], W, rows, want, sub)  # fmt: skip
                 if not one:
                     for n in outs:
                         outs[n][sel] = sub[n]
@@ -366,7 +366,7 @@ class Stream:
         out["keys"] = keys
         return out
 
-    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, rngs, draws, want, sub):
+    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, states, draws, want, sub):
         """Window mode of a grade with an output bandwidth or rounding quantization: the
         kernel from :func:`~imugen.stream.windows.warmup_rows` rows before each window, then
         :func:`~imugen.stream.windows.output_stage`."""
@@ -389,8 +389,8 @@ class Stream:
         }
         kout = {n: np.empty((len(sel), Wt, 6)) for n, v in kw.items() if v}
         kdraws = [without_output_stage(d, bands) for d in draws]
-        window_batch(self._tr, kdraws, seqs_of, rngs, ks, Wt, self._row0[route] + ks, kw, kout,
-                     self._scratch)  # fmt: skip
+        window_batch(self._tr, kdraws, seqs_of, states, ks, Wt, self._row0[route] + ks, kw,
+                     kout)  # fmt: skip
         brng = [
             window_band_rng(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                             self.grades[gi].id, int(sk["shard"][seq_start[s]]),

@@ -20,7 +20,10 @@ window (:func:`window_batch`)
     accel): ``3 C`` GM states (axis-major), 3 random-walk states, 3 + 3 normals turned into
     the rate and increment quantization residuals (``Phi(z)``), then the window's white
     ``(W, 3)``, random-walk ``(W, 3)`` and GM ``(W, 3 C)`` normals, each only when the
-    sequence has the term. The joint law of a window's values is the shard path's; windows
+    sequence has the term. The stream's bit generator is SFC64 (not the shard path's PCG64;
+    the same SeedSequence and spawn key): the normals are those of
+    ``Generator(SFC64(SeedSequence(seed, spawn_key=(route_id, grade_id, shard, j, 11))))
+    .standard_normal()``, drawn inside the kernel where they are used (:mod:`imugen.core.sfc64`). The joint law of a window's values is the shard path's; windows
     of one sequence are drawn independently of each other (their slow states are not the
     same realization), so use the exact mode where the cross-window correlation matters.
 
@@ -48,8 +51,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from imugen.core import sfc64
 from imugen.core.jit import njit
-from imugen.core.seeding import generator, sensor_rng
+from imugen.core.seeding import sensor_rng
 from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
 from imugen.sensors.model import SensorModel, SensorParams, draw_sensor
@@ -176,7 +180,7 @@ def _pack(p: SensorParams, dt: float) -> tuple:
     ), flags  # fmt: skip
 
 
-def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=None):
+def window_batch(tr, draws, seqs, states, k0, W, temp_rows, want, outs):
     """Window-mode generation of one grade's windows (the module docstring's law).
 
     Parameters
@@ -190,8 +194,8 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     seqs : (B,) int
         Sequence (index into ``draws``) of each window; windows of a sequence are contiguous
         and in increasing ``k0``.
-    rngs : list of numpy Generator
-        The window stream of each sequence.
+    states : list of uint64[4]
+        The window stream of each sequence (:func:`window_state`), advanced in place.
     k0 : (B,) int
         First row of each window (``>= 1``).
     W : int
@@ -202,24 +206,14 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     outs : dict
         ``name -> (B, W, 6)`` output buffers (gyro columns, then accel), float64 or float32
         (the kernel computes in float64 and rounds once on writing, as the shard path).
-    scratch : Scratch, optional
-        Reused memory for the normals (fresh pages cost more than the draws).
     """
-    B = len(k0)
     dt = tr[5]
     gp = SensorParams.stack([d.gyro for d in draws])
     ap = SensorParams.stack([d.accel for d in draws])
     Pg, fg = _pack(gp, dt)
     Pa, fa = _pack(ap, dt)
     per = _per_window(fg, gp.components, W) + _per_window(fa, ap.components, W)
-    nwin = np.bincount(seqs, minlength=len(draws))
-    counts = per * nwin
-    z = np.empty(int(counts.sum())) if scratch is None else scratch.get("z", int(counts.sum()))
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    for s, rng in enumerate(rngs):
-        rng.standard_normal(out=z[starts[s] : starts[s + 1]])
-    first = np.concatenate([[0], np.cumsum(nwin)[:-1]])
-    zoff = starts[seqs] + (np.arange(B) - first[seqs]) * per[seqs]
+    st = np.stack(states) if len(states) else np.zeros((0, 4), np.uint64)
     empty = np.zeros((0, W, 6), next(iter(outs.values())).dtype if outs else np.float64)
     o = {
         n: (outs[n] if want.get(n) else empty)
@@ -227,11 +221,14 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     }
     use_t = len(tr[4]) > 0
     _windows(
-        np.asarray(k0, np.int64), np.asarray(temp_rows, np.int64), dt, W, z, zoff,
+        np.asarray(k0, np.int64), np.asarray(temp_rows, np.int64), dt, W, st, per,
         np.asarray(seqs, np.int64), fg, fa, gp.lsb, gp.full_scale, ap.lsb, ap.full_scale,
         Pg, Pa, tr[0], tr[1], tr[2], tr[3], tr[4] if use_t else np.zeros(1), use_t,
         o["rate"], o["inc"], o["bias"], o["sf"], o["err_rate"], o["err_inc"],
+        sfc64.KI, sfc64.WI, sfc64.FI,
     )  # fmt: skip
+    for s, a in zip(states, st, strict=True):
+        s[:] = a
 
 
 class Scratch:
@@ -249,9 +246,11 @@ class Scratch:
         return a[:n].reshape(shape)
 
 
-def window_rngs(seed, rid, gid, shard, j):
-    """The window-mode stream of a sequence (:data:`~imugen.stream.keys.WINDOW_STREAM`)."""
-    return generator(seed, (rid, gid, shard, j, WINDOW_STREAM))
+def window_state(seed, rid, gid, shard, j) -> np.ndarray:
+    """The window-mode stream of a sequence (:data:`~imugen.stream.keys.WINDOW_STREAM`): the
+    state of ``SFC64(SeedSequence(seed, spawn_key=(rid, gid, shard, j, WINDOW_STREAM)))``
+    (:mod:`imugen.core.sfc64`)."""
+    return sfc64.state(seed, (rid, gid, shard, j, WINDOW_STREAM))
 
 
 @njit(cache=True)
@@ -280,9 +279,11 @@ def _states(k0, dt, z, o, s, P, flags, lsb, x, r, sp, qr, qi, dT0, use_t):
 
 
 @njit(cache=True)
-def _windows(k0, rows, dt, W, z, zoff, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, Pg, Pa,
-             tw, tf, tdth, tdv, tdT, use_t, o_rate, o_inc, o_bias, o_sf, o_er, o_ei):  # fmt: skip
-    """Every window: slow states from their law, then the shard path's kernel on its rows."""
+def _windows(k0, rows, dt, W, st, per, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, Pg, Pa,
+             tw, tf, tdth, tdv, tdT, use_t, o_rate, o_inc, o_bias, o_sf, o_er, o_ei,
+             ki, wi, fi):  # fmt: skip
+    """Every window: its normals from its sequence's state ``st[s]`` (``per[s]`` of them),
+    slow states from their law, then the shard path's kernel on its rows."""
     Cg = Pg[2].shape[2]
     Ca = Pa[2].shape[2]
     xg = np.zeros((1, 3, Cg))
@@ -292,13 +293,15 @@ def _windows(k0, rows, dt, W, z, zoff, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, P
     qr = np.zeros((1, 3))
     qi = np.zeros((1, 3))
     slow = np.empty((W, 3))
+    z = np.empty(per.max() if len(per) else 0)
     for b in range(len(k0)):
         s = seqs[b]
         g = rows[b]
+        sfc64.normals(st[s], z[: per[s]], ki, wi, fi)
         u_w, u_f = tw[g : g + W], tf[g : g + W]
         d_th, d_v = tdth[g : g + W], tdv[g : g + W]
         dT = tdT[g - 1 : g + W] if use_t else tdT[0:0]
-        o = zoff[b]
+        o = 0
         for sensor in range(2):
             P = Pg if sensor == 0 else Pa
             fl = fg if sensor == 0 else fa
