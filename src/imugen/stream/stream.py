@@ -20,6 +20,7 @@ from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0, batch_keys, worker_batc
 from imugen.stream.windows import (
     Scratch,
     draw_params,
+    draw_params_many,
     exact_sequence,
     output_stage,
     warmup_rows,
@@ -299,14 +300,12 @@ class Stream:
             )
         )
         seq_of = np.cumsum(np.isin(np.arange(B), seq_start)) - 1
-        draws = []
-        for i in seq_start:
-            k = sk[i]
-            g = self.grades[k["grade"]]
-            draws.append(
-                draw_params(self.seed, self.route_ids[k["route"]], g, self.enabled[k["grade"]],
-                            self.nominal, int(k["shard"]), int(k["j"]))
-            )  # fmt: skip
+        draws = draw_params_many(
+            self.seed,
+            [(self.route_ids[k["route"]], int(k["grade"]), int(k["shard"]), int(k["j"]))
+             for k in sk[seq_start]],
+            self.grades, self.enabled, self.nominal,
+        )  # fmt: skip
         if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
             raise InputError("exact", "vibration and mounting are streamed in exact mode only")
         if not exact and self._filt:

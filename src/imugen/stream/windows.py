@@ -56,7 +56,14 @@ from imugen.core.jit import njit
 from imugen.core.seeding import sensor_rng
 from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
-from imugen.sensors.model import SensorModel, SensorParams, draw_sensor
+from imugen.sensors.model import (
+    N_NORMAL,
+    N_UNIFORM,
+    SensorModel,
+    SensorParams,
+    draw_sensor,
+    draw_sensors,
+)
 from imugen.stream.keys import WINDOW_STREAM
 
 _EMPTY3 = np.zeros((0, 0, 3))
@@ -76,6 +83,30 @@ def draw_params(seed, rid, grade, enabled, nominal, shard, j) -> Draw:
     gp = draw_sensor(grade.gyro, rng, enabled["gyro"], nominal)
     ap = draw_sensor(grade.accel, rng, enabled["accel"], nominal)
     return Draw(gp, ap)
+
+
+def draw_params_many(seed, keys, grades, enabled, nominal) -> list[Draw]:
+    """:func:`draw_params` of many sequences: ``keys`` ``[(route_id, grade index, shard, j)]``
+    (``grades``, ``enabled``: the stream's lists). Each sequence's variates come from its own
+    stream ``params`` as :func:`draw_params` draws them; the parameters are computed for all
+    sequences of a grade at once (:func:`imugen.sensors.model.draw_sensors`, the same numbers)."""
+    n = len(keys)
+    ug, zg = np.empty((n, N_UNIFORM)), np.empty((n, N_NORMAL))
+    ua, za = np.empty((n, N_UNIFORM)), np.empty((n, N_NORMAL))
+    gi = np.empty(n, np.int64)
+    for i, (rid, g, shard, j) in enumerate(keys):
+        rng = sensor_rng(seed, rid, grades[g].id, shard, j, "params")
+        ug[i], zg[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
+        ua[i], za[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
+        gi[i] = g
+    out: list = [None] * n
+    for g in np.unique(gi):
+        rows = np.flatnonzero(gi == g)
+        gp = draw_sensors(grades[g].gyro, ug[rows], zg[rows], enabled[g]["gyro"], nominal)
+        ap = draw_sensors(grades[g].accel, ua[rows], za[rows], enabled[g]["accel"], nominal)
+        for r, i in enumerate(rows):
+            out[i] = Draw(gp.rows(r), ap.rows(r))
+    return out
 
 
 def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want, *,
