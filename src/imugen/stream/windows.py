@@ -52,7 +52,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from imugen.core import sfc64
-from imugen.core.jit import njit
+from imugen.core.jit import njit, njit_borrowing
 from imugen.core.seeding import sensor_rng
 from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
@@ -67,6 +67,9 @@ from imugen.sensors.model import (
 from imugen.stream.keys import WINDOW_STREAM
 
 _EMPTY3 = np.zeros((0, 0, 3))
+_kernel = njit_borrowing(cache=True)(kernel.py_func)
+"""The shard path's kernel without reference counting (:func:`imugen.core.jit.njit_borrowing`):
+the window loop calls it per window and sensor with some 40 arrays."""
 
 
 @dataclass
@@ -363,7 +366,7 @@ def _windows(k0, rows, dt, W, st, per, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, P
             out_s = o_sf[b : b + 1, :, c0 : c0 + 3]
             out_er = o_er[b : b + 1, :, c0 : c0 + 3]
             out_ei = o_ei[b : b + 1, :, c0 : c0 + 3]
-            kernel(k0[b], dt, u, du, a, da, dT, use_t, zw, zr, zb, use_w, use_r, use_b,
+            _kernel(k0[b], dt, u, du, a, da, dT, use_t, zw, zr, zb, use_w, use_r, use_b,
                    P[0][ss], P[1][ss], P[3][ss], P[4][ss], P[5][ss], P[6][ss], P[7][ss],
                    P[8][ss], P[9][ss], use_g, P[10][ss], P[11][ss], lsb, fs, x, r, sp, qr, qi,
                    slow, out_r, out_i, out_b, out_s, out_er, out_ei)  # fmt: skip
