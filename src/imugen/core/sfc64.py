@@ -26,6 +26,7 @@ from numba.np.random._constants import ziggurat_nor_inv_r as _INV_R
 from numba.np.random._constants import ziggurat_nor_r as _R
 
 from imugen.core.jit import njit
+from imugen.core.seedseq import generate_state
 
 KI = np.ascontiguousarray(_KI, np.uint64)
 WI = np.ascontiguousarray(_WI, np.float64)
@@ -58,9 +59,17 @@ def _warm(s):
 
 def state(seed, key) -> np.ndarray:
     """The state of ``SFC64(SeedSequence(seed, spawn_key=key))``: uint64[4]."""
-    s = np.zeros(4, np.uint64)
-    s[:3] = np.random.SeedSequence(seed, spawn_key=tuple(key)).generate_state(3, np.uint64)
-    _warm(s)
+    return states(seed, [tuple(key)])[0]
+
+
+def states(seed, keys) -> np.ndarray:
+    """:func:`state` of each key: ``(len(keys), 4)`` uint64 (the seed sequences hashed at once,
+    :func:`imugen.core.seedseq.generate_state`)."""
+    s = np.zeros((len(keys), 4), np.uint64)
+    if len(keys):
+        s[:, :3] = generate_state(seed, keys, 3)
+    for row in s:
+        _warm(row)
     return s
 
 

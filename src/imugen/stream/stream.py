@@ -26,7 +26,7 @@ from imugen.stream.windows import (
     warmup_rows,
     window_band_rng,
     window_batch,
-    window_state,
+    window_states,
     without_output_stage,
 )
 from imugen.tables import shard as tshard
@@ -322,12 +322,11 @@ class Stream:
                 remap[seqs] = np.arange(len(seqs))
                 one = len(sel) == B  # a single grade: write in place
                 sub = outs if one else {n: np.empty((len(sel), W, 6), self.dtype) for n in outs}
-                states = [
-                    window_state(self.seed, self.route_ids[sk["route"][seq_start[s]]],
-                                self.grades[gi].id, int(sk["shard"][seq_start[s]]),
-                                int(sk["j"][seq_start[s]]))
+                states = window_states(self.seed, [
+                    (self.route_ids[sk["route"][seq_start[s]]], self.grades[gi].id,
+                     int(sk["shard"][seq_start[s]]), int(sk["j"][seq_start[s]]))
                     for s in seqs
-                ]  # fmt: skip
+                ])  # fmt: skip
                 if self._post(gi):
                     self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]],
                                       states, [draws[s] for s in seqs], want, sub)  # fmt: skip

@@ -53,7 +53,8 @@ import numpy as np
 
 from imugen.core import sfc64
 from imugen.core.jit import njit, njit_borrowing
-from imugen.core.seeding import sensor_rng
+from imugen.core.seeding import sensor_key, sensor_rng
+from imugen.core.seedseq import generate_state, pcg64_state
 from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
 from imugen.sensors.model import (
@@ -97,8 +98,12 @@ def draw_params_many(seed, keys, grades, enabled, nominal) -> list[Draw]:
     ug, zg = np.empty((n, N_UNIFORM)), np.empty((n, N_NORMAL))
     ua, za = np.empty((n, N_UNIFORM)), np.empty((n, N_NORMAL))
     gi = np.empty(n, np.int64)
-    for i, (rid, g, shard, j) in enumerate(keys):
-        rng = sensor_rng(seed, rid, grades[g].id, shard, j, "params")
+    words = generate_state(
+        seed, [sensor_key(rid, grades[g].id, shard, j, "params") for rid, g, shard, j in keys], 4
+    )
+    rng = np.random.Generator(np.random.PCG64(0))
+    for i, (_rid, g, _shard, _j) in enumerate(keys):
+        rng.bit_generator.state = pcg64_state(words[i])  # = sensor_rng(..., "params")
         ug[i], zg[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
         ua[i], za[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
         gi[i] = g
@@ -228,8 +233,8 @@ def window_batch(tr, draws, seqs, states, k0, W, temp_rows, want, outs):
     seqs : (B,) int
         Sequence (index into ``draws``) of each window; windows of a sequence are contiguous
         and in increasing ``k0``.
-    states : list of uint64[4]
-        The window stream of each sequence (:func:`window_state`), advanced in place.
+    states : (S, 4) uint64
+        The window stream of each sequence (:func:`window_states`), advanced in place.
     k0 : (B,) int
         First row of each window (``>= 1``).
     W : int
@@ -247,7 +252,7 @@ def window_batch(tr, draws, seqs, states, k0, W, temp_rows, want, outs):
     Pg, fg = _pack(gp, dt)
     Pa, fa = _pack(ap, dt)
     per = _per_window(fg, gp.components, W) + _per_window(fa, ap.components, W)
-    st = np.stack(states) if len(states) else np.zeros((0, 4), np.uint64)
+    st = states
     empty = np.zeros((0, W, 6), next(iter(outs.values())).dtype if outs else np.float64)
     o = {
         n: (outs[n] if want.get(n) else empty)
@@ -261,8 +266,6 @@ def window_batch(tr, draws, seqs, states, k0, W, temp_rows, want, outs):
         o["rate"], o["inc"], o["bias"], o["sf"], o["err_rate"], o["err_inc"],
         sfc64.KI, sfc64.WI, sfc64.FI,
     )  # fmt: skip
-    for s, a in zip(states, st, strict=True):
-        s[:] = a
 
 
 class Scratch:
@@ -280,11 +283,12 @@ class Scratch:
         return a[:n].reshape(shape)
 
 
-def window_state(seed, rid, gid, shard, j) -> np.ndarray:
-    """The window-mode stream of a sequence (:data:`~imugen.stream.keys.WINDOW_STREAM`): the
-    state of ``SFC64(SeedSequence(seed, spawn_key=(rid, gid, shard, j, WINDOW_STREAM)))``
+def window_states(seed, keys) -> np.ndarray:
+    """The window-mode streams of sequences ``keys`` ``[(rid, gid, shard, j)]``
+    (:data:`~imugen.stream.keys.WINDOW_STREAM`): the states ``(S, 4)`` of
+    ``SFC64(SeedSequence(seed, spawn_key=(rid, gid, shard, j, WINDOW_STREAM)))``
     (:mod:`imugen.core.sfc64`)."""
-    return sfc64.state(seed, (rid, gid, shard, j, WINDOW_STREAM))
+    return sfc64.states(seed, [(*k, WINDOW_STREAM) for k in keys])
 
 
 @njit(cache=True)
