@@ -9,9 +9,12 @@ single-threaded and BLAS threads are set to 1.
 Measured in the same run, on the same windows:
 * ``stream``: ``Stream.batch(n)`` for ``--batches`` batches (parameters drawn, seeds spawned,
   noise drawn, kernel run, float32 cast);
-* ``floor``: only the standard normals those windows consume, drawn by NumPy
-  (``Generator(PCG64).standard_normal(out=...)`` into a reused buffer): what any generator
-  that draws NumPy normals must spend;
+* ``floor``: only the standard normals those windows consume (float64, the stream's count
+  per window), drawn by NumPy from the stream's bit generator
+  (``Generator(SFC64).standard_normal(out=...)`` into a reused buffer: the same algorithm
+  and the same numbers as the stream's, :mod:`imugen.core.sfc64`), one call per sequence:
+  what drawing these normals through NumPy costs. ``floor_pcg64`` is the same with the shard
+  path's PCG64;
 * ``exact``: the exact mode (each sequence generated from turn-on), a few batches.
 Windows per CPU-second (``time.process_time``) are the figure that does not depend on the
 machine's other users; wall time and the 1-minute load average are printed beside.
@@ -71,14 +74,15 @@ def main(argv=None) -> dict:
 
     d = draw_params(1, 0, s.grades[0], s.enabled[0], False, 0, 0)
     per_window = normals_per_window(d.gyro, 200) + normals_per_window(d.accel, 200)
-    rng = np.random.Generator(np.random.PCG64(1))
     buf = np.empty(per_window * a.per_seq)
 
-    def floor():
+    def floor(bitgen):
+        rng = np.random.Generator(bitgen(1))
         for _ in range(B // a.per_seq):
             rng.standard_normal(out=buf)
 
-    _, w_f, c_f = clock(floor)
+    _, w_f, c_f = clock(lambda: floor(np.random.SFC64))
+    _, w_p, c_p = clock(lambda: floor(np.random.PCG64))
     ne = max(2, n // 20)
     se = Stream({"bench": truth(a.seconds)}, a.grade, window=200, batch_size=a.batch,
                 windows_per_sequence=a.per_seq, targets=["effective_error"], seed=1,
@@ -94,6 +98,7 @@ def main(argv=None) -> dict:
         "cpu_count": os.cpu_count(),
         "stream": {"windows": B, "wall_s": w_s, "cpu_s": c_s, "windows_per_cpu_s": B / c_s},
         "floor": {"windows": B, "wall_s": w_f, "cpu_s": c_f, "windows_per_cpu_s": B / c_f},
+        "floor_pcg64": {"windows": B, "wall_s": w_p, "cpu_s": c_p, "windows_per_cpu_s": B / c_p},
         "exact": {
             "windows": ne * a.batch,
             "wall_s": w_e,
@@ -103,9 +108,9 @@ def main(argv=None) -> dict:
         },
     }
     out["stream_over_floor"] = c_s / c_f
-    for k in ("stream", "floor", "exact"):
+    for k in ("stream", "floor", "floor_pcg64", "exact"):
         r = out[k]
-        print(f"{k:7s} {r['windows']:8d} windows  {r['cpu_s']:7.2f} CPU-s  {r['wall_s']:7.2f} s  "
+        print(f"{k:11s} {r['windows']:8d} windows  {r['cpu_s']:7.2f} CPU-s  {r['wall_s']:7.2f} s  "
               f"{r['windows_per_cpu_s']:10,.0f} windows/CPU-s")  # fmt: skip
     print(f"normals per window {per_window}; stream / floor CPU = {out['stream_over_floor']:.2f}; "
           f"load {out['load_1min']:.2f} on {out['cpu_count']} cores")  # fmt: skip

@@ -287,3 +287,30 @@ def test_flicker_bias_instability_draws_components():
     sh = S.simulate(StaticTruth(1.0, 100.0), g, sequences=2, seed=1)
     assert sh.gyro.bi_sigma.shape == (2, 3, 7)
     np.testing.assert_allclose(sh.gyro.bi_tau[0], np.geomspace(1, 1000, 7))
+
+
+@pytest.mark.parametrize("nominal", [False, True])
+def test_draw_of_many_sequences_is_each_sequences_draw(nominal):
+    """draw_sensors on 30 sequences' variates gives, row for row and bit for bit, what
+    draw_sensor gives each sequence from its own stream (every preset, both sensors, all terms
+    and every other term enabled)."""
+    from imugen.sensors.grades import TERMS, presets
+    from imugen.sensors.model import N_NORMAL, N_UNIFORM, SensorParams, draw_sensor, draw_sensors
+
+    for grade in presets().values():
+        for spec in (grade.gyro, grade.accel):
+            for enabled in (frozenset(TERMS), frozenset(TERMS[::2])):
+                one, u, z = [], [], []
+                for i in range(30):
+                    one.append(draw_sensor(spec, np.random.default_rng(i), enabled, nominal))
+                    rng = np.random.default_rng(i)
+                    u.append(rng.random(N_UNIFORM))
+                    z.append(rng.standard_normal(N_NORMAL))
+                many = draw_sensors(spec, np.array(u), np.array(z), enabled, nominal)
+                for name in SensorParams.ARRAYS:
+                    a = np.concatenate([getattr(p, name) for p in one])
+                    np.testing.assert_array_equal(getattr(many, name), a, err_msg=name)
+                    assert np.array_equal(np.signbit(getattr(many, name)), np.signbit(a))
+                    assert np.array_equal(getattr(many.rows(3), name), getattr(one[3], name))
+                assert (many.lsb, many.full_scale, many.q_round) == (one[0].lsb,
+                        one[0].full_scale, one[0].q_round)  # fmt: skip

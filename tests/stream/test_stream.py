@@ -161,3 +161,27 @@ def test_bad_input_is_refused(truth):
     s = stream(truth, vibration="car")
     with pytest.raises(InputError, match="exact"):
         s.generate(s.keys(ROUTE, "consumer", 0, 0, 5))
+
+
+def test_window_mode_normals_are_the_keys_sfc64_stream(truth):
+    """White noise only: a window's increment errors are ``white sqrt(dt) z`` with ``z`` the
+    sequence's SFC64 normals (stream ``window``) after the 12 normals of its slow states
+    (and, for its second window, after the first window's gyro and accelerometer draws)."""
+    from imugen.core.seeding import SENSOR_STREAMS
+    from imugen.sensors.grade_io import grade_from_config
+
+    wn = {"value": 0.5, "unit": "deg_per_sqrt_h"}
+    g = grade_from_config("w", {"id": 5002, "gyro": {"white_noise": wn}, "accel": {}})
+    s = Stream({ROUTE: truth}, g, window=W, batch_size=4, windows_per_sequence=2, seed=SEED,
+               targets=["increments", "labels"])  # fmt: skip
+    b = s.generate(s.keys(ROUTE, "w", 11, [0, 0, 1], [3, 70, 9]))
+    sig = b["labels"][:, s.label_names.index("gyro_white_noise_x_rad_per_sqrt_s")].astype(float)
+    z = (b["x"][..., :3].astype(float) - b["increments"][..., :3]) / (sig * np.sqrt(s.dt))[
+        :, None, None
+    ]
+    for i, (j, skip) in enumerate(((0, 12), (0, 12 + 3 * W + 12 + 12), (1, 12))):
+        key = (s.route_ids[0], g.id, 11, j, SENSOR_STREAMS["window"])
+        rng = np.random.Generator(np.random.SFC64(np.random.SeedSequence(SEED, spawn_key=key)))
+        want = rng.standard_normal(skip + 3 * W)[skip:].reshape(W, 3)
+        np.testing.assert_allclose(z[i], want, atol=2e-3)
+    assert np.all(b["x"][..., 3:] == b["increments"][..., 3:].astype(np.float32))

@@ -132,28 +132,21 @@ class SensorParams:
     def components(self) -> int:
         return self.bi_sigma.shape[2]
 
+    ARRAYS = ("b_on", "bi_level", "bi_floor", "bi_sigma", "bi_tau", "white", "rrw", "sf", "cc",
+              "gs", "tb", "ts", "bi_x0")  # fmt: skip
+    """The per-sequence fields (leading axis ``S``)."""
+
     @staticmethod
     def stack(items: list[SensorParams]) -> SensorParams:
         """Concatenate per-sequence parameter sets along the sequence axis."""
         f = items[0]
-        kw = {}
-        for name in (
-            "b_on",
-            "bi_level",
-            "bi_floor",
-            "bi_sigma",
-            "bi_tau",
-            "white",
-            "rrw",
-            "sf",
-            "cc",
-            "gs",
-            "tb",
-            "ts",
-            "bi_x0",
-        ):
-            kw[name] = np.concatenate([getattr(p, name) for p in items])
+        kw = {name: np.concatenate([getattr(p, name) for p in items]) for name in f.ARRAYS}
         return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale, q_round=f.q_round)
+
+    def rows(self, i: int) -> SensorParams:
+        """Sequence ``i`` alone (``S = 1``; views of this set's arrays)."""
+        kw = {name: getattr(self, name)[i : i + 1] for name in self.ARRAYS}
+        return SensorParams(**kw, lsb=self.lsb, full_scale=self.full_scale, q_round=self.q_round)
 
     def labels(self, prefix: str, unit: str) -> dict[str, np.ndarray]:
         """Flat label columns ``{name: (S,) array}`` with the SI unit in each name."""
@@ -192,14 +185,15 @@ class SensorParams:
         return out
 
 
-def _level(p, u: float, nominal: bool) -> np.ndarray:
-    """Per-axis level: nominal, or log-uniform in [lo, hi] with one uniform shared by the axes."""
-    v = np.asarray(p.value)
+def _level(p, u: np.ndarray, nominal: bool) -> np.ndarray:
+    """Per-axis levels ``(S, 3)`` of ``S`` sequences: nominal, or log-uniform in [lo, hi] with
+    one uniform ``u[s]`` shared by the axes."""
+    v = np.asarray(p.value, float)
     if nominal or p.lo is None:
-        return v.copy()
+        return np.tile(v, (len(u), 1))
     lo = np.asarray(p.lo)
     hi = np.asarray(p.hi)
-    return lo * (hi / lo) ** u
+    return lo * (hi / lo) ** u[:, None]
 
 
 def draw_sensor(
@@ -227,6 +221,16 @@ def draw_sensor(
     """
     u = rng.random(N_UNIFORM)
     z = rng.standard_normal(N_NORMAL)
+    return draw_sensors(spec, u[None], z[None], enabled, nominal)
+
+
+def draw_sensors(
+    spec: SensorSpec, u: np.ndarray, z: np.ndarray, enabled: frozenset, nominal: bool = False
+) -> SensorParams:
+    """:func:`draw_sensor` of ``S`` sequences at once from their variates: ``u`` ``(S,
+    N_UNIFORM)`` and ``z`` ``(S, N_NORMAL)``, each row drawn from its sequence's stream as
+    :func:`draw_sensor` draws it. Element-wise the same operations, hence the same numbers."""
+    S = len(u)
     ti = {t: i for i, t in enumerate(TERMS)}
 
     def lvl(term):
@@ -235,72 +239,74 @@ def draw_sensor(
             return None
         if term == "bias_instability":
             p = p.level
-        return _level(p, u[ti[term]], nominal)
+        return _level(p, u[:, ti[term]], nominal)
 
-    zero3 = np.zeros(3)
+    zero3 = np.zeros((S, 3))
     b = lvl("turn_on_bias")
-    b_on = zero3 if b is None else b * z[0:3]
+    b_on = zero3 if b is None else b * z[:, 0:3]
     bi = spec.bias_instability
     C = 1 if bi is None else bi.components
-    bi_level = np.zeros(3)
-    bi_floor = np.zeros(3)
-    bi_sigma = np.zeros((3, C))
+    bi_level = np.zeros((S, 3))
+    bi_floor = np.zeros((S, 3))
+    bi_sigma = np.zeros((S, 3, C))
     bi_x0 = bi_sigma
-    bi_tau = np.ones(C)
+    bi_tau = np.ones((S, C))
     lv = lvl("bias_instability")
     if lv is not None:
         bi_level = lv
         if bi.model == "gauss_markov":
-            bi_tau = _level(bi.correlation_time, u[-1], nominal)[:1]
+            bi_tau = _level(bi.correlation_time, u[:, -1], nominal)[:, :1]
         else:
             from imugen.sensors.grades import flicker_taus
 
-            bi_tau = flicker_taus(bi.flicker_band, C)
-        bi_sigma = np.array([[bi.sigma_from_level(x)] * C for x in lv])
+            bi_tau = np.tile(np.asarray(flicker_taus(bi.flicker_band, C), float), (S, 1))
+        bi_sigma = np.repeat(np.asarray(bi.sigma_from_level(lv), float)[:, :, None], C, axis=2)
         bi_x0 = bi_sigma if bi.start == "stationary" else np.zeros_like(bi_sigma)
-        bi_floor = np.array([bi.allan_floor_from_level(x) for x in lv])
+        bi_floor = np.asarray(bi.allan_floor_from_level(lv), float)
     w = lvl("white_noise")
     r = lvl("rate_random_walk")
     s = lvl("scale_factor")
-    sf = zero3 if s is None else s * z[3:6]
+    sf = zero3 if s is None else s * z[:, 3:6]
     c = lvl("cross_coupling")
-    cc = np.zeros((3, 3))
+    cc = np.zeros((S, 3, 3))
     if c is not None:
         for k, (i, j) in enumerate(_OFFDIAG):
-            cc[i, j] = c[i] * z[6 + k]
+            cc[:, i, j] = c[:, i] * z[:, 6 + k]
     g = lvl("g_sensitivity")
-    gs = np.zeros((3, 3)) if g is None else g[:, None] * z[12:21].reshape(3, 3)
+    gs = np.zeros((S, 3, 3)) if g is None else g[:, :, None] * z[:, 12:21].reshape(S, 3, 3)
     if spec.static_g_removed:
         # calibrated at rest and level: the bias estimate absorbed the static error on gravity,
         # (E + G) (0, 0, g0) with E = diag(sf) + cross-coupling, G the g-sensitivity
-        E = cc + np.diag(sf)
+        diag = np.zeros((S, 3, 3))
+        diag[:, (0, 1, 2), (0, 1, 2)] = sf
+        E = cc + diag
         if spec.sensor == "accel":
-            b_on = b_on - E[:, 2] * units.G0
-        b_on = b_on - gs[:, 2] * units.G0
+            b_on = b_on - E[:, :, 2] * units.G0
+        b_on = b_on - gs[:, :, 2] * units.G0
     tbl = lvl("temperature_bias")
-    tb = zero3 if tbl is None else tbl * z[21:24]
+    tb = zero3 if tbl is None else tbl * z[:, 21:24]
     tsl = lvl("temperature_scale_factor")
-    ts = zero3 if tsl is None else tsl * z[24:27]
+    ts = zero3 if tsl is None else tsl * z[:, 24:27]
     q = spec.quantization
     lsb = q.value[0] if q is not None and "quantization" in enabled else 0.0
     fr = spec.range
     full_scale = fr.value[0] if fr is not None and "range" in enabled else math.inf
     return SensorParams(
-        b_on=b_on[None],
-        bi_level=bi_level[None],
-        bi_floor=bi_floor[None],
-        bi_sigma=bi_sigma[None],
-        bi_tau=np.asarray(bi_tau, float)[None],
-        white=(zero3 if w is None else w)[None],
-        rrw=(zero3 if r is None else r)[None],
-        sf=sf[None],
-        cc=cc[None],
-        gs=gs[None],
-        tb=tb[None],
-        ts=ts[None],
+        b_on=b_on,
+        bi_level=bi_level,
+        bi_floor=bi_floor,
+        bi_sigma=bi_sigma,
+        bi_tau=np.asarray(bi_tau, float),
+        white=zero3 if w is None else w,
+        rrw=zero3 if r is None else r,
+        sf=sf,
+        cc=cc,
+        gs=gs,
+        tb=tb,
+        ts=ts,
         lsb=float(lsb),
         full_scale=float(full_scale),
-        bi_x0=bi_x0[None],
+        bi_x0=bi_x0,
         q_round=spec.quantization_mode == "round",
     )
 

@@ -20,12 +20,13 @@ from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0, batch_keys, worker_batc
 from imugen.stream.windows import (
     Scratch,
     draw_params,
+    draw_params_many,
     exact_sequence,
     output_stage,
     warmup_rows,
     window_band_rng,
     window_batch,
-    window_rngs,
+    window_states,
     without_output_stage,
 )
 from imugen.tables import shard as tshard
@@ -299,14 +300,12 @@ class Stream:
             )
         )
         seq_of = np.cumsum(np.isin(np.arange(B), seq_start)) - 1
-        draws = []
-        for i in seq_start:
-            k = sk[i]
-            g = self.grades[k["grade"]]
-            draws.append(
-                draw_params(self.seed, self.route_ids[k["route"]], g, self.enabled[k["grade"]],
-                            self.nominal, int(k["shard"]), int(k["j"]))
-            )  # fmt: skip
+        draws = draw_params_many(
+            self.seed,
+            [(self.route_ids[k["route"]], int(k["grade"]), int(k["shard"]), int(k["j"]))
+             for k in sk[seq_start]],
+            self.grades, self.enabled, self.nominal,
+        )  # fmt: skip
         if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
             raise InputError("exact", "vibration and mounting are streamed in exact mode only")
         if not exact and self._filt:
@@ -323,19 +322,18 @@ class Stream:
                 remap[seqs] = np.arange(len(seqs))
                 one = len(sel) == B  # a single grade: write in place
                 sub = outs if one else {n: np.empty((len(sel), W, 6), self.dtype) for n in outs}
-                rngs = [
-                    window_rngs(self.seed, self.route_ids[sk["route"][seq_start[s]]],
-                                self.grades[gi].id, int(sk["shard"][seq_start[s]]),
-                                int(sk["j"][seq_start[s]]))
+                states = window_states(self.seed, [
+                    (self.route_ids[sk["route"][seq_start[s]]], self.grades[gi].id,
+                     int(sk["shard"][seq_start[s]]), int(sk["j"][seq_start[s]]))
                     for s in seqs
-                ]  # fmt: skip
+                ])  # fmt: skip
                 if self._post(gi):
-                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]], rngs,
-                                      [draws[s] for s in seqs], want, sub)  # fmt: skip
+                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]],
+                                      states, [draws[s] for s in seqs], want, sub)  # fmt: skip
                 else:
                     rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
-                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
-                                 sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
+                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], states,
+                                 sk["k0"][sel], W, rows, want, sub)  # fmt: skip
                 if not one:
                     for n in outs:
                         outs[n][sel] = sub[n]
@@ -366,7 +364,7 @@ class Stream:
         out["keys"] = keys
         return out
 
-    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, rngs, draws, want, sub):
+    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, states, draws, want, sub):
         """Window mode of a grade with an output bandwidth or rounding quantization: the
         kernel from :func:`~imugen.stream.windows.warmup_rows` rows before each window, then
         :func:`~imugen.stream.windows.output_stage`."""
@@ -389,8 +387,8 @@ class Stream:
         }
         kout = {n: np.empty((len(sel), Wt, 6)) for n, v in kw.items() if v}
         kdraws = [without_output_stage(d, bands) for d in draws]
-        window_batch(self._tr, kdraws, seqs_of, rngs, ks, Wt, self._row0[route] + ks, kw, kout,
-                     self._scratch)  # fmt: skip
+        window_batch(self._tr, kdraws, seqs_of, states, ks, Wt, self._row0[route] + ks, kw,
+                     kout)  # fmt: skip
         brng = [
             window_band_rng(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                             self.grades[gi].id, int(sk["shard"][seq_start[s]]),

@@ -20,7 +20,10 @@ window (:func:`window_batch`)
     accel): ``3 C`` GM states (axis-major), 3 random-walk states, 3 + 3 normals turned into
     the rate and increment quantization residuals (``Phi(z)``), then the window's white
     ``(W, 3)``, random-walk ``(W, 3)`` and GM ``(W, 3 C)`` normals, each only when the
-    sequence has the term. The joint law of a window's values is the shard path's; windows
+    sequence has the term. The stream's bit generator is SFC64 (not the shard path's PCG64;
+    the same SeedSequence and spawn key): the normals are those of
+    ``Generator(SFC64(SeedSequence(seed, spawn_key=(route_id, grade_id, shard, j, 11))))
+    .standard_normal()``, drawn inside the kernel where they are used (:mod:`imugen.core.sfc64`). The joint law of a window's values is the shard path's; windows
     of one sequence are drawn independently of each other (their slow states are not the
     same realization), so use the exact mode where the cross-window correlation matters.
 
@@ -48,14 +51,26 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from imugen.core.jit import njit
-from imugen.core.seeding import generator, sensor_rng
+from imugen.core import sfc64
+from imugen.core.jit import njit, njit_borrowing
+from imugen.core.seeding import sensor_key, sensor_rng
+from imugen.core.seedseq import generate_state, pcg64_state
 from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
-from imugen.sensors.model import SensorModel, SensorParams, draw_sensor
+from imugen.sensors.model import (
+    N_NORMAL,
+    N_UNIFORM,
+    SensorModel,
+    SensorParams,
+    draw_sensor,
+    draw_sensors,
+)
 from imugen.stream.keys import WINDOW_STREAM
 
 _EMPTY3 = np.zeros((0, 0, 3))
+_kernel = njit_borrowing(cache=True)(kernel.py_func)
+"""The shard path's kernel without reference counting (:func:`imugen.core.jit.njit_borrowing`):
+the window loop calls it per window and sensor with some 40 arrays."""
 
 
 @dataclass
@@ -72,6 +87,34 @@ def draw_params(seed, rid, grade, enabled, nominal, shard, j) -> Draw:
     gp = draw_sensor(grade.gyro, rng, enabled["gyro"], nominal)
     ap = draw_sensor(grade.accel, rng, enabled["accel"], nominal)
     return Draw(gp, ap)
+
+
+def draw_params_many(seed, keys, grades, enabled, nominal) -> list[Draw]:
+    """:func:`draw_params` of many sequences: ``keys`` ``[(route_id, grade index, shard, j)]``
+    (``grades``, ``enabled``: the stream's lists). Each sequence's variates come from its own
+    stream ``params`` as :func:`draw_params` draws them; the parameters are computed for all
+    sequences of a grade at once (:func:`imugen.sensors.model.draw_sensors`, the same numbers)."""
+    n = len(keys)
+    ug, zg = np.empty((n, N_UNIFORM)), np.empty((n, N_NORMAL))
+    ua, za = np.empty((n, N_UNIFORM)), np.empty((n, N_NORMAL))
+    gi = np.empty(n, np.int64)
+    words = generate_state(
+        seed, [sensor_key(rid, grades[g].id, shard, j, "params") for rid, g, shard, j in keys], 4
+    )
+    rng = np.random.Generator(np.random.PCG64(0))
+    for i, (_rid, g, _shard, _j) in enumerate(keys):
+        rng.bit_generator.state = pcg64_state(words[i])  # = sensor_rng(..., "params")
+        ug[i], zg[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
+        ua[i], za[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
+        gi[i] = g
+    out: list = [None] * n
+    for g in np.unique(gi):
+        rows = np.flatnonzero(gi == g)
+        gp = draw_sensors(grades[g].gyro, ug[rows], zg[rows], enabled[g]["gyro"], nominal)
+        ap = draw_sensors(grades[g].accel, ua[rows], za[rows], enabled[g]["accel"], nominal)
+        for r, i in enumerate(rows):
+            out[i] = Draw(gp.rows(r), ap.rows(r))
+    return out
 
 
 def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want, *,
@@ -176,7 +219,7 @@ def _pack(p: SensorParams, dt: float) -> tuple:
     ), flags  # fmt: skip
 
 
-def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=None):
+def window_batch(tr, draws, seqs, states, k0, W, temp_rows, want, outs):
     """Window-mode generation of one grade's windows (the module docstring's law).
 
     Parameters
@@ -190,8 +233,8 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     seqs : (B,) int
         Sequence (index into ``draws``) of each window; windows of a sequence are contiguous
         and in increasing ``k0``.
-    rngs : list of numpy Generator
-        The window stream of each sequence.
+    states : (S, 4) uint64
+        The window stream of each sequence (:func:`window_states`), advanced in place.
     k0 : (B,) int
         First row of each window (``>= 1``).
     W : int
@@ -202,24 +245,14 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     outs : dict
         ``name -> (B, W, 6)`` output buffers (gyro columns, then accel), float64 or float32
         (the kernel computes in float64 and rounds once on writing, as the shard path).
-    scratch : Scratch, optional
-        Reused memory for the normals (fresh pages cost more than the draws).
     """
-    B = len(k0)
     dt = tr[5]
     gp = SensorParams.stack([d.gyro for d in draws])
     ap = SensorParams.stack([d.accel for d in draws])
     Pg, fg = _pack(gp, dt)
     Pa, fa = _pack(ap, dt)
     per = _per_window(fg, gp.components, W) + _per_window(fa, ap.components, W)
-    nwin = np.bincount(seqs, minlength=len(draws))
-    counts = per * nwin
-    z = np.empty(int(counts.sum())) if scratch is None else scratch.get("z", int(counts.sum()))
-    starts = np.concatenate([[0], np.cumsum(counts)])
-    for s, rng in enumerate(rngs):
-        rng.standard_normal(out=z[starts[s] : starts[s + 1]])
-    first = np.concatenate([[0], np.cumsum(nwin)[:-1]])
-    zoff = starts[seqs] + (np.arange(B) - first[seqs]) * per[seqs]
+    st = states
     empty = np.zeros((0, W, 6), next(iter(outs.values())).dtype if outs else np.float64)
     o = {
         n: (outs[n] if want.get(n) else empty)
@@ -227,10 +260,11 @@ def window_batch(tr, draws, seqs, rngs, k0, W, temp_rows, want, outs, scratch=No
     }
     use_t = len(tr[4]) > 0
     _windows(
-        np.asarray(k0, np.int64), np.asarray(temp_rows, np.int64), dt, W, z, zoff,
+        np.asarray(k0, np.int64), np.asarray(temp_rows, np.int64), dt, W, st, per,
         np.asarray(seqs, np.int64), fg, fa, gp.lsb, gp.full_scale, ap.lsb, ap.full_scale,
         Pg, Pa, tr[0], tr[1], tr[2], tr[3], tr[4] if use_t else np.zeros(1), use_t,
         o["rate"], o["inc"], o["bias"], o["sf"], o["err_rate"], o["err_inc"],
+        sfc64.KI, sfc64.WI, sfc64.FI,
     )  # fmt: skip
 
 
@@ -249,9 +283,12 @@ class Scratch:
         return a[:n].reshape(shape)
 
 
-def window_rngs(seed, rid, gid, shard, j):
-    """The window-mode stream of a sequence (:data:`~imugen.stream.keys.WINDOW_STREAM`)."""
-    return generator(seed, (rid, gid, shard, j, WINDOW_STREAM))
+def window_states(seed, keys) -> np.ndarray:
+    """The window-mode streams of sequences ``keys`` ``[(rid, gid, shard, j)]``
+    (:data:`~imugen.stream.keys.WINDOW_STREAM`): the states ``(S, 4)`` of
+    ``SFC64(SeedSequence(seed, spawn_key=(rid, gid, shard, j, WINDOW_STREAM)))``
+    (:mod:`imugen.core.sfc64`)."""
+    return sfc64.states(seed, [(*k, WINDOW_STREAM) for k in keys])
 
 
 @njit(cache=True)
@@ -280,9 +317,11 @@ def _states(k0, dt, z, o, s, P, flags, lsb, x, r, sp, qr, qi, dT0, use_t):
 
 
 @njit(cache=True)
-def _windows(k0, rows, dt, W, z, zoff, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, Pg, Pa,
-             tw, tf, tdth, tdv, tdT, use_t, o_rate, o_inc, o_bias, o_sf, o_er, o_ei):  # fmt: skip
-    """Every window: slow states from their law, then the shard path's kernel on its rows."""
+def _windows(k0, rows, dt, W, st, per, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, Pg, Pa,
+             tw, tf, tdth, tdv, tdT, use_t, o_rate, o_inc, o_bias, o_sf, o_er, o_ei,
+             ki, wi, fi):  # fmt: skip
+    """Every window: its normals from its sequence's state ``st[s]`` (``per[s]`` of them),
+    slow states from their law, then the shard path's kernel on its rows."""
     Cg = Pg[2].shape[2]
     Ca = Pa[2].shape[2]
     xg = np.zeros((1, 3, Cg))
@@ -292,13 +331,15 @@ def _windows(k0, rows, dt, W, z, zoff, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, P
     qr = np.zeros((1, 3))
     qi = np.zeros((1, 3))
     slow = np.empty((W, 3))
+    z = np.empty(per.max() if len(per) else 0)
     for b in range(len(k0)):
         s = seqs[b]
         g = rows[b]
+        sfc64.normals(st[s], z[: per[s]], ki, wi, fi)
         u_w, u_f = tw[g : g + W], tf[g : g + W]
         d_th, d_v = tdth[g : g + W], tdv[g : g + W]
         dT = tdT[g - 1 : g + W] if use_t else tdT[0:0]
-        o = zoff[b]
+        o = 0
         for sensor in range(2):
             P = Pg if sensor == 0 else Pa
             fl = fg if sensor == 0 else fa
@@ -329,7 +370,7 @@ def _windows(k0, rows, dt, W, z, zoff, seqs, fg, fa, lsb_g, fs_g, lsb_a, fs_a, P
             out_s = o_sf[b : b + 1, :, c0 : c0 + 3]
             out_er = o_er[b : b + 1, :, c0 : c0 + 3]
             out_ei = o_ei[b : b + 1, :, c0 : c0 + 3]
-            kernel(k0[b], dt, u, du, a, da, dT, use_t, zw, zr, zb, use_w, use_r, use_b,
+            _kernel(k0[b], dt, u, du, a, da, dT, use_t, zw, zr, zb, use_w, use_r, use_b,
                    P[0][ss], P[1][ss], P[3][ss], P[4][ss], P[5][ss], P[6][ss], P[7][ss],
                    P[8][ss], P[9][ss], use_g, P[10][ss], P[11][ss], lsb, fs, x, r, sp, qr, qi,
                    slow, out_r, out_i, out_b, out_s, out_er, out_ei)  # fmt: skip
