@@ -271,3 +271,50 @@ def test_datasheet_import_and_kalibr_export_carry_the_bandwidth(tmp_path):
     k = grade_io.kalibr_figures(g, 200.0)["gyroscope_noise_density"]
     assert k == pytest.approx(N * math.sqrt(f.alias_gain()))
     assert k != pytest.approx(N, rel=1e-3)
+
+
+# --- many windows at once (the stream's window mode) ----------------------------------------
+WINDOW_FILTERS = {
+    "ideal": lambda: bw.ideal(100.0),
+    "ma_async": lambda: bw.moving_average(10, 819.2, 100.0),
+    "bartlett_sync": lambda: bw.bartlett(4, 400.0, 100.0),
+    "butter_sync": lambda: bw.butterworth(2, 30.0, 1000.0, 100.0),
+    "butter_async": lambda: bw.butterworth(2, 52.0, 832.0, 104.0 * 0.97),
+}
+
+
+@pytest.mark.parametrize("name", list(WINDOW_FILTERS))
+def test_filter_windows_is_the_streams_motion_filter(name):
+    """filter_windows (one compiled call over many windows) gives what Stream.motion gives
+    each window run on its own from its first sample, with the same read phase."""
+    f = WINDOW_FILTERS[name]()
+    rng = np.random.default_rng(3)
+    B, L = 5, 40
+    y = np.cumsum(rng.standard_normal((B, L, 6)), axis=1)
+    ph = rng.random(B)
+    got = bw.filter_windows(f, y, ph)
+    for b in range(B):
+        st = bw.Stream(f, np.ones((1, 3)), [np.random.default_rng(0)])
+        st.phase[:] = 0.0 if f.synchronous else ph[b]
+        want = np.concatenate([st.motion("a", 1, y[b : b + 1, :, :3])[0],
+                               st.motion("b", 1, y[b : b + 1, :, 3:])[0]], axis=1)  # fmt: skip
+        np.testing.assert_allclose(got[b], want, rtol=0, atol=1e-12 * np.abs(y).max())
+
+
+@pytest.mark.parametrize("name", list(WINDOW_FILTERS))
+def test_noise_windows_is_the_streams_noise_on_the_same_normals(name):
+    """noise_windows on the normals Stream.noise draws (warm-up, then the reads' span)."""
+    f = WINDOW_FILTERS[name]()
+    B, L = 4, 30
+    dens = np.array([[1.0, 2.0, 0.5]])
+    z = np.empty((B, bw.noise_length(f, L), 3))
+    ph = np.zeros(B)
+    want = []
+    for b in range(B):
+        st = bw.Stream(f, dens, [np.random.default_rng(b)])
+        want.append(st.noise(1, L)[0])
+        g = np.random.default_rng(b)
+        ph[b] = 0.0 if f.synchronous else g.random()
+        z[b] = g.standard_normal(z.shape[1:])
+    got = bw.noise_windows(f, z, np.repeat(dens, B, 0) * np.sqrt(f.internal_rate_hz), ph, L)
+    np.testing.assert_allclose(got, np.stack(want), rtol=1e-12, atol=1e-12)

@@ -699,3 +699,105 @@ class Stream:
             out[s] = yf[j - jn]
             st[s] = (int(j[-1]) + 1, zi, ys[-1].copy())
         return out
+
+
+# --- many independent windows at once (the stream's window mode) ----------------------------
+def _coefs(f: OutputFilter) -> tuple:
+    """``b, a`` normalized by ``a[0]`` (float64, contiguous) and the DF2T steady state."""
+    b = np.ascontiguousarray(np.asarray(f.b, float) / f.a[0])
+    a = np.ascontiguousarray(np.asarray(f.a, float) / f.a[0])
+    order = max(len(a), len(b)) - 1
+    zi = _signal().lfilter_zi(b, a) if len(a) > 1 else np.zeros(order)
+    return b, a, np.ascontiguousarray(zi, dtype=float)
+
+
+def _phase(f: OutputFilter, phase, B: int) -> np.ndarray:
+    if f.synchronous:
+        return np.zeros(B)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(phase, float), (B,)))
+
+
+def filter_windows(f: OutputFilter, y: np.ndarray, phase) -> np.ndarray:
+    """Many windows' sensed signal through the output filter, as :class:`Stream` runs one
+    sequence from its first sample (a compiled kernel over the windows:
+    :func:`imugen.sensors._band_kernel.motion_reads`).
+
+    Row ``i`` of window ``b`` is output ``k = i + 1``; it is interpolated linearly to the
+    internal grid ``t_j = (j - phase_b) / f_i``, filtered from the filter's steady state on
+    the first row, and read at ``j_k = k D`` (synchronous) or ``floor(k D + phase_b)``. An
+    FIR filter is evaluated at the read indices only.
+
+    Parameters
+    ----------
+    f : OutputFilter
+    y : ndarray, shape (B, L, C)
+        The signal at the output rate (any channels sharing the filter).
+    phase : ndarray, shape (B,)
+        Read phase of each window (ignored for a synchronous read).
+
+    Returns
+    -------
+    ndarray, shape (B, L, C)
+    """
+    from imugen.sensors._band_kernel import motion_reads
+
+    B, L, C = y.shape
+    out = np.empty((B, L, C))
+    if B == 0 or L == 0:
+        return out
+    b, a, zi = _coefs(f)
+    Y = np.concatenate([y[:, :1], y], axis=1).astype(float)  # row 0: the first value
+    Di = round(f.ratio) if f.synchronous else 0
+    motion_reads(b, a, zi, Y, _phase(f, phase, B), float(f.ratio), Di, out)
+    return out
+
+
+def noise_length(f: OutputFilter, L: int) -> int:
+    """Internal-rate normals per axis that :func:`noise_windows` needs for ``L`` outputs:
+    the filter's warm-up (its impulse response's length) and the span of the reads."""
+    order = max(len(f.a), len(f.b)) - 1
+    warm = len(f.impulse()) if order else 0
+    if f.synchronous:
+        return warm + (L - 1) * round(f.ratio) + 1
+    return warm + math.floor((L - 1) * f.ratio) + 2
+
+
+def noise_windows(f: OutputFilter, z: np.ndarray, scale: np.ndarray, phase, L: int) -> np.ndarray:
+    """Filtered internal-rate white noise of many windows, from its steady state (a compiled
+    kernel over the windows: :func:`imugen.sensors._band_kernel.noise_reads`).
+
+    Parameters
+    ----------
+    f : OutputFilter
+    z : ndarray, shape (B, noise_length(f, L), 3)
+        Standard normals, one per internal sample and axis; the first ``len(h)`` warm the
+        filter up from rest (the reads are the steady state's: exactly for an FIR, up to
+        the truncated tail for an IIR), the reads start on the next.
+    scale : ndarray, shape (B, 3)
+        ``N sqrt(f_i)``: the internal samples' standard deviation.
+    phase : ndarray, shape (B,)
+        Read phase of each window (ignored for a synchronous read).
+    L : int
+        Outputs per window.
+
+    Returns
+    -------
+    ndarray, shape (B, L, 3)
+    """
+    from imugen.sensors._band_kernel import noise_reads
+
+    B = len(z)
+    out = np.empty((B, L, 3))
+    if B == 0 or L == 0:
+        return out
+    if z.shape[1] != noise_length(f, L):
+        raise ValueError(f"z has {z.shape[1]} internal samples, noise_length gives "
+                         f"{noise_length(f, L)}")  # fmt: skip
+    b, a, _ = _coefs(f)
+    order = max(len(a), len(b)) - 1
+    warm = len(f.impulse()) if order else 0
+    Di = round(f.ratio) if f.synchronous else 0
+    noise_reads(b, a, np.ascontiguousarray(z, dtype=float),
+                np.ascontiguousarray(scale, dtype=float), _phase(f, phase, B), float(f.ratio),
+                Di, warm, out)  # fmt: skip
+    return out

@@ -401,7 +401,7 @@ class Stream:
         tr = self._tr
         t_rate = np.concatenate([tr[0][rows], tr[1][rows]], axis=2)
         t_inc = np.concatenate([tr[2][rows], tr[3][rows]], axis=2)
-        res = output_stage(draws, seqs_of, [brng[q] for q in seqs_of], bands, t_rate, t_inc, dt,
+        res = output_stage(draws, seqs_of, brng, bands, t_rate, t_inc, dt,
                            k0 - ks, W, kout, want)  # fmt: skip
         for n, a in sub.items():
             a[...] = res[n]

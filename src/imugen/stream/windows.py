@@ -365,56 +365,80 @@ def without_output_stage(d: Draw, bands) -> Draw:
 
 
 def output_stage(draws, seqs, band_rngs, bands, truth_rate, truth_inc, dt, lead, W, outs, want):
-    """Bandwidth and quantization of window-mode rows, as :meth:`SensorModel.step` does them.
+    """Bandwidth and quantization of window-mode rows, as :meth:`SensorModel.step` does them,
+    vectorized over the windows (:func:`imugen.sensors.bandwidth.filter_windows`,
+    :func:`~imugen.sensors.bandwidth.noise_windows`: one filter call per block of windows).
 
     The kernel's rows ``(B, lead_max + W, 6)`` in ``outs`` (no white noise where a bandwidth
     generates it, no quantization) start ``lead[b]`` rows before each window: the output
     filter's motion state starts in steady state on the first of them (a warm-up of
     :func:`warmup_rows`), its internal-rate white noise in steady state after a warm-up of
     the impulse response's length (exact law), the asynchronous read phase is uniform, the
-    carry residual uniform on ``[-q/2, q/2)``, all from each sequence's ``window_band``
-    stream (``band_rngs``, one per window: the sequence's, consumed window after window, gyro
-    then accelerometer). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``, ``err_rate``,
-    ``err_inc``, ``bias``: the window's rows.
+    carry residual uniform on ``[-q/2, q/2)``. These draws come from each sequence's
+    ``window_band`` stream (``band_rngs``, one per sequence of ``draws``; its windows are
+    contiguous in ``seqs``), per sensor (gyro, then accelerometer) in blocks over the
+    sequence's windows: the read phases ``(n,)`` (asynchronous read), the internal-rate
+    normals ``(n, noise_length, 3)``, then the carry residuals ``(n, 3)`` of the rate and of
+    the increments (those served). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``,
+    ``err_rate``, ``err_inc``, ``bias``: the window's rows.
     """
-    from imugen.sensors.bandwidth import Stream as BandStream
+    from imugen.sensors.bandwidth import filter_windows, noise_length, noise_windows
 
+    seqs = np.asarray(seqs, np.int64)
     B = len(seqs)
+    nwin = np.bincount(seqs, minlength=len(draws))
+    first = np.concatenate([[0], np.cumsum(nwin)[:-1]])
     take = np.asarray(lead)[:, None] + np.arange(W)  # (B, W)
     bi = np.arange(B)[:, None]
     res = {n: np.empty((B, W, 6)) for n in ("rate", "inc", "err_rate", "err_inc", "bias")
            if want.get(n)}  # fmt: skip
     if "bias" in res:
         res["bias"][...] = outs["bias"][bi, take]
+    kinds = [k for k in ("rate", "inc") if k in outs]
+
+    def per_seq(fn):
+        """``fn(rng, n)`` of each sequence's stream, its windows' rows stacked."""
+        return np.concatenate([fn(band_rngs[s], int(nwin[s])) for s in range(len(draws))])
+
     for s, name in enumerate(("gyro", "accel")):
         c = slice(3 * s, 3 * s + 3)
-        p = SensorParams.stack([getattr(draws[q], name) for q in seqs])
+        p0 = getattr(draws[0], name)
         band = bands[s]
-        st = None
         if band is not None:
-            st = BandStream(band, p.white, band_rngs)
-            noise = st.noise(1, outs["rate" if "rate" in outs else "inc"].shape[1])
-        for kind, q, fs, truth in (
-            ("rate", p.lsb, p.full_scale, truth_rate),
-            ("inc", p.lsb * dt, p.full_scale * dt, truth_inc),
-        ):
-            if kind not in outs:
-                continue
-            y = np.ascontiguousarray(outs[kind][..., c])
+            phase = np.zeros(B)
+            if not band.synchronous:
+                phase = per_seq(lambda g, n: g.random(n))
+            nz = noise_length(band, W)
+            z = np.empty((B, nz, 3))
+            for q in range(len(draws)):
+                band_rngs[q].standard_normal(out=z[first[q] : first[q] + nwin[q]])
+            white = np.concatenate([getattr(d, name).white for d in draws])[seqs]
+            noise = noise_windows(band, z, white * math.sqrt(band.internal_rate_hz), phase, W)
+            del z
+            y2 = np.concatenate([outs[k][..., c] for k in kinds], axis=2)
+            if "inc" in kinds:
+                y2[..., -3:] /= dt
+            yf = filter_windows(band, y2, phase)[bi, take]
+        for i, kind in enumerate(kinds):
+            q = p0.lsb if kind == "rate" else p0.lsb * dt
+            fs = p0.full_scale if kind == "rate" else p0.full_scale * dt
+            truth = truth_rate if kind == "rate" else truth_inc
             if band is not None:
-                y = st.motion(kind, 1, y / dt if kind == "inc" else y)
-                if kind == "inc":
-                    y *= dt
+                y = yf[..., 3 * i : 3 * i + 3] * (1.0 if kind == "rate" else dt)
                 if f"err_{kind}" in res:
-                    res[f"err_{kind}"][..., c] = y[bi, take] - truth[..., c]
-                np.clip(y + (noise if kind == "rate" else noise * dt), -fs, fs, out=y)
-            elif f"err_{kind}" in res:
-                res[f"err_{kind}"][..., c] = outs[f"err_{kind}"][bi, take, c]
-            y = np.ascontiguousarray(y[bi, take])
+                    res[f"err_{kind}"][..., c] = y - truth[..., c]
+                if kind in res:
+                    y = np.clip(y + (noise if kind == "rate" else noise * dt), -fs, fs)
+            else:
+                if f"err_{kind}" in res:
+                    res[f"err_{kind}"][..., c] = outs[f"err_{kind}"][bi, take, c]
+                y = outs[kind][bi, take, c]
+            if kind not in res:  # served for its error only: no noise or quantization needed
+                continue
+            y = np.ascontiguousarray(y)
             r0 = np.zeros((B, 3))
-            if q > 0 and not p.q_round:  # carry from a uniform residual at the window start
-                r0 = np.stack([(g.random(3) - 0.5) * q for g in band_rngs])
-            quantize_series(y, q, p.q_round, r0)
-            if kind in res:
-                res[kind][..., c] = y
+            if q > 0 and not p0.q_round:  # carry from a uniform residual at the window start
+                r0 = (per_seq(lambda g, n: g.random((n, 3))) - 0.5) * q
+            quantize_series(y, q, p0.q_round, r0)
+            res[kind][..., c] = y
     return res
