@@ -157,7 +157,3 @@ def test_bad_input_is_refused(truth):
     s = stream(truth)
     with pytest.raises(InputError):
         s.generate(s.keys(ROUTE, "consumer", 0, 0, 0))
-    # vibration and mounting are streamed in exact mode only
-    s = stream(truth, vibration="car")
-    with pytest.raises(InputError, match="exact"):
-        s.generate(s.keys(ROUTE, "consumer", 0, 0, 5))

@@ -230,3 +230,28 @@ def test_gnss_target_needs_truth_files(truth):
     with pytest.raises(InputError, match="truth files"):
         Stream({ROUTE: truth}, "consumer", window=W, batch_size=4, windows_per_sequence=2,
                targets=["gnss"])  # fmt: skip
+
+
+MOUNT = {"misalignment_sd_deg": 1.0, "lever_arm_m": [0.3, 0.1, -0.2]}
+
+
+@pytest.mark.parametrize("grade", ["bw_ideal", "bw_butter", "round_only"])
+@pytest.mark.parametrize("inputs", ["increments", "rates"])
+def test_window_mode_with_vibration_and_mounting_is_the_sequences_motion(truth, grades_file,
+                                                                         grade, inputs):  # fmt: skip
+    """Mounting and vibration have no state: window mode applies the sequence's draws (the
+    shard's streams) to the window's rows, so with the deterministic terms only its measured
+    rows and effective error are exact mode's (up to the output filter's truncated tail)."""
+    terms = "turn_on_bias scale_factor cross_coupling g_sensitivity"
+    kw = {"terms": terms, "inputs": inputs, "targets": ["effective_error"]}
+    s = _window_stream(truth, grade, grades_file, vibration="car", mounting=MOUNT, **kw)
+    K = len(truth["time_s"])
+    keys = s.keys(ROUTE, grade, 5, [0, 0, 1, 1], [40, 97, 170, K - W])
+    win = s.generate(keys, exact=False)
+    ex = s.generate(keys, exact=True)
+    for name in ("x", "effective_error"):
+        scale = np.abs(ex[name]).max()
+        np.testing.assert_allclose(win[name], ex[name], rtol=0, atol=2e-6 * scale, err_msg=name)
+    # the motion is the mounted, vibrating case's: not the vehicle's
+    still = _window_stream(truth, grade, grades_file, **kw).generate(keys, exact=False)["x"]
+    assert np.abs(win["x"] - still).max() > 100 * 2e-6 * np.abs(still).max()

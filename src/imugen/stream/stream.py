@@ -21,6 +21,7 @@ from imugen.stream.windows import (
     Scratch,
     draw_params,
     exact_sequence,
+    moved_windows,
     output_stage,
     warmup_rows,
     window_band_rng,
@@ -80,8 +81,9 @@ class Stream:
         Number of the first batch (to resume a run).
     vibration, mounting
         As the simulate stage's options (case vibration: ``off``, ``car``, ``aircraft``,
-        ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Exact mode only (their
-        draws are the shard's, streams ``vibration`` and ``mounting``).
+        ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Both modes: their draws
+        are the shard's (streams ``vibration`` and ``mounting``), applied to the window's rows
+        in window mode (:func:`~imugen.stream.windows.moved_windows`).
     gnss : AidOptions or dict, optional
         Receiver and scenarios of the ``gnss`` target and the filter of the filter targets
         (:class:`imugen.aid.options.AidOptions` or its fields; default the aid stage's
@@ -307,8 +309,6 @@ class Stream:
                 draw_params(self.seed, self.route_ids[k["route"]], g, self.enabled[k["grade"]],
                             self.nominal, int(k["shard"]), int(k["j"]))
             )  # fmt: skip
-        if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
-            raise InputError("exact", "vibration and mounting are streamed in exact mode only")
         if not exact and self._filt:
             raise InputError("exact", f"the {self._filt[0]} target needs exact=True (the filter "
                              "runs over the whole sequence)")  # fmt: skip
@@ -329,12 +329,16 @@ class Stream:
                                 int(sk["j"][seq_start[s]]))
                     for s in seqs
                 ]  # fmt: skip
+                moves = self._window_moves(sk, seq_start, seq_of, sel)
                 if self._post(gi):
                     self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]], rngs,
-                                      [draws[s] for s in seqs], want, sub)  # fmt: skip
+                                      [draws[s] for s in seqs], want, sub, moves)  # fmt: skip
                 else:
                     rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
-                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
+                    tr = self._tr
+                    if moves is not None:
+                        tr, rows = moved_windows(tr, sk["k0"][sel], rows, W, moves)
+                    window_batch(tr, [draws[s] for s in seqs], remap[seq_of[sel]], rngs,
                                  sk["k0"][sel], W, rows, want, sub, self._scratch)  # fmt: skip
                 if not one:
                     for n in outs:
@@ -366,10 +370,41 @@ class Stream:
         out["keys"] = keys
         return out
 
-    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, rngs, draws, want, sub):
+    def _moving(self) -> bool:
+        """Mounting or vibration is on (for some route)."""
+        return self._mount_spec is not None or any(v is not None for v in self._vib)
+
+    def _moves(self, r, key) -> tuple:
+        """A sequence's ``(Mounting, (angles, lever), SequenceVibration)`` (None where off):
+        the shard path's draws, streams ``mounting`` and ``vibration``."""
+        vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
+        mount = None
+        if self._mount_spec is not None:
+            mount = self._mount_spec.draw(sensor_rng(*key, "mounting"))
+        return self._mounting[r], mount, vib
+
+    def _window_moves(self, sk, seq_start, seq_of, sel):
+        """:meth:`_moves` of each window of ``sel`` (None without mounting and vibration)."""
+        if not self._moving():
+            return None
+        per_seq = {}
+        out = []
+        for i in sel:
+            s = int(seq_of[i])
+            if s not in per_seq:
+                k = sk[seq_start[s]]
+                r = int(k["route"])
+                key = (self.seed, self.route_ids[r], self.grades[k["grade"]].id, int(k["shard"]),
+                       int(k["j"]))  # fmt: skip
+                per_seq[s] = self._moves(r, key)
+            out.append(per_seq[s])
+        return out
+
+    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, rngs, draws, want, sub,
+                     moves=None):  # fmt: skip
         """Window mode of a grade with an output bandwidth or rounding quantization: the
         kernel from :func:`~imugen.stream.windows.warmup_rows` rows before each window, then
-        :func:`~imugen.stream.windows.output_stage`."""
+        :func:`~imugen.stream.windows.output_stage` (``moves``: :meth:`_window_moves`)."""
         W, dt, bands = self.window, self.dt, self.bands[gi]
         Wu = warmup_rows(bands, dt)
         k0 = sk["k0"][sel]
@@ -389,16 +424,17 @@ class Stream:
         }
         kout = {n: np.empty((len(sel), Wt, 6)) for n, v in kw.items() if v}
         kdraws = [without_output_stage(d, bands) for d in draws]
-        window_batch(self._tr, kdraws, seqs_of, rngs, ks, Wt, self._row0[route] + ks, kw, kout,
-                     self._scratch)  # fmt: skip
+        tr, rows = self._tr, self._row0[route] + ks
+        if moves is not None:
+            tr, rows = moved_windows(tr, ks, rows, Wt, moves)
+        window_batch(tr, kdraws, seqs_of, rngs, ks, Wt, rows, kw, kout, self._scratch)
         brng = [
             window_band_rng(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                             self.grades[gi].id, int(sk["shard"][seq_start[s]]),
                             int(sk["j"][seq_start[s]]))
             for s in seqs
         ]  # fmt: skip
-        rows = (self._row0[route] + k0)[:, None] + np.arange(W)
-        tr = self._tr
+        rows = (rows + k0 - ks)[:, None] + np.arange(W)
         t_rate = np.concatenate([tr[0][rows], tr[1][rows]], axis=2)
         t_inc = np.concatenate([tr[2][rows], tr[3][rows]], axis=2)
         res = output_stage(draws, seqs_of, brng, bands, t_rate, t_inc, dt,
@@ -560,13 +596,10 @@ class Stream:
             r, gi = int(k["route"]), int(k["grade"])
             kmax = self.truths[r].K if self._filt else int(sk["k0"][a:b].max()) + W
             key = (self.seed, self.route_ids[r], self.grades[gi].id, int(k["shard"]), int(k["j"]))
-            vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
-            mount = None
-            if self._mount_spec is not None:
-                mount = self._mount_spec.draw(sensor_rng(*key, "mounting"))
+            mounting, mount, vib = self._moves(r, key)
             data = exact_sequence(
                 self.truths[r], draws[s], *key, kmax, self.temp, groups, bands=self.bands[gi],
-                vib=vib, mounting=self._mounting[r], mount=mount,
+                vib=vib, mounting=mounting, mount=mount,
             )  # fmt: skip
             for i in range(a, b):
                 k0 = int(sk["k0"][i])

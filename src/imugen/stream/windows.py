@@ -36,8 +36,9 @@ tail), the internal-rate white noise after a warm-up of the impulse response's l
 from a uniform residual), these draws from the sequence's stream ``window_band``.
 
 Vibration and mounting (the shard options ``vibration``, ``mounting``) are applied to the truth
-chunks in exact mode as the shard loop applies them (streams ``vibration``, ``mounting``); window
-mode has neither. Raw increments (``increments="raw"``) are not streamed: a stream is the
+chunks in exact mode as the shard loop applies them (streams ``vibration``, ``mounting``). They
+have no state (a sequence's draw gives every sample in closed form), so window mode applies the
+same draws to each window's rows (:func:`moved_windows`): the same motion sample for sample. Raw increments (``increments="raw"``) are not streamed: a stream is the
 sensor on the truth's compensated increments and rates.
 """
 
@@ -442,3 +443,53 @@ def output_stage(draws, seqs, band_rngs, bands, truth_rate, truth_inc, dt, lead,
             quantize_series(y, q, p0.q_round, r0)
             res[kind][..., c] = y
     return res
+
+
+# --- window mode with mounting and vibration ----------------------------------------------------
+def moved_windows(tr, starts, rows, L, moves):
+    """Each window's truth rows as the mounted, vibrating case senses them.
+
+    Mounting and vibration have no state: a sequence's draw (streams ``mounting`` and
+    ``vibration``, the shard path's) and the truth give every sample in closed form
+    (:meth:`imugen.sensors.mounting.Mounting.apply`, the rate's derivative from the truth's
+    neighbouring rows; :meth:`imugen.sensors.vibration.SequenceVibration.apply`, the phases at
+    the sample's time), so a window's rows are the whole sequence's rows, applied as the shard
+    loop applies them (mounting, then vibration).
+
+    Parameters
+    ----------
+    tr : tuple (w, f, dth, dv, dT, dt)
+        Concatenated truths (:func:`window_batch`).
+    starts : (B,) int
+        Sample of each window's first row (``>= 1``) in its route.
+    rows : (B,) int
+        Row of ``starts`` in the concatenated truth.
+    L : int
+        Rows per window.
+    moves : list of (Mounting or None, (angles, lever) or None, SequenceVibration or None)
+        One per window.
+
+    Returns
+    -------
+    tr_w : tuple
+        The windows' rows, ``L + 1`` per window (a leading row for the temperature at the
+        sample before), in :func:`window_batch`'s form.
+    rows_w : (B,) int
+        Row of each window's first sample in ``tr_w``.
+    """
+    w, f, dth, dv, dT, dt = tr
+    B, n = len(starts), L + 1
+    out = [np.zeros((B * n, 3)) for _ in range(4)]
+    for b in range(B):
+        k, g = int(starts[b]), int(rows[b])
+        a = tuple(x[g : g + L] for x in (w, f, dth, dv))
+        mounting, mount, vib = moves[b]
+        if mounting is not None:
+            a = mounting.apply(k, mounting.shared(k, L, False), *mount, a[2], a[3], False)
+        if vib is not None:
+            a = vib.apply(k, *a, raw=False)
+        for o, x in zip(out, a, strict=True):
+            o[b * n + 1 : (b + 1) * n] = x
+    rows = np.asarray(rows, np.int64)
+    dTw = dT[(rows[:, None] - 1 + np.arange(n)).ravel()] if len(dT) else dT
+    return (*out, dTw, dt), np.arange(B, dtype=np.int64) * n + 1
