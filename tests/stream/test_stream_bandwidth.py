@@ -162,9 +162,11 @@ def test_window_mode_rounding_quantizes_each_sample(truth, grades_file):
         np.testing.assert_allclose(k, np.round(k), atol=1e-3)
 
 
-def test_gnss_target_is_the_aid_stages_table(tmp_path):
+@pytest.mark.parametrize("mounted", [False, True])
+def test_gnss_target_is_the_aid_stages_table(tmp_path, mounted):
     """The gnss target of written keys: the aid stage's GNSS table (fixes, sigmas, scenario
-    states, receiver labels) on the window's rows, with drawn outages and a spoofing ramp."""
+    states, receiver labels) on the window's rows, with drawn outages and a spoofing ramp;
+    with mounting, the antenna's lever arm from the mounted IMU (the shard's draws)."""
     from imugen.aid import stage as aid
     from imugen.aid.options import AidOptions
     from imugen.core.io import write_parquet
@@ -177,12 +179,14 @@ def test_gnss_target_is_the_aid_stages_table(tmp_path):
     tdf, tmeta = build_truth(df, meta, rate_hz=50.0, earth="flat", verbose=False)
     truth = write_parquet(tdf, tmeta, tmp_path / "drive" / "truth.parquet")
     shard = tmp_path / "drive" / "imu" / "consumer" / "shard-001.parquet"
-    simulate_shard(truth, shard, "consumer", sequences=3, seed=SEED, shard=1)
-    opts = {"draw_kinds": ("outage", "spoof_ramp"), "settle_s": 20.0, "lever_arm_sd_m": 0.1}
+    mount = {"misalignment_sd_deg": 3.0, "lever_arm_m": [0.5, -0.3, 0.8]} if mounted else None
+    simulate_shard(truth, shard, "consumer", sequences=3, seed=SEED, shard=1, mounting=mount)
+    opts = {"draw_kinds": ("outage", "spoof_ramp"), "settle_s": 20.0, "lever_arm_sd_m": 0.1,
+            "lever_arm_b_m": (0.2, 0.0, 1.2)}  # fmt: skip
     g = tmp_path / "g.parquet"
     aid.run(truth, shard, g, tmp_path / "a.parquet", AidOptions(**opts))
     s = Stream([str(truth)], "consumer", window=400, batch_size=2, windows_per_sequence=1,
-               seed=SEED, targets=["gnss"], gnss=opts, shard_size=3)  # fmt: skip
+               seed=SEED, targets=["gnss"], gnss=opts, shard_size=3, mounting=mount)  # fmt: skip
     route = s.route_names[0]
     k0 = np.array([1, 4000, 7500])
     b = s.generate(s.keys(route, "consumer", 1, [0, 2, 1], k0))
@@ -205,6 +209,12 @@ def test_gnss_target_is_the_aid_stages_table(tmp_path):
         want = lab[lab["sequence"] == ids[j]][s.gnss_label_names].to_numpy()[0]
         np.testing.assert_array_equal(b["gnss_labels"][i], want.astype(np.float32))
     assert (tab["state"] != 0).any()  # the scenarios act on the table
+    if mounted:  # the mounting moves the antenna: not the unmounted IMU's fixes
+        plain = Stream([str(truth)], "consumer", window=400, batch_size=2,
+                       windows_per_sequence=1, seed=SEED, targets=["gnss"], gnss=opts,
+                       shard_size=3).generate(b["keys"])  # fmt: skip
+        d = np.nanmax(np.abs(plain["gnss_p_n"] - b["gnss_p_n"]))
+        assert d > 1e-3
 
 
 @pytest.mark.parametrize("grade", ["adis16405", "phone", "phone_calibrated"])

@@ -313,8 +313,9 @@ class Stream:
             raise InputError("exact", f"the {self._filt[0]} target needs exact=True (the filter "
                              "runs over the whole sequence)")  # fmt: skip
         filt = {}
+        scens = {}  # each sequence's GNSS drawn once per call (gnss and filter targets)
         if exact:
-            self._exact(sk, seq_start, draws, want, outs, filt)
+            self._exact(sk, seq_start, draws, want, outs, filt, scens)
         else:
             for gi in np.unique(sk["grade"]):
                 seqs = np.flatnonzero(sk["grade"][seq_start] == gi)
@@ -364,7 +365,7 @@ class Stream:
                 out[t] = self._filter_aware(sk, seq_of, outs, filt)[inv]
             elif t == "gnss":
                 g = {}
-                self._gnss(sk, seq_start, seq_of, g)
+                self._gnss(sk, seq_start, seq_of, g, scens)
                 for n, a in g.items():
                     out[n] = a[inv] if a.dtype == np.int8 else a[inv].astype(dt)
         out["keys"] = keys
@@ -378,10 +379,29 @@ class Stream:
         """A sequence's ``(Mounting, (angles, lever), SequenceVibration)`` (None where off):
         the shard path's draws, streams ``mounting`` and ``vibration``."""
         vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
-        mount = None
-        if self._mount_spec is not None:
-            mount = self._mount_spec.draw(sensor_rng(*key, "mounting"))
-        return self._mounting[r], mount, vib
+        return self._mounting[r], self._mount_draw(key), vib
+
+    def _mount_draw(self, key):
+        """A sequence's ``(angles, lever)`` (stream ``mounting``), None without mounting."""
+        if self._mount_spec is None:
+            return None
+        return self._mount_spec.draw(sensor_rng(*key, "mounting"))
+
+    def _scen(self, k, cache: dict):
+        """The GNSS scenario result of the sequence of key ``k``
+        (:func:`imugen.stream.gnss.sequence_gnss`, on the mounted IMU's truth with mounting),
+        drawn once per ``cache``."""
+        from imugen.stream import gnss as SG
+
+        r, gi, shard, j = (int(k[f]) for f in ("route", "grade", "shard", "j"))
+        if (r, gi, shard, j) not in cache:
+            size = self.shard_size or self.batch_size // self.per_seq
+            key = (self.seed, self.route_ids[r], self.grades[gi].id, shard, j)
+            cache[r, gi, shard, j] = SG.sequence_gnss(
+                self._full[r], self.gnss, self.seed, self.route_ids[r], shard * size + j,
+                self._mount_draw(key),
+            )  # fmt: skip
+        return cache[r, gi, shard, j]
 
     def _window_moves(self, sk, seq_start, seq_of, sel):
         """:meth:`_moves` of each window of ``sel`` (None without mounting and vibration)."""
@@ -457,26 +477,19 @@ class Stream:
         if isinstance(gnss, dict):
             gnss = AidOptions(**gnss)
         self.gnss = gnss if gnss is not None else AidOptions()
-        if self._mount_spec is not None:
-            raise InputError("gnss", "the gnss and filter targets are not streamed with mounting")
         if self._filt and (self.gnss.odometer or self.gnss.barometer):
             raise InputError("gnss", "the filter targets are not streamed with companions")
         if any(src is None for src in sources):
             raise InputError("routes", "the gnss target needs routes given as truth files")
         self._full = [ttruth.read(src) for src in sources]
 
-    def _gnss(self, sk, seq_start, seq_of, out):
-        """The ``gnss`` target's entries (sorted-key order) into ``out``."""
+    def _gnss(self, sk, seq_start, seq_of, out, scens):
+        """The ``gnss`` target's entries (sorted-key order) into ``out`` (``scens``: the
+        sequences' GNSS drawn in this call, :meth:`_scen`)."""
         from imugen.stream import gnss as SG
 
         W, B = self.window, len(sk)
-        size = self.shard_size or self.batch_size // self.per_seq
-        scen = []
-        for a in seq_start:
-            k = sk[a]
-            r = int(k["route"])
-            scen.append(SG.sequence_gnss(self._full[r], self.gnss, self.seed, self.route_ids[r],
-                                         int(k["shard"]) * size + int(k["j"])))  # fmt: skip
+        scen = [self._scen(sk[a], scens) for a in seq_start]
         L = len(SG.label_names(scen[0]))
         res = {n: np.empty((B, W, 3)) for n in SG.KEYS[:4]}
         res["gnss_state"] = np.empty((B, W), np.int8)
@@ -517,7 +530,7 @@ class Stream:
             for n in ("filter", "filter_sd")
         }
 
-    def _filter(self, r, gi, k, data) -> dict:
+    def _filter(self, r, gi, k, data, scens) -> dict:
         """The aided filter over one whole sequence (``data``: its rows from turn-on), as the aid
         stage runs it on the written shard (:func:`imugen.aid.stage.filter_block`, the stage's
         tuning and options, the ``gnss`` target's fixes): the filter-estimates table's columns
@@ -525,16 +538,16 @@ class Stream:
         The increments are the shard's float32 values."""
         from imugen.aid import filter as A
         from imugen.aid import stage as AID
-        from imugen.stream import gnss as SG
         from imugen.tables import filter_estimates as testim
 
         truth, p = self._full[r], self.gnss
         size = self.shard_size or self.batch_size // self.per_seq
         index = int(k["shard"]) * size + int(k["j"])
-        scen = SG.sequence_gnss(truth, p, self.seed, self.route_ids[r], index)
+        scen = self._scen(k, scens)
         sid = (self.route_ids[r] << 31) | index if index < (1 << 31) else -1
         tun = A.Tuning.from_grade(self.grades[gi], p.tuning_level)
-        opts = AID.filter_options(p, truth.meta.get("vehicle"), None,
+        mmeta = None if self._mount_spec is None else self._mount_spec.as_dict()
+        opts = AID.filter_options(p, truth.meta.get("vehicle"), mmeta,
                                   truth.meta.get("plausibility"))  # fmt: skip
         dth, dvb = (data[n].astype(np.float32).astype(np.float64)[None] for n in ("dtheta", "dv"))
         ids = np.array([sid], np.int64)
@@ -580,7 +593,7 @@ class Stream:
                                         h[..., C + 1] != 0, filt["dt"][:, None, None])  # fmt: skip
         return out.astype(self.dtype)
 
-    def _exact(self, sk, seq_start, draws, want, outs, filt):
+    def _exact(self, sk, seq_start, draws, want, outs, filt, scens):
         names = {
             "rate": ("gyro", "accel"), "inc": ("dtheta", "dv"), "bias": ("gyro_bias", "accel_bias"),
             "err_rate": ("err_gyro", "err_accel"), "err_inc": ("err_dtheta", "err_dv"),
@@ -609,7 +622,7 @@ class Stream:
                     outs[n][i, :, 3:] = data[g1][k0 : k0 + W]
             if self._filt:
                 t = self._full[r].time_s  # the loader's interval (its clock's)
-                ests.append((self._filter(r, gi, k, data), (t[-1] - t[0]) / max(len(t) - 1, 1)))
+                ests.append((self._filter(r, gi, k, data, scens), (t[-1] - t[0]) / max(len(t) - 1, 1)))
         if self._filt:
             seq_of = np.repeat(np.arange(len(seq_start)), np.diff([*seq_start, len(sk)]))
             self._filter_index(ests, seq_of, sk["k0"], filt)
