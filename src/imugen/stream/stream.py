@@ -622,7 +622,8 @@ class Stream:
                     outs[n][i, :, 3:] = data[g1][k0 : k0 + W]
             if self._filt:
                 t = self._full[r].time_s  # the loader's interval (its clock's)
-                ests.append((self._filter(r, gi, k, data, scens), (t[-1] - t[0]) / max(len(t) - 1, 1)))
+                dt = (t[-1] - t[0]) / max(len(t) - 1, 1)
+                ests.append((self._filter(r, gi, k, data, scens), dt))
         if self._filt:
             seq_of = np.repeat(np.arange(len(seq_start)), np.diff([*seq_start, len(sk)]))
             self._filter_index(ests, seq_of, sk["k0"], filt)
