@@ -33,7 +33,9 @@ and quantization, then the output filter on the motion (started in steady state 
 warm-up row, so the window's rows carry the filter's true history up to an IIR's truncated
 tail), the internal-rate white noise after a warm-up of the impulse response's length
 (steady state: its exact law), saturation, and quantization (rounded per sample, or carried
-from a uniform residual), these draws from the sequence's stream ``window_band``.
+from a uniform residual), these draws from the sequence's stream ``window_band`` in blocks over
+its windows; the filters run over all the windows in one compiled call per sensor
+(:func:`imugen.sensors.bandwidth.filter_windows`, :func:`~imugen.sensors.bandwidth.noise_windows`).
 
 Vibration and mounting (the shard options ``vibration``, ``mounting``) are applied to the truth
 chunks in exact mode as the shard loop applies them (streams ``vibration``, ``mounting``). They
