@@ -302,19 +302,26 @@ def test_filter_windows_is_the_streams_motion_filter(name):
 
 
 @pytest.mark.parametrize("name", list(WINDOW_FILTERS))
-def test_noise_windows_is_the_streams_noise_on_the_same_normals(name):
-    """noise_windows on the normals Stream.noise draws (warm-up, then the reads' span)."""
+def test_noise_windows_has_the_filtered_noises_law(name):
+    """noise_windows (the reads' exact Gaussian law, one normal per read) against the closed
+    forms: per read phase, the covariance N^2 f_i c(j_k - j_l) of the reads (the sample
+    covariance of 6,000 windows x 3 axes); over uniform phases, OutputFilter.output_autocov."""
     f = WINDOW_FILTERS[name]()
-    B, L = 4, 30
-    dens = np.array([[1.0, 2.0, 0.5]])
-    z = np.empty((B, bw.noise_length(f, L), 3))
-    ph = np.zeros(B)
-    want = []
-    for b in range(B):
-        st = bw.Stream(f, dens, [np.random.default_rng(b)])
-        want.append(st.noise(1, L)[0])
-        g = np.random.default_rng(b)
-        ph[b] = 0.0 if f.synchronous else g.random()
-        z[b] = g.standard_normal(z.shape[1:])
-    got = bw.noise_windows(f, z, np.repeat(dens, B, 0) * np.sqrt(f.internal_rate_hz), ph, L)
-    np.testing.assert_allclose(got, np.stack(want), rtol=1e-12, atol=1e-12)
+    rng = np.random.default_rng(7)
+    B, L, N = 6000, 12, 0.3
+    scale = np.full((B, 3), N * np.sqrt(f.internal_rate_hz))
+    c = np.concatenate([f.internal_autocorr(), np.zeros(L * 200)])
+    for ph in (0.0, 0.73):  # one phase for every window: the covariance given the phase
+        y = bw.noise_windows(f, rng.standard_normal((B, L, 3)), scale, np.full(B, ph))
+        x = y.transpose(0, 2, 1).reshape(-1, L)
+        j = np.floor(np.arange(1, L + 1) * f.ratio + (0.0 if f.synchronous else ph))
+        j = j.astype(int)
+        want = N**2 * f.internal_rate_hz * c[np.abs(j[:, None] - j[None, :])]
+        got = x.T @ x / len(x)
+        tol = 4 * want[0, 0] * np.sqrt(2 / len(x))  # ~4 sigma of a sample covariance
+        np.testing.assert_allclose(got, want, rtol=0, atol=tol)
+    y = bw.noise_windows(f, rng.standard_normal((B, L, 3)), scale, rng.random(B))
+    r = f.output_autocov(N, 3)
+    for lag in range(3):
+        got = np.mean(y[:, lag:] * y[:, : L - lag])
+        assert got == pytest.approx(r[lag], abs=4 * r[0] * np.sqrt(2 / (B * 3 * (L - lag))))

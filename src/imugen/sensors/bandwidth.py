@@ -752,52 +752,39 @@ def filter_windows(f: OutputFilter, y: np.ndarray, phase) -> np.ndarray:
     return out
 
 
-def noise_length(f: OutputFilter, L: int) -> int:
-    """Internal-rate normals per axis that :func:`noise_windows` needs for ``L`` outputs:
-    the filter's warm-up (its impulse response's length) and the span of the reads."""
-    order = max(len(f.a), len(f.b)) - 1
-    warm = len(f.impulse()) if order else 0
-    if f.synchronous:
-        return warm + (L - 1) * round(f.ratio) + 1
-    return warm + math.floor((L - 1) * f.ratio) + 2
+def noise_windows(f: OutputFilter, z: np.ndarray, scale: np.ndarray, phase) -> np.ndarray:
+    """Filtered internal-rate white noise of many windows, read at the output rate, drawn from
+    its exact law (a compiled kernel over the windows:
+    :func:`imugen.sensors._band_kernel.noise_law`).
 
-
-def noise_windows(f: OutputFilter, z: np.ndarray, scale: np.ndarray, phase, L: int) -> np.ndarray:
-    """Filtered internal-rate white noise of many windows, from its steady state (a compiled
-    kernel over the windows: :func:`imugen.sensors._band_kernel.noise_reads`).
+    The reads ``j_k`` (``k D``, or ``floor(k D + phase)``) of stationary filtered white noise
+    are jointly Gaussian with covariance ``N^2 f_i c(|j_k - j_l|)`` (``c``:
+    :meth:`OutputFilter.internal_autocorr`; an IIR's from its impulse response truncated at
+    1e-13 of its energy): one normal per output sample and axis instead of ``D`` at the
+    internal rate, whatever the filter.
 
     Parameters
     ----------
     f : OutputFilter
-    z : ndarray, shape (B, noise_length(f, L), 3)
-        Standard normals, one per internal sample and axis; the first ``len(h)`` warm the
-        filter up from rest (the reads are the steady state's: exactly for an FIR, up to
-        the truncated tail for an IIR), the reads start on the next.
+    z : ndarray, shape (B, L, 3)
+        Standard normals, one per output sample and axis.
     scale : ndarray, shape (B, 3)
         ``N sqrt(f_i)``: the internal samples' standard deviation.
     phase : ndarray, shape (B,)
         Read phase of each window (ignored for a synchronous read).
-    L : int
-        Outputs per window.
 
     Returns
     -------
     ndarray, shape (B, L, 3)
     """
-    from imugen.sensors._band_kernel import noise_reads
+    from imugen.sensors._band_kernel import noise_law
 
-    B = len(z)
+    B, L = z.shape[0], z.shape[1]
     out = np.empty((B, L, 3))
     if B == 0 or L == 0:
         return out
-    if z.shape[1] != noise_length(f, L):
-        raise ValueError(f"z has {z.shape[1]} internal samples, noise_length gives "
-                         f"{noise_length(f, L)}")  # fmt: skip
-    b, a, _ = _coefs(f)
-    order = max(len(a), len(b)) - 1
-    warm = len(f.impulse()) if order else 0
     Di = round(f.ratio) if f.synchronous else 0
-    noise_reads(b, a, np.ascontiguousarray(z, dtype=float),
-                np.ascontiguousarray(scale, dtype=float), _phase(f, phase, B), float(f.ratio),
-                Di, warm, out)  # fmt: skip
+    c = np.ascontiguousarray(f.internal_autocorr(), dtype=float)
+    noise_law(c, np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(scale, dtype=float),
+              _phase(f, phase, B), float(f.ratio), Di, out)  # fmt: skip
     return out

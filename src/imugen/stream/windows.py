@@ -31,8 +31,8 @@ filter streams, stream ``*_band``). Window mode (:func:`output_stage`) runs the 
 plus two; from row 1 when the window starts closer to the route's start) without white noise
 and quantization, then the output filter on the motion (started in steady state on the first
 warm-up row, so the window's rows carry the filter's true history up to an IIR's truncated
-tail), the internal-rate white noise after a warm-up of the impulse response's length
-(steady state: its exact law), saturation, and quantization (rounded per sample, or carried
+tail), the filtered internal-rate white noise at the window's reads from its exact
+stationary law (jointly Gaussian, covariance ``N^2 f_i c(j_k - j_l)``), saturation, and quantization (rounded per sample, or carried
 from a uniform residual), these draws from the sequence's stream ``window_band`` in blocks over
 its windows; the filters run over all the windows in one compiled call per sensor
 (:func:`imugen.sensors.bandwidth.filter_windows`, :func:`~imugen.sensors.bandwidth.noise_windows`).
@@ -375,17 +375,17 @@ def output_stage(draws, seqs, band_rngs, bands, truth_rate, truth_inc, dt, lead,
     The kernel's rows ``(B, lead_max + W, 6)`` in ``outs`` (no white noise where a bandwidth
     generates it, no quantization) start ``lead[b]`` rows before each window: the output
     filter's motion state starts in steady state on the first of them (a warm-up of
-    :func:`warmup_rows`), its internal-rate white noise in steady state after a warm-up of
-    the impulse response's length (exact law), the asynchronous read phase is uniform, the
-    carry residual uniform on ``[-q/2, q/2)``. These draws come from each sequence's
-    ``window_band`` stream (``band_rngs``, one per sequence of ``draws``; its windows are
-    contiguous in ``seqs``), per sensor (gyro, then accelerometer) in blocks over the
-    sequence's windows: the read phases ``(n,)`` (asynchronous read), the internal-rate
-    normals ``(n, noise_length, 3)``, then the carry residuals ``(n, 3)`` of the rate and of
-    the increments (those served). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``,
+    :func:`warmup_rows`), the filtered internal-rate white noise is drawn at the window's
+    reads from its exact (stationary) law (:func:`~imugen.sensors.bandwidth.noise_windows`),
+    the asynchronous read phase is uniform, the carry residual uniform on ``[-q/2, q/2)``.
+    These draws come from each sequence's ``window_band`` stream (``band_rngs``, one per
+    sequence of ``draws``; its windows are contiguous in ``seqs``), per sensor (gyro, then
+    accelerometer) in blocks over the sequence's windows: the read phases ``(n,)``
+    (asynchronous read), the noise's normals ``(n, W, 3)``, then the carry residuals
+    ``(n, 3)`` of the rate and of the increments (those served). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``,
     ``err_rate``, ``err_inc``, ``bias``: the window's rows.
     """
-    from imugen.sensors.bandwidth import filter_windows, noise_length, noise_windows
+    from imugen.sensors.bandwidth import filter_windows, noise_windows
 
     seqs = np.asarray(seqs, np.int64)
     B = len(seqs)
@@ -411,12 +411,11 @@ def output_stage(draws, seqs, band_rngs, bands, truth_rate, truth_inc, dt, lead,
             phase = np.zeros(B)
             if not band.synchronous:
                 phase = per_seq(lambda g, n: g.random(n))
-            nz = noise_length(band, W)
-            z = np.empty((B, nz, 3))
+            z = np.empty((B, W, 3))
             for q in range(len(draws)):
                 band_rngs[q].standard_normal(out=z[first[q] : first[q] + nwin[q]])
             white = np.concatenate([getattr(d, name).white for d in draws])[seqs]
-            noise = noise_windows(band, z, white * math.sqrt(band.internal_rate_hz), phase, W)
+            noise = noise_windows(band, z, white * math.sqrt(band.internal_rate_hz), phase)
             del z
             y2 = np.concatenate([outs[k][..., c] for k in kinds], axis=2)
             if "inc" in kinds:
