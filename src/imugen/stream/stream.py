@@ -87,7 +87,8 @@ class Stream:
     gnss : AidOptions or dict, optional
         Receiver and scenarios of the ``gnss`` target and the filter of the filter targets
         (:class:`imugen.aid.options.AidOptions` or its fields; default the aid stage's
-        defaults): the aid stage's draws for the same sequence (:mod:`imugen.stream.gnss`).
+        defaults): the aid stage's draws for the same sequence (:mod:`imugen.stream.gnss`;
+        with ``mounting``, on the mounted IMU's truth), drawn once per sequence and call.
         Needs routes given as truth files.
     shard_size : int, optional
         Sequences per written shard, for the ``gnss`` target of written keys (a sequence's
