@@ -271,3 +271,57 @@ def test_datasheet_import_and_kalibr_export_carry_the_bandwidth(tmp_path):
     k = grade_io.kalibr_figures(g, 200.0)["gyroscope_noise_density"]
     assert k == pytest.approx(N * math.sqrt(f.alias_gain()))
     assert k != pytest.approx(N, rel=1e-3)
+
+
+# --- many windows at once (the stream's window mode) ----------------------------------------
+WINDOW_FILTERS = {
+    "ideal": lambda: bw.ideal(100.0),
+    "ma_async": lambda: bw.moving_average(10, 819.2, 100.0),
+    "bartlett_sync": lambda: bw.bartlett(4, 400.0, 100.0),
+    "butter_sync": lambda: bw.butterworth(2, 30.0, 1000.0, 100.0),
+    "butter_async": lambda: bw.butterworth(2, 52.0, 832.0, 104.0 * 0.97),
+}
+
+
+@pytest.mark.parametrize("name", list(WINDOW_FILTERS))
+def test_filter_windows_is_the_streams_motion_filter(name):
+    """filter_windows (one compiled call over many windows) gives what Stream.motion gives
+    each window run on its own from its first sample, with the same read phase."""
+    f = WINDOW_FILTERS[name]()
+    rng = np.random.default_rng(3)
+    B, L = 5, 40
+    y = np.cumsum(rng.standard_normal((B, L, 6)), axis=1)
+    ph = rng.random(B)
+    got = bw.filter_windows(f, y, ph)
+    for b in range(B):
+        st = bw.Stream(f, np.ones((1, 3)), [np.random.default_rng(0)])
+        st.phase[:] = 0.0 if f.synchronous else ph[b]
+        want = np.concatenate([st.motion("a", 1, y[b : b + 1, :, :3])[0],
+                               st.motion("b", 1, y[b : b + 1, :, 3:])[0]], axis=1)  # fmt: skip
+        np.testing.assert_allclose(got[b], want, rtol=0, atol=1e-12 * np.abs(y).max())
+
+
+@pytest.mark.parametrize("name", list(WINDOW_FILTERS))
+def test_noise_windows_has_the_filtered_noises_law(name):
+    """noise_windows (the reads' exact Gaussian law, one normal per read) against the closed
+    forms: per read phase, the covariance N^2 f_i c(j_k - j_l) of the reads (the sample
+    covariance of 6,000 windows x 3 axes); over uniform phases, OutputFilter.output_autocov."""
+    f = WINDOW_FILTERS[name]()
+    rng = np.random.default_rng(7)
+    B, L, N = 6000, 12, 0.3
+    scale = np.full((B, 3), N * np.sqrt(f.internal_rate_hz))
+    c = np.concatenate([f.internal_autocorr(), np.zeros(L * 200)])
+    for ph in (0.0, 0.73):  # one phase for every window: the covariance given the phase
+        y = bw.noise_windows(f, rng.standard_normal((B, L, 3)), scale, np.full(B, ph))
+        x = y.transpose(0, 2, 1).reshape(-1, L)
+        j = np.floor(np.arange(1, L + 1) * f.ratio + (0.0 if f.synchronous else ph))
+        j = j.astype(int)
+        want = N**2 * f.internal_rate_hz * c[np.abs(j[:, None] - j[None, :])]
+        got = x.T @ x / len(x)
+        tol = 4 * want[0, 0] * np.sqrt(2 / len(x))  # ~4 sigma of a sample covariance
+        np.testing.assert_allclose(got, want, rtol=0, atol=tol)
+    y = bw.noise_windows(f, rng.standard_normal((B, L, 3)), scale, rng.random(B))
+    r = f.output_autocov(N, 3)
+    for lag in range(3):
+        got = np.mean(y[:, lag:] * y[:, : L - lag])
+        assert got == pytest.approx(r[lag], abs=4 * r[0] * np.sqrt(2 / (B * 3 * (L - lag))))

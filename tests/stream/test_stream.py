@@ -157,10 +157,6 @@ def test_bad_input_is_refused(truth):
     s = stream(truth)
     with pytest.raises(InputError):
         s.generate(s.keys(ROUTE, "consumer", 0, 0, 0))
-    # vibration and mounting are streamed in exact mode only
-    s = stream(truth, vibration="car")
-    with pytest.raises(InputError, match="exact"):
-        s.generate(s.keys(ROUTE, "consumer", 0, 0, 5))
 
 
 def test_window_mode_normals_are_the_keys_sfc64_stream(truth):

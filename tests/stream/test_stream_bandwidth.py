@@ -162,9 +162,11 @@ def test_window_mode_rounding_quantizes_each_sample(truth, grades_file):
         np.testing.assert_allclose(k, np.round(k), atol=1e-3)
 
 
-def test_gnss_target_is_the_aid_stages_table(tmp_path):
+@pytest.mark.parametrize("mounted", [False, True])
+def test_gnss_target_is_the_aid_stages_table(tmp_path, mounted):
     """The gnss target of written keys: the aid stage's GNSS table (fixes, sigmas, scenario
-    states, receiver labels) on the window's rows, with drawn outages and a spoofing ramp."""
+    states, receiver labels) on the window's rows, with drawn outages and a spoofing ramp;
+    with mounting, the antenna's lever arm from the mounted IMU (the shard's draws)."""
     from imugen.aid import stage as aid
     from imugen.aid.options import AidOptions
     from imugen.core.io import write_parquet
@@ -177,12 +179,14 @@ def test_gnss_target_is_the_aid_stages_table(tmp_path):
     tdf, tmeta = build_truth(df, meta, rate_hz=50.0, earth="flat", verbose=False)
     truth = write_parquet(tdf, tmeta, tmp_path / "drive" / "truth.parquet")
     shard = tmp_path / "drive" / "imu" / "consumer" / "shard-001.parquet"
-    simulate_shard(truth, shard, "consumer", sequences=3, seed=SEED, shard=1)
-    opts = {"draw_kinds": ("outage", "spoof_ramp"), "settle_s": 20.0, "lever_arm_sd_m": 0.1}
+    mount = {"misalignment_sd_deg": 3.0, "lever_arm_m": [0.5, -0.3, 0.8]} if mounted else None
+    simulate_shard(truth, shard, "consumer", sequences=3, seed=SEED, shard=1, mounting=mount)
+    opts = {"draw_kinds": ("outage", "spoof_ramp"), "settle_s": 20.0, "lever_arm_sd_m": 0.1,
+            "lever_arm_b_m": (0.2, 0.0, 1.2)}  # fmt: skip
     g = tmp_path / "g.parquet"
     aid.run(truth, shard, g, tmp_path / "a.parquet", AidOptions(**opts))
     s = Stream([str(truth)], "consumer", window=400, batch_size=2, windows_per_sequence=1,
-               seed=SEED, targets=["gnss"], gnss=opts, shard_size=3)  # fmt: skip
+               seed=SEED, targets=["gnss"], gnss=opts, shard_size=3, mounting=mount)  # fmt: skip
     route = s.route_names[0]
     k0 = np.array([1, 4000, 7500])
     b = s.generate(s.keys(route, "consumer", 1, [0, 2, 1], k0))
@@ -205,6 +209,12 @@ def test_gnss_target_is_the_aid_stages_table(tmp_path):
         want = lab[lab["sequence"] == ids[j]][s.gnss_label_names].to_numpy()[0]
         np.testing.assert_array_equal(b["gnss_labels"][i], want.astype(np.float32))
     assert (tab["state"] != 0).any()  # the scenarios act on the table
+    if mounted:  # the mounting moves the antenna: not the unmounted IMU's fixes
+        plain = Stream([str(truth)], "consumer", window=400, batch_size=2,
+                       windows_per_sequence=1, seed=SEED, targets=["gnss"], gnss=opts,
+                       shard_size=3).generate(b["keys"])  # fmt: skip
+        d = np.nanmax(np.abs(plain["gnss_p_n"] - b["gnss_p_n"]))
+        assert d > 1e-3
 
 
 @pytest.mark.parametrize("grade", ["adis16405", "phone", "phone_calibrated"])
@@ -230,3 +240,28 @@ def test_gnss_target_needs_truth_files(truth):
     with pytest.raises(InputError, match="truth files"):
         Stream({ROUTE: truth}, "consumer", window=W, batch_size=4, windows_per_sequence=2,
                targets=["gnss"])  # fmt: skip
+
+
+MOUNT = {"misalignment_sd_deg": 1.0, "lever_arm_m": [0.3, 0.1, -0.2]}
+
+
+@pytest.mark.parametrize("grade", ["bw_ideal", "bw_butter", "round_only"])
+@pytest.mark.parametrize("inputs", ["increments", "rates"])
+def test_window_mode_with_vibration_and_mounting_is_the_sequences_motion(truth, grades_file,
+                                                                         grade, inputs):  # fmt: skip
+    """Mounting and vibration have no state: window mode applies the sequence's draws (the
+    shard's streams) to the window's rows, so with the deterministic terms only its measured
+    rows and effective error are exact mode's (up to the output filter's truncated tail)."""
+    terms = "turn_on_bias scale_factor cross_coupling g_sensitivity"
+    kw = {"terms": terms, "inputs": inputs, "targets": ["effective_error"]}
+    s = _window_stream(truth, grade, grades_file, vibration="car", mounting=MOUNT, **kw)
+    K = len(truth["time_s"])
+    keys = s.keys(ROUTE, grade, 5, [0, 0, 1, 1], [40, 97, 170, K - W])
+    win = s.generate(keys, exact=False)
+    ex = s.generate(keys, exact=True)
+    for name in ("x", "effective_error"):
+        scale = np.abs(ex[name]).max()
+        np.testing.assert_allclose(win[name], ex[name], rtol=0, atol=2e-6 * scale, err_msg=name)
+    # the motion is the mounted, vibrating case's: not the vehicle's
+    still = _window_stream(truth, grade, grades_file, **kw).generate(keys, exact=False)["x"]
+    assert np.abs(win["x"] - still).max() > 100 * 2e-6 * np.abs(still).max()

@@ -20,10 +20,14 @@ OUTAGE = {"kind": "outage", "start_s": 30.0, "duration_s": 15.0}
 SEED, SHARD, SIZE, W = 5, 1, 2, 400
 
 
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    """A short car truth (flat, 100 Hz), a consumer shard of 2 sequences in the results layout,
-    the aid stage run on it with the estimates written beside it."""
+MOUNT = {"misalignment_sd_deg": 2.0, "lever_arm_m": [0.4, -0.2, 0.6]}
+
+
+@pytest.fixture(scope="module", params=[None, MOUNT], ids=["rigid", "mounted"])
+def scene(tmp_path_factory, request):
+    """A short car truth (flat, 100 Hz), a consumer shard of 2 sequences in the results layout
+    (the IMU on the vehicle, or mounted with a drawn misalignment and lever arm), the aid
+    stage run on it with the estimates written beside it."""
     d = tmp_path_factory.mktemp("sfilt")
     pts = np.array([[0, 0, 0], [300, 0, 0], [300, 150, 0], [0, 150, 0]], float)
     enu = pd.DataFrame(pts, columns=["e_m", "n_m", "u_m"])
@@ -33,16 +37,24 @@ def scene(tmp_path_factory):
     shard = d / "car" / "imu" / "consumer" / "shard-001.parquet"
     shard.parent.mkdir(parents=True)
     simulate_shard(d / "truth.parquet", shard, "consumer", sequences=SIZE, seed=SEED,
-                   shard=SHARD, shard_size=SIZE, route="car", series=True)  # fmt: skip
+                   shard=SHARD, shard_size=SIZE, route="car", series=True,
+                   mounting=request.param)  # fmt: skip
     est = layout.beside(shard, "estimates")
     est.parent.mkdir(parents=True)
     AID.run(d / "truth.parquet", shard, d / "g.parquet", d / "a.parquet",
             AID.AidOptions(intervals=(OUTAGE,)), out_estimates=est)  # fmt: skip
-    return d, shard
+    return d, shard, request.param
 
 
-def test_stream_filter_targets_are_the_written_path(scene):
-    d, shard = scene
+def test_stream_filter_targets_are_the_written_path(scene, monkeypatch):
+    """Bit for bit with the written path; with the gnss target too, each sequence's GNSS is
+    drawn once (shared by both targets)."""
+    from imugen.stream import gnss as SG
+
+    d, shard, mount = scene
+    calls = []
+    draw = SG.sequence_gnss
+    monkeypatch.setattr(SG, "sequence_gnss", lambda *a, **k: calls.append(a) or draw(*a, **k))
     ds = WindowDataset([RouteFiles("car", d / "truth.parquet", (shard,), "consumer")], window=W,
                        target="filter_aware_error", extras=["filter", "filter_sd"],
                        cache_dir=d / "cache")  # fmt: skip
@@ -51,11 +63,12 @@ def test_stream_filter_targets_are_the_written_path(scene):
     info = [ds.window_info(int(i)) for i in idx]
     st = Stream({"car": d / "truth.parquet"}, "consumer", window=W, batch_size=SIZE,
                 windows_per_sequence=1, seed=SEED, exact=True, shard_size=SIZE,
-                targets=["filter", "filter_sd", "filter_aware_error"],
-                gnss={"intervals": (OUTAGE,)})  # fmt: skip
+                targets=["filter", "filter_sd", "filter_aware_error", "gnss"],
+                gnss={"intervals": (OUTAGE,)}, mounting=mount)  # fmt: skip
     j = np.array([i["sequence"] & ((1 << 31) - 1) for i in info]) - SHARD * SIZE
     keys = st.keys("car", "consumer", SHARD, j, [i["start"] for i in info])
     out = st.generate(keys)
+    assert len(calls) == len(set(j))  # one GNSS draw per sequence
     assert st.filter_columns == ds.extra_columns
     for n in ("filter", "filter_sd"):
         assert out[n].shape == ex[n].shape and out[n].dtype == np.float32
@@ -68,7 +81,7 @@ def test_stream_filter_targets_are_the_written_path(scene):
 
 
 def test_filter_targets_outside_exact_mode_are_refused_in_one_line(scene):
-    d, _ = scene
+    d = scene[0]
     for kw in ({}, {"exact": True, "inputs": "rates"}):
         with pytest.raises(InputError) as e:
             Stream({"car": d / "truth.parquet"}, "consumer", window=W, batch_size=2,

@@ -699,3 +699,92 @@ class Stream:
             out[s] = yf[j - jn]
             st[s] = (int(j[-1]) + 1, zi, ys[-1].copy())
         return out
+
+
+# --- many independent windows at once (the stream's window mode) ----------------------------
+def _coefs(f: OutputFilter) -> tuple:
+    """``b, a`` normalized by ``a[0]`` (float64, contiguous) and the DF2T steady state."""
+    b = np.ascontiguousarray(np.asarray(f.b, float) / f.a[0])
+    a = np.ascontiguousarray(np.asarray(f.a, float) / f.a[0])
+    order = max(len(a), len(b)) - 1
+    zi = _signal().lfilter_zi(b, a) if len(a) > 1 else np.zeros(order)
+    return b, a, np.ascontiguousarray(zi, dtype=float)
+
+
+def _phase(f: OutputFilter, phase, B: int) -> np.ndarray:
+    if f.synchronous:
+        return np.zeros(B)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(phase, float), (B,)))
+
+
+def filter_windows(f: OutputFilter, y: np.ndarray, phase) -> np.ndarray:
+    """Many windows' sensed signal through the output filter, as :class:`Stream` runs one
+    sequence from its first sample (a compiled kernel over the windows:
+    :func:`imugen.sensors._band_kernel.motion_reads`).
+
+    Row ``i`` of window ``b`` is output ``k = i + 1``; it is interpolated linearly to the
+    internal grid ``t_j = (j - phase_b) / f_i``, filtered from the filter's steady state on
+    the first row, and read at ``j_k = k D`` (synchronous) or ``floor(k D + phase_b)``. An
+    FIR filter is evaluated at the read indices only.
+
+    Parameters
+    ----------
+    f : OutputFilter
+    y : ndarray, shape (B, L, C)
+        The signal at the output rate (any channels sharing the filter).
+    phase : ndarray, shape (B,)
+        Read phase of each window (ignored for a synchronous read).
+
+    Returns
+    -------
+    ndarray, shape (B, L, C)
+    """
+    from imugen.sensors._band_kernel import motion_reads
+
+    B, L, C = y.shape
+    out = np.empty((B, L, C))
+    if B == 0 or L == 0:
+        return out
+    b, a, zi = _coefs(f)
+    Y = np.concatenate([y[:, :1], y], axis=1).astype(float)  # row 0: the first value
+    Di = round(f.ratio) if f.synchronous else 0
+    motion_reads(b, a, zi, Y, _phase(f, phase, B), float(f.ratio), Di, out)
+    return out
+
+
+def noise_windows(f: OutputFilter, z: np.ndarray, scale: np.ndarray, phase) -> np.ndarray:
+    """Filtered internal-rate white noise of many windows, read at the output rate, drawn from
+    its exact law (a compiled kernel over the windows:
+    :func:`imugen.sensors._band_kernel.noise_law`).
+
+    The reads ``j_k`` (``k D``, or ``floor(k D + phase)``) of stationary filtered white noise
+    are jointly Gaussian with covariance ``N^2 f_i c(|j_k - j_l|)`` (``c``:
+    :meth:`OutputFilter.internal_autocorr`; an IIR's from its impulse response truncated at
+    1e-13 of its energy): one normal per output sample and axis instead of ``D`` at the
+    internal rate, whatever the filter.
+
+    Parameters
+    ----------
+    f : OutputFilter
+    z : ndarray, shape (B, L, 3)
+        Standard normals, one per output sample and axis.
+    scale : ndarray, shape (B, 3)
+        ``N sqrt(f_i)``: the internal samples' standard deviation.
+    phase : ndarray, shape (B,)
+        Read phase of each window (ignored for a synchronous read).
+
+    Returns
+    -------
+    ndarray, shape (B, L, 3)
+    """
+    from imugen.sensors._band_kernel import noise_law
+
+    B, L = z.shape[0], z.shape[1]
+    out = np.empty((B, L, 3))
+    if B == 0 or L == 0:
+        return out
+    Di = round(f.ratio) if f.synchronous else 0
+    c = np.ascontiguousarray(f.internal_autocorr(), dtype=float)
+    noise_law(c, np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(scale, dtype=float),
+              _phase(f, phase, B), float(f.ratio), Di, out)  # fmt: skip
+    return out

@@ -34,14 +34,15 @@ Example
         break
 
 Grades with an output bandwidth or rounding quantization (``adis16405``, ``phone``, ...) stream
-in both modes (window mode warms each window's output filter up, :mod:`imugen.stream.windows`);
-vibration and mounting stream in exact mode; the ``gnss`` target gives the aid stage's GNSS
+in both modes (window mode warms each window's output filter up, :mod:`imugen.stream.windows`),
+as do vibration and mounting (no state: window mode applies the sequence's draws to the
+window's rows); the ``gnss`` target gives the aid stage's GNSS
 fixes, scenario states and receiver labels on the window's rows (:mod:`imugen.stream.gnss`);
 in exact mode the ``filter``, ``filter_sd`` and ``filter_aware_error`` targets run the aid
 stage's filter (:func:`imugen.aid.stage.filter_block`) over each whole sequence and give the
 loader's extras and target of those names (the held estimates, their sigmas, the filter-aware
 target), bit for bit for a written key.
-Not streamed: raw increments; vibration, mounting and the filter targets in window mode.
+Not streamed: raw increments; the filter targets in window mode.
 """
 
 from imugen.stream.keys import KEY_DTYPE, STREAM_SHARD0

@@ -28,7 +28,7 @@ KEYS = ("gnss_p_n", "gnss_v_n", "gnss_sigma_p_n", "gnss_sigma_v_n", "gnss_state"
 """Batch entries of the ``gnss`` target."""
 
 
-def sequence_gnss(truth, params, seed, route_id: int, index: int):
+def sequence_gnss(truth, params, seed, route_id: int, index: int, mount=None):
     """The scenario result (:class:`imugen.aid.scenarios.ScenarioResult`) of one sequence.
 
     Parameters
@@ -41,13 +41,21 @@ def sequence_gnss(truth, params, seed, route_id: int, index: int):
         The aid stage's seed (that of the shard's simulation).
     route_id, index : int
         The sequence's route id and index in its route.
+    mount : ((3,), (3,)), optional
+        The sequence's mounting ``(angles [rad], lever arm [m])`` (stream ``mounting``): the
+        antenna's lever arm is then from the IMU, in its axes, on the mounted IMU's truth
+        (:func:`imugen.sensors.mounting.imu_states`), as the aid stage does for a shard
+        written with mounting.
     """
     t = truth.time_s
     frame = truth.origin_frame()
     ent = sequence_entropy(seed, route_id, index)
     sid = (int(route_id) << 31) | int(index) if index < (1 << 31) else -1
+    states = (truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b)
+    if mount is not None:
+        states = _imu_truth(truth, frame, *mount)
     g = G.simulate_gnss(
-        t, truth.p_n, truth.v_n, truth.q_nb, truth.omega_ib_b, G.get_receiver(params.receiver),
+        t, *states, G.get_receiver(params.receiver),
         1, ent, 0, rate_hz=params.rate_hz, draw=params.draw, lever_arm_b_m=params.lever_arm_b_m,
         lever_sd_m=params.lever_arm_sd_m, omega_ie_n=earth_rate_n(frame), first=sid, frame=frame,
     )  # fmt: skip
@@ -58,6 +66,15 @@ def sequence_gnss(truth, params, seed, route_id: int, index: int):
             durations_s=params.outage_durations_s,
         )[0]  # fmt: skip
     return SC.apply(g, [ivs], ent, 0, first=sid, frame=frame)
+
+
+def _imu_truth(truth, frame, angles, lever):
+    """``(p_n, v_n, q_nb, omega_ib_b)`` (K, 3|4) of one mounted IMU (the aid stage's)."""
+    from imugen.sensors.mounting import C_vb, imu_states
+
+    w = truth.omega_ib_b
+    p, v, q = imu_states(truth.p_n, truth.v_n, truth.q_nb, w, earth_rate_n(frame), angles, lever)
+    return p[0], v[0], q[0], w @ C_vb(angles)
 
 
 def label_names(scen) -> list[str]:

@@ -22,6 +22,7 @@ from imugen.stream.windows import (
     draw_params,
     draw_params_many,
     exact_sequence,
+    moved_windows,
     output_stage,
     warmup_rows,
     window_band_rng,
@@ -81,12 +82,14 @@ class Stream:
         Number of the first batch (to resume a run).
     vibration, mounting
         As the simulate stage's options (case vibration: ``off``, ``car``, ``aircraft``,
-        ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Exact mode only (their
-        draws are the shard's, streams ``vibration`` and ``mounting``).
+        ``vehicle`` or a fit's YAML; the mounting's JSON or dict). Both modes: their draws
+        are the shard's (streams ``vibration`` and ``mounting``), applied to the window's rows
+        in window mode (:func:`~imugen.stream.windows.moved_windows`).
     gnss : AidOptions or dict, optional
         Receiver and scenarios of the ``gnss`` target and the filter of the filter targets
         (:class:`imugen.aid.options.AidOptions` or its fields; default the aid stage's
-        defaults): the aid stage's draws for the same sequence (:mod:`imugen.stream.gnss`).
+        defaults): the aid stage's draws for the same sequence (:mod:`imugen.stream.gnss`;
+        with ``mounting``, on the mounted IMU's truth), drawn once per sequence and call.
         Needs routes given as truth files.
     shard_size : int, optional
         Sequences per written shard, for the ``gnss`` target of written keys (a sequence's
@@ -306,14 +309,13 @@ class Stream:
              for k in sk[seq_start]],
             self.grades, self.enabled, self.nominal,
         )  # fmt: skip
-        if not exact and (self._mount_spec is not None or any(v is not None for v in self._vib)):
-            raise InputError("exact", "vibration and mounting are streamed in exact mode only")
         if not exact and self._filt:
             raise InputError("exact", f"the {self._filt[0]} target needs exact=True (the filter "
                              "runs over the whole sequence)")  # fmt: skip
         filt = {}
+        scens = {}  # each sequence's GNSS drawn once per call (gnss and filter targets)
         if exact:
-            self._exact(sk, seq_start, draws, want, outs, filt)
+            self._exact(sk, seq_start, draws, want, outs, filt, scens)
         else:
             for gi in np.unique(sk["grade"]):
                 seqs = np.flatnonzero(sk["grade"][seq_start] == gi)
@@ -327,12 +329,16 @@ class Stream:
                      int(sk["shard"][seq_start[s]]), int(sk["j"][seq_start[s]]))
                     for s in seqs
                 ])  # fmt: skip
+                moves = self._window_moves(sk, seq_start, seq_of, sel)
                 if self._post(gi):
-                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]],
-                                      states, [draws[s] for s in seqs], want, sub)  # fmt: skip
+                    self._window_post(gi, sk, sel, seqs, seq_start, remap[seq_of[sel]], states,
+                                      [draws[s] for s in seqs], want, sub, moves)  # fmt: skip
                 else:
                     rows = self._row0[sk["route"][sel]] + sk["k0"][sel]
-                    window_batch(self._tr, [draws[s] for s in seqs], remap[seq_of[sel]], states,
+                    tr = self._tr
+                    if moves is not None:
+                        tr, rows = moved_windows(tr, sk["k0"][sel], rows, W, moves)
+                    window_batch(tr, [draws[s] for s in seqs], remap[seq_of[sel]], states,
                                  sk["k0"][sel], W, rows, want, sub)  # fmt: skip
                 if not one:
                     for n in outs:
@@ -358,16 +364,66 @@ class Stream:
                 out[t] = self._filter_aware(sk, seq_of, outs, filt)[inv]
             elif t == "gnss":
                 g = {}
-                self._gnss(sk, seq_start, seq_of, g)
+                self._gnss(sk, seq_start, seq_of, g, scens)
                 for n, a in g.items():
                     out[n] = a[inv] if a.dtype == np.int8 else a[inv].astype(dt)
         out["keys"] = keys
         return out
 
-    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, states, draws, want, sub):
+    def _moving(self) -> bool:
+        """Mounting or vibration is on (for some route)."""
+        return self._mount_spec is not None or any(v is not None for v in self._vib)
+
+    def _moves(self, r, key) -> tuple:
+        """A sequence's ``(Mounting, (angles, lever), SequenceVibration)`` (None where off):
+        the shard path's draws, streams ``mounting`` and ``vibration``."""
+        vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
+        return self._mounting[r], self._mount_draw(key), vib
+
+    def _mount_draw(self, key):
+        """A sequence's ``(angles, lever)`` (stream ``mounting``), None without mounting."""
+        if self._mount_spec is None:
+            return None
+        return self._mount_spec.draw(sensor_rng(*key, "mounting"))
+
+    def _scen(self, k, cache: dict):
+        """The GNSS scenario result of the sequence of key ``k``
+        (:func:`imugen.stream.gnss.sequence_gnss`, on the mounted IMU's truth with mounting),
+        drawn once per ``cache``."""
+        from imugen.stream import gnss as SG
+
+        r, gi, shard, j = (int(k[f]) for f in ("route", "grade", "shard", "j"))
+        if (r, gi, shard, j) not in cache:
+            size = self.shard_size or self.batch_size // self.per_seq
+            key = (self.seed, self.route_ids[r], self.grades[gi].id, shard, j)
+            cache[r, gi, shard, j] = SG.sequence_gnss(
+                self._full[r], self.gnss, self.seed, self.route_ids[r], shard * size + j,
+                self._mount_draw(key),
+            )  # fmt: skip
+        return cache[r, gi, shard, j]
+
+    def _window_moves(self, sk, seq_start, seq_of, sel):
+        """:meth:`_moves` of each window of ``sel`` (None without mounting and vibration)."""
+        if not self._moving():
+            return None
+        per_seq = {}
+        out = []
+        for i in sel:
+            s = int(seq_of[i])
+            if s not in per_seq:
+                k = sk[seq_start[s]]
+                r = int(k["route"])
+                key = (self.seed, self.route_ids[r], self.grades[k["grade"]].id, int(k["shard"]),
+                       int(k["j"]))  # fmt: skip
+                per_seq[s] = self._moves(r, key)
+            out.append(per_seq[s])
+        return out
+
+    def _window_post(self, gi, sk, sel, seqs, seq_start, seqs_of, states, draws, want, sub,
+                     moves=None):  # fmt: skip
         """Window mode of a grade with an output bandwidth or rounding quantization: the
         kernel from :func:`~imugen.stream.windows.warmup_rows` rows before each window, then
-        :func:`~imugen.stream.windows.output_stage`."""
+        :func:`~imugen.stream.windows.output_stage` (``moves``: :meth:`_window_moves`)."""
         W, dt, bands = self.window, self.dt, self.bands[gi]
         Wu = warmup_rows(bands, dt)
         k0 = sk["k0"][sel]
@@ -387,19 +443,20 @@ class Stream:
         }
         kout = {n: np.empty((len(sel), Wt, 6)) for n, v in kw.items() if v}
         kdraws = [without_output_stage(d, bands) for d in draws]
-        window_batch(self._tr, kdraws, seqs_of, states, ks, Wt, self._row0[route] + ks, kw,
-                     kout)  # fmt: skip
+        tr, rows = self._tr, self._row0[route] + ks
+        if moves is not None:
+            tr, rows = moved_windows(tr, ks, rows, Wt, moves)
+        window_batch(tr, kdraws, seqs_of, states, ks, Wt, rows, kw, kout)
         brng = [
             window_band_rng(self.seed, self.route_ids[sk["route"][seq_start[s]]],
                             self.grades[gi].id, int(sk["shard"][seq_start[s]]),
                             int(sk["j"][seq_start[s]]))
             for s in seqs
         ]  # fmt: skip
-        rows = (self._row0[route] + k0)[:, None] + np.arange(W)
-        tr = self._tr
+        rows = (rows + k0 - ks)[:, None] + np.arange(W)
         t_rate = np.concatenate([tr[0][rows], tr[1][rows]], axis=2)
         t_inc = np.concatenate([tr[2][rows], tr[3][rows]], axis=2)
-        res = output_stage(draws, seqs_of, [brng[q] for q in seqs_of], bands, t_rate, t_inc, dt,
+        res = output_stage(draws, seqs_of, brng, bands, t_rate, t_inc, dt,
                            k0 - ks, W, kout, want)  # fmt: skip
         for n, a in sub.items():
             a[...] = res[n]
@@ -419,26 +476,19 @@ class Stream:
         if isinstance(gnss, dict):
             gnss = AidOptions(**gnss)
         self.gnss = gnss if gnss is not None else AidOptions()
-        if self._mount_spec is not None:
-            raise InputError("gnss", "the gnss and filter targets are not streamed with mounting")
         if self._filt and (self.gnss.odometer or self.gnss.barometer):
             raise InputError("gnss", "the filter targets are not streamed with companions")
         if any(src is None for src in sources):
             raise InputError("routes", "the gnss target needs routes given as truth files")
         self._full = [ttruth.read(src) for src in sources]
 
-    def _gnss(self, sk, seq_start, seq_of, out):
-        """The ``gnss`` target's entries (sorted-key order) into ``out``."""
+    def _gnss(self, sk, seq_start, seq_of, out, scens):
+        """The ``gnss`` target's entries (sorted-key order) into ``out`` (``scens``: the
+        sequences' GNSS drawn in this call, :meth:`_scen`)."""
         from imugen.stream import gnss as SG
 
         W, B = self.window, len(sk)
-        size = self.shard_size or self.batch_size // self.per_seq
-        scen = []
-        for a in seq_start:
-            k = sk[a]
-            r = int(k["route"])
-            scen.append(SG.sequence_gnss(self._full[r], self.gnss, self.seed, self.route_ids[r],
-                                         int(k["shard"]) * size + int(k["j"])))  # fmt: skip
+        scen = [self._scen(sk[a], scens) for a in seq_start]
         L = len(SG.label_names(scen[0]))
         res = {n: np.empty((B, W, 3)) for n in SG.KEYS[:4]}
         res["gnss_state"] = np.empty((B, W), np.int8)
@@ -479,7 +529,7 @@ class Stream:
             for n in ("filter", "filter_sd")
         }
 
-    def _filter(self, r, gi, k, data) -> dict:
+    def _filter(self, r, gi, k, data, scens) -> dict:
         """The aided filter over one whole sequence (``data``: its rows from turn-on), as the aid
         stage runs it on the written shard (:func:`imugen.aid.stage.filter_block`, the stage's
         tuning and options, the ``gnss`` target's fixes): the filter-estimates table's columns
@@ -487,16 +537,16 @@ class Stream:
         The increments are the shard's float32 values."""
         from imugen.aid import filter as A
         from imugen.aid import stage as AID
-        from imugen.stream import gnss as SG
         from imugen.tables import filter_estimates as testim
 
         truth, p = self._full[r], self.gnss
         size = self.shard_size or self.batch_size // self.per_seq
         index = int(k["shard"]) * size + int(k["j"])
-        scen = SG.sequence_gnss(truth, p, self.seed, self.route_ids[r], index)
+        scen = self._scen(k, scens)
         sid = (self.route_ids[r] << 31) | index if index < (1 << 31) else -1
         tun = A.Tuning.from_grade(self.grades[gi], p.tuning_level)
-        opts = AID.filter_options(p, truth.meta.get("vehicle"), None,
+        mmeta = None if self._mount_spec is None else self._mount_spec.as_dict()
+        opts = AID.filter_options(p, truth.meta.get("vehicle"), mmeta,
                                   truth.meta.get("plausibility"))  # fmt: skip
         dth, dvb = (data[n].astype(np.float32).astype(np.float64)[None] for n in ("dtheta", "dv"))
         ids = np.array([sid], np.int64)
@@ -542,7 +592,7 @@ class Stream:
                                         h[..., C + 1] != 0, filt["dt"][:, None, None])  # fmt: skip
         return out.astype(self.dtype)
 
-    def _exact(self, sk, seq_start, draws, want, outs, filt):
+    def _exact(self, sk, seq_start, draws, want, outs, filt, scens):
         names = {
             "rate": ("gyro", "accel"), "inc": ("dtheta", "dv"), "bias": ("gyro_bias", "accel_bias"),
             "err_rate": ("err_gyro", "err_accel"), "err_inc": ("err_dtheta", "err_dv"),
@@ -558,13 +608,10 @@ class Stream:
             r, gi = int(k["route"]), int(k["grade"])
             kmax = self.truths[r].K if self._filt else int(sk["k0"][a:b].max()) + W
             key = (self.seed, self.route_ids[r], self.grades[gi].id, int(k["shard"]), int(k["j"]))
-            vib = None if self._vib[r] is None else self._vib[r].draw(sensor_rng(*key, "vibration"))
-            mount = None
-            if self._mount_spec is not None:
-                mount = self._mount_spec.draw(sensor_rng(*key, "mounting"))
+            mounting, mount, vib = self._moves(r, key)
             data = exact_sequence(
                 self.truths[r], draws[s], *key, kmax, self.temp, groups, bands=self.bands[gi],
-                vib=vib, mounting=self._mounting[r], mount=mount,
+                vib=vib, mounting=mounting, mount=mount,
             )  # fmt: skip
             for i in range(a, b):
                 k0 = int(sk["k0"][i])
@@ -574,7 +621,8 @@ class Stream:
                     outs[n][i, :, 3:] = data[g1][k0 : k0 + W]
             if self._filt:
                 t = self._full[r].time_s  # the loader's interval (its clock's)
-                ests.append((self._filter(r, gi, k, data), (t[-1] - t[0]) / max(len(t) - 1, 1)))
+                dt = (t[-1] - t[0]) / max(len(t) - 1, 1)
+                ests.append((self._filter(r, gi, k, data, scens), dt))
         if self._filt:
             seq_of = np.repeat(np.arange(len(seq_start)), np.diff([*seq_start, len(sk)]))
             self._filter_index(ests, seq_of, sk["k0"], filt)

@@ -34,13 +34,16 @@ filter streams, stream ``*_band``). Window mode (:func:`output_stage`) runs the 
 plus two; from row 1 when the window starts closer to the route's start) without white noise
 and quantization, then the output filter on the motion (started in steady state on the first
 warm-up row, so the window's rows carry the filter's true history up to an IIR's truncated
-tail), the internal-rate white noise after a warm-up of the impulse response's length
-(steady state: its exact law), saturation, and quantization (rounded per sample, or carried
-from a uniform residual), these draws from the sequence's stream ``window_band``.
+tail), the filtered internal-rate white noise at the window's reads from its exact
+stationary law (jointly Gaussian, covariance ``N^2 f_i c(j_k - j_l)``), saturation, and quantization (rounded per sample, or carried
+from a uniform residual), these draws from the sequence's stream ``window_band`` in blocks over
+its windows; the filters run over all the windows in one compiled call per sensor
+(:func:`imugen.sensors.bandwidth.filter_windows`, :func:`~imugen.sensors.bandwidth.noise_windows`).
 
 Vibration and mounting (the shard options ``vibration``, ``mounting``) are applied to the truth
-chunks in exact mode as the shard loop applies them (streams ``vibration``, ``mounting``); window
-mode has neither. Raw increments (``increments="raw"``) are not streamed: a stream is the
+chunks in exact mode as the shard loop applies them (streams ``vibration``, ``mounting``). They
+have no state (a sequence's draw gives every sample in closed form), so window mode applies the
+same draws to each window's rows (:func:`moved_windows`): the same motion sample for sample. Raw increments (``increments="raw"``) are not streamed: a stream is the
 sensor on the truth's compensated increments and rates.
 """
 
@@ -406,56 +409,129 @@ def without_output_stage(d: Draw, bands) -> Draw:
 
 
 def output_stage(draws, seqs, band_rngs, bands, truth_rate, truth_inc, dt, lead, W, outs, want):
-    """Bandwidth and quantization of window-mode rows, as :meth:`SensorModel.step` does them.
+    """Bandwidth and quantization of window-mode rows, as :meth:`SensorModel.step` does them,
+    vectorized over the windows (:func:`imugen.sensors.bandwidth.filter_windows`,
+    :func:`~imugen.sensors.bandwidth.noise_windows`: one filter call per block of windows).
 
     The kernel's rows ``(B, lead_max + W, 6)`` in ``outs`` (no white noise where a bandwidth
     generates it, no quantization) start ``lead[b]`` rows before each window: the output
     filter's motion state starts in steady state on the first of them (a warm-up of
-    :func:`warmup_rows`), its internal-rate white noise in steady state after a warm-up of
-    the impulse response's length (exact law), the asynchronous read phase is uniform, the
-    carry residual uniform on ``[-q/2, q/2)``, all from each sequence's ``window_band``
-    stream (``band_rngs``, one per window: the sequence's, consumed window after window, gyro
-    then accelerometer). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``, ``err_rate``,
-    ``err_inc``, ``bias``: the window's rows.
+    :func:`warmup_rows`), the filtered internal-rate white noise is drawn at the window's
+    reads from its exact (stationary) law (:func:`~imugen.sensors.bandwidth.noise_windows`),
+    the asynchronous read phase is uniform, the carry residual uniform on ``[-q/2, q/2)``.
+    These draws come from each sequence's ``window_band`` stream (``band_rngs``, one per
+    sequence of ``draws``; its windows are contiguous in ``seqs``), per sensor (gyro, then
+    accelerometer) in blocks over the sequence's windows: the read phases ``(n,)``
+    (asynchronous read), the noise's normals ``(n, W, 3)``, then the carry residuals
+    ``(n, 3)`` of the rate and of the increments (those served). Returns ``name -> (B, W, 6)`` for ``rate``, ``inc``,
+    ``err_rate``, ``err_inc``, ``bias``: the window's rows.
     """
-    from imugen.sensors.bandwidth import Stream as BandStream
+    from imugen.sensors.bandwidth import filter_windows, noise_windows
 
+    seqs = np.asarray(seqs, np.int64)
     B = len(seqs)
+    nwin = np.bincount(seqs, minlength=len(draws))
+    first = np.concatenate([[0], np.cumsum(nwin)[:-1]])
     take = np.asarray(lead)[:, None] + np.arange(W)  # (B, W)
     bi = np.arange(B)[:, None]
     res = {n: np.empty((B, W, 6)) for n in ("rate", "inc", "err_rate", "err_inc", "bias")
            if want.get(n)}  # fmt: skip
     if "bias" in res:
         res["bias"][...] = outs["bias"][bi, take]
+    kinds = [k for k in ("rate", "inc") if k in outs]
+
+    def per_seq(fn):
+        """``fn(rng, n)`` of each sequence's stream, its windows' rows stacked."""
+        return np.concatenate([fn(band_rngs[s], int(nwin[s])) for s in range(len(draws))])
+
     for s, name in enumerate(("gyro", "accel")):
         c = slice(3 * s, 3 * s + 3)
-        p = SensorParams.stack([getattr(draws[q], name) for q in seqs])
+        p0 = getattr(draws[0], name)
         band = bands[s]
-        st = None
         if band is not None:
-            st = BandStream(band, p.white, band_rngs)
-            noise = st.noise(1, outs["rate" if "rate" in outs else "inc"].shape[1])
-        for kind, q, fs, truth in (
-            ("rate", p.lsb, p.full_scale, truth_rate),
-            ("inc", p.lsb * dt, p.full_scale * dt, truth_inc),
-        ):
-            if kind not in outs:
-                continue
-            y = np.ascontiguousarray(outs[kind][..., c])
+            phase = np.zeros(B)
+            if not band.synchronous:
+                phase = per_seq(lambda g, n: g.random(n))
+            z = np.empty((B, W, 3))
+            for q in range(len(draws)):
+                band_rngs[q].standard_normal(out=z[first[q] : first[q] + nwin[q]])
+            white = np.concatenate([getattr(d, name).white for d in draws])[seqs]
+            noise = noise_windows(band, z, white * math.sqrt(band.internal_rate_hz), phase)
+            del z
+            y2 = np.concatenate([outs[k][..., c] for k in kinds], axis=2)
+            if "inc" in kinds:
+                y2[..., -3:] /= dt
+            yf = filter_windows(band, y2, phase)[bi, take]
+        for i, kind in enumerate(kinds):
+            q = p0.lsb if kind == "rate" else p0.lsb * dt
+            fs = p0.full_scale if kind == "rate" else p0.full_scale * dt
+            truth = truth_rate if kind == "rate" else truth_inc
             if band is not None:
-                y = st.motion(kind, 1, y / dt if kind == "inc" else y)
-                if kind == "inc":
-                    y *= dt
+                y = yf[..., 3 * i : 3 * i + 3] * (1.0 if kind == "rate" else dt)
                 if f"err_{kind}" in res:
-                    res[f"err_{kind}"][..., c] = y[bi, take] - truth[..., c]
-                np.clip(y + (noise if kind == "rate" else noise * dt), -fs, fs, out=y)
-            elif f"err_{kind}" in res:
-                res[f"err_{kind}"][..., c] = outs[f"err_{kind}"][bi, take, c]
-            y = np.ascontiguousarray(y[bi, take])
+                    res[f"err_{kind}"][..., c] = y - truth[..., c]
+                if kind in res:
+                    y = np.clip(y + (noise if kind == "rate" else noise * dt), -fs, fs)
+            else:
+                if f"err_{kind}" in res:
+                    res[f"err_{kind}"][..., c] = outs[f"err_{kind}"][bi, take, c]
+                y = outs[kind][bi, take, c]
+            if kind not in res:  # served for its error only: no noise or quantization needed
+                continue
+            y = np.ascontiguousarray(y)
             r0 = np.zeros((B, 3))
-            if q > 0 and not p.q_round:  # carry from a uniform residual at the window start
-                r0 = np.stack([(g.random(3) - 0.5) * q for g in band_rngs])
-            quantize_series(y, q, p.q_round, r0)
-            if kind in res:
-                res[kind][..., c] = y
+            if q > 0 and not p0.q_round:  # carry from a uniform residual at the window start
+                r0 = (per_seq(lambda g, n: g.random((n, 3))) - 0.5) * q
+            quantize_series(y, q, p0.q_round, r0)
+            res[kind][..., c] = y
     return res
+
+
+# --- window mode with mounting and vibration ----------------------------------------------------
+def moved_windows(tr, starts, rows, L, moves):
+    """Each window's truth rows as the mounted, vibrating case senses them.
+
+    Mounting and vibration have no state: a sequence's draw (streams ``mounting`` and
+    ``vibration``, the shard path's) and the truth give every sample in closed form
+    (:meth:`imugen.sensors.mounting.Mounting.apply`, the rate's derivative from the truth's
+    neighbouring rows; :meth:`imugen.sensors.vibration.SequenceVibration.apply`, the phases at
+    the sample's time), so a window's rows are the whole sequence's rows, applied as the shard
+    loop applies them (mounting, then vibration).
+
+    Parameters
+    ----------
+    tr : tuple (w, f, dth, dv, dT, dt)
+        Concatenated truths (:func:`window_batch`).
+    starts : (B,) int
+        Sample of each window's first row (``>= 1``) in its route.
+    rows : (B,) int
+        Row of ``starts`` in the concatenated truth.
+    L : int
+        Rows per window.
+    moves : list of (Mounting or None, (angles, lever) or None, SequenceVibration or None)
+        One per window.
+
+    Returns
+    -------
+    tr_w : tuple
+        The windows' rows, ``L + 1`` per window (a leading row for the temperature at the
+        sample before), in :func:`window_batch`'s form.
+    rows_w : (B,) int
+        Row of each window's first sample in ``tr_w``.
+    """
+    w, f, dth, dv, dT, dt = tr
+    B, n = len(starts), L + 1
+    out = [np.zeros((B * n, 3)) for _ in range(4)]
+    for b in range(B):
+        k, g = int(starts[b]), int(rows[b])
+        a = tuple(x[g : g + L] for x in (w, f, dth, dv))
+        mounting, mount, vib = moves[b]
+        if mounting is not None:
+            a = mounting.apply(k, mounting.shared(k, L, False), *mount, a[2], a[3], False)
+        if vib is not None:
+            a = vib.apply(k, *a, raw=False)
+        for o, x in zip(out, a, strict=True):
+            o[b * n + 1 : (b + 1) * n] = x
+    rows = np.asarray(rows, np.int64)
+    dTw = dT[(rows[:, None] - 1 + np.arange(n)).ravel()] if len(dT) else dT
+    return (*out, dTw, dt), np.arange(B, dtype=np.int64) * n + 1
