@@ -5,7 +5,7 @@ Two ways to make the measured window of a key ``(route, grade, shard, j, k0)``:
 exact (:func:`exact_sequence`)
     The sequence is generated from its turn-on (sample 0) to the window's end with the draws of
     the simulate stage: parameters from stream ``params``, noise from the streams ``*_white``,
-    ``*_rrw``, ``*_bi`` of spawn key ``(route_id, grade_id, shard, j, stream)``, the same kernel
+    ``*_rrw``, ``*_bi`` (and ``*_slow`` for a grade's ``slow_bias``) of spawn key ``(route_id, grade_id, shard, j, stream)``, the same kernel
     (:class:`imugen.sensors.model.SensorModel`). The numbers are those of the shard, bit for bit
     (the shard stores them as float32: the same rounding). Its cost grows with ``k0``.
 window (:func:`window_batch`)
@@ -112,7 +112,8 @@ def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want
         for name, use, width in (
             ("white", m.use_w, 3),
             ("rrw", m.use_r, 3),
-            ("bi", m.use_b, 3 * p.components),
+            ("bi", m.use_bf, 3 * p.fast_components),
+            ("slow", m.use_s, 3),
         ):
             if use:
                 rngs[f"{s}_{name}"] = (sensor_rng(seed, rid, gid, shard, j, f"{s}_{name}"), width)
@@ -139,6 +140,7 @@ def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want
             m.step(
                 k0, *args, dT, z.get(f"{s}_white"), z.get(f"{s}_rrw"), z.get(f"{s}_bi"),
                 o(rate), o(inc), o(f"{s}_bias"), o(f"{s}_sf"), o(f"err_{rate}"), o(f"err_{inc}"),
+                zs=z.get(f"{s}_slow"),
             )  # fmt: skip
     return out
 
