@@ -172,10 +172,10 @@ def test_stream_exact_mode_is_the_shard_and_window_mode_draws_the_law(tmp_path):
     for n in range(3):
         b = ws.batch(n)
         kk = b["keys"]["k0"].astype(float)
-        L = b["labels"].astype(float)
+        lab_rows = b["labels"].astype(float)
 
-        def lab(x):
-            return L[:, names.index(x)]
+        def lab(x, rows=lab_rows):
+            return rows[:, names.index(x)]
 
         for i, ax in enumerate("xyz"):
             var = 0.0
