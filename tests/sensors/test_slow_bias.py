@@ -226,3 +226,30 @@ def test_torch_model_slow_bias_closed_forms():
     assert np.mean(x**2) == pytest.approx(want, rel=6 * math.sqrt(2 / n))
     # the numpy model agrees on what it runs
     assert SensorModel(pz, 0.01).normals_per_sample == 3 + 3 + 3
+
+
+def test_datasheet_import_and_kalibr_export(tmp_path):
+    """A datasheet's ``slow_bias_<unit>`` with ``slow_bias_correlation_time_<unit>`` imports as
+    the grade's slow_bias (Allan peak); alone it is refused; the Kalibr export counts its
+    driving noise ``2 sigma^2 / T`` in ``random_walk``."""
+    from imugen.sensors.grade_io import import_grade, kalibr_figures
+
+    f = tmp_path / "ds.yaml"
+    ds = {"part": "X", "gyro": {"arw_deg_per_sqrt_h": 2.0, "bias_instability_deg_per_h": 20,
+                                "bias_instability_flicker_band_s": [1, 200],
+                                "slow_bias_deg_per_h": 25, "slow_bias_correlation_time_s": 150}}  # fmt: skip
+    f.write_text(yaml.safe_dump({"datasheet": ds}))
+    name, c = import_grade(f, grade_id=5400)
+    sb = c["gyro"]["slow_bias"]
+    assert sb["kind"] == "allan_floor" and sb["value"] == 25
+    assert sb["correlation_time"] == {"value": 150.0, "unit": "s"}
+    g = grade_from_config(name, c)
+    without = {k: v for k, v in c["gyro"].items() if k != "slow_bias"}
+    g0 = grade_from_config(name, {**c, "gyro": without})
+    k, k0 = (kalibr_figures(x)["gyroscope_random_walk"] for x in (g, g0))
+    s = 25 * DEG_H / GM_PEAK
+    assert k**2 - k0**2 == pytest.approx(2 * s * s / 150, rel=1e-9)
+    del ds["gyro"]["slow_bias_correlation_time_s"]
+    f.write_text(yaml.safe_dump({"datasheet": ds}))
+    with pytest.raises(InputError, match="go together"):
+        import_grade(f, grade_id=5400)
