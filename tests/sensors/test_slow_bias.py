@@ -253,3 +253,19 @@ def test_datasheet_import_and_kalibr_export(tmp_path):
     f.write_text(yaml.safe_dump({"datasheet": ds}))
     with pytest.raises(InputError, match="go together"):
         import_grade(f, grade_id=5400)
+
+
+def test_filter_tuning_counts_the_slow_process():
+    """The aided filter's bias state: initial sigma and driving noise add the slow process's
+    ``sigma^2`` and ``2 sigma^2 / T``; switched off (``terms``), the grade without it."""
+    from imugen.aid.filter.tuning import Tuning
+
+    g = grade_from_config("s", cfg(SLOW_G, start="stationary"))
+    g0 = grade_from_config("s", cfg(start="stationary"))
+    t, t0 = Tuning.from_grade(g), Tuning.from_grade(g0)
+    s = 40 * DEG_H
+    np.testing.assert_allclose(t.gyro_bias_sd**2 - t0.gyro_bias_sd**2, s * s, rtol=1e-9)
+    np.testing.assert_allclose(t.gyro_bias_q - t0.gyro_bias_q, 2 * s * s / 20.0, rtol=1e-9)
+    off = Tuning.from_grade(g, terms=[x for x in g.gyro.configured() if x != "slow_bias"])
+    np.testing.assert_allclose(off.gyro_bias_sd, t0.gyro_bias_sd)
+    np.testing.assert_allclose(off.gyro_bias_q, t0.gyro_bias_q)
