@@ -138,3 +138,36 @@ def test_adis16405_fitted_grade_simulated_by_imugen_reproduces_the_real_allan_cu
         assert np.all((ratio[long_] >= lo[long_]) & (ratio[long_] <= hi[long_])), (
             i, np.round(ratio[long_], 3), np.round(lo[long_], 3), np.round(hi[long_], 3)
         )  # fmt: skip
+
+
+def test_fit_command_finds_a_slow_second_process_and_says_so(tmp_path, capsys):
+    """A log whose floor has a second, slow Gauss-Markov (T 100 s beside one at 2 s): ``imugen
+    grade fit`` keeps it as the grade's slow_bias, says why (both chi-squares) on the terminal
+    and in the source, and the document loads; ``--slow-bias=off`` leaves it out and says so."""
+    pd = pytest.importorskip("pandas")
+    from imugen.sensors.grades import GM_PEAK, load_grades
+    from imugen.sensors.options import GradeFitOptions
+
+    rate, K = 20.0, 80_000
+    mods = [AxisModel(rate_hz=rate, white=2e-4, bi_model="gauss_markov", bi_floor=2e-5,
+                      bi_T=2.0, bi_start="zero", slow_peak=6e-5, slow_T=100.0)
+            for _ in range(3)]  # fmt: skip
+    G = simulate_triad(mods, K, 1)
+    A = simulate_triad(mods, K, 2) + [0.0, 0.0, 9.8]
+    cols = {f"gyro_{a}_radps": G[:, i] for i, a in enumerate("xyz")}
+    cols |= {f"accel_{a}_mps2": A[:, i] for i, a in enumerate("xyz")}
+    log = tmp_path / "still.parquet"
+    pd.DataFrame({"time_s": np.arange(K) / rate, **cols}).to_parquet(log)
+    out = tmp_path / "g.yaml"
+    F.main(GradeFitOptions(name="t", grade_id=1000, bias_model="gauss_markov"), log, out)
+    said = capsys.readouterr().out
+    assert said.count("slow_bias: a second Gauss-Markov at T") == 2 and "kept" in said
+    g = load_grades(out)["t"]
+    sb = g.gyro.slow_bias
+    assert 50 < sb.correlation_time.value[0] < 200
+    peak = np.array(sb.level.value)  # allan_floor: the peak
+    assert sb.level.kind == "allan_floor" and np.all(np.abs(peak / 6e-5 - 1) < 0.3), peak
+    assert sb.sigma_from_level(peak[0]) == pytest.approx(peak[0] / GM_PEAK)
+    sf = F.fit_sensor(G, rate, "gyro", bi_model="gauss_markov", slow_gm=False, lines=False)
+    assert sf.slow_T is None and "slow_bias" not in F.sensor_config(sf, "x")
+    assert "no slow second Gauss-Markov tried" in sf.choice

@@ -53,7 +53,7 @@ class GradeFitOptions:
         "auto",
         choices=("auto", "off"),
         help="a second, slower Gauss-Markov bias beyond the floor (slow_bias): auto keeps it "
-        "where it lowers the weighted chi-square by more than 5 %% (and says so)",
+        "where it lowers the weighted chi-square by more than 5 % (and says so)",
     )
     plot: str | None = option(
         None, shown="beside the grade, .png", help="figure of the measured and fitted Allan curves"
