@@ -153,7 +153,7 @@ def test_fit_command_finds_a_slow_second_process_and_says_so(tmp_path, capsys):
                       bi_T=2.0, bi_start="zero", slow_peak=6e-5, slow_T=100.0)
             for _ in range(3)]  # fmt: skip
     G = simulate_triad(mods, K, 1)
-    A = simulate_triad(mods, K, 2) + [0.0, 0.0, 9.8]
+    A = simulate_triad(mods, K, 2) + np.array([0.0, 0.0, 9.8])
     cols = {f"gyro_{a}_radps": G[:, i] for i, a in enumerate("xyz")}
     cols |= {f"accel_{a}_mps2": A[:, i] for i, a in enumerate("xyz")}
     log = tmp_path / "still.parquet"
