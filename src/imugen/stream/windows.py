@@ -5,7 +5,8 @@ Two ways to make the measured window of a key ``(route, grade, shard, j, k0)``:
 exact (:func:`exact_sequence`)
     The sequence is generated from its turn-on (sample 0) to the window's end with the draws of
     the simulate stage: parameters from stream ``params``, noise from the streams ``*_white``,
-    ``*_rrw``, ``*_bi`` (and ``*_slow`` for a grade's ``slow_bias``) of spawn key ``(route_id, grade_id, shard, j, stream)``, the same kernel
+    ``*_rrw``, ``*_bi`` (and ``*_slow`` for a grade's ``slow_bias``) of spawn key
+    ``(route_id, grade_id, shard, j, stream)``, the same kernel
     (:class:`imugen.sensors.model.SensorModel`). The numbers are those of the shard, bit for bit
     (the shard stores them as float32: the same rounding). Its cost grows with ``k0``.
 window (:func:`window_batch`)
@@ -17,8 +18,9 @@ window (:func:`window_batch`)
     ``N(0, K^2 m dt)``, the quantization residuals uniform on ``[-q/2, q/2)``; the window's
     noise follows. These draws come from the sequence's stream :data:`~imugen.stream.keys.WINDOW_STREAM`,
     consumed window after window in increasing ``k0``; per window and sensor (gyro, then
-    accel): ``3 C`` GM states (axis-major), 3 random-walk states, 3 + 3 normals turned into
-    the rate and increment quantization residuals (``Phi(z)``), then the window's white
+    accel): ``3 C`` GM states (axis-major; ``C`` counts a ``slow_bias`` as the last
+    component), 3 random-walk states, 3 + 3 normals turned into the rate and increment
+    quantization residuals (``Phi(z)``), then the window's white
     ``(W, 3)``, random-walk ``(W, 3)`` and GM ``(W, 3 C)`` normals, each only when the
     sequence has the term. The joint law of a window's values is the shard path's; windows
     of one sequence are drawn independently of each other (their slow states are not the
