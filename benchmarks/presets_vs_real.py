@@ -6,7 +6,7 @@ see that folder's README), computes the overlapping Allan deviation of each of t
 and 9 accelerometer axes (mean removed), and draws, per sensor, the band of the measured axes
 and each preset's expected Allan deviation from its grade (white noise through the preset's
 output bandwidth, quantization, bias instability -- flicker or Gauss-Markov with its start --,
-rate random walk: :class:`imugen.sensors.noise_terms.AxisModel`, the same closed forms the
+rate random walk, a ``slow_bias``: :class:`imugen.sensors.noise_terms.AxisModel`, the same closed forms the
 fit uses) over a record of the same length. Writes ``docs/figures/presets_vs_real.png`` and
 prints a table (gyro ADEV at 0.01 s and 1 s, minimum and where; the same for the
 accelerometer) with the machine's load and the CPU seconds beside the wall time.
@@ -56,6 +56,10 @@ def preset_model(spec, rate_hz: float) -> AxisModel:
         else:
             kw = dict(bi_model="gauss_markov", bi_floor=floor,
                       bi_T=float(bi.correlation_time.value[0]), bi_start=bi.start)  # fmt: skip
+    sb = spec.slow_bias  # the second, slow Gauss-Markov (the measured preset's)
+    if sb is not None:
+        kw.update(slow_peak=sb.allan_floor_from_level(float(sb.level.value[0])),
+                  slow_T=float(sb.correlation_time.value[0]))  # fmt: skip
     return AxisModel(
         rate_hz=rate_hz,
         white=v(spec.white_noise),
@@ -135,6 +139,10 @@ def main() -> None:
     row("ADIS16405 median", np.median(meas["gyro"], 0) / fg, np.median(meas["accel"], 0) / fa)
     for n in SHOWN:
         row(n, curves["gyro"][n] / fg, curves["accel"][n] / fa)
+    for s in ("gyro", "accel"):
+        r = curves[s]["adis16405"] / np.median(meas[s], 0)
+        print(f"adis16405 / measured median, {s}: " + " ".join(
+            f"{t:g}s {x:.2f}" for t, x in zip(tau, r, strict=True)))  # fmt: skip
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     print(f"wrote {path}; wall {time.perf_counter() - t0:.1f} s, CPU "
           f"{time.process_time() - c0:.1f} s, load average {load:.2f}, {os.cpu_count()} CPUs")  # fmt: skip

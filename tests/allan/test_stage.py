@@ -177,3 +177,28 @@ def test_check_of_a_grade_with_output_bandwidth_and_rounding():
     sh = S.simulate(None, g, sequences=4, seed=3, static_s=300.0, rate_hz=100.0, outputs="rates")
     e = allan.allan_report(sh, curves=allan.allan_curves(sh, 4, sensors=("gyro",)))["arw"]
     assert e["ratio"] == pytest.approx(1.0, abs=0.02) and e["within"], e
+
+
+def test_a_slow_bias_is_its_own_basis_not_read_as_another_term():
+    """A grade with a slow_bias (a second GM, T 60 s, twice the flicker floor): the Allan
+    check reads the white noise, the flicker floor and the rate random walk as it does for
+    the grade without it (same seed), because the slow process has its own basis; without
+    that basis the rate random walk would read 1.27x and leave its interval."""
+    import copy
+
+    slow = {"value": 2.0, "unit": "deg_per_h", "kind": "allan_floor",
+            "correlation_time": {"value": 60, "unit": "s"}}  # fmt: skip
+    reps = []
+    for g in (GYRO, {**GYRO, "slow_bias": slow}):
+        sh = S.simulate(None, grade(g), sequences=6, seed=1, static_s=1200.0, rate_hz=10.0,
+                        draw="nominal")  # fmt: skip
+        cv = allan.allan_curves(sh, max_sequences=6, sensors=("gyro",))
+        reps.append(allan.allan_report(sh, curves=cv))
+    assert set(reps[1]) == {"arw", "gyro_bias_instability", "gyro_rrw"}
+    for k in reps[0]:
+        assert reps[1][k]["ratio"] == pytest.approx(reps[0][k]["ratio"], abs=0.02), k
+    assert reps[1]["gyro_rrw"]["within"]
+    blind = copy.deepcopy(cv)
+    blind["meta"]["terms"]["gyro"] = [t for t in blind["meta"]["terms"]["gyro"] if t != "slow_bias"]
+    e = allan.allan_report(sh, curves=blind)["gyro_rrw"]
+    assert e["ratio"] > 1.15 and not e["within"]

@@ -182,7 +182,7 @@ def _same_terms(got, want, ranges: bool):
         assert a.configured() == b.configured(), s
         for t in a.configured():
             pa, pb = getattr(a, t), getattr(b, t)
-            if t == "bias_instability":
+            if t in ("bias_instability", "slow_bias"):
                 assert (pa.model, pa.start, pa.level.kind) == (pb.model, pb.start, pb.level.kind)
                 np.testing.assert_allclose(pa.correlation_time.value, pb.correlation_time.value)
                 pa, pb = pa.level, pb.level

@@ -40,10 +40,10 @@ def test_every_number_has_a_source_and_kind():
         for sensor in ("gyro", "accel"):
             for term, entry in (cfg.get(sensor) or {}).items():
                 assert entry.get("source"), f"{name}.{sensor}.{term} has no source"
-                if term in ("turn_on_bias", "bias_instability"):
+                if term in ("turn_on_bias", "bias_instability", "slow_bias"):
                     assert entry["kind"] in ("one_sigma", "allan_floor", "gm_sigma")
                 if (
-                    term == "bias_instability"
+                    term in ("bias_instability", "slow_bias")
                     and entry.get("model", "gauss_markov") == "gauss_markov"
                 ):
                     assert entry["correlation_time"].get("source")
@@ -245,7 +245,7 @@ def _ranged(g):
         spec = g.sensor(s)
         for t in spec.configured():
             p = getattr(spec, t)
-            p = p.level if t == "bias_instability" else p
+            p = p.level if t in ("bias_instability", "slow_bias") else p
             if p.randomized:
                 yield f"{g.name}.{s}.{t}", p
 

@@ -141,6 +141,16 @@ def _bases(sensor, term_set, labels, dt, taus, cfg=None):
         conf["bias_instability"] = float(np.sqrt(np.mean(lev**2)))
         if conf["bias_instability"] > 0:
             bases["bias_instability"] = shape / n / conf["bias_instability"] ** 2
+    if "slow_bias" in term_set and f"{sensor}_slow_bias_tau_s" in labels.columns:
+        # the grade's second, slow GM: its own basis, so that it is not read as another term
+        T = labels[f"{sensor}_slow_bias_tau_s"].to_numpy(float)
+        sg = np.column_stack([_lab(labels, f"{sensor}_slow_bias_sigma_{a}_{r}") for a in "xyz"])
+        lev = np.column_stack([_lab(labels, f"{sensor}_slow_bias_level_{a}_{r}") for a in "xyz"])
+        conf["slow_bias"] = float(np.sqrt(np.mean(lev**2)))
+        if conf["slow_bias"] > 0:
+            shape = sum(avar_bias_instability(taus, [x], [t]) for row, t in zip(sg, T, strict=True)
+                        for x in row)  # fmt: skip
+            bases["slow_bias"] = shape / sg.size / conf["slow_bias"] ** 2
     if "quantization" in term_set:
         lsb = float(labels[f"{sensor}_quantization_{r}"].iloc[0])
         bases["quantization"] = avar_quantization(taus, lsb, dt)

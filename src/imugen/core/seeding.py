@@ -8,7 +8,8 @@ many routes, shards or jobs exist, nor on their order, and never repeats elsewhe
 IMU sensors (simulate stage; :func:`sensor_rng`)
     ``(route_id, grade_id, shard, j, stream)``, ``j`` the sequence's index in its shard and
     ``stream`` from :data:`SENSOR_STREAMS` (parameter draw, white noise, rate random walk and
-    bias instability per sensor, vibration, mounting, the internal-rate white noise of a
+    bias instability per sensor, the second slow bias process (a grade's ``slow_bias``) per
+    sensor, vibration, mounting, the internal-rate white noise of a
     sensor with an output bandwidth, and the window-mode draws of :mod:`imugen.stream`: the
     kernel's, and those of an output bandwidth and rounding quantization). ``route_id`` is
     :func:`imugen.tables.shard.route_id` of the route name.
@@ -55,6 +56,8 @@ SENSOR_STREAMS = {
     "accel_band": 10,
     "window": 11,
     "window_band": 12,
+    "gyro_slow": 13,
+    "accel_slow": 14,
 }
 """Per-sequence streams of the IMU (last element of its spawn key)."""
 

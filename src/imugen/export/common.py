@@ -36,7 +36,7 @@ def _label(labels: dict, stem: str) -> float:
 def noise_figures(labels: dict) -> dict[str, float]:
     """Kalibr's four numbers for one sequence from its drawn parameters (SI, axis means).
 
-    ``random_walk = sqrt(RRW^2 + 2 sigma_GM^2 / T_GM)`` as in
+    ``random_walk = sqrt(RRW^2 + sum 2 sigma_GM^2 / T_GM)`` (every GM, the slow bias's too) as in
     :func:`imugen.sensors.grade_io.kalibr_figures`.
     """
     out = {}
@@ -47,12 +47,17 @@ def noise_figures(labels: dict) -> dict[str, float]:
         w = _label(labels, f"{sensor}_white_noise_{{a}}_{dens}")
         k2 = _label(labels, f"{sensor}_rate_random_walk_{{a}}_{rw}") ** 2
         c = 0
+        comps = []
         while f"{sensor}_bias_instability_tau{c}_s" in labels:
-            T = float(labels[f"{sensor}_bias_instability_tau{c}_s"])
-            s = _label(labels, f"{sensor}_bias_instability_sigma{c}_{{a}}_{rate}")
+            comps.append((f"bias_instability_tau{c}_s", f"bias_instability_sigma{c}"))
+            c += 1
+        if f"{sensor}_slow_bias_tau_s" in labels:  # the grade's second, slow GM
+            comps.append(("slow_bias_tau_s", "slow_bias_sigma"))
+        for tau, sig in comps:
+            T = float(labels[f"{sensor}_{tau}"])
+            s = _label(labels, f"{sensor}_{sig}_{{a}}_{rate}")
             if T > 0 and s > 0:
                 k2 += 2.0 * s * s / T
-            c += 1
         out[f"{prefix}_noise_density"] = w
         out[f"{prefix}_random_walk"] = math.sqrt(k2)
     return out

@@ -35,7 +35,7 @@ GT_HEADER = (
 )
 
 
-IN_RUN = ("_bias_instability_sigma", "_rate_random_walk_", "_temperature_bias_")
+IN_RUN = ("_bias_instability_sigma", "_slow_bias_sigma", "_rate_random_walk_", "_temperature_bias_")
 """Label stems of bias terms that vary within a run."""
 
 

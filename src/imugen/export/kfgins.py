@@ -142,17 +142,23 @@ def _axes(labels: dict, stem: str) -> np.ndarray:
 
 def _inrun(labels: dict, sensor: str) -> tuple[np.ndarray, float]:
     """``(q (3,), T)`` of a sensor's in-run bias: driving PSD ``q = sum_c 2 sigma_c^2 / tau_c +
-    K^2`` [(rad/s)^2/s or (m/s^2)^2/s] and its Gauss-Markov time ``T = sum sigma_c^2 /
+    K^2`` [(rad/s)^2/s or (m/s^2)^2/s] (the components of the bias instability and of a
+    ``slow_bias``) and its Gauss-Markov time ``T = sum sigma_c^2 /
     sum (sigma_c^2 / tau_c)`` [s] (``tau_0`` for one component; nan without one)."""
     unit, rw = ("radps", "radps_per_sqrt_s") if sensor == "gyro" else ("mps2", "mps2_per_sqrt_s")
     s2, s2_tau = np.zeros(3), np.zeros(3)
     c = 0
+    comps = []
     while f"{sensor}_bias_instability_tau{c}_s" in labels:
-        tau = float(labels[f"{sensor}_bias_instability_tau{c}_s"])
-        sig = _axes(labels, f"{sensor}_bias_instability_sigma{c}_{{a}}_{unit}")
+        comps.append((f"bias_instability_tau{c}_s", f"bias_instability_sigma{c}"))
+        c += 1
+    if f"{sensor}_slow_bias_tau_s" in labels:  # the grade's second, slow GM
+        comps.append(("slow_bias_tau_s", "slow_bias_sigma"))
+    for tname, sname in comps:
+        tau = float(labels[f"{sensor}_{tname}"])
+        sig = _axes(labels, f"{sensor}_{sname}_{{a}}_{unit}")
         if tau > 0:
             s2, s2_tau = s2 + sig**2, s2_tau + sig**2 / tau
-        c += 1
     q = 2.0 * s2_tau + _axes(labels, f"{sensor}_rate_random_walk_{{a}}_{rw}") ** 2
     T = float(np.sum(s2) / np.sum(s2_tau)) if np.sum(s2_tau) > 0 else math.nan
     return q, T

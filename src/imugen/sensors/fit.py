@@ -31,8 +31,9 @@ imugen's grade format requires; amplitudes are per axis):
    (:func:`imugen.sensors.noise_terms.gm_flat_decades` = 1.58 decades): wider by more than ``WIDTH_MARGIN`` (0.3
    decades) -> flicker band, narrower by more -> one GM, in between the width cannot tell and the
    better weighted chi-square of the two decides; a second, slower GM (environment, e.g. lab
-   temperature cycling) is added beyond the floor only where it lowers chi-square by > 5 %; the
-   reason is written into the grade's ``source``;
+   temperature cycling: the grade's ``slow_bias``) is added beyond the floor only where it lowers
+   chi-square by > 5 % (``slow_gm``); the reasons, with the chi-squares, are written into the
+   grade's ``source`` and printed;
 7. uncertainty of each figure from the record length: linear least-squares covariance of the
    amplitudes on the octave taus (nearly independent), each weighted by ``edf / 2``; a figure
    (a square root of an amplitude) gets half the relative standard error of its amplitude.
@@ -310,6 +311,7 @@ class SensorFit:
     floor_width: np.ndarray | None = None
     filter_table: list = field(default_factory=list)
     slow_T: float | None = None
+    slow_chi2: tuple | None = None  # weighted chi2 (without, with) the slow GM, when tried
 
 
 def _solve(cols: list, target, w):
@@ -486,6 +488,10 @@ def fit_sensor(
             m, avar, wts, fixed, line_cols, [f], bl, dt, K, start, slow_gm
         )
     _build(sf, f, b, xs, found, start, quant_mode, slow)
+    if slow_gm:
+        c_off = _fit_sensor_grid(m, avar, wts, fixed, line_cols, [f], [b], dt, K, start, False)[2]
+        c_on = _fit_sensor_grid(m, avar, wts, fixed, line_cols, [f], [b], dt, K, start, True)[2]
+        sf.slow_chi2 = (c_off, c_on)
     sf.floor_width = np.array([w[0] for w in widths.get("measured", [(0.0, None)] * 3)])
     sf.choice = _choice_text(sf, widths)
     sf.uncertainty = [_uncertainty(sf, am, a) for a, am in enumerate(sf.models)]
@@ -557,7 +563,7 @@ def _choice_text(sf, widths):
     """Why flicker or Gauss-Markov, in words and numbers."""
     chi = ", ".join(f"{k} {v:.4g}" for k, v in sorted(sf.chi2.items()))
     if "measured" not in widths:
-        return f"{sf.bi_kind} (as asked); weighted chi2 by model: {chi}"
+        return f"{sf.bi_kind} (as asked); weighted chi2 by model: {chi}; {slow_text(sf)}"
     ws = widths["measured"]
     per = ", ".join(
         f"{a} {w:.2f} dec ({r[0]:.3g}-{r[1]:.3g} s)" for a, (w, r) in zip("xyz", ws, strict=True)
@@ -579,8 +585,21 @@ def _choice_text(sf, widths):
     return (
         f"{sf.bi_kind}: the bias part of the measured Allan deviation stays within +-25 % over "
         f"{wm:.2f} decades of tau (median of the axes; {per}), {why}; "
-        f"weighted chi2 by model (final): {chi}"
+        f"weighted chi2 by model (final): {chi}; {slow_text(sf)}"
     )
+
+
+def slow_text(sf) -> str:
+    """Whether the second, slow GM (``slow_bias``) was kept, and why, in words and numbers."""
+    if sf.slow_chi2 is None:
+        return "no slow second Gauss-Markov tried"
+    c0, c1 = sf.slow_chi2
+    if sf.slow_T:
+        return (
+            f"slow_bias: a second Gauss-Markov at T {sf.slow_T:.3g} s beyond the floor lowers "
+            f"the weighted chi2 from {c0:.4g} to {c1:.4g} (> 5 %): kept"
+        )
+    return "slow_bias: no second Gauss-Markov lowers the weighted chi2 by > 5 %: none"
 
 
 def _uncertainty(sf: SensorFit, am: AxisModel, a: int) -> dict:
@@ -711,6 +730,16 @@ def sensor_config(sf: SensorFit, source: str) -> dict:
         else:
             bi["correlation_time"] = {"value": _fmt(sf.bi_par, 3), "unit": "s"}
         cfg["bias_instability"] = bi
+    if sf.slow_T:
+        cfg["slow_bias"] = {
+            "value": _vals([x.slow_peak for x in ms], u["bias_instability"]),
+            "unit": u["bias_instability"],
+            "kind": "allan_floor",
+            "start": ms[0].bi_start,
+            "correlation_time": {"value": _fmt(sf.slow_T, 3), "unit": "s"},
+            "source": f"{source}: Allan fit, the peak of a second, slow Gauss-Markov beyond the "
+            f"floor; 1-sigma {pm('slow_gm')}; {slow_text(sf)}",
+        }
     if any(x.rrw > 0 for x in ms):
         cfg["rate_random_walk"] = {
             "value": _vals([x.rrw for x in ms], u["rate_random_walk"]),
@@ -744,8 +773,8 @@ def sensor_config(sf: SensorFit, source: str) -> dict:
 
 
 def environment_note(sf: SensorFit) -> str:
-    """The fitted terms the grade format does not hold (narrowband lines, a slow second
-    Gauss-Markov hump): said in the grade's notes, not simulated."""
+    """The fitted terms the grade format does not hold (narrowband lines): said in the grade's
+    notes, not simulated (a slow second Gauss-Markov is the grade's ``slow_bias``)."""
     u = SENSOR_UNITS[sf.sensor]
     parts = []
     for a, am in enumerate(sf.models):
@@ -754,17 +783,11 @@ def environment_note(sf: SensorFit) -> str:
                 f"{'xyz'[a]} line {ln['fc']:.3g} Hz (width {ln['width']:.2g} Hz, "
                 f"{math.sqrt(ln['power']) / UNITS[u['line']]:.3g} {u['line']} rms)"
             )
-        if am.slow_peak > 0:
-            pk = am.slow_peak / UNITS[u["bias_instability"]]
-            parts.append(
-                f"{'xyz'[a]} slow Gauss-Markov hump {pk:.3g} {u['bias_instability']} "
-                f"at T {sf.slow_T:.3g} s"
-            )
     if not parts:
         return ""
     return (
-        f"{sf.sensor}: fitted but not simulated (environment, not the part: lines and humps "
-        "a grade does not hold): " + "; ".join(parts)
+        f"{sf.sensor}: fitted but not simulated (environment, not the part: lines a grade "
+        "does not hold): " + "; ".join(parts)
     )
 
 
@@ -779,7 +802,7 @@ def fit_grade(
     source: str = "still log",
     lines: bool = True,
     bi_model: str | None = None,
-    slow_gm: bool = False,
+    slow_gm: bool = True,
 ) -> dict:
     """Fit a grade from a still log.
 
@@ -794,7 +817,10 @@ def fit_grade(
         The part's internal sample rate when known (ADIS16405: 819.2); default 16 x rate
         (an internal grid fine enough to stand for continuous time).
     start : {"zero", "stationary"}
-        Initial law of the in-run bias process (imugen's ``start``).
+        Initial law of the in-run bias process (imugen's ``start``), and of the slow one.
+    slow_gm : bool
+        Try a second, slow Gauss-Markov beyond the floor (the grade's ``slow_bias``), kept
+        where it lowers the weighted chi-square by more than 5 %.
 
     Returns
     -------
@@ -868,7 +894,8 @@ def plot_fit(result: dict, out, title: str = "", dpi: float = 150):
                           lw=1, label=f"{'xyz'[a]} fitted")  # fmt: skip
             ax.set_xlabel("averaging time tau [s]")
             ax.set_ylabel(f"Allan deviation [{unit.replace('_per_', '/')}]")
-            ax.set_title(f"{s}: {sf.bi_kind}, filter {sf.filt.kind} {title}".strip())
+            slow = f" + slow GM (T {sf.slow_T:.3g} s)" if sf.slow_T else ""
+            ax.set_title(f"{s}: {sf.bi_kind}{slow}, filter {sf.filt.kind} {title}".strip())
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=7, ncols=2)
         return save(fig, out.with_suffix(""), (fmt,), dpi)[0]
@@ -906,6 +933,7 @@ def run(log, out, options: GradeFitOptions) -> dict:
         internal_rate_hz=options.internal_rate_hz,
         source=Path(str(log)).name,
         bi_model=None if options.bias_model == "auto" else options.bias_model,
+        slow_gm=options.slow_bias == "auto",
     )
     doc = r["document"]
     if lg.notes:

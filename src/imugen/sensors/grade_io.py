@@ -38,6 +38,8 @@ Datasheet figures (a YAML file with a top-level ``datasheet:`` mapping; example 
         noise_density_deg_per_s_per_sqrt_hz: 0.005    # or arw_deg_per_sqrt_h: 0.30
         bias_instability_deg_per_h: 4.6               # the Allan minimum
         bias_instability_correlation_time_s: 500      # optional (default 3600 s, warned)
+        slow_bias_deg_per_h: 20                       # optional: a second, slow Gauss-Markov
+        slow_bias_correlation_time_s: 150             #   (its Allan peak and its T, needed)
         turn_on_bias_deg_per_h: 200
         scale_factor_percent: {limit: 3}              # +-limit read as 3 sigma
         misalignment_mrad: 1.0
@@ -56,7 +58,10 @@ datasheet limits), each mapping with an optional ``source``. ``bias_instability`
 datasheet's Allan-deviation minimum (``kind: allan_floor``): :mod:`imugen.sensors.grades` models it as
 one Gauss-Markov state of sigma ``floor / 0.618`` whose Allan peak (at ``tau = 1.89 T``) is the
 floor (IEEE Std 952-1997 annex C), with ``bias_instability_correlation_time_<unit>``, or as a
-flicker sum with ``bias_instability_flicker_band_<unit>: [min, max]``. (The IEEE 952 flicker
+flicker sum with ``bias_instability_flicker_band_<unit>: [min, max]``. ``slow_bias`` is a
+second, slower Gauss-Markov process beside it (the grade's ``slow_bias``: the hump past the
+floor that a real log shows, e.g. :func:`imugen.sensors.fit.fit_grade`'s), given by its Allan
+peak (``kind: allan_floor``) with ``slow_bias_correlation_time_<unit>`` (required). (The IEEE 952 flicker
 coefficient ``B`` is another quantity: a flat 1/f floor is ``0.664 B``; datasheets quote the
 floor.)
 
@@ -129,6 +134,7 @@ _DATASHEET_COMMON = {
     "range": "range",
     "temperature_bias": "temperature_bias",
     "temperature_scale_factor": "temperature_scale_factor",
+    "slow_bias": "slow_bias",
 }
 DATASHEET_FIGURES: dict[str, dict[str, str]] = {
     "gyro": {"arw": "white_noise", **_DATASHEET_COMMON, "g_sensitivity": "g_sensitivity"},
@@ -313,17 +319,23 @@ def _ds_sensor(block, sensor, top, origin) -> tuple[dict, list[str]]:
     if not isinstance(block, dict):
         raise InputError(origin, f"datasheet.{sensor}: expected a mapping of figures")
     cfg: dict = {}
-    ct = band = None
+    ct = band = slow_ct = None
     warn = []
     for key, v in block.items():
         where = f"datasheet.{sensor}.{key}"
-        for extra in ("correlation_time", "flicker_band"):
-            pre = f"bias_instability_{extra}_"
+        for extra in ("correlation_time", "flicker_band", "slow_correlation_time"):
+            pre = (
+                "slow_bias_correlation_time_"
+                if extra == "slow_correlation_time"
+                else f"bias_instability_{extra}_"
+            )
             if isinstance(key, str) and key.startswith(pre):
                 unit = key[len(pre) :]
                 if units.UNITS.get(unit) is None or units.UNITS[unit].dimension != "time":
                     raise InputError(origin, f"{where}: unit {unit!r} is not a time unit")
-                if extra == "correlation_time":
+                if extra == "slow_correlation_time":
+                    slow_ct = {"value": _number(block, key, origin), "unit": unit}
+                elif extra == "correlation_time":
                     ct = {"value": _number(block, key, origin), "unit": unit}
                 elif not isinstance(v, list | tuple) or len(v) != 2:
                     raise InputError(origin, f"{where}: expected [min, max]")
@@ -357,6 +369,9 @@ def _ds_sensor(block, sensor, top, origin) -> tuple[dict, list[str]]:
             if term == "bias_instability":
                 entry["kind"] = "allan_floor"
                 note += "; the Allan minimum"
+            if term == "slow_bias":
+                entry["kind"] = "allan_floor"
+                note += "; the Allan peak of a second, slow Gauss-Markov"
             spread = top["spread"]
             if spread and term not in FIXED_TERMS:
                 vv = val if isinstance(val, list) else [val]
@@ -366,6 +381,15 @@ def _ds_sensor(block, sensor, top, origin) -> tuple[dict, list[str]]:
                     entry["range"] = [lo if len(lo) == 3 else lo[0], hi if len(hi) == 3 else hi[0]]
             entry["source"] = note
             cfg[term] = entry
+    sb = cfg.get("slow_bias")
+    if (sb is None) != (slow_ct is None):
+        raise InputError(
+            origin,
+            f"datasheet.{sensor}: slow_bias_<unit> and slow_bias_correlation_time_<unit> go "
+            "together (a second Gauss-Markov: its Allan peak and its correlation time)",
+        )
+    if sb is not None:
+        sb["correlation_time"] = slow_ct
     bi = cfg.get("bias_instability")
     if (ct or band) and bi is None:
         raise InputError(
@@ -565,7 +589,8 @@ def kalibr_figures(grade: Grade | str, rate_hz: float | None = None) -> dict[str
     bias-instability floor is not one (kalibr #450, #622: no standard conversion exists; the
     other common reading, the +1/2 line touching the floor ``B`` at ``tau_B``,
     ``K = B sqrt(3 / tau_B)``, depends on an equally assumed time). With ``s = B / 0.618`` a
-    datasheet floor ``B`` gives ``K = 2.29 B / sqrt(T)``. Turn-on bias, scale factor,
+    datasheet floor ``B`` gives ``K = 2.29 B / sqrt(T)``. A ``slow_bias`` (a second
+    Gauss-Markov) adds its own ``2 s^2 / T`` the same way. Turn-on bias, scale factor,
     misalignment, g-sensitivity, temperature and quantization have no Kalibr field and are
     dropped; per-axis values are averaged.
     """
@@ -580,8 +605,9 @@ def kalibr_figures(grade: Grade | str, rate_hz: float | None = None) -> dict[str
             if sensor.rate_random_walk is None
             else float(np.mean(sensor.rate_random_walk.value)) ** 2
         )
-        bi = sensor.bias_instability
-        if bi is not None:
+        for bi in (sensor.bias_instability, sensor.slow_bias):
+            if bi is None:
+                continue
             sig = bi.sigma_from_level(float(np.mean(bi.level.value)))
             if bi.model == "gauss_markov":
                 taus = [float(np.mean(bi.correlation_time.value))]
@@ -615,7 +641,7 @@ def to_kalibr(grade: Grade | str, rate_hz: float = 100.0, topic: str = "/imu0") 
         t
         for s in (g.gyro, g.accel)
         for t in s.configured()
-        if t not in ("white_noise", "rate_random_walk", "bias_instability")
+        if t not in ("white_noise", "rate_random_walk", "bias_instability", "slow_bias")
     ]
     axes = sorted(
         {
@@ -628,7 +654,8 @@ def to_kalibr(grade: Grade | str, rate_hz: float = 100.0, topic: str = "/imu0") 
     lines = [
         f"# Kalibr IMU noise model of imugen grade {g.name!r} (id {g.id}).",
         "# A SIMPLIFICATION of the full model: white noise and random walk only.",
-        "# random_walk = sqrt(RRW^2 + 2 sigma_GM^2 / T_GM) (in-run Gauss-Markov bias as a walk;",
+        "# random_walk = sqrt(RRW^2 + sum 2 sigma_GM^2 / T_GM) (in-run Gauss-Markov biases, the",
+        "# slow_bias included, as a walk;",
         "# a heuristic: a bias-instability floor is not a rate random walk).",
         f"# Dropped terms (no Kalibr field): {', '.join(sorted(set(dropped))) or 'none'}.",
         *([f"# Per-axis values averaged: {', '.join(axes)}."] if axes else []),

@@ -45,6 +45,13 @@ Terms (per sensor; all optional; an absent term is off)
 ``range``              full-scale of the rate output (saturation), fixed.
 ``temperature_bias``   1-sigma per axis of the bias temperature coefficient.
 ``temperature_scale_factor``  1-sigma per axis of the scale-factor temperature coefficient.
+``slow_bias``          a second, slower first-order Gauss-Markov bias process beside the
+                       ``bias_instability`` (environment-driven wander, e.g. a lab's temperature
+                       cycling: the hump past the floor a real log shows at 100-1000 s):
+                       ``kind: allan_floor`` (its Allan-deviation peak, at tau = 1.89 T) or
+                       ``kind: gm_sigma``, ``correlation_time`` and ``start`` as a
+                       ``gauss_markov`` ``bias_instability``. Absent: no draw is made for it, so
+                       a grade without it gives the numbers it gave before the term existed.
 
 Besides the terms, a sensor may give its output ``bandwidth`` (not an error term: the part's
 internal sample rate and digital low-pass, :func:`imugen.sensors.bandwidth.spec_from_config`):
@@ -143,6 +150,11 @@ _TERMS: dict[str, tuple[dict[str, tuple[str, ...]], tuple[str, ...], str | None]
         ("one_sigma",),
         "one_sigma",
     ),
+    "slow_bias": (
+        {"gyro": ("angular_rate",), "accel": ("acceleration",)},
+        ("allan_floor", "gm_sigma"),
+        None,
+    ),
 }
 TERMS = tuple(_TERMS)
 """Names of the error terms, in a fixed order (also the order of parameter draws)."""
@@ -154,6 +166,7 @@ _ENTRY_KEYS = {"value", "range", "unit", "kind", "source", "note"}
 QUANTIZATION_MODES = ("carry", "round")
 """How the rate output is quantized (``quantization.mode``)."""
 _BI_KEYS = _ENTRY_KEYS | {"model", "correlation_time", "flicker_band", "components", "start"}
+_SLOW_KEYS = _ENTRY_KEYS | {"correlation_time", "start"}
 _GRADE_KEYS = {
     "id",
     "description",
@@ -342,6 +355,9 @@ class SensorSpec:
     range: Param | None = None
     temperature_bias: Param | None = None
     temperature_scale_factor: Param | None = None
+    slow_bias: BiasInstability | None = None
+    """A second, slower Gauss-Markov bias process (``model`` ``gauss_markov``, one
+    component) beside the ``bias_instability``."""
     bandwidth: BandwidthSpec | None = None
     """Output bandwidth (None: ideal, white noise ``N / sqrt(dt)`` per sample)."""
     quantization_mode: str = "carry"
@@ -467,12 +483,13 @@ def _param(entry, dims, kinds, default_kind, origin, where, fixed=False) -> Para
     return Param(val, lo, hi, uname, kind, src, ds)
 
 
-def _bias_instability(entry, sensor, origin, where, has_turn_on) -> BiasInstability:
+def _bias_instability(entry, sensor, origin, where, has_turn_on, slow=False) -> BiasInstability:
     if not isinstance(entry, dict):
         raise _err(origin, where, f"expected a mapping, got {entry!r}")
-    extra = set(entry) - _BI_KEYS
+    keys = _SLOW_KEYS if slow else _BI_KEYS
+    extra = set(entry) - keys
     if extra:
-        raise _err(origin, where, f"unknown key(s) {sorted(extra)}; allowed {sorted(_BI_KEYS)}")
+        raise _err(origin, where, f"unknown key(s) {sorted(extra)}; allowed {sorted(keys)}")
     start = entry.get("start", "zero" if has_turn_on else "stationary")
     if start not in STARTS:
         raise _err(origin, where, f"start must be one of {', '.join(STARTS)}, got {start!r}")
@@ -554,8 +571,10 @@ def _sensor(cfg, sensor, origin, where) -> SensorSpec:
             kw["quantization_mode"] = mode
             if min(kw[t].value) <= 0:
                 raise _err(origin, w, "must be > 0")
-        elif t == "bias_instability":
-            kw[t] = _bias_instability(entry, sensor, origin, w, cfg.get("turn_on_bias") is not None)
+        elif t in ("bias_instability", "slow_bias"):
+            kw[t] = _bias_instability(
+                entry, sensor, origin, w, cfg.get("turn_on_bias") is not None, t == "slow_bias"
+            )
         else:
             dims, kinds, dk = _TERMS[t]
             kw[t] = _param(entry, dims[sensor], kinds, dk, origin, w, fixed=t in FIXED_TERMS)
@@ -726,7 +745,8 @@ def budget_figures(grade: Grade | str) -> GradeFigures:
 
     Bias at the start of a run: the turn-on bias (1 sigma) and the in-run Allan floor in root
     sum square, or, for one process started from its stationary law, its stationary sigma
-    (summed in variance over flicker components); scale factor and white-noise densities as
+    (summed in variance over flicker components); a ``slow_bias`` adds its own in root sum
+    square; scale factor and white-noise densities as
     configured; absent terms are 0.
     """
     g = get_grade(grade)
@@ -734,15 +754,17 @@ def budget_figures(grade: Grade | str) -> GradeFigures:
     def mean(p: Param | None) -> float:
         return 0.0 if p is None else float(np.mean(np.abs(p.value)))
 
-    def bias(s: SensorSpec) -> float:
-        on = mean(s.turn_on_bias)
-        bi = s.bias_instability
+    def process(bi: BiasInstability | None, on: float) -> float:
         if bi is None:
             return on
         lvl = mean(bi.level)
         if bi.start == "stationary":
             return float(bi.sigma_from_level(lvl) * math.sqrt(bi.components))
         return float(np.hypot(on, bi.allan_floor_from_level(lvl)))
+
+    def bias(s: SensorSpec) -> float:
+        b = process(s.bias_instability, mean(s.turn_on_bias))
+        return b if s.slow_bias is None else float(np.hypot(b, process(s.slow_bias, 0.0)))
 
     return GradeFigures(
         name=g.name,

@@ -13,7 +13,9 @@ slow bias (state at sample ``t_k``)
       its stationary law ``x_0 ~ N(0, sigma^2)`` when it is the whole slow bias, or from
       ``x_0 = 0`` when it is the in-run wander beside a turn-on bias (grade key ``start``);
       a sum of several (log-spaced ``T``)
-      approximates flicker (1/f) noise;
+      approximates flicker (1/f) noise; a grade's ``slow_bias`` is one more component, the
+      last (its own ``T`` and start; its normals from the streams ``gyro_slow`` /
+      ``accel_slow``, so the other components draw what they drew without it);
     * ``r`` rate random walk, ``r_k = r_{k-1} + K sqrt(dt) xi``, ``r_0 = 0`` (the turn-on bias
       is the initial value);
     * ``k_b dT`` temperature-driven bias.
@@ -69,10 +71,14 @@ from imugen.sensors.grades import TERMS, SensorSpec
 
 # Layout of one sequence's parameter draw for one sensor (always drawn in full, whatever is
 # configured or enabled, so that each term's draw never depends on another term).
-N_UNIFORM = len(TERMS) + 1  # one level per term + the GM correlation time
+N_UNIFORM = TERMS.index("slow_bias") + 1
+"""One level per term up to ``temperature_scale_factor`` + the GM correlation time (fixed: a
+``slow_bias`` draws its two uniforms after the layout, and only where the grade has one)."""
 N_NORMAL = (
     3 + 3 + 6 + 9 + 3 + 3
 )  # turn-on, scale factor, cross-coupling, g-sens, temp bias, temp SF
+N_SLOW_UNIFORM = 2
+"""Uniforms of a ``slow_bias`` (its level, its correlation time), drawn after the layout."""
 _OFFDIAG = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 AXES = "xyz"
 
@@ -103,6 +109,9 @@ class SensorParams:
     bi_x0 : (S, 3, C)  standard deviation of each GM component's initial state: ``bi_sigma``
                        (start from the stationary law) or 0 (in-run wander from the turn-on
                        value); None means ``bi_sigma``
+    n_slow : int       0, or 1 when the last of the ``C`` components is the grade's
+                       ``slow_bias`` (a second, slower GM process)
+    slow_level : (S, 3) drawn ``slow_bias`` level in its configured kind (zeros without one)
     """
 
     b_on: np.ndarray
@@ -123,17 +132,27 @@ class SensorParams:
     q_round: bool = False
     """Quantize each rate sample on its own (``quantization.mode: round``) instead of
     carrying the residual."""
+    n_slow: int = 0
+    slow_level: np.ndarray | None = None
 
     def __post_init__(self):
         if self.bi_x0 is None:
             self.bi_x0 = self.bi_sigma
+        if self.slow_level is None:
+            self.slow_level = np.zeros_like(self.b_on)
 
     @property
     def components(self) -> int:
+        """GM components the kernel runs (the bias instability's, then the slow bias)."""
         return self.bi_sigma.shape[2]
 
+    @property
+    def fast_components(self) -> int:
+        """Components of the bias instability (stream ``*_bi``), without the slow bias."""
+        return self.components - self.n_slow
+
     ARRAYS = ("b_on", "bi_level", "bi_floor", "bi_sigma", "bi_tau", "white", "rrw", "sf", "cc",
-              "gs", "tb", "ts", "bi_x0")  # fmt: skip
+              "gs", "tb", "ts", "bi_x0", "slow_level")  # fmt: skip
     """The per-sequence fields (leading axis ``S``)."""
 
     @staticmethod
@@ -141,12 +160,14 @@ class SensorParams:
         """Concatenate per-sequence parameter sets along the sequence axis."""
         f = items[0]
         kw = {name: np.concatenate([getattr(p, name) for p in items]) for name in f.ARRAYS}
-        return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale, q_round=f.q_round)
+        return SensorParams(**kw, lsb=f.lsb, full_scale=f.full_scale, q_round=f.q_round,
+                            n_slow=f.n_slow)  # fmt: skip
 
     def rows(self, i: int) -> SensorParams:
         """Sequence ``i`` alone (``S = 1``; views of this set's arrays)."""
         kw = {name: getattr(self, name)[i : i + 1] for name in self.ARRAYS}
-        return SensorParams(**kw, lsb=self.lsb, full_scale=self.full_scale, q_round=self.q_round)
+        return SensorParams(**kw, lsb=self.lsb, full_scale=self.full_scale, q_round=self.q_round,
+                            n_slow=self.n_slow)  # fmt: skip
 
     def labels(self, prefix: str, unit: str) -> dict[str, np.ndarray]:
         """Flat label columns ``{name: (S,) array}`` with the SI unit in each name."""
@@ -157,10 +178,15 @@ class SensorParams:
         for i, a in enumerate(AXES):
             out[f"{prefix}_bias_instability_level_{a}_{rate}"] = self.bi_level[:, i]
             out[f"{prefix}_bias_instability_floor_{a}_{rate}"] = self.bi_floor[:, i]
-            for c in range(self.components):
+            for c in range(self.fast_components):
                 out[f"{prefix}_bias_instability_sigma{c}_{a}_{rate}"] = self.bi_sigma[:, i, c]
-        for c in range(self.components):
+        for c in range(self.fast_components):
             out[f"{prefix}_bias_instability_tau{c}_s"] = self.bi_tau[:, c]
+        if self.n_slow:  # the second, slow GM process (grade term slow_bias)
+            for i, a in enumerate(AXES):
+                out[f"{prefix}_slow_bias_level_{a}_{rate}"] = self.slow_level[:, i]
+                out[f"{prefix}_slow_bias_sigma_{a}_{rate}"] = self.bi_sigma[:, i, -1]
+            out[f"{prefix}_slow_bias_tau_s"] = self.bi_tau[:, -1]
         dens = "rad_per_sqrt_s" if unit == "radps" else "m_per_s_per_sqrt_s"
         rw = "radps_per_sqrt_s" if unit == "radps" else "mps2_per_sqrt_s"
         for i, a in enumerate(AXES):
@@ -207,7 +233,10 @@ def draw_sensor(
     turn-on bias, scale factor, temperature coefficients ``N(0, level^2)`` per axis,
     cross-coupling and g-sensitivity ``N(0, level^2)`` per matrix element. The draw consumes a
     fixed number of variates (:data:`N_UNIFORM` uniforms, :data:`N_NORMAL` normals) whatever is
-    configured or ``enabled``, so a term's draw never depends on the others.
+    configured or ``enabled``, so a term's draw never depends on the others. A grade with a
+    ``slow_bias`` draws two more uniforms after that layout (its level, its correlation
+    time), whether the term is enabled or not; grades without one draw nothing more. The
+    slow process is appended as the last GM component (:attr:`SensorParams.n_slow`).
 
     Parameters
     ----------
@@ -221,15 +250,22 @@ def draw_sensor(
     """
     u = rng.random(N_UNIFORM)
     z = rng.standard_normal(N_NORMAL)
-    return draw_sensors(spec, u[None], z[None], enabled, nominal)
+    us = None if spec.slow_bias is None else rng.random(N_SLOW_UNIFORM)[None]
+    return draw_sensors(spec, u[None], z[None], enabled, nominal, us)
 
 
 def draw_sensors(
-    spec: SensorSpec, u: np.ndarray, z: np.ndarray, enabled: frozenset, nominal: bool = False
+    spec: SensorSpec,
+    u: np.ndarray,
+    z: np.ndarray,
+    enabled: frozenset,
+    nominal: bool = False,
+    us: np.ndarray | None = None,
 ) -> SensorParams:
     """:func:`draw_sensor` of ``S`` sequences at once from their variates: ``u`` ``(S,
-    N_UNIFORM)`` and ``z`` ``(S, N_NORMAL)``, each row drawn from its sequence's stream as
-    :func:`draw_sensor` draws it. Element-wise the same operations, hence the same numbers."""
+    N_UNIFORM)``, ``z`` ``(S, N_NORMAL)`` and, for a grade with a ``slow_bias``, ``us`` ``(S,
+    N_SLOW_UNIFORM)``, each row drawn from its sequence's stream as :func:`draw_sensor` draws
+    it. Element-wise the same operations, hence the same numbers."""
     S = len(u)
     ti = {t: i for i, t in enumerate(TERMS)}
 
@@ -287,6 +323,16 @@ def draw_sensors(
     tb = zero3 if tbl is None else tbl * z[:, 21:24]
     tsl = lvl("temperature_scale_factor")
     ts = zero3 if tsl is None else tsl * z[:, 24:27]
+    slow_level, n_slow = zero3, 0
+    sb = spec.slow_bias
+    if sb is not None and "slow_bias" in enabled:
+        n_slow = 1
+        slow_level = _level(sb.level, us[:, 0], nominal)
+        sig = np.asarray(sb.sigma_from_level(slow_level), float)[:, :, None]
+        bi_sigma = np.concatenate([bi_sigma, sig], axis=2)
+        bi_x0 = np.concatenate([bi_x0, sig if sb.start == "stationary" else 0.0 * sig], 2)
+        T = _level(sb.correlation_time, us[:, 1], nominal)[:, :1]
+        bi_tau = np.concatenate([np.asarray(bi_tau, float), T], axis=1)
     q = spec.quantization
     lsb = q.value[0] if q is not None and "quantization" in enabled else 0.0
     fr = spec.range
@@ -308,6 +354,8 @@ def draw_sensors(
         full_scale=float(full_scale),
         bi_x0=bi_x0,
         q_round=spec.quantization_mode == "round",
+        n_slow=n_slow,
+        slow_level=slow_level,
     )
 
 
@@ -361,6 +409,12 @@ class SensorModel:
         self.use_w = bool(np.any(params.white > 0))
         self.use_r = bool(np.any(params.rrw > 0))
         self.use_b = bool(np.any(params.bi_sigma > 0))
+        Cf = params.fast_components
+        self.use_bf = bool(np.any(params.bi_sigma[:, :, :Cf] > 0))
+        """The bias instability draws normals (stream ``*_bi``, ``3 Cf`` per sample)."""
+        self.use_s = bool(np.any(params.bi_sigma[:, :, Cf:] > 0))
+        """The slow bias draws normals (stream ``*_slow``, 3 per sample)."""
+        self._zk = np.empty(0)  # the kernel's joined GM normals (with a slow bias), reused
         self.use_g = bool(np.any(params.gs != 0))
         self.use_t = bool(np.any(params.tb != 0) or np.any(params.ts != 0))
         self.state = SensorState(len(params.b_on), params.components)
@@ -375,7 +429,32 @@ class SensorModel:
     @property
     def normals_per_sample(self) -> int:
         """Gaussian variates this sensor consumes per sample and sequence."""
-        return 3 * (self.use_w + self.use_r) + (3 * self.p.components if self.use_b else 0)
+        return (
+            3 * (self.use_w + self.use_r)
+            + (3 * self.p.fast_components if self.use_bf else 0)
+            + (3 if self.use_s else 0)
+        )
+
+    def _join(self, zb, zs):
+        """The kernel's GM normals ``(S, L, 3 C)`` (axis-major) from the bias instability's
+        ``zb`` ``(S, L, 3 Cf)`` and the slow bias's ``zs`` ``(S, L, 3)`` (either None: zeros)."""
+        if zb is None and zs is None:
+            return None
+        ref = zb if zb is not None else zs
+        S, L = ref.shape[0], ref.shape[1]
+        C, Cf = self.p.components, self.p.fast_components
+        if self._zk.size < S * L * 3 * C:
+            self._zk = np.empty(S * L * 3 * C)
+        zk = self._zk[: S * L * 3 * C].reshape(S, L, 3, C)
+        if zb is not None:
+            zk[..., :Cf] = zb.reshape(S, L, 3, Cf)
+        else:
+            zk[..., :Cf] = 0.0
+        if zs is not None:
+            zk[..., Cf:] = zs.reshape(S, L, 3, 1)
+        else:
+            zk[..., Cf:] = 0.0
+        return zk.reshape(S, L, 3 * C)
 
     def step(
         self,
@@ -394,6 +473,7 @@ class SensorModel:
         out_sf=None,
         out_err_rate=None,
         out_err_inc=None,
+        zs=None,
     ):
         """Process samples ``k0 .. k0 + L - 1`` (call with consecutive chunks).
 
@@ -409,8 +489,9 @@ class SensorModel:
             Temperature offset [K] at the sample before the chunk and at each sample.
         zw, zr : ndarray, shape (S, L, 3) or None
             Standard normals of the white noise and of the rate random walk.
-        zb : ndarray, shape (S, L, 3 C) or None
-            Standard normals of the Gauss-Markov components (axis-major, component minor).
+        zb : ndarray, shape (S, L, 3 Cf) or None
+            Standard normals of the bias instability's Gauss-Markov components (axis-major,
+            component minor; ``Cf`` = :attr:`SensorParams.fast_components`).
         out_rate, out_inc, out_bias, out_sf : ndarray, shape (S, L, 3) or None
             Outputs: rate samples, increments, slow bias and scale-factor error labels.
         out_err_rate, out_err_inc : ndarray, shape (S, L, 3) or None
@@ -418,7 +499,11 @@ class SensorModel:
             white noise and quantization (slow bias, scale factor, cross-coupling,
             g-sensitivity, temperature, saturation excess), so that output = true + error +
             white noise + quantization error.
+        zs : ndarray, shape (S, L, 3) or None
+            Standard normals of the grade's ``slow_bias`` (stream ``*_slow``; with one only).
         """
+        if self.p.n_slow:
+            zb = self._join(zb, zs)
         if self.stream is not None or self.p.q_round:
             self._step_post(k0, u, du, a, da, dT, zw, zr, zb, out_rate, out_inc, out_bias,
                             out_sf, out_err_rate, out_err_inc)  # fmt: skip

@@ -49,6 +49,12 @@ class GradeFitOptions:
         choices=("auto", "flicker", "gauss_markov"),
         help="in-run bias: auto chooses by the width of the Allan floor (and says why)",
     )
+    slow_bias: str = option(
+        "auto",
+        choices=("auto", "off"),
+        help="a second, slower Gauss-Markov bias beyond the floor (slow_bias): auto keeps it "
+        "where it lowers the weighted chi-square by more than 5 % (and says so)",
+    )
     plot: str | None = option(
         None, shown="beside the grade, .png", help="figure of the measured and fitted Allan curves"
     )

@@ -4,7 +4,7 @@ The same model as :mod:`imugen.sensors.model` (its docstring states the equation
 a batch of ``S`` windows of ideal signals at once, each window with its own drawn parameters
 (:class:`imugen.sensors.model.SensorParams`, e.g. from :func:`imugen.sensors.model.draw_sensor`
 or the stream): turn-on bias, Gauss-Markov bias instability (one component, or several for
-flicker), rate random walk, scale factor and cross-coupling (misalignment), g-sensitivity
+flicker; a grade's ``slow_bias`` is one more, the last), rate random walk, scale factor and cross-coupling (misalignment), g-sensitivity
 (gyro), white noise, an output bandwidth (internal rate, low-pass, decimation:
 :mod:`imugen.sensors.bandwidth`, e.g. the measured presets ``adis16405``, ``phone``),
 saturation and quantization with residual carry or rounding (``quantization.mode: round``).

@@ -9,7 +9,7 @@ root is ``SeedSequence(seed, spawn_key=(route_id, grade_id, shard))``. Sequence 
 shard (``0 <= j < M``) uses the children ``SeedSequence(seed, spawn_key=(route_id, grade_id,
 shard, j, stream))`` -- exactly what ``root.spawn`` would give, but addressed by index -- one
 per stream (:data:`imugen.core.seeding.SENSOR_STREAMS`): its parameter draw and, for each sensor, its white noise, rate
-random walk and bias-instability normals. So no two (route, grade, sequence) share a draw (up
+random walk and bias-instability normals (and those of a grade's ``slow_bias``). So no two (route, grade, sequence) share a draw (up
 to a collision of 32-bit route ids: probability ``n^2 / 2^33`` for ``n`` routes); a shard's
 data never depends on how many shards or routes exist or on the order they run; raising N
 only adds shards; sequence ``j`` of a shard does not depend on ``M`` (a larger shard only
@@ -133,11 +133,13 @@ def _loop(plan: Plan, sink, progress=None):
                 rngs[f"{s}_white"] = (sensor_rng(seed, rid, grade.id, shard, j, f"{s}_white"), 3)
             if m.use_r:
                 rngs[f"{s}_rrw"] = (sensor_rng(seed, rid, grade.id, shard, j, f"{s}_rrw"), 3)
-            if m.use_b:
+            if m.use_bf:
                 rngs[f"{s}_bi"] = (
                     sensor_rng(seed, rid, grade.id, shard, j, f"{s}_bi"),
-                    3 * m.p.components,
+                    3 * m.p.fast_components,
                 )
+            if m.use_s:
+                rngs[f"{s}_slow"] = (sensor_rng(seed, rid, grade.id, shard, j, f"{s}_slow"), 3)
         for key, (_, w) in rngs.items():
             if key not in nz or nz[key].shape[1] != w:
                 nz[key] = np.empty((CHUNK, w))
@@ -187,6 +189,7 @@ def _loop(plan: Plan, sink, progress=None):
                     o_sf,
                     o_er,
                     o_ei,
+                    zs=z.get(f"{s}_slow"),
                 )
             sink.put(j, k0, L, t, outs)
         if progress is not None:

@@ -5,7 +5,8 @@ Two ways to make the measured window of a key ``(route, grade, shard, j, k0)``:
 exact (:func:`exact_sequence`)
     The sequence is generated from its turn-on (sample 0) to the window's end with the draws of
     the simulate stage: parameters from stream ``params``, noise from the streams ``*_white``,
-    ``*_rrw``, ``*_bi`` of spawn key ``(route_id, grade_id, shard, j, stream)``, the same kernel
+    ``*_rrw``, ``*_bi`` (and ``*_slow`` for a grade's ``slow_bias``) of spawn key
+    ``(route_id, grade_id, shard, j, stream)``, the same kernel
     (:class:`imugen.sensors.model.SensorModel`). The numbers are those of the shard, bit for bit
     (the shard stores them as float32: the same rounding). Its cost grows with ``k0``.
 window (:func:`window_batch`)
@@ -17,8 +18,9 @@ window (:func:`window_batch`)
     ``N(0, K^2 m dt)``, the quantization residuals uniform on ``[-q/2, q/2)``; the window's
     noise follows. These draws come from the sequence's stream :data:`~imugen.stream.keys.WINDOW_STREAM`,
     consumed window after window in increasing ``k0``; per window and sensor (gyro, then
-    accel): ``3 C`` GM states (axis-major), 3 random-walk states, 3 + 3 normals turned into
-    the rate and increment quantization residuals (``Phi(z)``), then the window's white
+    accel): ``3 C`` GM states (axis-major; ``C`` counts a ``slow_bias`` as the last
+    component), 3 random-walk states, 3 + 3 normals turned into the rate and increment
+    quantization residuals (``Phi(z)``), then the window's white
     ``(W, 3)``, random-walk ``(W, 3)`` and GM ``(W, 3 C)`` normals, each only when the
     sequence has the term. The stream's bit generator is SFC64 (not the shard path's PCG64;
     the same SeedSequence and spawn key): the normals are those of
@@ -62,6 +64,7 @@ from imugen.sensors._kernel import kernel, quantize_series
 from imugen.sensors.ideal import CHUNK
 from imugen.sensors.model import (
     N_NORMAL,
+    N_SLOW_UNIFORM,
     N_UNIFORM,
     SensorModel,
     SensorParams,
@@ -104,17 +107,24 @@ def draw_params_many(seed, keys, grades, enabled, nominal) -> list[Draw]:
     words = generate_state(
         seed, [sensor_key(rid, grades[g].id, shard, j, "params") for rid, g, shard, j in keys], 4
     )
+    usg, usa = np.zeros((n, N_SLOW_UNIFORM)), np.zeros((n, N_SLOW_UNIFORM))
     rng = np.random.Generator(np.random.PCG64(0))
     for i, (_rid, g, _shard, _j) in enumerate(keys):
         rng.bit_generator.state = pcg64_state(words[i])  # = sensor_rng(..., "params")
         ug[i], zg[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
+        if grades[g].gyro.slow_bias is not None:  # draw_sensor's order
+            usg[i] = rng.random(N_SLOW_UNIFORM)
         ua[i], za[i] = rng.random(N_UNIFORM), rng.standard_normal(N_NORMAL)
+        if grades[g].accel.slow_bias is not None:
+            usa[i] = rng.random(N_SLOW_UNIFORM)
         gi[i] = g
     out: list = [None] * n
     for g in np.unique(gi):
         rows = np.flatnonzero(gi == g)
-        gp = draw_sensors(grades[g].gyro, ug[rows], zg[rows], enabled[g]["gyro"], nominal)
-        ap = draw_sensors(grades[g].accel, ua[rows], za[rows], enabled[g]["accel"], nominal)
+        gp = draw_sensors(grades[g].gyro, ug[rows], zg[rows], enabled[g]["gyro"], nominal,
+                          usg[rows])  # fmt: skip
+        ap = draw_sensors(grades[g].accel, ua[rows], za[rows], enabled[g]["accel"], nominal,
+                          usa[rows])  # fmt: skip
         for r, i in enumerate(rows):
             out[i] = Draw(gp.rows(r), ap.rows(r))
     return out
@@ -158,7 +168,8 @@ def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want
         for name, use, width in (
             ("white", m.use_w, 3),
             ("rrw", m.use_r, 3),
-            ("bi", m.use_b, 3 * p.components),
+            ("bi", m.use_bf, 3 * p.fast_components),
+            ("slow", m.use_s, 3),
         ):
             if use:
                 rngs[f"{s}_{name}"] = (sensor_rng(seed, rid, gid, shard, j, f"{s}_{name}"), width)
@@ -185,6 +196,7 @@ def exact_sequence(truth, draw: Draw, seed, rid, gid, shard, j, kmax, temp, want
             m.step(
                 k0, *args, dT, z.get(f"{s}_white"), z.get(f"{s}_rrw"), z.get(f"{s}_bi"),
                 o(rate), o(inc), o(f"{s}_bias"), o(f"{s}_sf"), o(f"err_{rate}"), o(f"err_{inc}"),
+                zs=z.get(f"{s}_slow"),
             )  # fmt: skip
     return out
 

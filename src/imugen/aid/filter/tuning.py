@@ -126,7 +126,8 @@ class Tuning:
         population, NEES/dof 1 on average). Initial bias sigma:
         ``sqrt(turn_on^2 + sigma_GM^2 + static^2)`` (``static``: the error on gravity of an
         uncalibrated grade); bias random walk ``2 sigma_GM^2 / T + K^2`` (the Gauss-Markov's
-        short-time growth plus the rate random walk). ``inflate`` scales the white densities.
+        short-time growth plus the rate random walk; a ``slow_bias`` adds its ``sigma^2`` and
+        ``2 sigma^2 / T``). ``inflate`` scales the white densities.
         ``terms``: the error terms the simulator injected (names of
         :data:`imugen.sensors.grades.TERMS`; default every configured one); the others are left out.
         """
@@ -165,6 +166,13 @@ class Tuning:
                 else:
                     tau = float(bi.flicker_band[0])
                 q_gm = 2.0 * sig**2 / tau if tau > 0 else np.zeros(3)
+            sb = spec.slow_bias  # a second, slow GM: its variance and driving noise add
+            if sb is not None:
+                s_sig = np.array([sb.sigma_from_level(x) for x in val(sb.level)])
+                T_s = float(np.min(tau_of(sb.correlation_time)))
+                sig = np.hypot(sig, s_sig)
+                if T_s > 0:
+                    q_gm = q_gm + 2.0 * s_sig**2 / T_s
             rrw = val(spec.rate_random_walk)
             sf, cc = val(spec.scale_factor), val(spec.cross_coupling)
             # static error on gravity (0, 0, g0), a constant bias unless calibrated away
@@ -227,12 +235,12 @@ def law_mean_inverse(lo, hi) -> np.ndarray:
 
 def _term_of(spec, p) -> str:
     """Name of the term of ``spec`` whose figure is ``p`` (the bias instability's parts count
-    as ``bias_instability``)."""
+    as ``bias_instability``, the slow bias's as ``slow_bias``)."""
     for t in TERMS:
         v = getattr(spec, t)
         if v is p:
             return t
-        if t == "bias_instability" and v is not None:
+        if t in ("bias_instability", "slow_bias") and v is not None:
             if p is v.level or p is v.correlation_time:
                 return t
     return ""
