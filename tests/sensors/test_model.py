@@ -295,18 +295,30 @@ def test_draw_of_many_sequences_is_each_sequences_draw(nominal):
     draw_sensor gives each sequence from its own stream (every preset, both sensors, all terms
     and every other term enabled)."""
     from imugen.sensors.grades import TERMS, presets
-    from imugen.sensors.model import N_NORMAL, N_UNIFORM, SensorParams, draw_sensor, draw_sensors
+    from imugen.sensors.model import (
+        N_NORMAL,
+        N_SLOW_UNIFORM,
+        N_UNIFORM,
+        SensorParams,
+        draw_sensor,
+        draw_sensors,
+    )
 
+    slow = 0
     for grade in presets().values():
         for spec in (grade.gyro, grade.accel):
+            slow += spec.slow_bias is not None
             for enabled in (frozenset(TERMS), frozenset(TERMS[::2])):
-                one, u, z = [], [], []
+                one, u, z, us = [], [], [], []
                 for i in range(30):
                     one.append(draw_sensor(spec, np.random.default_rng(i), enabled, nominal))
                     rng = np.random.default_rng(i)
                     u.append(rng.random(N_UNIFORM))
                     z.append(rng.standard_normal(N_NORMAL))
-                many = draw_sensors(spec, np.array(u), np.array(z), enabled, nominal)
+                    us.append(rng.random(N_SLOW_UNIFORM))  # unused without a slow_bias
+                many = draw_sensors(spec, np.array(u), np.array(z), enabled, nominal,
+                                    np.array(us))  # fmt: skip
+                assert many.n_slow == one[0].n_slow
                 for name in SensorParams.ARRAYS:
                     a = np.concatenate([getattr(p, name) for p in one])
                     np.testing.assert_array_equal(getattr(many, name), a, err_msg=name)
@@ -314,3 +326,4 @@ def test_draw_of_many_sequences_is_each_sequences_draw(nominal):
                     assert np.array_equal(getattr(many.rows(3), name), getattr(one[3], name))
                 assert (many.lsb, many.full_scale, many.q_round) == (one[0].lsb,
                         one[0].full_scale, one[0].q_round)  # fmt: skip
+    assert slow  # a preset with the slow bias (adis16405) is among them
