@@ -12,8 +12,10 @@ for (the legs meet at the reversal's vertex), the legs joined by a stop of
 :data:`REVERSAL_STOP_S`, and the whole sampled every :data:`LEG_STEP_S` and joined by the
 quintic spline through the samples, constant over the stops (:func:`legs_motion`): a timed
 motion that is the legs' own (no smoothing, no stop detection that could move the stop into
-the ramps), whose stops hold the attitude and whose ground attitude turns the vehicle round as
-it pulls away (as a timed route that reverses through a stop does).
+the ramps), whose stops hold the position while the vehicle turns round at rest (the
+timing report's ``turns_at_rest_s``, each stop's middle but :data:`TURN_REST_S` at either
+end; :class:`imugen.truth.attitude.GroundAttitude`), so that it pulls away facing its
+velocity, with no slide sideways.
 """
 
 from __future__ import annotations
