@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from imugen import truth
+from imugen.closure import closure_of_truth
 from imugen.core import rotations as rot
 from imugen.tables import truth as col
 from imugen.truth.reversals import REVERSAL_STOP_S, find_reversals
@@ -134,3 +135,7 @@ def test_reversal_turns_at_rest_and_pulls_away_facing_its_velocity(vehicle, enu)
     assert abs(abs(yaw[t >= t1][0] - yaw[t <= t0][-1]) - np.pi) < np.radians(5.0)
     moving = np.linalg.norm(v, axis=1) > vp.stop_speed_mps
     assert np.all(v_b[moving, 0] > 0.0)
+    # the turn's rates are the attitude's: zero-error closure
+    res = closure_of_truth(tr, m)
+    assert res["final_position_error_m"] < 1e-5 and res["max_attitude_error_rad"] < 1e-9
+    assert m["plausibility"]["max_rate_increment_radps"] < 1e-4
