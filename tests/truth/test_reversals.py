@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from imugen import truth
+from imugen.closure import closure_of_truth
+from imugen.core import rotations as rot
 from imugen.tables import truth as col
 from imugen.truth.reversals import REVERSAL_STOP_S, find_reversals
 
@@ -34,7 +36,7 @@ def test_reversals_are_found_where_the_path_turns_back_only():
 def test_doubled_back_untimed_path_stops_and_turns(offset_m):
     """Issue 27: the out-and-back rail line was a creep then a U-turn at full speed (207 m/s^2
     and a specific force of 338 m/s^2 on this shape); now it brakes to rest at the far end,
-    waits, turns as it pulls away and comes back, within the car's limits."""
+    waits and turns at rest, and comes back, within the car's limits."""
     vp = truth.VEHICLES["car"]
     df, meta = truth.enu_table(_out_and_back(offset_m), None, ORIGIN)
     tr, m = truth.build_truth(df, meta, rate_hz=10.0, earth="flat", vehicle="car", verbose=False)
@@ -95,3 +97,45 @@ def test_two_close_reversals_are_walked_within_the_pedestrian_limits():
         still = (t > a + 0.5) & (t < b - 0.5)
         assert np.linalg.norm(v[still], axis=1).max() < 1e-3
         assert np.linalg.norm(pos[still] - vertex, axis=1).max() < 0.05
+
+
+def _walked_out_and_back():
+    """A walk 200 m east along a street (a vertex every 5 m) and back along it."""
+    out = np.column_stack([np.arange(0.0, 205.0, 5.0), np.zeros(41), np.zeros(41)])
+    return np.vstack([out, out[-2::-1]])
+
+
+@pytest.mark.parametrize(
+    ("vehicle", "enu"), [("car", _out_and_back()), ("pedestrian", _walked_out_and_back())]
+)
+def test_reversal_turns_at_rest_and_pulls_away_facing_its_velocity(vehicle, enu):
+    """Issue 27: the heading, a function of the distance travelled, turned through 180 deg
+    over the first metres after a reversal's stop while the velocity already pointed back:
+    the body slid sideways as it pulled away (4.9 m/s at 5.2 m/s for the car line, heading
+    110 deg off the velocity; 0.88 m/s walked). Now it turns at rest during the stop and
+    moves facing its velocity: the body's lateral speed stays far below the class's slip
+    limit and the gate finds nothing (the declared turn at rest is not turning on the spot)."""
+    vp = truth.VEHICLES[vehicle]
+    df, meta = truth.enu_table(enu, None, ORIGIN)
+    tr, m = truth.build_truth(df, meta, rate_hz=10.0, earth="flat", vehicle=vehicle, verbose=False)
+    assert m["timing"]["reversals"] == 1 and m["gate"] == []
+    t = tr[col.TIME].to_numpy()
+    v = tr[list(col.VEL)].to_numpy()
+    C_nb = rot.quat_to_dcm(tr[list(col.QUAT)].to_numpy())
+    v_b = np.einsum("kji,kj->ki", C_nb, v)
+    assert np.abs(v_b[:, 1]).max() < 0.1 * vp.max_slip_mps
+    assert m["plausibility"]["max_body_lateral_speed_mps"] < 0.1 * vp.max_slip_mps
+    # the turn: at rest, within the stop, by about 180 deg; forward motion on both sides
+    ((t0, t1),) = m["timing"]["turns_at_rest_s"]
+    ((a, b),) = m["fit"]["stops"]
+    assert a < t0 < t1 < b
+    turning = (t >= t0) & (t <= t1)
+    assert np.linalg.norm(v[turning, :2], axis=1).max() < 1e-6
+    yaw = np.unwrap(tr[col.EULER[2]].to_numpy())
+    assert abs(abs(yaw[t >= t1][0] - yaw[t <= t0][-1]) - np.pi) < np.radians(5.0)
+    moving = np.linalg.norm(v, axis=1) > vp.stop_speed_mps
+    assert np.all(v_b[moving, 0] > 0.0)
+    # the turn's rates are the attitude's: zero-error closure
+    res = closure_of_truth(tr, m)
+    assert res["final_position_error_m"] < 1e-5 and res["max_attitude_error_rad"] < 1e-9
+    assert m["plausibility"]["max_rate_increment_radps"] < 1e-4

@@ -509,10 +509,20 @@ class GroundAttitude:
         used instead of fitting one.
     grid_dt : float
         Step of the internal time grid of the distance [s].
+    turns : sequence of (float, float)
+        Intervals [s] of turns at rest: stops at a reversal (:mod:`imugen.truth.reversals`)
+        where the velocity direction of the leg driven next differs by ``J`` (about 180 deg)
+        from the one arriving. The heading's nodes are continued across the stop without
+        that jump and the heading turns by ``J`` in time over the interval (a quintic
+        smoothstep: rate and its derivative zero at both ends), so that the vehicle arrives
+        and pulls away facing its velocity (no slide sideways as it pulls away).
     """
 
-    def __init__(self, motion, E, vp, heights=None, noise_up_m=0.0, profile=None, grid_dt=0.1):
+    def __init__(
+        self, motion, E, vp, heights=None, noise_up_m=0.0, profile=None, grid_dt=0.1, turns=()
+    ):
         self.E, self.vp = E, vp
+        self.turns = []  # (t0, t1, J) of the turns at rest
         n = max(2, math.ceil((motion.t1 - motion.t0) / grid_dt) + 1)
         tg = np.linspace(motion.t0, motion.t1, n)
         sg = np.r_[0.0, np.cumsum(distance_steps(motion, E, tg))]
@@ -550,6 +560,17 @@ class GroundAttitude:
             ok[:] = True
         d = np.unwrap(np.arctan2(v_l[ok, 1], v_l[ok, 0]))
         d = np.interp(np.arange(ns), np.flatnonzero(ok), d)
+        mid = sn[:-1] + 0.5 * ds
+        for t0, t1 in turns:  # the jump of the velocity direction at a reversal's stop
+            s_k = float(np.interp(0.5 * (t0 + t1), tg, sg))
+            near = np.flatnonzero(np.abs(mid[1:] - s_k) <= max(1.0, 2.0 * ds)) + 1
+            if not len(near):
+                continue
+            j = int(near[np.argmax(np.abs(d[near] - d[near - 1]))])
+            jump = float(d[j] - d[j - 1])
+            d[j:] -= jump
+            self.turns.append((float(t0), float(t1), jump))
+        self.report["turns_at_rest_deg"] = [math.degrees(J) for _, _, J in self.turns]
         vg = np.diff(sg) / np.diff(tg)
         v_med = (
             float(np.median(vg[vg > vp.stop_speed_mps])) if np.any(vg > vp.stop_speed_mps) else 0.0
@@ -611,6 +632,17 @@ class GroundAttitude:
             self.suspension = Suspension(motion.t0, motion.t1, self._accel(motion, tg, sg), vp)
             self.report["suspension"] = self.suspension.report
 
+    def turn_offset(self, t):
+        """Heading added by the turns at rest at times ``t`` (m,) [s]: (angle, rate) (m,)
+        [rad, rad/s], ``J`` times a quintic smoothstep over each turn's interval."""
+        o, o_d = np.zeros_like(t), np.zeros_like(t)
+        for t0, t1, J in self.turns:
+            T = t1 - t0
+            x = np.clip((t - t0) / T, 0.0, 1.0)
+            o += J * x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
+            o_d += J * 30.0 * x * x * (1.0 - x) ** 2 / T
+        return o, o_d
+
     def _accel(self, motion, tg, sg):
         """``inputs(t) -> (a_lat, a_lon)`` of the suspension: ``v_h^2 Psi'(s)`` and
         ``dv_h/dt`` [m/s^2] (distance ``s`` interpolated on the grid ``tg``, ``sg``)."""
@@ -647,6 +679,9 @@ class GroundAttitude:
         # spline attitude blended with the velocity direction by W(s), Wp(s):
         # x = x_s + W (x_v - x_s), dx/dt = x_s' v_h + W' v_h (x_v - x_s) + W (dx_v/dt - x_s' v_h)
         psi, psi_d = self.Psi(s), k1 * vh
+        if self.turns:  # turns at rest (t is given with them)
+            o, o_d = self.turn_offset(np.asarray(t, float))
+            psi, psi_d = psi + o, psi_d + o_d
         theta, theta_d = self.Theta(s), self.Theta(s, 1) * vh
         on = (self.W(s) > 0.0) | (self.Wp(s) > 0.0)
         if on.any():
@@ -660,14 +695,14 @@ class GroundAttitude:
             tv = np.arctan2(vl[:, 2], hl)
             tvd = (hl * al[:, 2] - vl[:, 2] * hl_d) / (hl * hl + vl[:, 2] ** 2)
             theta_v, dtb = soft_bound(tv, vp.max_pitch_rad)
-            for x, xd, X, W, xv, xvd in (
-                (psi, psi_d, self.Psi, self.W, psi_v, psi_vd),
-                (theta, theta_d, self.Theta, self.Wp, theta_v, dtb * tvd),
+            for x, xd, W, xv, xvd in (
+                (psi, psi_d, self.W, psi_v, psi_vd),
+                (theta, theta_d, self.Wp, theta_v, dtb * tvd),
             ):
                 so = s[on]
-                xs, w0, w1 = X(so), W(so), W(so, 1)
+                xs, xsd, w0, w1 = x[on], xd[on], W(so), W(so, 1)
                 x[on] = xs + w0 * (xv - xs)
-                xd[on] = X(so, 1) * vhs * (1.0 - w0) + w1 * vhs * (xv - xs) + w0 * xvd
+                xd[on] = xsd * (1.0 - w0) + w1 * vhs * (xv - xs) + w0 * xvd
         if vp.lean:
             # lean into the turn: a left turn (Psi' > 0) lowers the left side (roll < 0)
             X = -vh * vh * k1 / G_LEAN

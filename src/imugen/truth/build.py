@@ -296,16 +296,16 @@ def _on_road(motion, E, vp, enu, fit):
     return on_road, (H, rep["grade"])
 
 
-def _ground(motion, E, vp, enu, fit, profile=None) -> GroundAttitude:
+def _ground(motion, E, vp, enu, fit, profile=None, turns=()) -> GroundAttitude:
     """The ground-vehicle attitude of the motion: on a motion on the road profile or path its road profile;
     heights from the input points of other timed routes (their own noise), else from the
-    smoothed path."""
+    smoothed path; ``turns``: the intervals [s] of its turns at rest (reversals' stops)."""
     if profile is not None:
-        return GroundAttitude(motion, E, vp, profile=profile)
+        return GroundAttitude(motion, E, vp, profile=profile, turns=turns)
     if motion.kind != "timed":
-        return GroundAttitude(motion, E, vp)
+        return GroundAttitude(motion, E, vp, turns=turns)
     noise_up = float(fit["noise_estimate_m"][2])
-    return GroundAttitude(motion, E, vp, _input_heights(E, enu), noise_up)
+    return GroundAttitude(motion, E, vp, _input_heights(E, enu), noise_up, turns=turns)
 
 
 def _column_slices() -> dict:
@@ -434,7 +434,8 @@ def build_truth(
     elif E.ecef:
         motion = EcefMotion(motion, E.frame)
     thrust = vp.attitude == "thrust"
-    ground = None if pose or thrust else _ground(motion, E, vp, enu, fit, profile)
+    turns = timing.get("turns_at_rest_s", [])
+    ground = None if pose or thrust else _ground(motion, E, vp, enu, fit, profile, turns)
 
     ci = _column_slices()
     out = np.zeros((K, len(col.COLUMNS)))
@@ -471,7 +472,14 @@ def build_truth(
     if pose:  # the fit report gives the distances to the poses; dense poses: no arcs
         t_in = None
     plaus = plausibility(
-        df, vp, input_enu=y_in, input_time=t_in, fit=fit, airborne=airborne, frame=E.frame
+        df,
+        vp,
+        input_enu=y_in,
+        input_time=t_in,
+        fit=fit,
+        airborne=airborne,
+        frame=E.frame,
+        turns_at_rest=turns,
     )
     # the pre-write gate (imugen.truth.gate); a pose truth is the given motion, not gated
     gate = (
@@ -484,6 +492,7 @@ def build_truth(
             airborne=airborne,
             input_heights=_gate_heights(E, enu),
             slip=not timing.get("timed", True),
+            turns_at_rest=turns,
         )
     )
     if pose or thrust:

@@ -31,7 +31,13 @@ import numpy as np
 
 from imugen.core import rotations as rot
 from imugen.tables import truth as col
-from imugen.truth.report import STEP_TOL_RAD, YAW_EXCESS_TOL_RADPS, local_velocity, turn_rate
+from imugen.truth.report import (
+    STEP_TOL_RAD,
+    YAW_EXCESS_TOL_RADPS,
+    in_intervals,
+    local_velocity,
+    turn_rate,
+)
 
 HEIGHT_TOL_M = 30.0
 """Largest height of a truth below the lowest input height (and, on the ground, above the
@@ -53,7 +59,9 @@ def _worst(name, x, limit, unit, mask=None):
     return {"limit": name, "value": float(x[k]), "bound": float(limit), "unit": unit, "index": k}
 
 
-def findings(df, vp, *, frame, airborne=None, input_heights=None, slip=False) -> list[dict]:
+def findings(
+    df, vp, *, frame, airborne=None, input_heights=None, slip=False, turns_at_rest=()
+) -> list[dict]:
     """The vehicle limits a truth exceeds, each at its worst sample.
 
     Parameters
@@ -69,6 +77,9 @@ def findings(df, vp, *, frame, airborne=None, input_heights=None, slip=False) ->
         Heights of the input points [m] (ellipsoidal; n's Up in ``flat``).
     slip : bool
         Gate the body's lateral speed on the ground (ground classes, ``max_slip_mps``).
+    turns_at_rest : sequence of (float, float)
+        Intervals [s] of the declared turns at rest (a reversal's stop and turn,
+        :mod:`imugen.truth.reversals`): not gated as turning on the spot.
 
     Returns
     -------
@@ -116,7 +127,7 @@ def findings(df, vp, *, frame, airborne=None, input_heights=None, slip=False) ->
                 np.abs(yaw) - vp.max_curvature_1pm * vh,
                 YAW_EXCESS_TOL_RADPS,
                 "rad/s beyond speed x max curvature",
-                gnd,
+                gnd & ~in_intervals(t, turns_at_rest),
             ),
             _worst("pitch in flight", pitch, vp.max_pitch_airborne_rad + ANGLE_TOL_RAD, "rad", air),
             _worst("bank", roll, vp.max_roll_rad + ANGLE_TOL_RAD, "rad", air),

@@ -73,6 +73,14 @@ def local_velocity(p_n, v_n, frame):
     return np.einsum("kij,kj->ki", frame.C_ln(p_n), v_n)
 
 
+def in_intervals(t, intervals) -> np.ndarray:
+    """Whether each time ``t`` (K,) [s] lies in one of ``intervals`` ((t0, t1) pairs [s])."""
+    out = np.zeros(len(t), bool)
+    for t0, t1 in intervals:
+        out |= (t >= t0) & (t <= t1)
+    return out
+
+
 def turn_rate(p_n, w_ib_b, C_nb, frame=None):
     """Turn rate of the body: its rate relative to the Earth about the local vertical,
     ``u_n . (C_nb omega_ib_b - Omega_n)``, shape (K,) [rad/s].
@@ -114,7 +122,15 @@ def _path_length(p):
 
 
 def plausibility(
-    df, vp, *, input_enu=None, input_time=None, fit=None, airborne=None, frame=None
+    df,
+    vp,
+    *,
+    input_enu=None,
+    input_time=None,
+    fit=None,
+    airborne=None,
+    frame=None,
+    turns_at_rest=(),
 ) -> dict:
     """Plausibility figures and warnings of a truth table.
 
@@ -135,6 +151,9 @@ def plausibility(
     frame : imugen.core.earth.OriginFrame, optional
         The truth's Earth model; in ``geodetic`` (ECEF) the horizontal speed is taken in the
         local level at the vehicle (default: n's East-North plane).
+    turns_at_rest : sequence of (float, float)
+        Intervals [s] of the declared turns at rest (a reversal's stop and turn): not
+        counted as turning on the spot.
 
     Returns
     -------
@@ -162,6 +181,7 @@ def plausibility(
     # the turn is judged by the body's yaw axis
     turn = yaw_axis_turn_rate(p, w, C_nb, frame) if has_suspension(vp) else yaw_rate
     yaw_excess = np.abs(turn) - vp.max_curvature_1pm * vh
+    yaw_excess[in_intervals(t, turns_at_rest)] = 0.0  # a reversal's declared turn at rest
     wn = np.linalg.norm(w, axis=1)
     i4, itrap = _integral(w, dt)
     # beyond the quadrature's own error (4th-order rule against the trapezoid) ...

@@ -12,8 +12,10 @@ for (the legs meet at the reversal's vertex), the legs joined by a stop of
 :data:`REVERSAL_STOP_S`, and the whole sampled every :data:`LEG_STEP_S` and joined by the
 quintic spline through the samples, constant over the stops (:func:`legs_motion`): a timed
 motion that is the legs' own (no smoothing, no stop detection that could move the stop into
-the ramps), whose stops hold the attitude and whose ground attitude turns the vehicle round as
-it pulls away (as a timed route that reverses through a stop does).
+the ramps), whose stops hold the position while the vehicle turns round at rest (the
+timing report's ``turns_at_rest_s``, each stop's middle but :data:`TURN_REST_S` at either
+end; :class:`imugen.truth.attitude.GroundAttitude`), so that it pulls away facing its
+velocity, with no slide sideways.
 """
 
 from __future__ import annotations
@@ -31,6 +33,9 @@ from imugen.truth.vehicles import VehicleParams
 REVERSAL_ANGLE_DEG = 150.0
 #: Stop (s) at a reversal between the legs.
 REVERSAL_STOP_S = 10.0
+#: Rest (s) at each end of a reversal's stop around its turn at rest (the heading turns over
+#: the stop's middle, ``REVERSAL_STOP_S - 2 TURN_REST_S``).
+TURN_REST_S = 1.0
 #: Spacing (s) of the samples of the timed legs that the timed fit joins.
 LEG_STEP_S = 0.5
 #: Penalty (normalized time) of the spline through the legs' samples: negligible (the
@@ -167,5 +172,8 @@ def legs_motion(y: np.ndarray, cuts: list[int], vp: VehicleParams, corner_m, pro
         "reversals": len(cuts),
         "duration_s": float(t[-1]),
         "vertex_times_s": tv,
+        "turns_at_rest_s": [
+            [float(t[i0]) + TURN_REST_S, float(t[i1]) - TURN_REST_S] for i0, i1 in ties
+        ],
     }
     return motion, fit, timing
