@@ -145,6 +145,7 @@ VEHICLES = {
         max_curvature_1pm=0.2,
         max_pitch_rad=0.35,
         max_roll_rad=0.14,
+        suspension="damped",
     ),
     # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
     "bicycle": VehicleParams(
