@@ -25,6 +25,7 @@ from imugen.aid import companions as CP
 from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
+from imugen.aid import stage as AID
 from imugen.aid.companions import C_BARO_VAR, C_ODO_VAR
 from imugen.core.earth import OriginFrame
 from imugen.core.rotations import quat_to_dcm
@@ -180,8 +181,13 @@ def car_run(df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="sta
     ce = CP.filter_input(gn.index, M, od, ba, h0_m=frame.h0_m, oracle=True)
     tun = A.Tuning.from_grade("consumer", terms=TERMS)
     opts = A.Options(
-        nhc=True, odometer=odo, baro=baro, odo_scale_state=sf_state, gyro_cross_coupling=False
-    )  # cross-coupling not injected (TERMS)
+        nhc=True,
+        odometer=odo,
+        baro=baro,
+        odo_scale_state=sf_state,
+        gyro_cross_coupling=False,
+        nhc_pitch_sd_rad=AID.suspension_pitch_sd("car"),
+    )  # cross-coupling not injected (TERMS); the car's dive and squat on its suspension
     T = A.companion_tuning(A.tuning_matrix(tun, M, gnss_params=gn.params), ce)
     res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, gn, tun, opts, tuning_T=T,
                 companions=ce, store_P=True)  # fmt: skip
@@ -329,7 +335,6 @@ def test_zero_error_companions_stay_on_truth(flat_car, earth, odo_hz):
 def stage(tmp_path_factory):
     """The aid stage on a 3-sequence consumer shard with odometer and barometer, and the same
     with one sequence per batch."""
-    from imugen.aid import stage as AID
     from imugen.tables import truth as ttruth
 
     d = tmp_path_factory.mktemp("companions")
