@@ -35,7 +35,7 @@ LEVER = (0.6, 0.3, 1.2)
 
 def car_truth(earth="flat", meta_out=None, suspension="auto"):
     """A car driving a 400 m x 200 m rectangle one and a half times (about 180 s, 100 Hz), on
-    its suspension (``auto``, the car's default) or ``rigid``; ``meta_out`` (a dict) receives
+    ``rigid`` (``auto``, the car's default) or on its suspension (``damped``); ``meta_out`` (a dict) receives
     the truth's metadata."""
     pts = np.array(
         [[0, 0, 0], [400, 0, 0], [400, 200, 0], [0, 200, 0], [0, 0, 0], [400, 0, 0], [400, 200, 0]],
@@ -141,11 +141,11 @@ def test_nees_within_chi_square_bounds(flat_car, grade):
 
 
 @pytest.mark.parametrize(
-    "earth, suspension", [("flat", "rigid"), ("wgs84", "rigid"), ("flat", "auto")]
+    "earth, suspension", [("flat", "rigid"), ("wgs84", "rigid"), ("flat", "damped")]
 )
 def test_ideal_inputs_stay_on_truth(earth, suspension):
     """Rigid: the filter's exactness (NHC exact but for the truth's own tiny violation). On
-    its suspension (the car's default): the body's dive and squat violate the vertical NHC by
+    its suspension (``damped``): the body's dive and squat violate the vertical NHC by
     up to the report's largest vertical body speed, which the filter covers with its
     suspension pitch sigma (``nhc_pitch_sd_rad``); the same bounds in that violation hold."""
     from imugen.aid.stage import suspension_pitch_sd
@@ -154,7 +154,7 @@ def test_ideal_inputs_stay_on_truth(earth, suspension):
     df = car_truth(earth, tm, suspension)
     rep = tm["plausibility"]
     viol = rep.get("max_body_vertical_speed_mps", 0.0)  # the truth's own NHC violation
-    if suspension == "auto":
+    if suspension == "damped":
         assert viol > 0.05  # the dive and squat of the corners' braking and speeding up
     t, p, v, q, w = arrays(df)
     frame = OriginFrame.from_deg(*ORIGIN, model=earth)
@@ -167,7 +167,7 @@ def test_ideal_inputs_stay_on_truth(earth, suspension):
     # 0 in flat, < 4e-5 m/s in wgs84 where it starts and stops on the grade's pitch): the
     # filter is told that slip (largest body speeds of the truth's report)
     slip = (rep.get("max_body_lateral_speed_mps", 0.0), viol)
-    pitch_sd = suspension_pitch_sd("car") if suspension == "auto" else 0.0
+    pitch_sd = suspension_pitch_sd("car", damped=suspension == "damped")
     opts = A.Options(gnss_bias=False, nhc=True, nhc_sd_mps=slip, nhc_pitch_sd_rad=pitch_sd)
     P0 = A.initial_covariance(tun, opts, 1e-3, 1e-3, 1e-5)
     init = A.initial_state(0, p[0], v[0], q[0], P0)
@@ -382,7 +382,7 @@ def test_scale_factors_converge_to_labels(flat_car):
     sh, gn = car_shard(flat_car, "industrial", M, 31, terms=terms, receiver="rtk")
     tun = A.Tuning.from_grade("industrial", terms=terms)
     tun = replace(tun, gyro_bias_q=tun.gyro_bias_q * 0, accel_bias_q=tun.accel_bias_q * 0)
-    # the car on its suspension: NHC covers its dive and squat, as the aid stage sets it
+    # NHC covers the car's dive and squat as the aid stage sets it (none: a rigid car)
     opts = A.Options(scale_factors=True, nhc=True, nhc_pitch_sd_rad=suspension_pitch_sd("car"))
     Tm = A.tuning_matrix(tun, M, gnss_params=gn.params)
     res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, gn, tun, opts, tuning_T=Tm)

@@ -53,7 +53,7 @@ def setup():
     meta = {"origin": dict(zip(("lat_deg", "lon_deg", "alt_m"), ORIGIN, strict=True))}
     meta["timed"] = False
     # a rigid car (no dive and squat on a suspension): the subject is the learner plumbing and
-    # its perfect-learner oracles, measured on it (on the car's default suspension the NHC's
+    # its perfect-learner oracles, measured on it (on the car's suspension the NHC's
     # dive sigma weakens the perfect correction's gain to 0.61 of raw: open, session 32)
     df, _ = T.build_truth(
         enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False,

@@ -41,7 +41,7 @@ def scene(tmp_path_factory):
     enu = pd.DataFrame(pts, columns=["e_m", "n_m", "u_m"])
     meta = {"origin": {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 200.0}, "timed": False}
     # a rigid car (no dive and squat on a suspension): the subject is the stage's plumbing and
-    # the stage's ideal-IMU exactness (attitude < 2e-3 rad; 2.8e-3 on the car's default
+    # the stage's ideal-IMU exactness (attitude < 2e-3 rad; 2.8e-3 on the car's
     # suspension, whose dive NHC's vertical row covers; tests/aid/test_filter.py checks that case)
     df, tm = T.build_truth(
         enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False,

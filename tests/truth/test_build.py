@@ -103,7 +103,7 @@ def test_left_turn_lateral_force_and_yaw_rate(earth, suspension):
     f = _arr(tr, col.ACCEL)[mid]
     g = _arr(tr, col.GYRO)[mid]
     roll = tr["roll_rad"].to_numpy()[mid]
-    # rigid: level; on the suspension (a car's default) the body rolls outwards (right side
+    # rigid: level; on its suspension (damped) the body rolls outwards (right side
     # down, roll > 0) by the roll gradient x the lateral acceleration v w, settled by t = 20 s
     K = truth.VEHICLES["car"].roll_gradient_radpmps2 if suspension == "damped" else 0.0
     phi = K * v * w
@@ -358,7 +358,7 @@ def test_stationary_start_and_long_stop_are_real_stops():
     # stationary start: hold the first 20 s
     enu[t < 20] = enu[t == 20]
     enu = enu + rng.normal(scale=0.2, size=enu.shape) * [1, 1, 0.3]
-    tr, meta = _build(enu, t, rate_hz=50, earth="flat")
+    tr, meta = _build(enu, t, rate_hz=50, earth="flat", vehicle_params={"suspension": "damped"})
     _sane(tr)
     stops = meta["fit"]["stops"]
     assert any(a <= 1 and b >= 18 for a, b in stops), stops
@@ -367,7 +367,7 @@ def test_stationary_start_and_long_stop_are_real_stops():
     v = np.linalg.norm(_arr(tr, col.VEL), axis=1)
     g = np.abs(_arr(tr, col.GYRO)).max(axis=1)
     q = _arr(tr, col.QUAT)
-    # the car (on its suspension by default) stops dead, but its body still rocks on the
+    # the car on its suspension stops dead, but its body still rocks on the
     # suspension, decaying at the slowest mode's rate zeta w_n (pitch: 0.4 x 2 pi 1.2 Hz,
     # 3.0 /s): within 10x that envelope, and still to 1e-12 after ln(1e12) / sigma (9.2 s)
     vp = truth.VEHICLES["car"]

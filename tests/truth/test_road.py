@@ -56,7 +56,7 @@ def test_a_stop_with_a_height_step_stays_put():
     """GNSS heights step while the car waits (3 m over a 60 s stop, noise 0.5 m): the stop is
     still exactly still, vertically too, and the step becomes a slope spread over the road.
     The road profile is the subject: a rigid car (its attitude the path's); then the same
-    car on its suspension (the default), whose body only pitches on top of that profile."""
+    car on its suspension (damped), whose body only pitches on top of that profile."""
     tr, meta = _height_step_stop("rigid")
     stops = meta["fit"]["stops"]
     assert stops, "the stop is found"
