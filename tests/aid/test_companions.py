@@ -25,6 +25,7 @@ from imugen.aid import companions as CP
 from imugen.aid import filter as A
 from imugen.aid import gnss as G
 from imugen.aid import scenarios as SC
+from imugen.aid import stage as AID
 from imugen.aid.companions import C_BARO_VAR, C_ODO_VAR
 from imugen.core.earth import OriginFrame
 from imugen.core.rotations import quat_to_dcm
@@ -43,13 +44,17 @@ RECTANGLE = np.array(
 )
 
 
-def car_truth(pts=RECTANGLE, earth="flat"):
+def car_truth(pts=RECTANGLE, earth="flat", suspension=None):
     """A car on the polyline ``pts`` (ENU, m) at 100 Hz; by default a 400 m x 200 m rectangle
     one and a half times (about 180 s, the scene of tests/aid/test_filter.py)."""
     enu = pd.DataFrame(pts, columns=["e_m", "n_m", "u_m"])
     meta = {"origin": dict(zip(("lat_deg", "lon_deg", "alt_m"), ORIGIN, strict=True))}
     meta["timed"] = False
-    df, _ = TR.build_truth(enu, meta, rate_hz=100.0, earth=earth, vehicle="car", verbose=False)
+    vehicle_params = None if suspension is None else {"suspension": suspension}
+    df, _ = TR.build_truth(
+        enu, meta, rate_hz=100.0, earth=earth, vehicle="car", verbose=False,
+        vehicle_params=vehicle_params,
+    )  # fmt: skip
     return df
 
 
@@ -165,7 +170,9 @@ def test_draws_depend_on_the_sequence_only(flat_car):
     assert one.labels["odo_preset_id"][0] == 1 and "baro_bias_tau_s" in b1.labels
 
 
-def car_run(df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="standalone"):
+def car_run(
+    df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="standalone", damped=False
+):
     """A consumer car shard with GNSS (60 s outage at 100 s), odometer and barometer."""
     t, p, v, q, w = arrays(df)
     frame = OriginFrame.from_deg(*ORIGIN, model="flat")
@@ -180,8 +187,13 @@ def car_run(df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="sta
     ce = CP.filter_input(gn.index, M, od, ba, h0_m=frame.h0_m, oracle=True)
     tun = A.Tuning.from_grade("consumer", terms=TERMS)
     opts = A.Options(
-        nhc=True, odometer=odo, baro=baro, odo_scale_state=sf_state, gyro_cross_coupling=False
-    )  # cross-coupling not injected (TERMS)
+        nhc=True,
+        odometer=odo,
+        baro=baro,
+        odo_scale_state=sf_state,
+        gyro_cross_coupling=False,
+        nhc_pitch_sd_rad=AID.suspension_pitch_sd("car", damped=damped),
+    )  # cross-coupling not injected (TERMS); the car's dive and squat on its suspension
     T = A.companion_tuning(A.tuning_matrix(tun, M, gnss_params=gn.params), ce)
     res = A.run(sh.data["dtheta"], sh.data["dv"], 0.01, frame, gn, tun, opts, tuning_T=T,
                 companions=ce, store_P=True)  # fmt: skip
@@ -190,9 +202,10 @@ def car_run(df, M, seed, odo, baro, *, outage=True, sf_state=True, receiver="sta
 
 @pytest.fixture(scope="module")
 def rect():
-    """30 runs on the rectangle with odometer and barometer (60 s outage from 100 s)."""
-    df = car_truth()
-    return df, car_run(df, 30, 41, True, True)
+    """30 runs on the rectangle with odometer and barometer (60 s outage from 100 s), the car
+    on its suspension (NHC covering its dive and squat: without, NEES 1e7)."""
+    df = car_truth(suspension="damped")
+    return df, car_run(df, 30, 41, True, True, damped=True)
 
 
 @pytest.fixture(scope="module")
@@ -329,7 +342,6 @@ def test_zero_error_companions_stay_on_truth(flat_car, earth, odo_hz):
 def stage(tmp_path_factory):
     """The aid stage on a 3-sequence consumer shard with odometer and barometer, and the same
     with one sequence per batch."""
-    from imugen.aid import stage as AID
     from imugen.tables import truth as ttruth
 
     d = tmp_path_factory.mktemp("companions")

@@ -40,7 +40,13 @@ def scene(tmp_path_factory):
     )
     enu = pd.DataFrame(pts, columns=["e_m", "n_m", "u_m"])
     meta = {"origin": {"lat_deg": 45.0, "lon_deg": 7.0, "alt_m": 200.0}, "timed": False}
-    df, tm = T.build_truth(enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False)
+    # a rigid car (no dive and squat on a suspension): the subject is the stage's plumbing and
+    # the stage's ideal-IMU exactness (attitude < 2e-3 rad; 2.8e-3 on the car's
+    # suspension, whose dive NHC's vertical row covers; tests/aid/test_filter.py checks that case)
+    df, tm = T.build_truth(
+        enu, meta, rate_hz=100.0, earth="flat", vehicle="car", verbose=False,
+        vehicle_params={"suspension": "rigid"},
+    )  # fmt: skip
     ttruth.write(df, tm, d / "truth.parquet")
     simulate_shard(d / "truth.parquet", d / "imu.parquet", "consumer", sequences=3, seed=SEED, shard=1,
           shard_size=3, route="car", dtype="float64")  # fmt: skip
@@ -117,7 +123,9 @@ def test_outage_end_equals_filter_in_memory(scene):
     Tm = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver, gnss_level="law")
     # the stage's NHC noise: the truth's own slip (its plausibility report)
     slip = AID.truth_slip_sd(truth.meta.get("plausibility"))
-    opts = A.Options(nhc=True, zupt=True, nhc_sd_mps=slip)
+    opts = A.Options(
+        nhc=True, zupt=True, nhc_sd_mps=slip, nhc_pitch_sd_rad=AID.suspension_pitch_sd("car")
+    )  # and a car's dive and squat on its suspension, as the stage sets it for the class
     res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts, tuning_T=Tm)
     last = np.flatnonzero(scen.gnss.time_s < 110.0 - 1e-9)[-1]  # last epoch without a fix
     err = res.p_n[:, last] - truth.p_n[res.index[last]]

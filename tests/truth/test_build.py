@@ -91,23 +91,33 @@ def test_still_level_reads_plus_g_and_earth_rate(earth):
     assert meta["fit"]["stops"] == [[0.0, 9.0]]
 
 
+@pytest.mark.parametrize("suspension", ["rigid", "damped"])
 @pytest.mark.parametrize("earth", ["flat", "wgs84"])
-def test_left_turn_lateral_force_and_yaw_rate(earth):
+def test_left_turn_lateral_force_and_yaw_rate(earth, suspension):
     R, v = 50.0, 10.0
     w = v / R
     t = np.arange(0, 60, 0.1)
     enu = np.column_stack([R * np.sin(w * t), R * (1 - np.cos(w * t)), 0 * t])
-    tr, _ = _build(enu, t, rate_hz=100, earth=earth)
+    tr, _ = _build(enu, t, rate_hz=100, earth=earth, vehicle_params={"suspension": suspension})
     mid = ((tr[col.TIME] > 20) & (tr[col.TIME] < 40)).to_numpy()
     f = _arr(tr, col.ACCEL)[mid]
     g = _arr(tr, col.GYRO)[mid]
+    roll = tr["roll_rad"].to_numpy()[mid]
+    # rigid: level; on its suspension (damped) the body rolls outwards (right side
+    # down, roll > 0) by the roll gradient x the lateral acceleration v w, settled by t = 20 s
+    K = truth.VEHICLES["car"].roll_gradient_radpmps2 if suspension == "damped" else 0.0
+    phi = K * v * w
+    assert suspension == "rigid" or phi > np.radians(1.0)
+    g0 = float(ea.normal_gravity(np.radians(ORIGIN[0]), ORIGIN[2]))
     # Coriolis (2 Omega v ~ 1e-3 m/s^2) and Earth rate (~5e-5 rad/s) only in wgs84
     tol_f, tol_w = (1e-6, 1e-7) if earth == "flat" else (2e-3, 1e-4)
-    np.testing.assert_allclose(f[:, 1], v * w, atol=tol_f)
-    np.testing.assert_allclose(g[:, 2], w, atol=tol_w)
-    np.testing.assert_allclose(
-        tr["roll_rad"].to_numpy()[mid], 0, atol=1e-12 if earth == "flat" else 1e-6
-    )
+    # the rolled body: f_y = v w cos(phi) + g sin(phi) (gravity leaks into the lateral axis),
+    # f_z = g cos(phi) - v w sin(phi); the turn rate w splits onto z (cos) and y (sin)
+    np.testing.assert_allclose(f[:, 1], v * w * np.cos(phi) + g0 * np.sin(phi), atol=tol_f)
+    np.testing.assert_allclose(f[:, 2], g0 * np.cos(phi) - v * w * np.sin(phi), atol=tol_f)
+    np.testing.assert_allclose(g[:, 2], w * np.cos(phi), atol=tol_w)
+    np.testing.assert_allclose(g[:, 1], w * np.sin(phi), atol=tol_w)
+    np.testing.assert_allclose(roll, phi, atol=1e-9 if earth == "flat" else 1e-6)
     # yaw increases (counter-clockwise seen from above = turning left)
     assert np.all(np.diff(tr["yaw_rad"].to_numpy()[mid]) > 0)
 
@@ -248,16 +258,34 @@ def test_speed_profile_limits(vehicle):
     assert rep["max_distance_m"] < 0.6 * vp.corner_m
 
 
-def test_untimed_truth_starts_and_ends_at_rest():
-    tr, meta = _build(POLY, None, rate_hz=100, earth="flat")
+@pytest.mark.parametrize("suspension", ["rigid", "damped"])
+def test_untimed_truth_starts_and_ends_at_rest(suspension):
+    vp = truth.VEHICLES["car"]
+    tr, meta = _build(
+        POLY, None, rate_hz=100, earth="flat", vehicle_params={"suspension": suspension}
+    )
     _sane(tr)
     v = np.linalg.norm(_arr(tr, col.VEL), axis=1)
     assert v[0] < 1e-12 and v[-1] < 1e-3
     assert meta["timing"]["timed"] is False
-    assert v.max() <= truth.VEHICLES["car"].cruise_mps * (1 + 1e-5)
-    # heading along the first leg (East) at the start and roll zero throughout
+    assert v.max() <= vp.cruise_mps * (1 + 1e-5)
+    # heading along the first leg (East) at the start
     assert abs(tr["yaw_rad"].iloc[0]) < 1e-3
-    np.testing.assert_allclose(tr["roll_rad"], 0, atol=1e-12)
+    roll = tr["roll_rad"].to_numpy()
+    if suspension == "rigid":  # roll zero throughout
+        np.testing.assert_allclose(roll, 0, atol=1e-12)
+    else:
+        # on its suspension: no roll at rest (start) nor after the straight last leg (end);
+        # in the corners the roll gradient x at most the cornering acceleration of the speed
+        # profile (lat_accel_mps2), with the step response's overshoot
+        z = vp.roll_damping
+        peak = (
+            vp.roll_gradient_radpmps2
+            * vp.lat_accel_mps2
+            * (1 + np.exp(-np.pi * z / np.sqrt(1 - z * z)))
+        )
+        assert roll[0] == 0.0 and abs(roll[-1]) < 1e-9
+        assert np.radians(0.5) < np.abs(roll).max() <= peak
 
 
 def test_right_angle_corner_radius_is_corner_length():
@@ -330,7 +358,7 @@ def test_stationary_start_and_long_stop_are_real_stops():
     # stationary start: hold the first 20 s
     enu[t < 20] = enu[t == 20]
     enu = enu + rng.normal(scale=0.2, size=enu.shape) * [1, 1, 0.3]
-    tr, meta = _build(enu, t, rate_hz=50, earth="flat")
+    tr, meta = _build(enu, t, rate_hz=50, earth="flat", vehicle_params={"suspension": "damped"})
     _sane(tr)
     stops = meta["fit"]["stops"]
     assert any(a <= 1 and b >= 18 for a, b in stops), stops
@@ -338,13 +366,34 @@ def test_stationary_start_and_long_stop_are_real_stops():
     tt = tr[col.TIME].to_numpy()
     v = np.linalg.norm(_arr(tr, col.VEL), axis=1)
     g = np.abs(_arr(tr, col.GYRO)).max(axis=1)
+    q = _arr(tr, col.QUAT)
+    # the car on its suspension stops dead, but its body still rocks on the
+    # suspension, decaying at the slowest mode's rate zeta w_n (pitch: 0.4 x 2 pi 1.2 Hz,
+    # 3.0 /s): within 10x that envelope, and still to 1e-12 after ln(1e12) / sigma (9.2 s)
+    vp = truth.VEHICLES["car"]
+    sigma = 2 * np.pi * min(vp.roll_hz * vp.roll_damping, vp.pitch_hz * vp.pitch_damping)
+    settle = np.log(1e12) / sigma
+    rocked = 0
     for a, b in stops:
         inside = (tt > a) & (tt < b)
         assert v[inside].max() < 1e-9
-        assert g[inside].max() < 1e-12
-        q = _arr(tr, col.QUAT)[inside]
-        assert np.abs(q - q[0]).max() < 1e-12
+        g0 = g[inside].max()
+        rocked += g0 > 1e-6
+        assert np.all(g[inside] <= 10.0 * g0 * np.exp(-sigma * (tt[inside] - a)) + 1e-15)
+        still = inside & (tt > a + settle)
+        assert g[still].max() < 1e-12
+        assert np.abs(q[still] - q[still][0]).max() < 1e-12
+    assert rocked == 1  # the stop after braking, not the stationary start
     assert np.abs(_arr(tr, col.GYRO)).max() < 1.0
+    # a rigid car stands still from the first instant of each stop
+    tr, meta = _build(enu, t, rate_hz=50, earth="flat", vehicle_params={"suspension": "rigid"})
+    tt = tr[col.TIME].to_numpy()
+    g = np.abs(_arr(tr, col.GYRO)).max(axis=1)
+    q = _arr(tr, col.QUAT)
+    for a, b in meta["fit"]["stops"]:
+        inside = (tt > a) & (tt < b)
+        assert g[inside].max() < 1e-12
+        assert np.abs(q[inside] - q[inside][0]).max() < 1e-12
 
 
 def test_hairpin_and_polyline_corners_untimed():

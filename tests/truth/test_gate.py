@@ -119,6 +119,35 @@ def test_truth_below_the_input_heights_is_found():
     assert "height below the input's lowest by " in refusal(found, "pedestrian")
 
 
+def test_car_on_its_suspension_is_gated_by_its_roll_and_pitch_limits():
+    """A car on a 50 m circle at 15 m/s (4.5 m/s^2) with a stop: on its suspension it rolls ~2.3 deg and pitches on braking, within its limits; the same truth is
+    refused when held to a rigid car's zero roll, or to a roll limit under the roll it has."""
+    from dataclasses import replace
+
+    from imugen.core import earth as ea
+
+    t = np.arange(0.0, 60.0, 0.5)
+    v = np.minimum(15.0, 3.0 * t)
+    th = np.r_[0.0, np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.5)] / 50.0
+    enu = np.column_stack([50.0 * np.sin(th), 50.0 * (1 - np.cos(th)), 0 * t])
+    df, meta = truth.enu_table(enu, t, ORIGIN)
+    tr, tmeta = truth.build_truth(
+        df, meta, rate_hz=10, earth="wgs84", vehicle="car", verbose=False,
+        vehicle_params={"suspension": "damped"},
+    )  # fmt: skip
+    assert tmeta["gate"] == []
+    roll = np.abs(tr["roll_rad"].to_numpy()).max()
+    assert roll > np.radians(2.0)
+    vp = replace(truth.VEHICLES["car"], suspension="damped")
+    frame = ea.OriginFrame.from_deg(*ORIGIN, "wgs84")
+    assert findings(tr, vp, frame=frame) == []
+    rigid = [f["limit"] for f in findings(tr, replace(vp, suspension="rigid"), frame=frame)]
+    assert "roll on the ground" in rigid
+    low = findings(tr, replace(vp, max_roll_rad=0.5 * roll), frame=frame)
+    assert [f["limit"] for f in low] == ["roll on the ground"]
+    assert low[0]["value"] == pytest.approx(roll)
+
+
 # ------------------------------------------------------------------------------------------
 # real tracks
 # ------------------------------------------------------------------------------------------
@@ -165,7 +194,9 @@ def _paths():
 def test_real_tracks_pass_the_gate(path):
     """Every path of every shared real track (ingested with defaults; ground paths up to
     500 km) passes the gate at 10 Hz as its class (per-class jerk limits), the untimed paths
-    that double back included, but the one whose fixes are themselves impossible."""
+    that double back included, but the one whose fixes are themselves impossible; cars on their
+    suspension (roll and pitch within the suspension limits, turn about the yaw axis, the
+    suspension's input capped at the tyre limit)."""
     from imugen.ingest.readers import read_route_file
     from imugen.ingest.stage import ingest
 
@@ -182,10 +213,11 @@ def test_real_tracks_pass_the_gate(path):
         enu = ing.table[["e_m", "n_m"]].to_numpy()
         if np.sum(np.linalg.norm(np.diff(enu, axis=0), axis=1)) > 500e3:
             continue
+        veh = _vehicle(path.name, i)
         try:
             _, meta = truth.build_truth(
-                ing.table, ing.meta, rate_hz=10, vehicle=_vehicle(path.name, i), earth="wgs84",
-                verbose=False,
+                ing.table, ing.meta, rate_hz=10, vehicle=veh, earth="wgs84", verbose=False,
+                vehicle_params={"suspension": "damped"} if veh == "car" else None,
             )  # fmt: skip
         except InputError:  # too short to fit (two fixes)
             continue

@@ -66,7 +66,7 @@ def _suspension_pitch(tr, vp):
 @pytest.mark.parametrize("suspension", ["rigid", "damped"])
 @pytest.mark.parametrize("earth", ["flat", "wgs84", "geodetic"])
 def test_smooth_road_body_velocity_is_along_x(earth, suspension):
-    """Rigid: the body velocity is along x exactly. Damped (the car's default): the
+    """Rigid: the body velocity is along x exactly. Damped: the
     suspension only rotates the body, so no y either, and z is the dive and squat of the
     body, ``-|v| sin theta_s`` with ``theta_s`` the second-order response to ``dv_h/dt``."""
     t, enu = _road()

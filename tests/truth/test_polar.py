@@ -59,17 +59,20 @@ def route(lat_deg, lon_deg, heading_deg, radius_m, speed_mps, height_m):
     return position
 
 
-def build(position, duration_s, rate_hz, earth, vehicle):
-    """Truth from the route's exact points at 1 Hz, the origin at its start."""
+def build(position, duration_s, rate_hz, earth, vehicle, suspension="auto"):
+    """Truth from the route's exact points at 1 Hz, the origin at its start (``suspension``:
+    the vehicle's model, ``auto`` its class's)."""
     t = np.arange(0.0, duration_s + 1e-9, 1.0)
     lat0, lon0, h0 = (float(x[0]) for x in E.geodetic_from_ecef(position(t[:1])))
     origin = E.OriginFrame(lat0, lon0, h0, "wgs84")
     enu, meta = truth.enu_table(
         origin.n_from_ecef(position(t)), t, (math.degrees(lat0), math.degrees(lon0), h0)
     )
+    vehicle_params = None if suspension == "auto" else {"suspension": suspension}
     return truth.build_truth(
-        enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, grade="tactical", verbose=False
-    )
+        enu, meta, rate_hz=rate_hz, earth=earth, vehicle=vehicle, grade="tactical", verbose=False,
+        vehicle_params=vehicle_params,
+    )  # fmt: skip
 
 
 def curvature_turn_rate(df, frame):
@@ -122,8 +125,18 @@ def _check_ground_truth(position, df, tm, tol_closure_m=1e-6):
     assert rep["max_rate_increment_radps"] < 1e-6
     assert rep["max_attitude_step_excess_rad"] == 0.0
     assert rep["max_body_lateral_speed_mps"] < 1e-9  # non-holonomic: along body x only
-    assert rep["max_body_vertical_speed_mps"] < 1e-9
-    assert rep["max_abs_roll_deg"] < 1e-9
+    if "suspension" in tm["ground_attitude"]:
+        # on a suspension the body only rolls and pitches: vertical body speed -|v| sin
+        # theta_s, theta_s within the pitch gradient x the largest dv/dt (with overshoot)
+        vp = truth.VEHICLES["car"]
+        t = df[col.TIME].to_numpy()
+        speed = np.linalg.norm(df[list(col.VEL)].to_numpy(), axis=1)
+        theta_max = 1.3 * vp.pitch_gradient_radpmps2 * np.abs(np.gradient(speed, t)).max()
+        assert rep["max_body_vertical_speed_mps"] <= speed.max() * theta_max + 1e-9
+        assert rep["max_abs_roll_deg"] <= np.degrees(vp.max_roll_rad)
+    else:
+        assert rep["max_body_vertical_speed_mps"] < 1e-9
+        assert rep["max_abs_roll_deg"] < 1e-9
     assert tm["ground_attitude"]["heading_reference"].startswith("transverse pole")
     frame = col.origin_frame(tm)
     t = df[col.TIME].to_numpy()
@@ -151,30 +164,47 @@ def test_car_through_the_south_pole():
     assert abs(abs(yaw[-1] - yaw[0]) - math.pi) < 1e-3
 
 
-def test_car_stopping_at_the_south_pole():
+@pytest.mark.parametrize("suspension", ["rigid", "damped"])
+def test_car_stopping_at_the_south_pole(suspension):
     """20 m/s, a smooth stop 3 cm from the South Pole for ~16 s, then on: plausible, and the
-    attitude (ECEF) exactly constant while stopped, where no heading can be read off."""
+    attitude (ECEF) exactly constant while stopped, where no heading can be read off (on
+    its suspension, once the body has settled from the braking)."""
     tf = np.linspace(0.0, 140.0, 140_001)
     v = 10.0 * (2.0 - np.tanh((tf - 52.0) / 3.0) + np.tanh((tf - 78.0) / 3.0))
     d = np.r_[0.0, np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(tf))]
     road = route(-89.99, 30.0, 180.0, None, 1.0, 2800.0)  # position at distance "t"
     shift = 1111.95 - np.interp(65.0, tf, d)  # the pole ~1,112 m along, reached at 65 s
-    df, tm = build(lambda t: road(np.interp(t, tf, d) + shift), 140.0, 20.0, "geodetic", "car")
+    df, tm = build(
+        lambda t: road(np.interp(t, tf, d) + shift), 140.0, 20.0, "geodetic", "car", suspension
+    )
     rep = tm["plausibility"]
     assert rep["warnings"] == [] and rep["time_stopped_s"] > 10.0
     assert rep["max_rate_increment_radps"] < 1e-6 and rep["max_body_lateral_speed_mps"] < 1e-9
     assert df[col.LAT].min() < -89.9999
     t = df[col.TIME].to_numpy()
-    q = df[list(col.QUAT)].to_numpy()[(t > 62.0) & (t < 68.0)]
+    q = df[list(col.QUAT)].to_numpy()
+    still = (t > 62.0) & (t < 68.0)
+    if suspension == "damped":
+        # the braking (up to 3.3 m/s^2) pitched the body, which then rocks on its suspension,
+        # to 1e-12 after ln(1e12) / (zeta w_n) of the slowest mode (pitch: 9.2 s)
+        vp = truth.VEHICLES["car"]
+        assert np.abs(df["pitch_rad"].to_numpy()).max() > np.radians(0.2)
+        sigma = 2 * np.pi * min(vp.roll_hz * vp.roll_damping, vp.pitch_hz * vp.pitch_damping)
+        (a, b), *_ = [s for s in tm["fit"]["stops"] if s[0] < 65.0 < s[1]]
+        still = (t > a + np.log(1e12) / sigma) & (t < b)
+        assert np.ptp(t[still]) > 3.0
+    q = q[still]
     assert np.max(np.abs(q - q[0])) < 1e-12
 
 
+@pytest.mark.parametrize("suspension", ["rigid", "damped"])
 @pytest.mark.parametrize("earth", ["geodetic", "wgs84"])
-def test_car_circling_the_north_pole(earth):
+def test_car_circling_the_north_pole(earth, suspension):
     """A circle of 300 m radius passing 1.1 m from the North Pole (the pole inside it) at
-    10 m/s: turn rate v / 300 m, the path's own curvature."""
+    10 m/s: turn rate v / 300 m, the path's own curvature; on its suspension the body rolls
+    outwards by the roll gradient x v^2 / 300 m."""
     position = route(89.99999, 30.0, 90.0, 300.0, 10.0, 50.0)
-    df, tm = build(position, 200.0, 20.0, earth, "car")
+    df, tm = build(position, 200.0, 20.0, earth, "car", suspension)
     t, inner, frame, _ = _check_ground_truth(position, df, tm)
     _, lon, _ = frame.geodetic_from_n(df[list(col.POS)].to_numpy())
     assert np.ptp(np.unwrap(lon)) > 2.0 * math.pi  # around the pole
@@ -184,6 +214,9 @@ def test_car_circling_the_north_pole(earth):
     np.testing.assert_allclose(w[inner], kappa_v[inner], rtol=0, atol=1e-6)
     mid = (t > 15.0) & (t < t[-1] - 15.0)  # the fit's free ends bend the path a little
     np.testing.assert_allclose(w[mid], 10.0 / 300.0, rtol=1e-3)
+    K = truth.VEHICLES["car"].roll_gradient_radpmps2 if suspension == "damped" else 0.0
+    roll = df["roll_rad"].to_numpy()[mid]
+    np.testing.assert_allclose(roll, K * 10.0**2 / 300.0, rtol=0, atol=1e-9 + 2e-3 * K)
 
 
 @pytest.fixture(scope="module")

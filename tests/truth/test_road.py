@@ -40,16 +40,24 @@ def test_a_smooth_hill_is_kept_and_followed_exactly():
     assert meta["fit"]["vertical"]["max_departure_m"] < 1e-3
 
 
-def test_a_stop_with_a_height_step_stays_put():
-    """GNSS heights step while the car waits (3 m over a 60 s stop, noise 0.5 m): the stop is
-    still exactly still, vertically too, and the step becomes a slope spread over the road."""
+def _height_step_stop(suspension):
     rng = np.random.default_rng(11)
     t = np.arange(0.0, 241.0, 1.0)
     s = np.where(t < 90.0, 8.0 * t, np.where(t < 150.0, 720.0, 720.0 + 8.0 * (t - 150.0)))
     h = np.where(t < 120.0, 0.0, 3.0) + rng.normal(scale=0.5, size=t.size)
     y = np.column_stack([s, 0.01 * s, h]) + rng.normal(scale=0.3, size=(t.size, 3)) * [1, 1, 0]
     df, meta = truth.enu_table(y, t, ORIGIN)
-    tr, meta = truth.build_truth(df, meta, rate_hz=20, earth="flat", verbose=False)
+    return truth.build_truth(
+        df, meta, rate_hz=20, earth="flat", verbose=False, vehicle_params={"suspension": suspension}
+    )
+
+
+def test_a_stop_with_a_height_step_stays_put():
+    """GNSS heights step while the car waits (3 m over a 60 s stop, noise 0.5 m): the stop is
+    still exactly still, vertically too, and the step becomes a slope spread over the road.
+    The road profile is the subject: a rigid car (its attitude the path's); then the same
+    car on its suspension (damped), whose body only pitches on top of that profile."""
+    tr, meta = _height_step_stop("rigid")
     stops = meta["fit"]["stops"]
     assert stops, "the stop is found"
     tt = tr[col.TIME].to_numpy()
@@ -63,7 +71,31 @@ def test_a_stop_with_a_height_step_stays_put():
     away = np.all([np.abs(tt - a) > 3.0 for a in np.ravel(stops)], axis=0)
     assert np.abs(vb[away, 2]).max() < 1e-6
     assert np.abs(vb[:, 2]).max() < 0.005
-    assert tr["pitch_rad"].abs().max() < math.radians(3.0)
+    pitch = tr["pitch_rad"].to_numpy()
+    assert np.abs(pitch).max() < math.radians(3.0)
+    # on the suspension: the same positions (a rotation of the body only), the body turned
+    # from the rigid one by R_s = Rx(phi_s) Ry(-theta_s) (roll then pitch on the suspension),
+    # so the body velocity is the rigid one turned by R_s: theta_s the dive braking into the
+    # stop and the squat leaving it (gradient x dv/dt, 2 m/s^2 from 8 m/s in 1 s), phi_s
+    # nearly nothing on a nearly straight road
+    td, md = _height_step_stop("damped")
+    assert md["fit"]["stops"] == stops
+    assert np.abs(td[list(col.POS)].to_numpy() - p).max() < 1e-9
+    C_r = rot.quat_to_dcm(tr[list(col.QUAT)].to_numpy())
+    R_s = np.einsum("kji,kjl->kil", C_r, rot.quat_to_dcm(td[list(col.QUAT)].to_numpy()))
+    assert np.abs(R_s[:, 0, 1]).max() < 1e-9
+    theta_s = np.arctan2(-R_s[:, 0, 2], R_s[:, 0, 0])
+    phi_s = np.arctan2(R_s[:, 2, 1], R_s[:, 1, 1])
+    vp = truth.VEHICLES["car"]
+    assert np.abs(theta_s).max() > 0.5 * vp.pitch_gradient_radpmps2 * 2.0
+    assert np.abs(theta_s).max() < 1.3 * vp.pitch_gradient_radpmps2 * vp.max_accel_mps2
+    assert np.abs(phi_s).max() < 0.1 * np.abs(theta_s).max()
+    np.testing.assert_allclose(
+        _body_velocity(td), np.einsum("kji,kj->ki", R_s, vb), rtol=0, atol=1e-9
+    )
+    for a, b in stops:  # the body settles within 10 s of stopping, then stays put
+        still = (tt >= a + 10.0) & (tt <= b)
+        assert np.ptp(td[list(col.QUAT)].to_numpy()[still], axis=0).max() < 1e-9
 
 
 def test_ellipsoidal_heights_far_from_the_origin():

@@ -111,13 +111,57 @@ def test_braking_dips_the_nose_and_accelerating_squats():
 def test_rigid_is_bit_identical_to_zero_gradients_and_has_no_roll():
     t, enu = _circle(T=40.0)
     rigid, m1 = _build(enu, t, vehicle_params={"suspension": "rigid"})
-    default, _ = _build(enu, t, vehicle_params=None)
     zero, _ = _build(
         enu, t, vehicle_params={**DAMPED, "roll_gradient_radpmps2": 0, "pitch_gradient_radpmps2": 0}
     )
-    assert rigid.equals(default) and rigid.equals(zero)
+    assert rigid.equals(zero)
     assert np.all(rigid["roll_rad"].to_numpy() == 0.0)
     assert "suspension" not in m1["ground_attitude"]
+
+
+def test_default_is_rigid_for_every_class():
+    # auto (the default) is the class's model: rigid for every class, bit-identical to rigid
+    assert all(VEHICLES[v].suspension == "rigid" for v in VEHICLES)
+    t, enu = _circle(T=40.0)
+    default, m0 = _build(enu, t, vehicle_params=None)
+    rigid, _ = _build(enu, t, vehicle_params={"suspension": "rigid"})
+    assert default.equals(rigid) and "suspension" not in m0["ground_attitude"]
+
+
+def test_input_is_capped_at_the_tyre_limit():
+    # a 20 m circle at 15 m/s asks for 11.25 m/s^2 of lateral acceleration, beyond the 0.8 g
+    # road tyres give (max_accel_mps2): the body rolls as if at that limit, not beyond
+    vp = VEHICLES["car"]
+    t, enu = _circle(R=20.0, v=15.0, T=60.0)
+    tr, meta = _build(enu, t)
+    rep = meta["ground_attitude"]["suspension"]
+    assert rep["max_input_accel_uncapped_mps2"] > 1.3 * vp.max_accel_mps2  # the fit: ~11
+    assert rep["input_cap_mps2"] == vp.max_accel_mps2 and rep["capped_fraction"] > 0.5
+    tt, roll = tr[col.TIME].to_numpy(), tr["roll_rad"].to_numpy()
+    mid = (tt > 15.0) & (tt < 45.0)
+    np.testing.assert_allclose(roll[mid], vp.roll_gradient_radpmps2 * vp.max_accel_mps2, rtol=5e-3)
+
+
+def test_a_glitch_beyond_the_tyre_limit_rolls_no_further_than_the_limit():
+    # a 1 s spike of 16 m/s^2 lateral (a GNSS glitch): the roll peaks at the capped input's
+    # step response, gradient x 8 m/s^2 x (1 + overshoot), not at twice that
+    from imugen.truth.suspension import Suspension
+
+    vp = VEHICLES["car"]
+
+    def inputs(t):
+        return np.where((t >= 2.0) & (t < 3.0), 16.0, 0.0), 0.0 * t
+
+    s = Suspension(0.0, 10.0, inputs, vp)
+    roll = s(np.arange(0.0, 10.0, 1e-3))[0]
+    z = vp.roll_damping
+    peak = (
+        vp.roll_gradient_radpmps2
+        * vp.max_accel_mps2
+        * (1 + math.exp(-math.pi * z / math.sqrt(1 - z * z)))
+    )
+    assert math.radians(4.0) < np.abs(roll).max() <= peak * 1.01
+    assert s.report["max_input_accel_uncapped_mps2"] == 16.0
 
 
 @pytest.mark.parametrize("earth", ["flat", "wgs84", "geodetic"])

@@ -79,7 +79,10 @@ def filter_options(
     p = params
     nhc = (vehicle == "car") if p.nhc is None else bool(p.nhc)
     slip = p.nhc_slip_sd_mps
-    mount = {"nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip}
+    mount = {
+        "nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip,
+        "nhc_pitch_sd_rad": suspension_pitch_sd(vehicle),
+    }
     if mounting:
         sd = np.radians(mounting["misalignment_sd_deg"])
         mount |= {
@@ -100,6 +103,36 @@ def filter_options(
         baro=p.barometer is not None,
         **mount,
     )
+
+
+def suspension_pitch_sd(vehicle: str | None, damped: bool | None = None) -> float:
+    """1-sigma of the body's pitch on its suspension relative to its velocity [rad] that NHC's
+    vertical row must cover (``Options.nhc_pitch_sd_rad``): the vehicle class's pitch
+    gradient x its tyre-limited acceleration ``max_accel_mps2`` (a car: 2 deg/g x 0.8 g =
+    1.6 deg, 0.40 m/s of vertical body speed at 14 m/s); 0 for a class without a suspension
+    (``damped``: whether the truth's vehicle is on its suspension; None: the class's default,
+    rigid for every class).
+
+    The dive and squat last seconds (a braking, the body's 1.2 Hz rocking) while NHC takes
+    its noise as white at every epoch, so the sigma covers the largest dive, not the typical
+    one. Measured on the car rectangle of tests/aid/test_companions.py (30 runs, NEES/dof of
+    position, velocity and attitude at 25 epochs, band 7.1-11.1): the class's 0.2 g as sigma
+    gave a mean of 11.4 with 10 epochs above the band, 0.4 g 9.9 and 4, 0.8 g 9.6 and 2 (the
+    rigid car before: 9.5 and 2). The class's figures (:data:`imugen.truth.VEHICLES`), not the
+    truth's: a real car has a suspension whatever its truth was built with."""
+    from dataclasses import replace
+
+    from imugen.truth import VEHICLES
+    from imugen.truth.vehicles import has_suspension
+
+    vp = VEHICLES.get(vehicle or "")
+    if vp is None:
+        return 0.0
+    if damped is not None:
+        vp = replace(vp, suspension="damped" if damped else "rigid")
+    if not has_suspension(vp):
+        return 0.0
+    return vp.pitch_gradient_radpmps2 * vp.max_accel_mps2
 
 
 def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:

@@ -487,7 +487,8 @@ class GroundAttitude:
     * on a suspension (:func:`imugen.truth.vehicles.has_suspension`: ``suspension`` ``damped``) the
       body rolls by ``phi_s(t)`` about its x axis and then pitches by ``theta_s(t)`` about its
       y axis, ``C_lb = Rz(psi) Ry(-theta) Rx(phi + phi_s) Ry(-theta_s)``
-      (:class:`imugen.truth.suspension.Suspension`, driven by ``a_lat = v_h^2 Psi'(s)`` and
+      (:class:`imugen.truth.suspension.Suspension`, driven by ``a_lat = v_h^2 Psi'(s)`` (plus,
+      off ``flat``, ``v_h`` x the local North's own turn about the vertical) and
       ``a_lon = dv_h/dt``): a rotation of the body only, so its velocity keeps no y component
       (the vertical one is ``v sin theta_s``, the dive and squat of the body), and the angles
       are functions of time (the body still rocks for a moment after the vehicle stops).
@@ -644,14 +645,22 @@ class GroundAttitude:
         return o, o_d
 
     def _accel(self, motion, tg, sg):
-        """``inputs(t) -> (a_lat, a_lon)`` of the suspension: ``v_h^2 Psi'(s)`` and
-        ``dv_h/dt`` [m/s^2] (distance ``s`` interpolated on the grid ``tg``, ``sg``)."""
+        """``inputs(t) -> (a_lat, a_lon)`` of the suspension: ``v_h (v_h Psi'(s) + omega_z)``
+        and ``dv_h/dt`` [m/s^2] (distance ``s`` interpolated on the grid ``tg``, ``sg``).
+
+        ``v_h Psi' + omega_z`` is the turn rate relative to the Earth about the local vertical:
+        in ``wgs84`` and ``geodetic`` the heading ``Psi`` is measured from a local North that itself turns
+        about the vertical along the path (``omega_z``, the transport rate's vertical
+        component: meridians converge), which is no lateral acceleration of the vehicle."""
 
         def inputs(t):
             p, v, a, _ = motion.eval(t)
             vh, vh_d = self.E.horizontal_speed(p, v, a, self.axis)
             s = np.clip(np.interp(t, tg, sg), 0.0, self.length_m)
-            return vh * vh * self.Psi(s, 1), vh_d
+            turn = vh * self.Psi(s, 1)
+            if not self.E.flat:
+                turn = turn + self.E.local(p, v, self.axis)[2][:, 2]
+            return vh * turn, vh_d
 
         return inputs
 

@@ -4,7 +4,9 @@
 (:class:`imugen.truth.vehicles.VehicleParams`) and finds, per limit, the worst place that
 exceeds it: speed (3-D), |acceleration| and |jerk| (finite differences of the velocity;
 the jerk limit is the class's own, :data:`imugen.truth.vehicles.JERK_SOURCES`),
-on the ground the pitch, the roll (zero, or a leaning vehicle's lean), the turn rate beyond
+on the ground the pitch (beyond the road's grade limit, on a suspension, by
+:func:`imugen.truth.report.suspension_pitch_margin_rad`), the roll (zero, or a leaning
+vehicle's lean, or on a suspension the body roll, bounded by ``max_roll_rad``), the turn rate beyond
 ``horizontal speed x max curvature`` (turning on the spot); in flight the pitch, the bank and the turn rate; everywhere an attitude step beyond
 what the rates allow; and the height against the input's: never below the lowest input
 height, and for ground vehicles never above the highest, by more than
@@ -36,8 +38,11 @@ from imugen.truth.report import (
     YAW_EXCESS_TOL_RADPS,
     in_intervals,
     local_velocity,
+    suspension_pitch_margin_rad,
     turn_rate,
+    yaw_axis_turn_rate,
 )
+from imugen.truth.vehicles import has_suspension
 
 HEIGHT_TOL_M = 30.0
 """Largest height of a truth below the lowest input height (and, on the ground, above the
@@ -106,7 +111,10 @@ def findings(
     v_h = local_velocity(p, v, frame) if frame.model == "geodetic" else v
     vh = np.hypot(v_h[:, 0], v_h[:, 1])
     C_nb = rot.quat_to_dcm(df[list(col.QUAT)].to_numpy())
-    yaw = turn_rate(p, w, C_nb, frame)
+    susp = has_suspension(vp)
+    # on a suspension the body's roll and pitch rates project onto the vertical on a grade
+    # without turning it: the turn is judged by the yaw axis (as the report does)
+    yaw = (yaw_axis_turn_rate if susp else turn_rate)(p, w, C_nb, frame)
     wn = np.linalg.norm(w, axis=1)
     dth = np.linalg.norm(df[list(col.DTHETA)].to_numpy()[1:], axis=1)
     step = np.r_[0.0, dth - (np.maximum(wn[1:], wn[:-1]) + np.abs(np.diff(wn))) * dt]
@@ -118,9 +126,10 @@ def findings(
         _worst("attitude step beyond the rates", step, STEP_TOL_RAD, "rad"),
     ]
     if vp.attitude != "thrust":
-        rlim = vp.max_roll_rad if vp.lean else 0.0
+        rlim = vp.max_roll_rad if vp.lean or susp else 0.0
+        plim = vp.max_pitch_rad + (suspension_pitch_margin_rad(vp) if susp else 0.0)
         checks += [
-            _worst("pitch on the ground", pitch, vp.max_pitch_rad + ANGLE_TOL_RAD, "rad", gnd),
+            _worst("pitch on the ground", pitch, plim + ANGLE_TOL_RAD, "rad", gnd),
             _worst("roll on the ground", roll, rlim + ANGLE_TOL_RAD, "rad", gnd),
             _worst(
                 "turn rate at speed (turning on the spot)",

@@ -244,14 +244,18 @@ def plausibility(
     return rep
 
 
+def suspension_pitch_margin_rad(vp) -> float:
+    """Largest pitch of a body on its suspension beyond the road's grade [rad]: the pitch
+    gradient x the largest plausible acceleration (the suspension's input is capped there,
+    :mod:`imugen.truth.suspension`) with the step response's overshoot (x 1.3: the overshoot
+    of a damping ratio of 0.4 is 1.25)."""
+    return 1.3 * vp.pitch_gradient_radpmps2 * vp.max_accel_mps2
+
+
 def _warnings(r, vp) -> list[str]:
     out = []
     susp = has_suspension(vp)
-    # on a suspension the body pitches beyond the road's grade by up to the pitch gradient x
-    # the largest plausible acceleration, with the step response's overshoot (x 1.3)
-    pmax = math.degrees(
-        vp.max_pitch_rad + (1.3 * vp.pitch_gradient_radpmps2 * vp.max_accel_mps2 if susp else 0.0)
-    )
+    pmax = math.degrees(vp.max_pitch_rad + (suspension_pitch_margin_rad(vp) if susp else 0.0))
     if r["max_abs_pitch_deg"] > pmax + 1e-6:
         out.append(
             f"|pitch| on the ground reaches {r['max_abs_pitch_deg']:.1f} deg (limit {pmax:.1f})"

@@ -25,6 +25,11 @@ Without that term an exact constraint is overconfident after the alignment (NEES
 at the first epoch, at 3e-5 m/s); a constant noise instead (the former 0.1 m/s, or even
 1e-3 m/s) over-covers the two attitude directions NHC fixes (NEES 0.3 per direction
 where 1 is due, measured in P's eigenbasis, car rectangle of tests/aid/test_companions.py).
+A car's body pitches on its suspension (:mod:`imugen.truth.suspension`): its vertical body
+speed is ``-u sin(theta_s)``, the dive and squat, which the vertical row takes as noise of
+``(u nhc_pitch_sd)^2`` at the estimated forward speed ``u`` (``Options.nhc_pitch_sd_rad``;
+without it a car on its suspension drove the companion scene's NEES to 1e7); the roll on the
+suspension moves no velocity into the lateral row.
 The slip is the truth's RMS (:func:`imugen.aid.stage.truth_slip_sd`) and its bursts, where a
 path is implausible, are left to NHC's own innovation gate (``Options.nhc_gate_sigma``; the
 largest slip as white noise left heading NEES/dof 0.13-0.17, tilt 2.3). The rows linearize at
@@ -191,6 +196,8 @@ def update(e, md, inp, wk, x, tn, win):
     for r_ in (1, 2):
         slip = md.opt.nhc_sd_lat if r_ == 1 else md.opt.nhc_sd_vert
         slip_var = slip * slip
+        if r_ == 2:  # the dive and squat on the suspension: -u sin(theta_s), theta_s ~ sd
+            slip_var += (vel[0] * md.opt.nhc_pitch_sd) ** 2
         if learned and math.isfinite(inp.nvar[e.s, e.j, r_ - 1]):  # a learner's (AI-IMU)
             slip_var = inp.nvar[e.s, e.j, r_ - 1]
         m, r, var = row(e, md, x, wk, tn, r_, vel, lever, slip_var)

@@ -17,6 +17,7 @@ class Switches(NamedTuple):
     nhc: bool
     nhc_sd_lat: float
     nhc_sd_vert: float
+    nhc_pitch_sd: float
     nhc_lever_m: tuple[float, float, float]
     zupt: bool
     zupt_sd: float
@@ -52,6 +53,11 @@ class Options:
     vertical body speed [m/s] (a pair, or one number for both; the simulator's vehicles have
     none, :mod:`imugen.aid.stage` takes the truth's plausibility report); the NHC variance adds
     the lever arm's and the constraint's second-order terms (:mod:`imugen.aid.filter.nhc`).
+    ``nhc_pitch_sd_rad``: 1-sigma of the body's pitch on its suspension relative to its
+    velocity (a car's dive and squat, ``theta_s``): the vertical row adds ``(u sd)^2`` at the
+    estimated forward speed ``u``, the body's vertical speed ``-u sin theta_s`` (a roll on the
+    suspension moves no velocity into y); 0: a rigid body (:mod:`imugen.aid.stage` sets a
+    car's from its class's pitch gradient, :func:`imugen.aid.stage.suspension_pitch_sd`).
     ``nhc_lever_arm_m``: nominal IMU position from the vehicle reference point (vehicle
     axes, m) where NHC applies; ``nhc_misalignment_sd_rad``: (pitch, yaw) 1-sigma of the
     unknown mounting misalignment: when not zero (and NHC on) the two angles are estimated as
@@ -81,6 +87,7 @@ class Options:
     gnss_bias: bool = True
     nhc: bool = False
     nhc_sd_mps: tuple = (0.0, 0.0)
+    nhc_pitch_sd_rad: float = 0.0
     zupt: bool = False
     zupt_sd_mps: float = 0.02
     zupt_gyro_radps: float = 0.02
@@ -141,7 +148,8 @@ class Options:
         lat, vert = (float(x) for x in np.broadcast_to(np.asarray(self.nhc_sd_mps, float), (2,)))
         lx, ly, lz = (float(x) for x in self.nhc_lever_arm_m)
         return Switches(
-            nhc=bool(self.nhc), nhc_sd_lat=lat, nhc_sd_vert=vert, nhc_lever_m=(lx, ly, lz),
+            nhc=bool(self.nhc), nhc_sd_lat=lat, nhc_sd_vert=vert,
+            nhc_pitch_sd=float(self.nhc_pitch_sd_rad), nhc_lever_m=(lx, ly, lz),
             zupt=bool(self.zupt), zupt_sd=float(self.zupt_sd_mps),
             zupt_gyro=float(self.zupt_gyro_radps), zupt_accel=float(self.zupt_accel_mps2),
             zupt_speed=float(self.zupt_speed_mps), zupt_min_still=float(self.zupt_min_still_s),
