@@ -299,3 +299,17 @@ def test_correction_out_and_in_follow_their_contract(scene, tmp_path):
     tcorr.write(part, {}, tmp_path / "p.parquet")
     with pytest.raises(InputError, match=f"sequence {ids[2]} has 0 samples"):
         tcorr.arrays(tmp_path / "p.parquet", ids, K)
+
+
+def test_filter_options_cover_the_suspension_the_truth_was_built_with():
+    """A truth built on its suspension (metadata ``vehicle_params.suspension: damped``) gets
+    NHC's pitch sigma (the class's pitch gradient x tyre limit); a rigid one none; without the
+    record, the class's default."""
+    from imugen.aid.options import AidOptions
+
+    p = AidOptions()
+    damped = AID.filter_options(p, "car", vehicle_params={"suspension": "damped"})
+    rigid = AID.filter_options(p, "car", vehicle_params={"suspension": "rigid"})
+    assert damped.nhc_pitch_sd_rad == pytest.approx(AID.suspension_pitch_sd("car", damped=True))
+    assert damped.nhc_pitch_sd_rad > 0.02 and rigid.nhc_pitch_sd_rad == 0.0
+    assert AID.filter_options(p, "car").nhc_pitch_sd_rad == AID.suspension_pitch_sd("car")

@@ -70,18 +70,22 @@ def filter_options(
     vehicle: str | None,
     mounting: dict | None = None,
     plausibility: dict | None = None,
+    vehicle_params: dict | None = None,
 ) -> A.Options:
     """The filter's options from the stage's; ``vehicle`` (the truth's) decides NHC when
     ``params.nhc`` is None; ``mounting`` (the shard metadata's, :mod:`imugen.sensors.mounting`)
     gives NHC its nominal lever arm and the misalignment sigmas its noise must cover;
     ``plausibility`` (the truth's report) the vehicle's residual slip, unless
-    ``params.nhc_slip_sd_mps`` is set."""
+    ``params.nhc_slip_sd_mps`` is set; ``vehicle_params`` (the truth metadata's) whether the
+    vehicle rides on its suspension (:func:`suspension_pitch_sd`)."""
     p = params
     nhc = (vehicle == "car") if p.nhc is None else bool(p.nhc)
     slip = p.nhc_slip_sd_mps
     mount = {
         "nhc_sd_mps": truth_slip_sd(plausibility) if slip is None else slip,
-        "nhc_pitch_sd_rad": suspension_pitch_sd(vehicle),
+        "nhc_pitch_sd_rad": suspension_pitch_sd(
+            vehicle, {"damped": True, "rigid": False}.get((vehicle_params or {}).get("suspension"))
+        ),
     }
     if mounting:
         sd = np.radians(mounting["misalignment_sd_deg"])
@@ -119,7 +123,8 @@ def suspension_pitch_sd(vehicle: str | None, damped: bool | None = None) -> floa
     position, velocity and attitude at 25 epochs, band 7.1-11.1): the class's 0.2 g as sigma
     gave a mean of 11.4 with 10 epochs above the band, 0.4 g 9.9 and 4, 0.8 g 9.6 and 2 (the
     rigid car before: 9.5 and 2). The class's figures (:data:`imugen.truth.VEHICLES`), not the
-    truth's: a real car has a suspension whatever its truth was built with."""
+    truth's motion; whether the vehicle rides on its suspension is the truth's configuration
+    (its metadata's ``vehicle_params.suspension``, which :func:`filter_options` reads)."""
     from dataclasses import replace
 
     from imugen.truth import VEHICLES
@@ -475,8 +480,9 @@ def aid(
         raise InputError(shard_path, "records no grade: pass --grade")
     tun = A.Tuning.from_grade(grade, params.tuning_level)
     opts = filter_options(
-        params, truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility")
-    )
+        params, truth.meta.get("vehicle"), smeta.get("mounting"), truth.meta.get("plausibility"),
+        truth.meta.get("vehicle_params"),
+    )  # fmt: skip
     mlabels = tshard.read_labels(shard_path, smeta) if smeta.get("mounting") else None
     shard_ids = None
     if learned_in is not None:

@@ -547,7 +547,8 @@ class Stream:
         tun = A.Tuning.from_grade(self.grades[gi], p.tuning_level)
         mmeta = None if self._mount_spec is None else self._mount_spec.as_dict()
         opts = AID.filter_options(p, truth.meta.get("vehicle"), mmeta,
-                                  truth.meta.get("plausibility"))  # fmt: skip
+                                  truth.meta.get("plausibility"),
+                                  truth.meta.get("vehicle_params"))  # fmt: skip
         dth, dvb = (data[n].astype(np.float32).astype(np.float64)[None] for n in ("dtheta", "dv"))
         ids = np.array([sid], np.int64)
         res = AID.filter_block(truth, ids, dth, dvb, p, self.seed, tun, opts, scen=scen)[4]
