@@ -16,7 +16,8 @@ def test_keys_and_streams_are_the_published_ones():
     assert list(seeding.SENSOR_STREAMS.items()) == [
         ("params", 0), ("gyro_white", 1), ("accel_white", 2), ("gyro_rrw", 3), ("accel_rrw", 4),
         ("gyro_bi", 5), ("accel_bi", 6), ("vibration", 7), ("mounting", 8), ("gyro_band", 9),
-        ("accel_band", 10), ("window", 11), ("window_band", 12),
+        ("accel_band", 10), ("window", 11), ("window_band", 12), ("gyro_slow", 13),
+        ("accel_slow", 14),
     ]  # fmt: skip
     assert seeding.GNSS_STREAMS == {
         "params": 0, "position_white": 1, "position_bias": 2, "velocity_white": 3,
