@@ -118,7 +118,31 @@ def _check_truth(tr, meta, vp, origin):
     assert rep["max_abs_roll_deg"] == 0.0 or rep["max_abs_roll_deg"] < 1e-6
     assert rep["max_accel_mps2"] <= math.hypot(vp.accel_mps2, vp.lat_accel_mps2) * 1.02
     assert rep["time_airborne_s"] > 0.8 * (t[-1] - t[0])
+    # taxiing (at most taxi speed, on the runway's height) the airliner is level: the rotation
+    # and the flare belong to the take-off and the landing (a 5 deg nose-up on the final taxi
+    # of the 7,600 km route: the height profile lost the ends' level, GRADE_BIN_RATIO)
+    taxi = (speed <= vp.taxi_mps * (1 + 1e-3)) & (
+        np.minimum(np.abs(h - h[0]), np.abs(h - h[-1])) < 1.0
+    )
+    assert taxi[:5].all() and taxi[-5:].all()
+    assert np.abs(tr[col.EULER[1]].to_numpy()[taxi]).max() < 1e-3
     return lat, lon, h
+
+
+def test_height_profile_keeps_a_long_flights_taxi_level():
+    """Oracle: a level taxi at both ends of a 400 km flight (0.1 s samples: 0.5 m apart
+    taxiing, 24 m at cruise) keeps its level and zero grade in the height profile (the
+    penalty's conditioning at bins 48x denser than the median lost it: 0.8 m, grade 0.03)."""
+    from imugen.truth.fit import fit_height_profile
+
+    taxi = np.arange(0.0, 2000.0, 0.5)
+    s = np.r_[taxi, np.arange(2000.0, 402000.0, 24.0), 402000.0 + taxi]
+    x = np.clip(np.minimum(s - 2000.0, 402000.0 - s) / 150e3, 0.0, 1.0)
+    h = 10000.0 * x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
+    H, _ = fit_height_profile(s, h, 0.0, 0.5, 50.0, 1e-3)
+    ends = np.r_[np.linspace(0.0, 1500.0, 301), np.linspace(s[-1] - 1500.0, s[-1], 301)]
+    assert np.abs(H(ends)).max() < 0.01
+    assert np.abs(H.derivative()(ends)).max() < 1e-4
 
 
 def test_429_km_flight_at_6800_m_is_plausible():

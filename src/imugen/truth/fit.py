@@ -764,10 +764,32 @@ def distance_to_curve(G, L, y, spacing):
 # ------------------------------------------------------------------------------------------
 # height against horizontal distance (road grade)
 # ------------------------------------------------------------------------------------------
+GRADE_BIN_RATIO = 8.0
+"""Largest ratio of the points' median spacing to the height profile's bin width
+(:func:`fit_height_profile`)."""
+
+
+def _grade_bin(s, bin_m):
+    """Bin width [m] of a height profile: ``bin_m``, widened to the points' median spacing
+    (moving) over :data:`GRADE_BIN_RATIO`.
+
+    The spline's knots are the bins and its penalty is normalized at their median spacing:
+    bins far denser than that (an airliner's 0.1 s samples taxiing at 5 m/s, 0.5 m apart, on a
+    route sampled 24 m apart at cruise) scale the penalty there by the spacing ratio^6 (1e10),
+    and the solve then loses the profile's level at the route's ends (a 4 m, 9 deg height
+    ramp, grade 0.15, on the final taxi of a 7,600 km flight: the airliner taxied nose-up)."""
+    ds = np.diff(s)
+    moved = ds[ds > 0.0]
+    if not len(moved):
+        return bin_m
+    return max(bin_m, float(np.median(moved)) / GRADE_BIN_RATIO)
+
+
 def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
     """Height against horizontal distance, smoothed at the height noise.
 
-    Points are binned by distance (``bin_m``; a stop's points fall into one bin, so height
+    Points are binned by distance (``bin_m``, at least their median spacing over
+    :data:`GRADE_BIN_RATIO`; a stop's points fall into one bin, so height
     noise or a height step at a stop is averaged, never a slope), and a quintic penalized
     smoothing spline (penalty on the third derivative) is fitted to the bin means weighted by
     their counts; its smoothing makes the count-weighted RMS residual equal to ``noise_m``
@@ -796,6 +818,7 @@ def fit_height_profile(s, h, noise_m, bin_m, smooth_m, floor_m=1e-3):
     """
     s = np.asarray(s, float)
     h = np.asarray(h, float)
+    bin_m = _grade_bin(s, bin_m)
     b = np.floor((s - s[0]) / bin_m).astype(np.int64)
     _, inv, cnt = np.unique(b, return_inverse=True, return_counts=True)
     sm = np.bincount(inv, s) / cnt
