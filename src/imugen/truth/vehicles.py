@@ -173,7 +173,6 @@ VEHICLES = {
         max_speed_mps=25.0,
         max_accel_mps2=5.0,
         max_slip_mps=0.3,
-
         max_jerk_mps3=15.0,
     ),
     # pedestrian: 5 km/h, gentle accelerations, corners rounded over ~1 m; turns on a 0.5 m
@@ -192,7 +191,6 @@ VEHICLES = {
         max_speed_mps=12.0,
         max_accel_mps2=5.0,
         max_slip_mps=0.3,
-
         max_jerk_mps3=10.0,
         hold_speed_mps=(0.1, 0.5),
         stop_speed_mps=0.1,
