@@ -155,6 +155,7 @@ VEHICLES = {
         max_pitch_rad=0.35,
         max_roll_rad=0.14,
         max_jerk_mps3=30.0,
+        suspension="damped",
     ),
     # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
     "bicycle": VehicleParams(
