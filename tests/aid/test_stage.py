@@ -123,9 +123,12 @@ def test_outage_end_equals_filter_in_memory(scene):
     Tm = A.tuning_matrix(tun, len(ids), gnss_receiver=scen.gnss.receiver, gnss_level="law")
     # the stage's NHC noise: the truth's own slip (its plausibility report)
     slip = AID.truth_slip_sd(truth.meta.get("plausibility"))
+    damped = (truth.meta.get("vehicle_params") or {}).get("suspension") == "damped"
+    assert not damped  # the scene's car is rigid: no dive and squat for NHC to cover
     opts = A.Options(
-        nhc=True, zupt=True, nhc_sd_mps=slip, nhc_pitch_sd_rad=AID.suspension_pitch_sd("car")
-    )  # and a car's dive and squat on its suspension, as the stage sets it for the class
+        nhc=True, zupt=True, nhc_sd_mps=slip,
+        nhc_pitch_sd_rad=AID.suspension_pitch_sd("car", damped=damped),
+    )  # fmt: skip
     res = A.run(dth, dv, truth.dt, truth.origin_frame(), scen.gnss, tun, opts, tuning_T=Tm)
     last = np.flatnonzero(scen.gnss.time_s < 110.0 - 1e-9)[-1]  # last epoch without a fix
     err = res.p_n[:, last] - truth.p_n[res.index[last]]

@@ -22,14 +22,18 @@ from helpers import simulate_shard
 POS = ["err_e_m", "err_n_m", "err_u_m"]
 
 
-def route_truth(rate_hz, duration=60.0, earth="flat"):
-    """A timed, curvy, climbing car track (about 10 m/s) -> truth at ``rate_hz``."""
+def route_truth(rate_hz, duration=60.0, earth="flat", suspension="rigid"):
+    """A timed, curvy, climbing car track (about 10 m/s) -> truth at ``rate_hz``; the car
+    ``rigid`` (the path's smooth attitude, the closed-form orders' subject) unless told."""
     t = np.arange(0.0, duration + 1.0, 1.0)
     enu = np.column_stack(
         [200 * np.sin(t / 15.0), 10 * t - 150 * np.cos(t / 9.0), 3 * np.sin(t / 7.0)]
     )
     df, meta = T.enu_table(enu, t, (45.0, 7.0, 300.0))
-    tdf, tmeta = T.build_truth(df, meta, rate_hz=rate_hz, earth=earth, verbose=False)
+    tdf, tmeta = T.build_truth(
+        df, meta, rate_hz=rate_hz, earth=earth, verbose=False,
+        vehicle_params={"suspension": suspension},
+    )  # fmt: skip
     return ttruth.Truth(tdf, tmeta)
 
 
@@ -69,6 +73,18 @@ def test_both_semantics_close_at_third_order(truths):
     sh = S.simulate(tr.frame, "consumer", sequences=1, seed=0, terms=[], increments="raw")
     wrong = navigate_arrays(tr, sh, semantics="compensated")
     assert np.abs(wrong[POS].to_numpy()).max() > 1e3 * res["raw"][1][0]
+
+
+def test_damped_car_closes():
+    """The car on its suspension (the default) also navigates back onto its truth from
+    error-free increments. Measured (60 s, flat, 100 Hz): compensated 8.6e-9 m, raw 1.1e-5 m
+    and 8e-10 rad (the body's 1.2-1.5 Hz rocking costs the raw quadrature two orders against
+    the rigid car's 1.4e-7 m; 200 Hz: 1.8e-7 m)."""
+    tr = route_truth(100.0, suspension="damped")
+    assert tr.meta["vehicle_params"]["suspension"] == "damped"
+    (pc, ac), (pr, ar) = (closure(tr, k) for k in ("compensated", "raw"))
+    assert pc < 1e-7 and ac < 1e-12, (pc, ac)
+    assert pr < 5e-5 and ar < 1e-8, (pr, ar)
 
 
 def test_interval_integrals_exact_for_cubics_and_fourth_order():

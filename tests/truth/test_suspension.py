@@ -119,13 +119,16 @@ def test_rigid_is_bit_identical_to_zero_gradients_and_has_no_roll():
     assert "suspension" not in m1["ground_attitude"]
 
 
-def test_default_is_rigid_for_every_class():
-    # auto (the default) is the class's model: rigid for every class, bit-identical to rigid
-    assert all(VEHICLES[v].suspension == "rigid" for v in VEHICLES)
+def test_car_is_on_its_suspension_by_default():
+    # the car class's default model is the damped suspension: a default truth is the damped one
+    assert VEHICLES["car"].suspension == "damped"
+    assert all(VEHICLES[v].suspension == "rigid" for v in VEHICLES if v != "car")
     t, enu = _circle(T=40.0)
     default, m0 = _build(enu, t, vehicle_params=None)
-    rigid, _ = _build(enu, t, vehicle_params={"suspension": "rigid"})
-    assert default.equals(rigid) and "suspension" not in m0["ground_attitude"]
+    damped, _ = _build(enu, t)
+    assert default.equals(damped)
+    assert np.abs(default["roll_rad"].to_numpy()).max() > math.radians(1.0)
+    assert m0["ground_attitude"]["suspension"]["model"] == "damped second order"
 
 
 def test_input_is_capped_at_the_tyre_limit():

@@ -115,7 +115,7 @@ def suspension_pitch_sd(vehicle: str | None, damped: bool | None = None) -> floa
     gradient x its tyre-limited acceleration ``max_accel_mps2`` (a car: 2 deg/g x 0.8 g =
     1.6 deg, 0.40 m/s of vertical body speed at 14 m/s); 0 for a class without a suspension
     (``damped``: whether the truth's vehicle is on its suspension; None: the class's default,
-    rigid for every class).
+    damped for a car).
 
     The dive and squat last seconds (a braking, the body's 1.2 Hz rocking) while NHC takes
     its noise as white at every epoch, so the sigma covers the largest dive, not the typical

@@ -58,7 +58,7 @@ class TruthOptions:
         help="body roll and pitch on the suspension of a ground vehicle: damped (a second-order "
         "response to the lateral and longitudinal acceleration, passenger-car gradients; "
         "--vehicle-param roll_gradient_radpmps2=... etc.), rigid (the path's attitude), or auto "
-        "(the vehicle class's: rigid for every class)",
+        "(the vehicle class's: damped for a car, rigid for every other class)",
     )  # fmt: skip
     pose_body: str = option(
         "flu", choices=("flu", "frd", "rdf"), config="routes.*.pose_body",

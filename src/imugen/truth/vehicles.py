@@ -27,8 +27,8 @@ Every field can be overridden per truth (``build_truth(..., vehicle_params={...}
   pitches on its suspension, a damped second-order response to the lateral and longitudinal
   acceleration), ``roll_gradient_radpmps2``, ``pitch_gradient_radpmps2`` (steady roll and pitch
   per m/s^2; 0 turns that angle off), ``roll_hz``, ``pitch_hz`` (natural frequencies),
-  ``roll_damping``, ``pitch_damping`` (damping ratios); every class is ``rigid`` by default
-  (``imugen truth --suspension=damped``, config
+  ``roll_damping``, ``pitch_damping`` (damping ratios); a car is ``damped`` by default, every
+  other class ``rigid`` (``imugen truth --suspension=rigid|damped``, config
   ``routes.<name>.suspension``), the figures are passenger-car ones (5 deg/g roll, 2 deg/g
   pitch, 1.5 / 1.2 Hz, 0.5 / 0.4), the input is capped at ``max_accel_mps2`` (the tyres'
   limit), and a car's roll limit ``max_roll_rad`` (8 deg) then bounds the suspension roll.
@@ -140,8 +140,8 @@ VEHICLES = {
     # car: 50 km/h cruise, 0.2 g longitudinal, 0.3 g lateral, 1 m/s^3 comfort jerk; turning
     # radius >= 5 m; road grade within +-20 deg (steepest public roads ~35 %), changing over
     # vertical curves of 50 m at least;
-    # plausible up to 250 km/h and 0.8 g; rigid by default, with suspension="damped" the body
-    # rolls and pitches on its suspension (imugen.truth.suspension: 5 deg/g roll, 2 deg/g
+    # plausible up to 250 km/h and 0.8 g; on its suspension by default (suspension="damped"):
+    # the body rolls and pitches on it (imugen.truth.suspension: 5 deg/g roll, 2 deg/g
     # pitch), roll plausible to 8 deg (0.8 g x 5 deg/g with the step response's overshoot,
     # and a margin)
     "car": VehicleParams(
@@ -155,6 +155,7 @@ VEHICLES = {
         max_pitch_rad=0.35,
         max_roll_rad=0.14,
         max_jerk_mps3=30.0,
+        suspension="damped",
     ),
     # bicycle: 20 km/h, 0.1 g, 0.25 g lateral (14 deg lean), radius >= 3 m, lean <= 45 deg
     "bicycle": VehicleParams(
