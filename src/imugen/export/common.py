@@ -33,6 +33,20 @@ def _label(labels: dict, stem: str) -> float:
     return float(np.mean(vals)) if vals else 0.0
 
 
+def gm_components(labels: dict, sensor: str) -> list[tuple[str, str]]:
+    """Label stems ``(tau, sigma)`` (after ``<sensor>_``) of a sensor's Gauss-Markov bias
+    components: the bias instability's ``tau<c>_s`` / ``sigma<c>``, then the grade's second,
+    slow one (``slow_bias_tau_s`` / ``slow_bias_sigma``) where the labels hold it."""
+    comps = []
+    c = 0
+    while f"{sensor}_bias_instability_tau{c}_s" in labels:
+        comps.append((f"bias_instability_tau{c}_s", f"bias_instability_sigma{c}"))
+        c += 1
+    if f"{sensor}_slow_bias_tau_s" in labels:
+        comps.append(("slow_bias_tau_s", "slow_bias_sigma"))
+    return comps
+
+
 def noise_figures(labels: dict) -> dict[str, float]:
     """Kalibr's four numbers for one sequence from its drawn parameters (SI, axis means).
 
@@ -46,14 +60,7 @@ def noise_figures(labels: dict) -> dict[str, float]:
     ):
         w = _label(labels, f"{sensor}_white_noise_{{a}}_{dens}")
         k2 = _label(labels, f"{sensor}_rate_random_walk_{{a}}_{rw}") ** 2
-        c = 0
-        comps = []
-        while f"{sensor}_bias_instability_tau{c}_s" in labels:
-            comps.append((f"bias_instability_tau{c}_s", f"bias_instability_sigma{c}"))
-            c += 1
-        if f"{sensor}_slow_bias_tau_s" in labels:  # the grade's second, slow GM
-            comps.append(("slow_bias_tau_s", "slow_bias_sigma"))
-        for tau, sig in comps:
+        for tau, sig in gm_components(labels, sensor):
             T = float(labels[f"{sensor}_{tau}"])
             s = _label(labels, f"{sensor}_{sig}_{{a}}_{rate}")
             if T > 0 and s > 0:

@@ -30,7 +30,7 @@ import yaml
 
 from imugen.core import rotations as rot
 from imugen.core.errors import InputError
-from imugen.export.common import write_rows
+from imugen.export.common import gm_components, write_rows
 from imugen.export.convert import dcm_ned_frd, enu_to_ned, euler_ned_frd, flu_to_frd
 from imugen.export.source import INCREMENT_COLUMNS, Sequence, TruthArrays
 from imugen.tables import shard as tshard
@@ -147,14 +147,7 @@ def _inrun(labels: dict, sensor: str) -> tuple[np.ndarray, float]:
     sum (sigma_c^2 / tau_c)`` [s] (``tau_0`` for one component; nan without one)."""
     unit, rw = ("radps", "radps_per_sqrt_s") if sensor == "gyro" else ("mps2", "mps2_per_sqrt_s")
     s2, s2_tau = np.zeros(3), np.zeros(3)
-    c = 0
-    comps = []
-    while f"{sensor}_bias_instability_tau{c}_s" in labels:
-        comps.append((f"bias_instability_tau{c}_s", f"bias_instability_sigma{c}"))
-        c += 1
-    if f"{sensor}_slow_bias_tau_s" in labels:  # the grade's second, slow GM
-        comps.append(("slow_bias_tau_s", "slow_bias_sigma"))
-    for tname, sname in comps:
+    for tname, sname in gm_components(labels, sensor):
         tau = float(labels[f"{sensor}_{tname}"])
         sig = _axes(labels, f"{sensor}_{sname}_{{a}}_{unit}")
         if tau > 0:
