@@ -164,6 +164,26 @@ def test_ground_rates_match_increments_wgs84():
     assert lateral["car"] > 3.0 and lateral["bicycle"] < 0.03 * lateral["car"]
 
 
+@pytest.mark.parametrize("lat_deg", [0.0, 60.0])
+def test_bicycle_leans_with_its_turn_relative_to_the_earth(lat_deg):
+    """One eastward S-curve at 8 m/s built in ``flat`` and ``geodetic``: the lean agrees to
+    1e-7 rad. Off ``flat`` the heading is measured from a local North that turns about the
+    vertical along the path (``v_E tan(lat) / R``, 2.2e-6 rad/s at 60 deg): taken as the
+    vehicle's turn it would lean the bicycle ``v^2 tan(lat) / (R g)`` = 1.8e-6 rad more."""
+    t = np.arange(0.0, 100.0, 1.0)
+    x = 8.0 * t
+    enu = np.column_stack([x, 40.0 * np.sin(x / 50.0), 2.0 * np.sin(x / 300.0)])
+    roll = {}
+    for earth in ("flat", "geodetic"):
+        df, meta = truth.enu_table(enu, t, (lat_deg, 10.0, 100.0))
+        tr, _ = truth.build_truth(
+            df, meta, rate_hz=10, earth=earth, vehicle="bicycle", verbose=False
+        )
+        roll[earth] = tr["roll_rad"].to_numpy()
+    assert np.abs(roll["flat"]).max() > 0.05  # a lean of ~6 deg in the bends
+    assert np.abs(roll["geodetic"] - roll["flat"]).max() < 1e-7
+
+
 def test_pitch_is_the_grade_not_the_height_noise_at_a_stop():
     """A 5 % climb, a stop with a 1.2 m GNSS height step and 0.5 m height noise: pitch is
     atan(0.05) on the climb and the car does not tip over at the stop."""

@@ -407,6 +407,7 @@ SLIP_MARGIN_M = 2.0  # distance over which it leaves / rejoins the velocity dire
 # ... and pitch follows paths whose vertical curvature is within this x max_pitch / grade_smooth_m
 # (car: 0.021 rad/m; the height wiggles of a noisy fit beyond are left to the grade model)
 SLIP_PITCH_FACTOR = 3.0
+OMEGA_Z_STEP_S = 0.5  # step of the central difference of the local North's turn rate [s]
 
 
 @njit(cache=True)
@@ -482,13 +483,13 @@ class GroundAttitude:
       that length). The plausibility report
       gives the resulting slip;
     * roll 0, or for ``lean`` vehicles the lean of a coordinated turn
-      ``-bound(atan(v_h^2 Psi'(s) / g), max_roll)`` (into the turn); ``bound`` is
-      :func:`soft_bound`;
+      ``-bound(atan(a_lat / g), max_roll)`` (into the turn), ``a_lat = v_h^2 Psi'(s)`` (plus,
+      off ``flat``, ``v_h`` x the local North's own turn about the vertical:
+      :meth:`lateral_accel`); ``bound`` is :func:`soft_bound`;
     * on a suspension (:func:`imugen.truth.vehicles.has_suspension`: ``suspension`` ``damped``) the
       body rolls by ``phi_s(t)`` about its x axis and then pitches by ``theta_s(t)`` about its
       y axis, ``C_lb = Rz(psi) Ry(-theta) Rx(phi + phi_s) Ry(-theta_s)``
-      (:class:`imugen.truth.suspension.Suspension`, driven by ``a_lat = v_h^2 Psi'(s)`` (plus,
-      off ``flat``, ``v_h`` x the local North's own turn about the vertical) and
+      (:class:`imugen.truth.suspension.Suspension`, driven by the same ``a_lat`` and
       ``a_lon = dv_h/dt``): a rotation of the body only, so its velocity keeps no y component
       (the vertical one is ``v sin theta_s``, the dive and squat of the body), and the angles
       are functions of time (the body still rocks for a moment after the vehicle stops).
@@ -644,23 +645,48 @@ class GroundAttitude:
             o_d += J * 30.0 * x * x * (1.0 - x) ** 2 / T
         return o, o_d
 
-    def _accel(self, motion, tg, sg):
-        """``inputs(t) -> (a_lat, a_lon)`` of the suspension: ``v_h (v_h Psi'(s) + omega_z)``
-        and ``dv_h/dt`` [m/s^2] (distance ``s`` interpolated on the grid ``tg``, ``sg``).
+    def lateral_accel(self, s, p, v, vh, a=None, vh_d=None):
+        """Lateral acceleration of the path in the local level at the vehicle, ``a_lat =
+        v_h (v_h Psi'(s) + omega_z)`` (m,) [m/s^2] (positive to the left), at distances ``s``
+        (m,) with position and velocity in n (m,3) and horizontal speed ``vh`` (m,)
+        (:meth:`EarthField.horizontal_speed`); with the acceleration ``a`` (m,3) and ``vh_d``
+        (m,), also its time derivative (m,) [m/s^3]. The suspension's lateral input and a
+        bicycle's lean.
 
         ``v_h Psi' + omega_z`` is the turn rate relative to the Earth about the local vertical:
-        in ``wgs84`` and ``geodetic`` the heading ``Psi`` is measured from a local North that itself turns
+        off ``flat`` the heading ``Psi`` is measured from a local North that itself turns
         about the vertical along the path (``omega_z``, the transport rate's vertical
-        component: meridians converge), which is no lateral acceleration of the vehicle."""
+        component: meridians converge), which is no lateral acceleration of the vehicle.
+        ``omega_z`` is a function ``L(p) v`` of the position and velocity, so its rate
+        ``L_p v . v + L a`` is the central difference of ``L(p + h v)(v + h a)`` over
+        ``h = OMEGA_Z_STEP_S``, exact but for ``h^2 / 6`` times its third derivative along the
+        line (``~ omega_z (v h / R)^2``: below 1e-20 rad/s^2 at any speed on the ground)."""
+        s = np.clip(s, 0.0, self.length_m)
+        rate = a is not None
+        k1 = self.Psi(s, 1)
+        if self.E.flat:
+            w_z = w_zd = np.zeros_like(vh)
+        else:
+            w_z = self.E.local(p, v, self.axis)[2][:, 2]
+            if rate:
+                h = OMEGA_Z_STEP_S
+                up = self.E.local(p + h * v, v + h * a, self.axis)[2][:, 2]
+                dn = self.E.local(p - h * v, v - h * a, self.axis)[2][:, 2]
+                w_zd = (up - dn) / (2.0 * h)
+        a_lat = vh * (vh * k1 + w_z)
+        if not rate:
+            return a_lat
+        a_lat_d = 2.0 * vh * vh_d * k1 + vh**3 * self.Psi(s, 2) + vh_d * w_z + vh * w_zd
+        return a_lat, a_lat_d
+
+    def _accel(self, motion, tg, sg):
+        """``inputs(t) -> (a_lat, a_lon)`` of the suspension: :meth:`lateral_accel` and
+        ``dv_h/dt`` [m/s^2] (distance ``s`` interpolated on the grid ``tg``, ``sg``)."""
 
         def inputs(t):
             p, v, a, _ = motion.eval(t)
             vh, vh_d = self.E.horizontal_speed(p, v, a, self.axis)
-            s = np.clip(np.interp(t, tg, sg), 0.0, self.length_m)
-            turn = vh * self.Psi(s, 1)
-            if not self.E.flat:
-                turn = turn + self.E.local(p, v, self.axis)[2][:, 2]
-            return vh * turn, vh_d
+            return self.lateral_accel(np.interp(t, tg, sg), p, v, vh), vh_d
 
         return inputs
 
@@ -714,8 +740,8 @@ class GroundAttitude:
                 xd[on] = xsd * (1.0 - w0) + w1 * vhs * (xv - xs) + w0 * xvd
         if vp.lean:
             # lean into the turn: a left turn (Psi' > 0) lowers the left side (roll < 0)
-            X = -vh * vh * k1 / G_LEAN
-            X_d = -(2.0 * vh * vh_d * k1 + vh**3 * self.Psi(s, 2)) / G_LEAN
+            a_lat, a_lat_d = self.lateral_accel(s, p, v, vh, a, vh_d)
+            X, X_d = -a_lat / G_LEAN, -a_lat_d / G_LEAN
             phi, dphi = soft_bound(np.arctan(X), vp.max_roll_rad)
             phi_d = dphi * X_d / (1.0 + X * X)
         else:
