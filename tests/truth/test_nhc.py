@@ -46,9 +46,9 @@ def _road(T=240.0, v=10.0):
 
 def _suspension_pitch(tr, vp):
     """Pitch on the suspension re-derived from the table: the damped second-order response
-    (:func:`imugen.truth.suspension.response`) to ``K_pitch dv_h/dt`` of the truth's own
+    (:class:`imugen.truth.suspension.Response`) to ``K_pitch dv_h/dt`` of the truth's own
     velocity (finite differences), from rest."""
-    from imugen.truth.suspension import response
+    from imugen.truth.suspension import Response
 
     tt = tr[col.TIME].to_numpy()
     v = _arr(tr, col.VEL)
@@ -60,7 +60,7 @@ def _suspension_pitch(tr, vp):
     else:
         v_h = np.hypot(v[:, 0], v[:, 1])
     a_lon = np.gradient(v_h, tt)
-    return response(tt, vp.pitch_gradient_radpmps2 * a_lon, vp.pitch_hz, vp.pitch_damping)[0]
+    return Response(tt, vp.pitch_gradient_radpmps2 * a_lon, vp.pitch_hz, vp.pitch_damping)(tt)[0]
 
 
 @pytest.mark.parametrize("suspension", ["rigid", "damped"])
