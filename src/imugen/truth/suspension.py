@@ -17,13 +17,13 @@ by ``exp(-pi zeta / sqrt(1 - zeta^2))`` and rings at ``f_n sqrt(1 - zeta^2)``.
   scaled alike, since no body is pushed harder than its tyres grip (a GNSS glitch of 16 m/s^2
   in a real track would otherwise roll a car 7.7 deg; capped, 4.4 deg).
 
-Defaults (:data:`imugen.truth.vehicles.VEHICLES` ``car``) are mid-range passenger-car figures:
-roll gradient 5 deg/g (passenger cars 3-7 deg/g, Gillespie, *Fundamentals of Vehicle
-Dynamics*, SAE 1992, ch. 9; Milliken & Milliken, *Race Car Vehicle Dynamics*, SAE 1995, ch. 18),
-pitch gradient 2 deg/g (brake dive and squat of passenger cars, about 1-3 deg/g, same sources),
-body natural frequencies 1.5 Hz in roll and 1.2 Hz in pitch (ride and roll modes of passenger
-cars 1-2 Hz, Gillespie ch. 5) and damping ratios 0.5 and 0.4 (passenger-car dampers give
-0.2-0.5 of critical, Gillespie ch. 5).
+Defaults (:data:`imugen.truth.vehicles.VEHICLES` ``car``; sources in
+:data:`imugen.truth.vehicles.SUSPENSION_SOURCES`) are mid-range passenger-car figures: roll
+gradient 5 deg/g (published typical values 4.0 sports, 5.0 small and 7.0 large passenger cars),
+pitch gradient 2 deg/g (brake dive and squat; no published typical figure found, a worked
+textbook exercise gives about 4 deg/g without anti-dive geometry), body natural frequencies
+1.5 Hz in roll and 1.2 Hz in pitch (passenger-car body modes 1-1.5 Hz) and damping ratios 0.5
+and 0.4 (0.2-0.6 of critical).
 
 The input is sampled on a fine time grid (``dt <= 1 / (25 f_n)``, at most 0.02 s), carried
 between the nodes by its C^2 cubic spline, and the response to that spline is solved exactly
