@@ -9,14 +9,16 @@ is continuous (the heading's rate and the yaw acceleration stay finite) and at m
 ``1 / R`` everywhere.
 
 * A corner of deflection ``delta`` < :data:`HAIRPIN_TURN_RAD` (its legs' lines meet ahead):
-  clothoid - arc - clothoid at the legs' intersection ``V``, each clothoid
-  ``Ls = R min(1, delta)`` long (it turns ``Ls / 2R``). Its points lie within
+  clothoid - arc - clothoid at the legs' intersection ``V``, each clothoid ``Ls = R`` long
+  (it turns ``Ls / 2R``; below 1 rad two clothoids peaking at the radius ``R / delta``, which
+  stands for ``R`` below). Its points lie within
   ``E = (R + p) / cos(delta / 2) - R`` of ``V`` and within
   ``(R + p) - R cos(delta / 2)`` of the legs (the arc's middle), ``p`` the clothoid's shift
   (``p ~ Ls^2 / 24 R``, :func:`fillet_offsets`).
 * A hairpin (deflection >= :data:`HAIRPIN_TURN_RAD`, the legs run back side by side): two half
   fillets joined by a straight across the gap where the legs are at least the fillets' width
-  apart, else a bulb (keyhole) that first swings out by ``beta`` and then turns
+  apart, else one fillet of the whole turn at a radius widened to the gap (up to
+  :data:`WIDE_RADII` ``R``), else (legs closer than that fillet's width at ``R``) a bulb (keyhole) that first swings out by ``beta`` and then turns
   ``delta + 2 beta`` back onto the exit leg, every piece at radius ``R``; the turn reaches as
   far as the drawn hairpin's apex.
 
@@ -43,9 +45,9 @@ CORNER_MARGIN = 0.8
 #: then the fillet is two clothoids without an arc).
 SPIRAL_RADII = 1.0
 
-#: Shortest clothoid of a hairpin's half fillets, in radii (legs a little closer than the
-#: half fillets' width with :data:`SPIRAL_RADII`).
-MIN_SPIRAL_RADII = 0.1
+#: Largest radius of a hairpin taken as one fillet, in radii ``R`` (legs closer than two half
+#: fillets' width, farther than one fillet's at ``R``: the fillet's radius widened to fit).
+WIDE_RADII = 2.0
 
 #: Deflection (rad) from which a bend is built as a hairpin (the legs' lines meet far behind or
 #: not at all).
@@ -70,17 +72,26 @@ def fillet_radius_m(max_curvature_1pm: float) -> float:
     return 1.0 / (CORNER_MARGIN * max_curvature_1pm)
 
 
-def _pieces(turns, R, straight_after=None, spiral=SPIRAL_RADII):
+def _spiral(a, R):
+    """Clothoid length [m] of a fillet turning ``a`` (rad, > 0) at radius ``R`` and the radius
+    it reaches: ``SPIRAL_RADII R`` and ``R``; a turn below ``SPIRAL_RADII`` rad is two
+    clothoids of that length peaking at the radius ``SPIRAL_RADII R / a`` (the curvature
+    changes no faster than ``1 / (SPIRAL_RADII R^2)`` in any fillet)."""
+    ls = SPIRAL_RADII * R
+    return ls, (R if a >= SPIRAL_RADII else ls / a)
+
+
+def _pieces(turns, R, straight_after=None):
     """Pieces (length m, curvature at start, at end 1/m) of consecutive fillets turning
-    ``turns`` (signed rad) at radius ``R``, each clothoid (``spiral`` radii long at most) -
-    arc - clothoid, with a straight ``straight_after[i]`` after fillet i."""
+    ``turns`` (signed rad) at radius ``R``, each clothoid - arc - clothoid, with a straight
+    ``straight_after[i]`` after fillet i."""
     out = []
     for i, d in enumerate(turns):
         a = abs(d)
         if a > 0.0:
-            k = math.copysign(1.0 / R, d)
-            ls = R * min(spiral, a)
-            out += [(ls, 0.0, k), (a * R - ls, k, k), (ls, k, 0.0)]
+            ls, re = _spiral(a, R)
+            k = math.copysign(1.0 / re, d)
+            out += [(ls, 0.0, k), (a * re - ls, k, k), (ls, k, 0.0)]
         if straight_after is not None and straight_after[i] > 0.0:
             out.append((straight_after[i], 0.0, 0.0))
     return [p for p in out if p[0] > 0.0]
@@ -119,7 +130,7 @@ def fillet_offsets(delta, R):
     distance ``E`` from the vertex [m], largest distance from the legs [m]), from the
     integrated clothoid (:func:`integrate`)."""
     a = abs(delta)
-    ls = R * min(SPIRAL_RADII, a)
+    ls, R = _spiral(a, R)
     P, th, _ = integrate([(ls, 0.0, 1.0 / R)], R * 1e-3)
     x, y, ts = P[-1, 0], P[-1, 1], th[-1]
     p = y - R * (1.0 - math.cos(ts))
@@ -194,8 +205,8 @@ def hairpin(a, th_in, b, th_out, delta, apex, R, ds):
         f = _cross(d_out, W[-1] - b)  # signed distance of the end to the exit line
         return W, k, f
 
-    def straight(c, spiral=SPIRAL_RADII):
-        return place(_pieces([0.5 * delta, 0.5 * delta], R, [c, 0.0], spiral))
+    def straight(c):
+        return place(_pieces([0.5 * delta, 0.5 * delta], R, [c, 0.0]))
 
     def bulb(beta):
         sgn = math.copysign(1.0, delta)
@@ -208,11 +219,16 @@ def hairpin(a, th_in, b, th_out, delta, apex, R, ds):
         c = brentq(lambda c: straight(c)[2], 0.0, span, xtol=1e-6 * R)
         W, k, _ = straight(c)
         return W, k
-    # legs a little closer: the half fillets' clothoids shortened (to MIN_SPIRAL_RADII)
-    fs = straight(0.0, MIN_SPIRAL_RADII)[2]
-    if f0 * fs < 0.0:
-        sp = brentq(lambda x: straight(0.0, x)[2], MIN_SPIRAL_RADII, SPIRAL_RADII, xtol=1e-6)
-        W, k, _ = straight(0.0, sp)
+
+    # legs a little closer: one fillet of the whole turn at a radius between R and the
+    # half fillets' width (R at most WIDE_RADII times)
+    def one(r):
+        return place(_pieces([delta], r))
+
+    fw = one(WIDE_RADII * R)[2]
+    if f0 * fw > 0.0 and one(R)[2] * fw < 0.0:
+        r = brentq(lambda r: one(r)[2], R, WIDE_RADII * R, xtol=1e-6 * R)
+        W, k, _ = one(r)
         return W, k
     g0, g1 = bulb(1e-9)[2], bulb(0.5 * math.pi)[2]
     if g0 * g1 < 0.0:
@@ -275,9 +291,15 @@ def build_corner(y, i0, i1, R, cap_m):
         return None
     cum = np.r_[0.0, np.cumsum(np.linalg.norm(d, axis=1))]
     tol = JOIN_RADII * R
-    mid = (i0 + i1 + 1) // 2  # the ends lie on the legs either side of the group's middle
-    u_in = _chord_at(P[0], y, cum, lo, mid, tol)
-    u_out = _chord_at(P[-1], y, cum, mid, hi - 1, tol)
+    # the ends lie on the legs either side of the group's middle, no farther along the
+    # polyline from the group than the corner is long (not on another pass of a path that
+    # comes back near)
+    mid = (i0 + i1 + 1) // 2
+    reach = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
+    j0 = max(lo, int(np.searchsorted(cum, cum[i0] - reach, side="right")) - 1)
+    j1 = min(hi - 1, int(np.searchsorted(cum, cum[i1] + reach, side="left")) + 1)
+    u_in = _chord_at(P[0], y, cum, j0, mid, tol)
+    u_out = _chord_at(P[-1], y, cum, mid, j1, tol)
     if u_in is None or u_out is None or not u_in < u_out:
         return None
     if kind == "hairpin" and np.any(np.sign(k) == -np.sign(delta)):

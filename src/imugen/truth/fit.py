@@ -693,7 +693,30 @@ def _construct_corners(g, y, u, dense, lam, kmax_1pm, reach_m):
         groups = more
     if got is None:
         return None
+    # a corner whose stretch of the fitted curve is still beyond the class limit (a short leg
+    # between it and the next bend, where the smoothed curve cannot join it) is not built
+    f = np.linspace(0.0, 1.0, 4, endpoint=False)
+    uq = np.r_[(got[1][:-1, None] + f * np.diff(got[1])[:, None]).ravel()]
+    kq = _horizontal_curvature(got[0], uq)
+    bn = got[5]
+    keep = [
+        c
+        for i, c in enumerate(built)
+        if kq[(uq >= bn[1 + 2 * i] - reach_m) & (uq <= bn[2 + 2 * i] + reach_m)].max(initial=0.0)
+        <= kmax_1pm  # the bound takes what is left within the class limit
+    ]
+    if not keep:
+        return None
+    if len(keep) < len(built):
+        built = keep
+        got = _through_corners(built, u, dense, lam, R, uv)
     g2, u_new, new, base, v_u = got[:5]
+    k_was = _horizontal_curvature(g, np.r_[(u[:-1, None] + f * np.diff(u)[:, None]).ravel()])
+    k_now = _horizontal_curvature(
+        g2, np.r_[(u_new[:-1, None] + f * np.diff(u_new)[:, None]).ravel()]
+    )
+    if k_now.max() >= k_was.max():  # the corners left a bend as tight: not built
+        return None
     kinds = [c.kind for c in built]
     report = {
         "method": "bends tighter than the turning radius built as fillets of clothoids and "
@@ -707,6 +730,10 @@ def _construct_corners(g, y, u, dense, lam, kmax_1pm, reach_m):
     }
     return g2, u_new, new, base, v_u, report
 
+
+#: Length [m] of the legs either side of a constructed corner over which the smoothing
+#: penalty tapers from the corner's (:data:`CORNER_STIFFNESS`) back to the legs'.
+CORNER_TAPER_M = 10.0
 
 #: Rounds of :func:`_construct_corners` (a bend left tight next to a built corner joins it).
 CORNER_ROUNDS = 3
@@ -743,7 +770,14 @@ def _through_corners(built, u, dense, lam, R, uv):
         bp_new += [u_new[i], u_new[i + len(c.points) - 1]]
     bp_old.append(u[-1])
     bp_new.append(u_new[-1])
+    # the stiffness tapers back to the legs' over CORNER_TAPER_M of the legs either side:
+    # the smoothed legs join the corner without a kink in curvature
     base = np.where(mark, CORNER_STIFFNESS, 0.0)
+    for c, i in zip(built, starts, strict=True):
+        a, b = u_new[i], u_new[i + len(c.points) - 1]
+        gap = np.maximum(a - u_new, u_new - b)
+        ramp = (~mark) & (gap < CORNER_TAPER_M)
+        base[ramp] = np.minimum(base[ramp], CORNER_STIFFNESS * (1.0 - gap[ramp] / CORNER_TAPER_M))
     ps = PenalizedSpline(u_new, stiffness=10.0**base)
     g2 = ps.bspline(np.column_stack([ps.solve(lam, new[:, j]) for j in range(3)]))
     bo, bn = np.array(bp_old), np.array(bp_new)
