@@ -516,7 +516,9 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False, max_curvature=
     ``max_curvature`` (callable of the polyline's chord length [m], optional): the largest
     horizontal curvature [1/m] along the path (an aircraft's turn at its bank limit and the
     speed it flies there, :func:`imugen.truth.flight.turn_curvature`); ground vehicles take
-    their ``max_curvature_1pm``. Bends tighter are widened (:func:`_bound_curvature`).
+    their ``max_curvature_1pm``, and their bends tighter are built as fillets of clothoids and
+    arcs (:func:`_construct_corners`, :mod:`imugen.truth.corners`; the report's ``corners``).
+    Bends still tighter are widened (:func:`_bound_curvature`).
     """
     y = np.asarray(y, float)
     seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
