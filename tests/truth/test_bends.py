@@ -80,14 +80,17 @@ def test_without_the_bound_the_acute_corner_slides(monkeypatch):
     """The same 140 deg corner with the curvature bound off: the corner rounding alone leaves a
     bend of ~1 m radius, the heading cannot follow it, and the body slides (the gate says so)."""
     monkeypatch.setattr(tfit, "CURVATURE_ITERATIONS", 0)
+    monkeypatch.setattr(tfit, "CORNER_ROUNDS", 0)  # no constructed corner either
     _, meta = _truth(_corner(140.0))
     assert meta["plausibility"]["max_body_lateral_speed_mps"] > CAR.max_slip_mps
     assert "slip (body lateral speed)" in [g["limit"] for g in meta["gate"]]
 
 
-def test_hairpin_narrower_than_the_turning_circle_is_refused(tmp_path):
-    """Legs 8 m apart: no car turns there without a three-point turn; the bend is left as
-    drawn (the fit does not stray beyond its cap) and the gate refuses the slide in one line."""
+def test_hairpin_left_tight_is_refused(tmp_path, monkeypatch):
+    """Legs 8 m apart without the constructed corners (:mod:`imugen.truth.corners`, which
+    swing out there, ``tests/truth/test_corners.py``): the curvature bound alone cannot widen
+    the bend within its cap; it is left as drawn and the gate refuses the slide in one line."""
+    monkeypatch.setattr(tfit, "CORNER_ROUNDS", 0)
     y = _hairpin(8.0)
     rep = tfit.fit_path(y, CAR)[2]
     assert rep["curvature_bound"]["bends_left"] >= 1

@@ -284,7 +284,7 @@ def test_untimed_truth_starts_and_ends_at_rest(suspension):
             * vp.lat_accel_mps2
             * (1 + np.exp(-np.pi * z / np.sqrt(1 - z * z)))
         )
-        assert roll[0] == 0.0 and abs(roll[-1]) < 1e-9
+        assert abs(roll[0]) < 1e-15 and abs(roll[-1]) < 1e-9
         assert np.radians(0.5) < np.abs(roll).max() <= peak
 
 
@@ -402,8 +402,11 @@ def test_hairpin_and_polyline_corners_untimed():
     _sane(tr)
     yaw = tr["yaw_rad"].to_numpy()
     assert abs(abs(yaw[-1] - yaw[0]) - np.pi) < 0.05  # turned around, unwrapped
+    # legs 8 m apart: a bulb taken at the lateral limit; the body rolls outward on its
+    # suspension, and its y axis then reads that share of gravity too
     lat = np.abs(_arr(tr, col.ACCEL)[:, 1]).max()
-    assert lat < truth.VEHICLES["car"].lat_accel_mps2 * 1.05
+    roll = np.abs(tr["roll_rad"].to_numpy()).max()
+    assert lat < truth.VEHICLES["car"].lat_accel_mps2 * 1.05 + 9.81 * np.sin(roll)
 
 
 def test_sparse_points_ten_seconds_apart():

@@ -516,7 +516,9 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False, max_curvature=
     ``max_curvature`` (callable of the polyline's chord length [m], optional): the largest
     horizontal curvature [1/m] along the path (an aircraft's turn at its bank limit and the
     speed it flies there, :func:`imugen.truth.flight.turn_curvature`); ground vehicles take
-    their ``max_curvature_1pm``. Bends tighter are widened (:func:`_bound_curvature`).
+    their ``max_curvature_1pm``, and their bends tighter are built as fillets of clothoids and
+    arcs (:func:`_construct_corners`, :mod:`imugen.truth.corners`; the report's ``corners``).
+    Bends still tighter are widened (:func:`_bound_curvature`).
     """
     y = np.asarray(y, float)
     seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
@@ -545,11 +547,13 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False, max_curvature=
     lam = (ell / ps.scale) ** 6 * _CORNER_CAL
     coef = np.column_stack([ps.solve(lam, dense[:, i]) for i in range(3)])
     g = ps.bspline(coef)
-    bound = None
+    bound, built, base, v_u = None, None, None, np.r_[0.0, np.cumsum(seg)]
     if max_curvature is None and vp.attitude == "ground":
         max_curvature = lambda x: np.full(len(x), vp.max_curvature_1pm)  # noqa: E731
+        if (got := _construct_corners(g, y, u, dense, lam, vp.max_curvature_1pm, ell)) is not None:
+            g, u, dense, base, v_u, built = got
     if max_curvature is not None:
-        g, bound = _bound_curvature(g, u, dense, lam, max_curvature)
+        g, bound = _bound_curvature(g, u, dense, lam, max_curvature, base=base)
     # arc length by 5-node Gauss-Legendre on a fine parameter grid
     nfine = max(64, int(np.ceil(u[-1] / (step / 4.0))))
     uf = np.linspace(0.0, u[-1], nfine + 1)
@@ -570,10 +574,12 @@ def fit_path(y, vp: VehicleParams, corner_m=None, vertices=False, max_curvature=
         "max_distance_m": float(d.max()),
         "length_m": L,
     }
+    if built is not None:
+        report["corners"] = built
     if bound is not None:
         report["curvature_bound"] = bound
     if vertices:
-        s_v = np.interp(np.r_[0.0, np.cumsum(seg)], uf, s)
+        s_v = np.interp(v_u, uf, s)
         return G, L, report, s_v[kept]
     return G, L, report
 
@@ -612,7 +618,175 @@ def _horizontal_curvature(g, x):
     return np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(vh2, 1e-30) ** 1.5
 
 
-def _bound_curvature(g, u, dense, lam, max_curvature, per=4):
+#: log10 of the smoothing penalty's factor on a constructed corner's samples
+#: (:mod:`imugen.truth.corners`): the spline passes through them (bandwidth / 10).
+CORNER_STIFFNESS = -6.0
+
+
+def _tight_groups(g, u, uv, kmax_1pm, reach_m, to_old=None, per=4):
+    """Vertex groups (i0, i1) of the polyline (its vertexes' chord lengths ``uv``) around
+    the stretches where the curve ``g(u)`` turns tighter than :data:`CURVATURE_MARGIN` x
+    ``kmax_1pm``: each stretch widened by ``reach_m`` either side (``to_old`` maps the
+    curve's chord lengths to the polyline's)."""
+    f = np.linspace(0.0, 1.0, per, endpoint=False)
+    uq = np.r_[(u[:-1, None] + f * np.diff(u)[:, None]).ravel(), u[-1]]
+    bad = _horizontal_curvature(g, uq) > CURVATURE_MARGIN * kmax_1pm
+    if to_old is not None:
+        uq = to_old(uq)
+    n = len(uv)
+    e = np.flatnonzero(np.diff(np.r_[0, bad.astype(np.int8), 0]))
+    runs: list[list[float]] = []  # the bends too tight, widened by the reach, merged
+    for a, b in zip(e[::2], e[1::2] - 1, strict=True):
+        if runs and uq[a] - reach_m <= runs[-1][1]:
+            runs[-1][1] = uq[b] + reach_m
+        else:
+            runs.append([uq[a] - reach_m, uq[b] + reach_m])
+    groups: list[tuple[int, int]] = []
+    for ua, ub in runs:
+        idx = np.flatnonzero((uv >= ua) & (uv <= ub))
+        idx = idx[(idx >= 1) & (idx <= n - 2)]
+        if not len(idx):
+            idx = np.array([int(np.clip(np.argmin(np.abs(uv - 0.5 * (ua + ub))), 1, n - 2))])
+        groups.append((int(idx.min()), int(idx.max())))
+    return groups
+
+
+def _merge_groups(groups):
+    """Vertex groups (i0, i1) sorted, those that overlap or touch merged."""
+    out: list[tuple[int, int]] = []
+    for i0, i1 in sorted(groups):
+        if out and i0 <= out[-1][1] + 1:
+            out[-1] = (out[-1][0], max(out[-1][1], i1))
+        else:
+            out.append((i0, i1))
+    return out
+
+
+def _construct_corners(g, y, u, dense, lam, kmax_1pm, reach_m):
+    """The smoothed polyline ``g(u)`` of an untimed ground path with its bends tighter than
+    :data:`CURVATURE_MARGIN` x ``kmax_1pm`` built explicitly (:mod:`imugen.truth.corners`):
+    the polyline's vertexes within ``reach_m`` of each such bend are one group, replaced by a
+    fillet or a hairpin of arcs and clothoids tangent to the legs either side, whose samples
+    the spline then passes through (:data:`CORNER_STIFFNESS`); the rest of the path is fitted
+    as before. A bend still too tight next to a built corner joins its group, and the
+    corners are built again (:data:`CORNER_ROUNDS` at most). Returns None when no bend is too
+    tight or none could be built, else (curve, new chord lengths u, new densified polyline,
+    log10 stiffness per site, the vertexes' new chord lengths, report)."""
+    from imugen.truth import corners as cn
+
+    if len(y) < 3:
+        return None
+    uv = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(y[:, :2], axis=0), axis=1))]
+    groups = _merge_groups(_tight_groups(g, u, uv, kmax_1pm, reach_m))
+    if not groups:
+        return None
+    R = cn.fillet_radius_m(kmax_1pm)
+    cap = CURVATURE_RESIDUAL_RADII / (CURVATURE_MARGIN * kmax_1pm)
+    got = None
+    for _ in range(CORNER_ROUNDS):
+        built = cn.build_corners(y, groups, R, cap)
+        if not built:
+            break
+        got = _through_corners(built, u, dense, lam, R, uv)
+        to_old = lambda x, bn=got[5], bo=got[6]: np.interp(x, bn, bo)  # noqa: E731
+        more = _merge_groups(groups + _tight_groups(got[0], got[1], uv, kmax_1pm, reach_m, to_old))
+        if more == groups:
+            break
+        groups = more
+    if got is None:
+        return None
+    # a corner whose stretch of the fitted curve is still beyond the class limit (a short leg
+    # between it and the next bend, where the smoothed curve cannot join it) is not built
+    f = np.linspace(0.0, 1.0, 4, endpoint=False)
+    uq = np.r_[(got[1][:-1, None] + f * np.diff(got[1])[:, None]).ravel()]
+    kq = _horizontal_curvature(got[0], uq)
+    bn = got[5]
+    keep = [
+        c
+        for i, c in enumerate(built)
+        if kq[(uq >= bn[1 + 2 * i] - reach_m) & (uq <= bn[2 + 2 * i] + reach_m)].max(initial=0.0)
+        <= kmax_1pm  # the bound takes what is left within the class limit
+    ]
+    if not keep:
+        return None
+    if len(keep) < len(built):
+        built = keep
+        got = _through_corners(built, u, dense, lam, R, uv)
+    g2, u_new, new, base, v_u = got[:5]
+    k_was = _horizontal_curvature(g, np.r_[(u[:-1, None] + f * np.diff(u)[:, None]).ravel()])
+    k_now = _horizontal_curvature(
+        g2, np.r_[(u_new[:-1, None] + f * np.diff(u_new)[:, None]).ravel()]
+    )
+    if k_now.max() >= k_was.max():  # the corners left a bend as tight: not built
+        return None
+    kinds = [c.kind for c in built]
+    report = {
+        "method": "bends tighter than the turning radius built as fillets of clothoids and "
+        "arcs tangent to the legs (hairpins: a straight across or a bulb), the spline "
+        "through their samples",
+        "radius_m": R,
+        "groups": len(groups),
+        "built": len(built),
+        **{k: kinds.count(k) for k in ("fillet", "hairpin", "bulb")},
+        "max_curvature_1pm": float(max(np.abs(c.curvature).max() for c in built)),
+    }
+    return g2, u_new, new, base, v_u, report
+
+
+#: Length [m] of the legs either side of a constructed corner over which the smoothing
+#: penalty tapers from the corner's (:data:`CORNER_STIFFNESS`) back to the legs'.
+CORNER_TAPER_M = 10.0
+
+#: Rounds of :func:`_construct_corners` (a bend left tight next to a built corner joins it).
+CORNER_ROUNDS = 3
+
+
+def _through_corners(built, u, dense, lam, R, uv):
+    """The densified polyline ``dense`` (chord lengths ``u``) with the corners ``built``
+    in place of its stretches, and the spline through it (stiffness
+    :data:`CORNER_STIFFNESS` on the corners' samples): (curve, new chord lengths, new
+    polyline, log10 stiffness per site, vertexes' new chord lengths, breakpoints new, old)."""
+    from imugen.truth.corners import SAMPLE_RADII
+
+    ds = SAMPLE_RADII * R
+    parts, marks = [], []
+    lo = 0.0  # old chord where the kept stretch starts
+    for c in built:
+        keep = (u > lo + 0.5 * ds if lo > 0.0 else u >= 0.0) & (u < c.u_in - 0.5 * ds)
+        z = np.interp(np.linspace(c.u_in, c.u_out, len(c.points)), u, dense[:, 2])
+        parts += [dense[keep], np.column_stack([c.points, z])]
+        marks += [np.zeros(int(keep.sum())), np.ones(len(c.points))]
+        lo = c.u_out
+    keep = u > lo + 0.5 * ds
+    parts.append(dense[keep])
+    marks.append(np.zeros(int(keep.sum())))
+    new = np.vstack(parts)
+    mark = np.concatenate(marks).astype(bool)
+    u_new = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(new, axis=0), axis=1))]
+    # the vertexes' new chord lengths: shifted along the kept stretches, the corners'
+    # vertexes spread over the corner
+    bp_old, bp_new = [0.0], [0.0]
+    starts = np.flatnonzero(np.diff(np.r_[0, mark.astype(np.int8)]) > 0)
+    for c, i in zip(built, starts, strict=True):
+        bp_old += [c.u_in, c.u_out]
+        bp_new += [u_new[i], u_new[i + len(c.points) - 1]]
+    bp_old.append(u[-1])
+    bp_new.append(u_new[-1])
+    # the stiffness tapers back to the legs' over CORNER_TAPER_M of the legs either side:
+    # the smoothed legs join the corner without a kink in curvature
+    base = np.where(mark, CORNER_STIFFNESS, 0.0)
+    for c, i in zip(built, starts, strict=True):
+        a, b = u_new[i], u_new[i + len(c.points) - 1]
+        gap = np.maximum(a - u_new, u_new - b)
+        ramp = (~mark) & (gap < CORNER_TAPER_M)
+        base[ramp] = np.minimum(base[ramp], CORNER_STIFFNESS * (1.0 - gap[ramp] / CORNER_TAPER_M))
+    ps = PenalizedSpline(u_new, stiffness=10.0**base)
+    g2 = ps.bspline(np.column_stack([ps.solve(lam, new[:, j]) for j in range(3)]))
+    bo, bn = np.array(bp_old), np.array(bp_new)
+    return g2, u_new, new, base, np.interp(uv, bo, bn), bn, bo
+
+
+def _bound_curvature(g, u, dense, lam, max_curvature, per=4, base=None):
     """An untimed ground path's smoothed polyline ``g(u)`` (u: chord length of the densified
     polyline ``dense``) with its horizontal curvature bounded by :data:`CURVATURE_MARGIN`
     x ``max_curvature(u)`` (the vehicle's least turning radius there): where a bend is tighter
@@ -649,7 +823,7 @@ def _bound_curvature(g, u, dense, lam, max_curvature, per=4):
         # the stiffer stretch spans a few bandwidths around each bend too tight, and its
         # stiffness tapers linearly over as much (a step would turn the curve at its edges)
         field = uniform_filter1d(maximum_filter1d(raw, 2 * reach + 1), 2 * reach + 1)
-        ps = PenalizedSpline(u, stiffness=10.0**field)
+        ps = PenalizedSpline(u, stiffness=10.0 ** (field if base is None else field + base))
         return (
             ps.bspline(np.column_stack([ps.solve(lam, dense[:, j]) for j in range(3)])),
             field,
