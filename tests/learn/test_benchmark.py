@@ -11,6 +11,7 @@ import yaml
 from imugen import preflight
 from imugen.learn import table as T
 from imugen.learn.options import TableOptions
+from imugen.learn.stage import main_table
 from imugen.tables import metrics as tmetrics
 
 from helpers import PAPER, REPO, ROUTE, SHARED, snakemake, write_config
@@ -61,7 +62,7 @@ def test_table_columns_and_figures(tmp_path):
     a = _metrics(tmp_path / "a.parquet", 0, 1.0)
     b = _metrics(tmp_path / "b.parquet", 1, 0.5)
     opts = TableOptions(durations_s=(30.0, 60.0), formats=("png",))
-    T.main(
+    main_table(
         opts, output=str(tmp_path / "table"), figure=str(tmp_path / "fig"),
         aided=[f"park,consumer={tmp_path / 'a.parquet'}"],
         learned=[f"park,consumer={tmp_path / 'b.parquet'}"], split=["park=test"],

@@ -1,4 +1,4 @@
-"""``imugen learn table``: the benchmark's table and figure.
+"""The GNSS-denied benchmark's table and figure (``imugen learn table``, :mod:`imugen.learn.stage`).
 
 Per route, grade, baseline and outage length ``D``: the median and 95th percentile over
 sequences of the horizontal error at the end of an outage of ``D`` s, from the metrics of
@@ -14,15 +14,11 @@ solid, validation dashed), 95th percentiles as thin lines of the same style.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
 from imugen.core.errors import InputError
-from imugen.core.io import atomic_output
 from imugen.figures.outage_drift import bands, outage_errors
-from imugen.learn.options import TableOptions
 from imugen.tables import metrics as tmetrics
 
 COLUMNS = ("split", "route", "grade", "baseline", "outage_s", "sequences", "median_m", "p95_m")
@@ -30,7 +26,8 @@ COLUMNS = ("split", "route", "grade", "baseline", "outage_s", "sequences", "medi
 BASELINES = ("free_inertial", "aided", "aided_learned")
 
 
-def _pairs(items, flag) -> dict[tuple[str, str], str]:
+def pairs(items, flag) -> dict[tuple[str, str], str]:
+    """``ROUTE,GRADE=PATH`` items of ``flag`` -> ``{(route, grade): path}``."""
     out = {}
     for item in items or ():
         key, sep, path = item.partition("=")
@@ -105,23 +102,3 @@ def draw(df: pd.DataFrame):
     handles, labels = axes[-1].get_legend_handles_labels()  # below the axes: never over a curve
     fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=6)
     return fig
-
-
-def main(options: TableOptions, output, figure, aided, learned, split) -> None:
-    """``imugen learn table``."""
-    from imugen.core.plotting import save, style
-
-    splits = {}
-    for item in split or ():
-        route, sep, name = item.partition("=")
-        if not (sep and route and name):
-            raise InputError("--split", f"{item!r} is not ROUTE=SPLIT")
-        splits[route] = name
-    df = rows(_pairs(aided, "--aided"), _pairs(learned, "--learned"), splits, options.durations_s)
-    stem = Path(output)
-    with atomic_output(stem.with_suffix(".csv")) as tmp:
-        df.to_csv(tmp, index=False)
-    with atomic_output(stem.with_suffix(".md")) as tmp:
-        Path(tmp).write_text(markdown(df))
-    with style():
-        save(draw(df), figure, options.formats, options.dpi)
