@@ -27,6 +27,9 @@ _problems = preflight.schema_problems(
 )
 if _problems:
     raise WorkflowError("\n".join(f"imugen: error: {p}" for p in _problems))
+_DRAWN_OUTAGES_GIVEN = "outages_s" in (config.get("scenarios") or {})
+"""``scenarios.outages_s`` given by the user (its schema default applies only without declared
+outages: see ``SCEN``)."""
 validate(config, "../schemas/config.schema.yaml")
 
 
@@ -442,6 +445,8 @@ def report_failures(snakemake_logs):
 # --- aid stage (GNSS-denied scenarios, aided baseline): workflow/rules/aid.smk ---
 GNSS = config["gnss"]
 SCEN = config["scenarios"]
+if not _DRAWN_OUTAGES_GIVEN and any(iv["kind"] == "outage" for iv in SCEN["intervals"]):
+    SCEN["outages_s"] = []  # declared outages are the outages; drawn ones only where asked
 AIDED = config["aided"]
 COMP = config["companions"]
 AID_ON = bool(GNSS["enabled"])
