@@ -245,6 +245,40 @@ def test_workflow_schedules_aid_only_when_enabled(tmp_path):
     assert proc.returncode != 0 and "galileo" in proc.stdout + proc.stderr
 
 
+def _aid_scenarios(tmp_path, scenarios):
+    """The ``--scenario`` specs of the dry run's first ``imugen aid`` command."""
+    import shlex
+
+    import helpers as W
+
+    cfg = {"routes": {"example": {"file": str(W.ROUTE)}}, "grades": {"consumer": {}},
+           "simulate": {"sequences": 2, "sequences_per_shard": 2, "seed": 7},
+           "gnss": {"enabled": True}}  # fmt: skip
+    if scenarios is not None:
+        cfg["scenarios"] = scenarios
+    W.write_config(tmp_path, cfg)
+    proc = W.snakemake(tmp_path, "-n", "-p", "-j1")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = (proc.stdout + proc.stderr).splitlines()
+    line = next(x for x in lines if x.startswith("Shell command: imugen aid "))
+    return [w.split("=", 1)[1] for w in shlex.split(line) if w.startswith("--scenario=")]
+
+
+def test_declared_outages_are_the_outages_drawn_ones_only_where_asked(tmp_path):
+    """Declared outages without ``scenarios.outages_s``: those, nothing drawn (the schema's
+    presets used to be drawn beside them); with ``outages_s`` given: drawn beside them; with
+    none declared: the presets drawn, as before."""
+    declared = [{"kind": "outage", "start_s": 90, "duration_s": 30}]
+    assert _aid_scenarios(tmp_path, {"intervals": declared}) == ["outage:30.0@90.0"]
+    both = _aid_scenarios(tmp_path, {"intervals": declared, "outages_s": [60]})
+    assert both == ["outage:60.0", "outage:30.0@90.0"]
+    assert _aid_scenarios(tmp_path, None) == [f"outage:{d!r}" for d in SC.OUTAGE_PRESETS_S]
+    jamming = [{"kind": "jamming", "start_s": 90, "duration_s": 30}]  # no declared outage
+    assert _aid_scenarios(tmp_path, {"intervals": jamming})[:4] == [
+        f"outage:{d!r}" for d in SC.OUTAGE_PRESETS_S
+    ]
+
+
 def test_aided_metrics_on_a_constructed_table():
     """Closed-form table: a no-fix run at the start (not an outage), then GNSS, then a 30 s
     outage whose East error grows as 0.5 t (crosses 10 m at 20 s), then GNSS again."""

@@ -11,6 +11,7 @@ import yaml
 from imugen import preflight
 from imugen.learn import table as T
 from imugen.learn.options import TableOptions
+from imugen.learn.stage import main_table
 from imugen.tables import metrics as tmetrics
 
 from helpers import PAPER, REPO, ROUTE, SHARED, snakemake, write_config
@@ -61,7 +62,7 @@ def test_table_columns_and_figures(tmp_path):
     a = _metrics(tmp_path / "a.parquet", 0, 1.0)
     b = _metrics(tmp_path / "b.parquet", 1, 0.5)
     opts = TableOptions(durations_s=(30.0, 60.0), formats=("png",))
-    T.main(
+    main_table(
         opts, output=str(tmp_path / "table"), figure=str(tmp_path / "fig"),
         aided=[f"park,consumer={tmp_path / 'a.parquet'}"],
         learned=[f"park,consumer={tmp_path / 'b.parquet'}"], split=["park=test"],
@@ -89,6 +90,26 @@ def test_table_columns_and_figures(tmp_path):
     fig.canvas.draw()  # the legend sits below the axes: it hides no curve
     (legend,) = fig.legends
     assert not any(legend.get_window_extent().overlaps(ax.get_window_extent()) for ax in fig.axes)
+
+
+def test_table_agrees_with_the_outage_drift_table(tmp_path):
+    """One statistic: the benchmark's aided and free-inertial rows are the outage-drift table's
+    median, 95th percentile and sequence count of the same metrics (imugen.figures.outage_drift
+    owns it), and a length the metrics lack is a row of NaN, not an error."""
+    from imugen.figures.outage_drift import outage_drift
+
+    a = _metrics(tmp_path / "a.parquet", 0, 1.0)
+    df = T.rows({("park", "consumer"): tmp_path / "a.parquet"}, {}, {"park": "test"}, (30, 60, 90))
+    ref = outage_drift({"consumer": a}).set_index("outage_s")
+    for D in (30.0, 60.0):
+        aided = df[(df.baseline == "aided") & (df.outage_s == D)].iloc[0]
+        free = df[(df.baseline == "free_inertial") & (df.outage_s == D)].iloc[0]
+        r = ref.loc[D]
+        assert (aided.median_m, aided.p95_m) == (r.aided_end_m, r.aided_end_p95_m)
+        assert aided.sequences == r.sequences and free.sequences == len(a)
+        assert (free.median_m, free.p95_m) == (r.free_inertial_drift_m, r.free_inertial_drift_p95_m)
+    missing = df[df.outage_s == 90]
+    assert len(missing) == 2 and (missing.sequences == 0).all() and missing.median_m.isna().all()
 
 
 @needs_torch

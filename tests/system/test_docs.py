@@ -78,3 +78,17 @@ def test_readme_is_a_front_door_whose_links_exist():
     assert not missing, missing
     for page in ("own-route", "training", "gnss-outages", "paper", "rerun", "slurm"):
         assert f"docs/tutorials/{page}.md" in text
+
+
+def test_docs_code_blocks_are_ruff_formatted():
+    """The pages' Python code blocks are formatted as the package is (``ruff format``, which
+    formats Markdown code blocks, as ruff 0.17 does; skipped where the installed ruff cannot)."""
+    ruff = shutil.which("ruff", path=str(Path(sys.executable).parent)) or shutil.which("ruff")
+    if ruff is None:
+        pytest.skip("ruff is not installed")
+    pages = sorted(str(p.relative_to(REPO)) for p in (REPO / "docs").rglob("*.md"))
+    cmd = [ruff, "format", "--check", *pages]
+    r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=120)
+    if r.returncode == 2:  # an error, not a finding (1)
+        pytest.skip(f"this ruff formats no Markdown: {r.stderr.strip()[:200]}")
+    assert r.returncode == 0, r.stdout[-3000:]

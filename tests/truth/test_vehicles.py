@@ -9,6 +9,7 @@ plausibility figures.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from pathlib import Path
@@ -333,28 +334,64 @@ def _vehicle(name: str, index: int) -> str:
     return "car"
 
 
+MAX_GROUND_PATH_M = 500e3  # longer "ground" paths (an ocean crossing) take minutes at 10 Hz
+
+
 def _real_tracks():
     if not SHARED.is_dir():
         return []
     return sorted(p for p in SHARED.iterdir() if p.suffix.lower() not in (".md", ".txt"))
 
 
-def _ingested_paths(path):
-    """(index, ingestion, vehicle, its params) of every path of a shared file that ingests."""
-    from imugen.ingest.readers import read_route_file
+def _ingested(path, index):
+    """(ingestion, vehicle, its params) of path ``index`` of a shared file."""
     from imugen.ingest.stage import ingest
 
-    try:
-        cands = read_route_file(path)
-    except InputError as exc:
-        pytest.skip(f"not readable here: {exc}")
-    for i in range(1, len(cands) + 1):
+    vehicle = _vehicle(path.name, index)
+    return ingest(path, path=index), vehicle, truth.VEHICLES[vehicle]
+
+
+@functools.cache
+def _shared_path_kinds() -> tuple:
+    """``(file, path index, kind)`` of every path of the shared files that ingests (kind:
+    ``timed`` with at least 5 points out, ``untimed ground``: a ground vehicle's, at most
+    :data:`MAX_GROUND_PATH_M` long, or None), and ``(file, 0, InputError)`` of a file not
+    readable here. Ingesting them all takes about 1 CPU-s."""
+    from imugen.ingest.readers import read_route_file
+
+    out = []
+    for path in _real_tracks():
         try:
-            ing = ingest(path, path=i)
-        except InputError:
+            n = len(read_route_file(path))
+        except InputError as exc:
+            out.append((path, 0, exc))
             continue
-        vehicle = _vehicle(path.name, i)
-        yield i, ing, vehicle, truth.VEHICLES[vehicle]
+        for i in range(1, n + 1):
+            try:
+                ing, _, vp = _ingested(path, i)
+            except InputError:
+                continue
+            enu = ing.table[list(tenu.ENU)].to_numpy()
+            length = np.sum(np.linalg.norm(np.diff(enu[:, :2], axis=0), axis=1))
+            kind = None
+            if ing.meta["timed"] and ing.meta["points_out"] >= 5:
+                kind = "timed"
+            elif not ing.meta["timed"] and vp.attitude == "ground" and length <= MAX_GROUND_PATH_M:
+                kind = "untimed ground"
+            out.append((path, i, kind))
+    return tuple(out)
+
+
+def _shared_paths(kind):
+    """Test cases ``(file, path index)`` of the shared paths of ``kind``: no case exists
+    without such a path; a file not readable here is one skipped case saying why."""
+    return [
+        pytest.param(p, i, id=p.name, marks=pytest.mark.skip(reason=str(k)))
+        if isinstance(k, InputError)
+        else pytest.param(p, i, id=f"{p.name}#{i}")
+        for p, i, k in _shared_path_kinds()
+        if k == kind or isinstance(k, InputError)
+    ]
 
 
 def _plausibility_at_10hz(ing, vehicle, vp, label):
@@ -384,51 +421,34 @@ def _plausibility_at_10hz(ing, vehicle, vp, label):
 
 @pytest.mark.shared
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
-@pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
-def test_real_timed_tracks_are_plausible(path):
+@pytest.mark.parametrize(("path", "index"), _shared_paths("timed"))
+def test_real_timed_tracks_are_plausible(path, index):
     """Every timed path of every shared real track, at a low IMU rate (10 Hz): the limits of
     its vehicle hold and nothing is invented (where no gap is bridged)."""
-    checked = 0
-    for i, ing, vehicle, vp in _ingested_paths(path):
-        if not ing.meta["timed"] or ing.meta["points_out"] < 5:
-            continue
-        label = f"{path.name} #{i} ({vehicle})"
-        rep = _plausibility_at_10hz(ing, vehicle, vp, label)["plausibility"]
-        gaps = np.diff(ing.table[col.TIME].to_numpy())
-        bridged = (ing.meta.get("segments") or {}).get("bridged_gaps", 0)
-        if gaps.max() <= 60.0 and not bridged:  # gaps judged by motion may be bridged
-            assert rep["invented_fraction"] < 0.01, label
-        checked += 1
-    if not checked:
-        pytest.skip("no timed path")
-
-
-MAX_GROUND_PATH_M = 500e3  # longer "ground" paths (an ocean crossing) take minutes at 10 Hz
+    ing, vehicle, vp = _ingested(path, index)
+    label = f"{path.name} #{index} ({vehicle})"
+    rep = _plausibility_at_10hz(ing, vehicle, vp, label)["plausibility"]
+    gaps = np.diff(ing.table[col.TIME].to_numpy())
+    bridged = (ing.meta.get("segments") or {}).get("bridged_gaps", 0)
+    if gaps.max() <= 60.0 and not bridged:  # gaps judged by motion may be bridged
+        assert rep["invented_fraction"] < 0.01, label
 
 
 @pytest.mark.shared
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared trajectories absent")
-@pytest.mark.parametrize("path", _real_tracks(), ids=lambda p: p.name)
-def test_real_untimed_ground_paths_are_plausible(path):
+@pytest.mark.parametrize(("path", "index"), _shared_paths("untimed ground"))
+def test_real_untimed_ground_paths_are_plausible(path, index):
     """Every untimed path of every shared real file driven by a ground vehicle, at 10 Hz: its
     vertical is the road profile of its heights (no pitch blend between two verticals, so no
     rate bumps), the vehicle's limits hold and its heights stay within the profile's residual
     of the input heights."""
-    checked = 0
-    for i, ing, vehicle, vp in _ingested_paths(path):
-        enu = ing.table[list(tenu.ENU)].to_numpy()
-        length = np.sum(np.linalg.norm(np.diff(enu[:, :2], axis=0), axis=1))
-        if ing.meta["timed"] or vp.attitude != "ground" or length > MAX_GROUND_PATH_M:
-            continue
-        label = f"{path.name} #{i} ({vehicle})"
-        meta = _plausibility_at_10hz(ing, vehicle, vp, label)
-        vert = meta["fit"]["vertical"]
-        # a path that doubles back is timed leg by leg and fitted as a timed route, whose
-        # vertical is that of timed routes (imugen.truth.reversals): the limits above hold
-        if "max_departure_m" in vert and not meta["timing"].get("reversals"):
-            assert vert["max_departure_m"] < 1e-3, label
-            res = vert["grade"]["rms_residual_m"]
-            assert vert["rms_vertical_distance_m"] <= 1.02 * res + 1e-3, label
-        checked += 1
-    if not checked:
-        pytest.skip("no untimed ground path")
+    ing, vehicle, vp = _ingested(path, index)
+    label = f"{path.name} #{index} ({vehicle})"
+    meta = _plausibility_at_10hz(ing, vehicle, vp, label)
+    vert = meta["fit"]["vertical"]
+    # a path that doubles back is timed leg by leg and fitted as a timed route, whose
+    # vertical is that of timed routes (imugen.truth.reversals): the limits above hold
+    if "max_departure_m" in vert and not meta["timing"].get("reversals"):
+        assert vert["max_departure_m"] < 1e-3, label
+        res = vert["grade"]["rms_residual_m"]
+        assert vert["rms_vertical_distance_m"] <= 1.02 * res + 1e-3, label

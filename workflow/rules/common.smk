@@ -27,6 +27,9 @@ _problems = preflight.schema_problems(
 )
 if _problems:
     raise WorkflowError("\n".join(f"imugen: error: {p}" for p in _problems))
+_DRAWN_OUTAGES_GIVEN = "outages_s" in (config.get("scenarios") or {})
+"""``scenarios.outages_s`` given by the user (its schema default applies only without declared
+outages: see ``SCEN``)."""
 validate(config, "../schemas/config.schema.yaml")
 
 
@@ -135,9 +138,10 @@ def _module_file(name):
 
 
 @functools.cache
-def _imports(name, top_level_only=False):
+def _imports(name, top_level_only=False, function=None):
     """The imugen modules mod ``name`` imports (``top_level_only``: only the imports run
-    when it is imported, not those inside its functions), with their parent packages."""
+    when it is imported, not those inside its functions; ``function``: those and the imports
+    inside that one top-level function), with their parent packages."""
     path = _module_file(name)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found = set()
@@ -148,9 +152,9 @@ def _imports(name, top_level_only=False):
         parts = mod.split(".")
         found.update(".".join(parts[:i]) for i in range(1, len(parts) + 1))
 
-    def visit(node):
+    def visit(node, skip_functions):
         for child in ast.iter_child_nodes(node):
-            if top_level_only and isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
+            if skip_functions and isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
                 continue
             if isinstance(child, ast.Import):
                 for alias in child.names:
@@ -163,18 +167,36 @@ def _imports(name, top_level_only=False):
                 add(base)
                 for alias in child.names:  # `from package import mod`
                     add(f"{base}.{alias.name}")
-            visit(child)
+            visit(child, skip_functions)
 
-    visit(ast.parse(path.read_text(), str(path)))
+    tree = ast.parse(path.read_text(), str(path))
+    visit(tree, top_level_only or function is not None)
+    if function is not None:
+        defs = [
+            n
+            for n in tree.body
+            if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef) and n.name == function
+        ]
+        if not defs:
+            raise WorkflowError(f"imugen: error: code_digest: {name} has no function {function}")
+        visit(defs[0], False)
     found.discard(name)
     return frozenset(m for m in found if m == "imugen" or m.startswith("imugen."))
 
 
 @functools.cache
 def _closure(name):
-    """Every imugen mod that importing and running mod ``name`` may execute."""
+    """Every imugen mod that importing and running mod ``name`` may execute; ``module:function``:
+    that module's top-level imports and its function's, not its other functions' (a face
+    holding several commands, each importing its own module inside its function)."""
+    name, _, function = name.partition(":")
     parts = name.split(".")
-    seen, todo = set(), [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
+    seen, todo = set(), [".".join(parts[:i]) for i in range(1, len(parts))]
+    if function:
+        seen.add(name)
+        todo.extend(_imports(name, function=function))
+    else:
+        todo.append(name)
     while todo:
         mod = todo.pop()
         if mod not in seen:
@@ -188,7 +210,8 @@ def code_files(*modules):
 
     The transitive closure, computed from the code with ``ast``, of the imugen modules the
     command's modules import (``modules``: the stage's ``stage.py`` face, or whichever module
-    the command dispatches to; each imports its command's options module), anywhere in them,
+    the command dispatches to, or ``module:function`` for one command of a face that holds
+    several; each imports its command's options module), anywhere in them,
     function-level imports included, plus what ``imugen.cli`` imports when it starts (it loads
     the one command's options module by name, so one stage's closure holds no other stage).
     """
@@ -422,6 +445,8 @@ def report_failures(snakemake_logs):
 # --- aid stage (GNSS-denied scenarios, aided baseline): workflow/rules/aid.smk ---
 GNSS = config["gnss"]
 SCEN = config["scenarios"]
+if not _DRAWN_OUTAGES_GIVEN and any(iv["kind"] == "outage" for iv in SCEN["intervals"]):
+    SCEN["outages_s"] = []  # declared outages are the outages; drawn ones only where asked
 AIDED = config["aided"]
 COMP = config["companions"]
 AID_ON = bool(GNSS["enabled"])

@@ -38,7 +38,7 @@ if BENCH:
         output:
             f"{BENCH_DIR}/model/{{grade}}.pt",
         params:
-            code=code_digest("imugen.learn.train"),
+            code=code_digest("imugen.learn.stage:main_train"),
             opts=" ".join(
                 f"--{k.replace('_', '-')}={BENCH_MODEL[k]!r}"
                 for k in ("steps", "batch_size", "windows_per_sequence", "window", "width",
@@ -59,7 +59,7 @@ if BENCH:
         output:
             temp(bench_shard("correction")),
         params:
-            code=code_digest("imugen.learn.correct"),
+            code=code_digest("imugen.learn.stage:main_correct"),
             smooth=float(BENCH_MODEL["smooth_s"]),
         log:
             "logs/{route}/benchmark/learn_correct/{grade}/shard-{shard}.log",
@@ -126,7 +126,7 @@ if BENCH:
                 labels={"figure": "GNSS-denied benchmark"},
             ),
         params:
-            code=code_digest("imugen.learn.table"),
+            code=code_digest("imugen.learn.stage:main_table"),
             pairs=" ".join(
                 f"--{kind}={shlex.quote(f'{r},{g}={path}')}"
                 for kind, rule_ in (("aided", rules.evaluate), ("learned", rules.evaluate_learned))

@@ -7,6 +7,10 @@ and outage length ``D``: the aided horizontal error at the last epoch of the out
 over the sequences with such an outage; one table (CSV and Markdown) and one figure against the
 outage length (log scale; grade colours of :func:`imugen.figures.common.grade_styles`). The
 error growth during the outages is :mod:`imugen.figures.outage`.
+
+This module owns the outage-drift statistic (:func:`outage_errors`, :func:`bands`): the
+GNSS-denied benchmark's table (``imugen learn table``, :mod:`imugen.learn.table`) lays out
+the same figures per split, route and baseline through it.
 """
 
 from __future__ import annotations
@@ -43,12 +47,29 @@ DRIFT_COLUMNS = [
 """Columns of the outage-drift table (:func:`outage_drift`)."""
 
 
-def _bands(v: np.ndarray) -> tuple[float, float, float]:
+def outage_errors(m: pd.DataFrame, D: float) -> tuple[np.ndarray, np.ndarray]:
+    """The per-sequence errors of an outage length ``D`` (s) in one metrics table.
+
+    Returns
+    -------
+    aided_end, free_drift : ndarray, shape (sequences,) or (0,)
+        ``outage_<D>s_end_m``: the aided horizontal error at the last epoch of the outage
+        (NaN for a sequence without such an outage), and ``drift_<D>s_m``: the free-inertial
+        3-D drift ``D`` s after a true start; metres; empty where the column is absent.
+    """
+    cols = (f"outage_{D:g}s_end_m", f"drift_{D:g}s_m")
+    aided, free = (m[c].to_numpy(float) if c in m.columns else np.array([]) for c in cols)
+    return aided, free
+
+
+def bands(v: np.ndarray) -> tuple[int, float, float, float]:
+    """``(n, median, p05, p95)`` of the finite values of ``v`` (NaN where none is)."""
+    v = np.asarray(v, float)
     v = v[np.isfinite(v)]
     if not len(v):
-        return (np.nan,) * 3
+        return 0, np.nan, np.nan, np.nan
     p05, p50, p95 = np.percentile(v, [5, 50, 95])
-    return float(p50), float(p05), float(p95)
+    return len(v), float(p50), float(p05), float(p95)
 
 
 def outage_drift(metrics_by_grade: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
@@ -69,12 +90,10 @@ def outage_drift(metrics_by_grade: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """
     rows = []
     for g, m in metrics_by_grade.items():
-        ends = sorted((float(x.group(1)), x.group(0)) for c in m.columns if (x := _END.match(c)))
-        for D, col in ends:
-            aided = m[col].to_numpy(float)
-            drift = f"drift_{D:g}s_m"
-            free = m[drift].to_numpy(float) if drift in m.columns else np.array([])
-            rows.append([g, D, int(np.isfinite(aided).sum()), *_bands(aided), *_bands(free)])
+        for D in sorted(float(x.group(1)) for c in m.columns if (x := _END.match(c))):
+            aided, free = outage_errors(m, D)
+            n, *aided_bands = bands(aided)
+            rows.append([g, D, n, *aided_bands, *bands(free)[1:]])
     if not rows:
         raise InputError("--metrics", "no outage_<D>s_end_m column: no GNSS outage was evaluated")
     return pd.DataFrame(rows, columns=DRIFT_COLUMNS)
@@ -150,4 +169,11 @@ def main(options: OutageDriftOptions, output, table, metrics) -> None:
         _save(outage_drift_figure(drift), output, options.formats, options.dpi)
 
 
-__all__ = ["DRIFT_COLUMNS", "drift_markdown", "outage_drift", "outage_drift_figure"]
+__all__ = [
+    "DRIFT_COLUMNS",
+    "bands",
+    "drift_markdown",
+    "outage_drift",
+    "outage_drift_figure",
+    "outage_errors",
+]

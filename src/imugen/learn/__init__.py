@@ -10,7 +10,8 @@ filter: a *total* correction, the filter's own bias states then modelling what i
 (:mod:`imugen.aid.filter.learner`; a correction re-targeted at the filter's live estimate
 would break the filter's consistency).
 
-Commands: ``imugen learn train`` (:mod:`imugen.learn.train`), ``imugen learn correct``
+Commands (the face :mod:`imugen.learn.stage`, rules in ``workflow/rules/learn.smk``):
+``imugen learn train`` (:mod:`imugen.learn.train`), ``imugen learn correct``
 (:mod:`imugen.learn.correct`), ``imugen learn table`` (:mod:`imugen.learn.table`: the
 benchmark's table and figure). PyTorch (the optional ``torch`` extra) is imported inside the
 functions that need it, so this package imports without it.

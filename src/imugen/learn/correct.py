@@ -67,8 +67,3 @@ def correct(model, shard, out, options: CorrectOptions) -> Path:
     info = {"stage": "learn-correct", "shard": Path(shard).name, "what": "reference-cnn",
             "model": Path(model).name}  # fmt: skip
     return tcorr.write(tcorr.frame(ids, corr), info, out)
-
-
-def main(options: CorrectOptions, model, shard, output) -> None:
-    """``imugen learn correct``."""
-    correct(model, shard, output, options)

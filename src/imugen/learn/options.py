@@ -61,7 +61,7 @@ _PAIR = "ROUTE,GRADE=PATH"
 COMMANDS = {
     "learn train": Command(
         TrainOptions,
-        "imugen.learn.train:main",
+        "imugen.learn.stage:main_train",
         (
             argument("truth", nargs="+", help="truth Parquet files of the training routes"),
             argument("-o", "--output", required=True, help="model file (.pt)"),
@@ -70,7 +70,7 @@ COMMANDS = {
     ),
     "learn correct": Command(
         CorrectOptions,
-        "imugen.learn.correct:main",
+        "imugen.learn.stage:main_correct",
         (
             argument("model", help="model file of imugen learn train"),
             argument("shard", help="IMU shard Parquet"),
@@ -79,7 +79,7 @@ COMMANDS = {
     ),
     "learn table": Command(
         TableOptions,
-        "imugen.learn.table:main",
+        "imugen.learn.stage:main_table",
         (
             argument("-o", "--output", required=True, help="table path without extension"),
             argument("--figure", required=True, help="figure path without extension"),

@@ -1,25 +1,24 @@
-"""``imugen learn table``: the benchmark's table and figure.
+"""The GNSS-denied benchmark's table and figure (``imugen learn table``, :mod:`imugen.learn.stage`).
 
 Per route, grade, baseline and outage length ``D``: the median and 95th percentile over
 sequences of the horizontal error at the end of an outage of ``D`` s, from the metrics of
 ``imugen evaluate`` (:mod:`imugen.evaluate.stage`): ``outage_<D>s_end_m`` of the aided filter
 on the raw IMU (``aided``) and on the IMU corrected by the reference model (``aided_learned``),
 and for ``free_inertial`` the drift ``drift_<D>s_m`` (3-D error ``D`` s after a true start,
-mean over the sequence's starts). Columns :data:`COLUMNS`; written as CSV and Markdown. The
+mean over the sequence's starts), through the outage-drift statistic of
+:mod:`imugen.figures.outage_drift` (:func:`~imugen.figures.outage_drift.outage_errors`,
+:func:`~imugen.figures.outage_drift.bands`), which owns it. Columns :data:`COLUMNS`; written as CSV and Markdown. The
 figure: one panel per grade, median error against outage length per baseline (test routes
 solid, validation dashed), 95th percentiles as thin lines of the same style.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
 from imugen.core.errors import InputError
-from imugen.core.io import atomic_output
-from imugen.learn.options import TableOptions
+from imugen.figures.outage_drift import bands, outage_errors
 from imugen.tables import metrics as tmetrics
 
 COLUMNS = ("split", "route", "grade", "baseline", "outage_s", "sequences", "median_m", "p95_m")
@@ -27,7 +26,8 @@ COLUMNS = ("split", "route", "grade", "baseline", "outage_s", "sequences", "medi
 BASELINES = ("free_inertial", "aided", "aided_learned")
 
 
-def _pairs(items, flag) -> dict[tuple[str, str], str]:
+def pairs(items, flag) -> dict[tuple[str, str], str]:
+    """``ROUTE,GRADE=PATH`` items of ``flag`` -> ``{(route, grade): path}``."""
     out = {}
     for item in items or ():
         key, sep, path = item.partition("=")
@@ -42,19 +42,16 @@ def rows(aided: dict, learned: dict, splits: dict, durations) -> pd.DataFrame:
     """The table (:data:`COLUMNS`) from metrics paths keyed by ``(route, grade)``."""
     out = []
     for (route, grade), path in aided.items():
-        m = tmetrics.read(path)
-        sources = [("free_inertial", m, "drift_{:g}s_m"), ("aided", m, "outage_{:g}s_end_m")]
+        frames = [("aided", tmetrics.read(path))]
         if (route, grade) in learned:
-            sources.append(("aided_learned", tmetrics.read(learned[(route, grade)]),
-                            "outage_{:g}s_end_m"))  # fmt: skip
-        for baseline, df, name in sources:
-            for D in durations:
-                col = name.format(D)
-                v = df[col].to_numpy(float) if col in df.columns else np.array([])
-                v = v[np.isfinite(v)]
-                med, p95 = np.percentile(v, [50, 95]) if len(v) else (np.nan, np.nan)
-                out.append((splits.get(route, ""), route, grade, baseline, float(D), len(v),
-                            med, p95))  # fmt: skip
+            frames.append(("aided_learned", tmetrics.read(learned[(route, grade)])))
+        for D in durations:
+            raw_end, free = outage_errors(frames[0][1], D)
+            values = [("free_inertial", free), ("aided", raw_end)]
+            values += [(b, outage_errors(m, D)[0]) for b, m in frames[1:]]
+            for baseline, v in values:
+                n, med, _, p95 = bands(v)
+                out.append((splits.get(route, ""), route, grade, baseline, float(D), n, med, p95))
     df = pd.DataFrame(out, columns=list(COLUMNS))
     order = {b: i for i, b in enumerate(BASELINES)}
     return df.sort_values(
@@ -105,23 +102,3 @@ def draw(df: pd.DataFrame):
     handles, labels = axes[-1].get_legend_handles_labels()  # below the axes: never over a curve
     fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=6)
     return fig
-
-
-def main(options: TableOptions, output, figure, aided, learned, split) -> None:
-    """``imugen learn table``."""
-    from imugen.core.plotting import save, style
-
-    splits = {}
-    for item in split or ():
-        route, sep, name = item.partition("=")
-        if not (sep and route and name):
-            raise InputError("--split", f"{item!r} is not ROUTE=SPLIT")
-        splits[route] = name
-    df = rows(_pairs(aided, "--aided"), _pairs(learned, "--learned"), splits, options.durations_s)
-    stem = Path(output)
-    with atomic_output(stem.with_suffix(".csv")) as tmp:
-        df.to_csv(tmp, index=False)
-    with atomic_output(stem.with_suffix(".md")) as tmp:
-        Path(tmp).write_text(markdown(df))
-    with style():
-        save(draw(df), figure, options.formats, options.dpi)

@@ -101,8 +101,3 @@ def train(truths, grade: str, out, options: TrainOptions, log=None) -> dict:
     log(f"wrote {out}: loss {meta['loss']:.4f} against {meta['zero_loss']:.4f} for zero, "
         f"{meta['wall_s']:.0f} s wall, {meta['cpu_s']:.0f} CPU-s")  # fmt: skip
     return meta
-
-
-def main(options: TrainOptions, truth, output, grade) -> None:
-    """``imugen learn train``."""
-    train(truth, grade, output, options)
