@@ -585,15 +585,22 @@ REST_MIN_FIXES = 10
 REST_MAX_TURN_COS = 0.0
 #: :func:`rest_runs`: a timed run at rest lasts at least :data:`STILL_MIN_S` and progresses at
 #: most this fast (m/s) beyond its noise (a receiver's position wanders slowly at rest; a queue
-#: creeps at 0.5 m/s).
-REST_CREEP_MPS = 0.1
+#: creeps at 0.5 m/s, a slow walk at 0.3 m/s).
+REST_CREEP_MPS = 0.02
+#: :func:`rest_runs`: most drift between a run's halves, in standard deviations of its white
+#: noise: mistaking motion for rest makes a stop-and-go truth, mistaking rest for motion leaves
+#: the stop to the truth's fit, so the test is tight (true rest fails it with probability
+#: ``exp(-REST_DRIFT_SIGMAS^2 / 2)``, 1 %, and is then found from the next fix).
+REST_DRIFT_SIGMAS = 3.0
 #: Horizontal noise (m, one coordinate) an untimed path's clusters are judged with: an untimed
 #: file has no clock to estimate it from; a consumer receiver standing near buildings.
 UNTIMED_NOISE_M = 5.0
 
 
 @njit(cache=True)
-def _rest_runs(xy, t, radius, creep_mps, min_fixes, min_s, max_cos):  # pragma: no cover
+def _rest_runs(
+    xy, t, radius, sigma, drift_sigmas, creep_mps, min_fixes, min_s, max_cos
+):  # pragma: no cover
     n = xy.shape[0]
     out = np.empty((n, 2), dtype=np.int64)
     k = 0
@@ -628,7 +635,7 @@ def _rest_runs(xy, t, radius, creep_mps, min_fixes, min_s, max_cos):  # pragma: 
             dt = t[h:j].mean() - t[i:h].mean()
             drift = np.hypot(c2[0] - c1[0], c2[1] - c1[1])
             found = (cos_sum / (m_run - 2) <= max_cos) and (
-                drift <= 2.0 * radius / np.sqrt(m_run) + creep_mps * dt
+                drift <= drift_sigmas * 2.0 * sigma / np.sqrt(m_run) + creep_mps * dt
             )
         if found:  # its ends: no fix moving away at the start or the end (arrival, departure)
             cx, cy = sx / m_run, sy / m_run
@@ -668,9 +675,10 @@ def rest_runs(
     - its legs keep no heading: the mean cosine of the turns between consecutive legs is at
       most :data:`REST_MAX_TURN_COS` (jitter reverses; a tight circle continues);
     - it does not progress: the centroids of its first and second halves (``m`` fixes in
-      all) differ by at most ``K_SIGMA noise_m 2 / sqrt(m)`` (5 standard deviations of that
-      difference under white noise) plus, when timed, :data:`REST_CREEP_MPS` times the time
-      between the halves (a slow walk or a creeping car progresses, however noisy its fixes);
+      all) differ by at most :data:`REST_DRIFT_SIGMAS` standard deviations of that difference
+      under white noise (``2 noise_m / sqrt(m)``) plus, when timed, :data:`REST_CREEP_MPS`
+      times the time between the halves (a slow walk or a creeping car progresses, however
+      noisy its fixes);
     - when timed, it lasts at least :data:`STILL_MIN_S` (shorter stops are the truth fit's).
 
     Runs are grown greedily from the first fix, each as long as the radius allows; then fixes
@@ -697,8 +705,9 @@ def rest_runs(
     tt = np.zeros(len(xy)) if t is None else np.ascontiguousarray(t, dtype=float)
     creep, min_s = (0.0, 0.0) if t is None else (REST_CREEP_MPS, STILL_MIN_S)
     runs = _rest_runs(
-        xy, tt, K_SIGMA * float(noise_m), creep, REST_MIN_FIXES, min_s, REST_MAX_TURN_COS
-    )
+        xy, tt, K_SIGMA * float(noise_m), float(noise_m), REST_DRIFT_SIGMAS, creep,
+        REST_MIN_FIXES, min_s, REST_MAX_TURN_COS,
+    )  # fmt: skip
     return [(int(a), int(b)) for a, b in runs]
 
 
