@@ -35,12 +35,7 @@ def _gate_taxi_takeoff(rng, n_park, sigma, taxi_leg, run_leg):
     return np.vstack([park, moved]), 1200.0 + 800.0 + 3000.0
 
 
-def test_untimed_gate_jitter_is_one_point_and_the_truth_does_not_crawl(tmp_path):
-    """Issue 27: the 429 km logger flight's gate jitter (120 fixes within ~10 m) made the
-    untimed speed profile crawl at 0.8 m/s for ~1,250 s. The cluster is one point now; the path
-    is not lengthened by the jitter and the truth moves purposefully from the gate."""
-    rng = np.random.default_rng(5)
-    enu, moved = _gate_taxi_takeoff(rng, 120, 3.0, 40.0, 100.0)
+def _kml(tmp_path, enu):
     lat, lon, alt = LocalFrame(ORIGIN).to_geodetic(enu)
     coords = " ".join(
         f"{float(b)!r},{float(a)!r},{float(h)!r}" for a, b, h in zip(lat, lon, alt, strict=True)
@@ -51,6 +46,28 @@ def test_untimed_gate_jitter_is_one_point_and_the_truth_does_not_crawl(tmp_path)
         f"<altitudeMode>absolute</altitudeMode><coordinates>{coords}</coordinates></LineString>"
         "</Placemark></kml>"
     )
+    return f
+
+
+def test_gate_jitter_after_a_stale_first_fix(tmp_path):
+    """A logger's stale first fix (at the path's end) is removed before the jitter is merged;
+    the merge works in the frame of the points kept (it once used the removed point's, which
+    put the centroid hundreds of kilometres off: 429 -> 1,276 km)."""
+    rng = np.random.default_rng(6)
+    enu, moved = _gate_taxi_takeoff(rng, 120, 3.0, 40.0, 100.0)
+    ing = ingest(_kml(tmp_path, np.vstack([enu[-1:], enu])), vehicle="airliner")
+    assert ing.meta["cleaning"]["stale_first_removed"]
+    assert ing.meta["cleaning"]["at_rest"]["count"] == 1
+    assert moved - 10.0 < ing.meta["length_horizontal_m"] < moved + 30.0
+
+
+def test_untimed_gate_jitter_is_one_point_and_the_truth_does_not_crawl(tmp_path):
+    """Issue 27: the 429 km logger flight's gate jitter (120 fixes within ~10 m) made the
+    untimed speed profile crawl at 0.8 m/s for ~1,250 s. The cluster is one point now; the path
+    is not lengthened by the jitter and the truth moves purposefully from the gate."""
+    rng = np.random.default_rng(5)
+    enu, moved = _gate_taxi_takeoff(rng, 120, 3.0, 40.0, 100.0)
+    f = _kml(tmp_path, enu)
     jitter = float(np.linalg.norm(np.diff(enu[:120, :2], axis=0), axis=1).sum())
     assert jitter > 400.0  # what the raw path adds
 

@@ -296,13 +296,20 @@ def fill(x: np.ndarray, values: np.ndarray, missing: np.ndarray) -> np.ndarray:
     return out
 
 
-def _metric(cols: dict, enu_frame: LocalFrame | None) -> np.ndarray:
+def _frame(cols: dict, enu_frame: LocalFrame | None) -> LocalFrame:
+    """The metric frame of :func:`_metric`: ``enu_frame``, else the first point's."""
     if enu_frame is not None:
-        return np.array(cols["pos"], dtype=float)
+        return enu_frame
     from imugen.core.frames import LocalFrame, Origin  # pyproj: only when a file is geographic
 
-    o = Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0]))
-    return LocalFrame(o).to_enu(cols["lat"], cols["lon"], cols["alt"])
+    return LocalFrame(Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0])))
+
+
+def _metric(cols: dict, enu_frame: LocalFrame | None) -> np.ndarray:
+    """Positions (n, 3) [m] in :func:`_frame`."""
+    if enu_frame is not None:
+        return np.array(cols["pos"], dtype=float)
+    return _frame(cols, None).to_enu(cols["lat"], cols["lon"], cols["alt"])
 
 
 def clean_path(
@@ -459,6 +466,7 @@ def clean_path(
         report["noise_horizontal_m"] = noise_sigma(d_h, 2)
         report["noise_vertical_m"] = noise_sigma(d_v, 1)
     report["at_rest"] = None
+    enu = _metric(cols, enu_frame)  # the frame of the points kept (a stale first one removed)
     h_read = enu[:, 2].copy()  # the heights as read (timed: merge_rest keeps every fix)
     if "att" not in cols:  # a pose trajectory is not a GNSS log
         noise = report["noise_horizontal_m"] if timed else UNTIMED_NOISE_M
@@ -725,7 +733,8 @@ def merge_rest(
     at the run's horizontal centroid, their heights held (:func:`hold_heights`), so the truth
     stands exactly still there instead of crawling through the jitter.
 
-    Returns the columns, their positions in the metric frame ``enu`` was given in, and the
+    ``enu`` (n, 3) [m] are the points in :func:`_frame` (of ``cols``' first point, or
+    ``enu_frame``). Returns the columns, their positions in that frame, and the
     report (None when no run is found): ``runs`` (first and last 1-based point numbers of
     the kept points, at most :data:`MAX_LISTED`), ``fixes`` (in the runs), ``radius_m``,
     ``noise_m``, ``length_before_m`` and ``length_after_m`` (horizontal path length).
@@ -743,14 +752,7 @@ def merge_rest(
             keep[a + 1 : b + 1] = False
     if timed:  # GPS heights wander at rest: held as a parked vehicle's (still_heights)
         new[:, 2] = hold_heights(cols["time"], enu[:, 2], runs)
-    if enu_frame is not None:
-        frame = enu_frame
-    else:
-        from imugen.core.frames import LocalFrame, Origin
-
-        frame = LocalFrame(
-            Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0]))
-        )
+    frame = _frame(cols, enu_frame)  # the one ``enu`` is in (:func:`_metric`)
     at = np.zeros(len(enu), dtype=bool)
     for a, b in runs:
         at[a : b + 1] = True
