@@ -588,7 +588,7 @@ def hold_heights(t: np.ndarray, h: np.ndarray, runs: list[tuple[int, int]]) -> n
 REST_MIN_FIXES = 10
 #: :func:`rest_runs`: most mean cosine of the turns between a cluster's consecutive legs. GPS
 #: jitter at rest makes legs that are differences of white noise (correlation -1/2 between
-#: consecutive legs: they reverse as often as they continue, mean cosine about -0.35); a path,
+#: consecutive legs: they reverse more often than they continue, mean cosine -0.41); a path,
 #: however slow or tight, continues its heading (mean cosine near +1).
 REST_MAX_TURN_COS = 0.0
 #: :func:`rest_runs`: a timed run at rest lasts at least :data:`STILL_MIN_S` and progresses at
