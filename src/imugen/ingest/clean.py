@@ -35,7 +35,12 @@ Metadata (``cleaning`` of the ingest metadata, carried through the CSV stage)
     ``vehicle``, ``limits``, ``k_sigma``, ``min_kept_fraction``, ``points_in``,
     ``outliers_removed`` and ``outlier_points`` (1-based, of the points kept after duplicate
     removal), ``heights_rejected``, ``heights_filled`` and ``height_filled_points`` (1-based
-    rows of the output), ``noise_horizontal_m``, ``noise_vertical_m`` (None when untimed).
+    rows of the output), ``noise_horizontal_m``, ``noise_vertical_m`` (None when untimed),
+    ``at_rest`` (:func:`merge_rest`, None when no run of GPS jitter at rest was found).
+At rest
+    Runs of consecutive fixes that are GPS jitter around one place (:func:`rest_runs`) are
+    put at their centroid: one point on an untimed path, every fix kept (heights held) on a
+    timed one, so the truth neither crawls through the jitter nor counts it as path.
 """
 
 from __future__ import annotations
