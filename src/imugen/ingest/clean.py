@@ -620,16 +620,23 @@ def _rest_runs(
     i = 0
     while i < n:
         sx, sy = xy[i, 0], xy[i, 1]
-        j = i + 1  # the run is i .. j-1, each fix within radius of the run's centroid
+        # the run is i .. j-1, each fix within radius of the run's centroid; the fixes before
+        # the newest lie within far + |c - (ax, ay)| of it (triangle inequality), checked one
+        # by one only when that bound exceeds the radius (a long stay costs O(m), not O(m^2))
+        ax, ay, far = sx, sy, 0.0
+        j = i + 1
         while j < n:
             cx, cy = (sx + xy[j, 0]) / (j - i + 1), (sy + xy[j, 1]) / (j - i + 1)
-            ok = True
-            for m in range(i, j + 1):
-                if (xy[m, 0] - cx) ** 2 + (xy[m, 1] - cy) ** 2 > radius * radius:
-                    ok = False
-                    break
+            ok = np.hypot(xy[j, 0] - cx, xy[j, 1] - cy) <= radius
+            if ok and far + np.hypot(cx - ax, cy - ay) > radius:
+                far = 0.0
+                for m in range(i, j):
+                    far = max(far, np.hypot(xy[m, 0] - cx, xy[m, 1] - cy))
+                ok = far <= radius
+                ax, ay = cx, cy
             if not ok:
                 break
+            far = max(far, np.hypot(xy[j, 0] - ax, xy[j, 1] - ay))
             sx += xy[j, 0]
             sy += xy[j, 1]
             j += 1
