@@ -40,6 +40,7 @@ def _rss_b() -> int:
 
 def _child(args) -> None:
     """Run one truth job in this process; print one JSON line of its figures."""
+    from imugen.truth.options import TruthOptions
     from imugen.truth.stage import run
 
     peak = {"rss": 0, "stack": ""}
@@ -58,7 +59,8 @@ def _child(args) -> None:
     if args.where:
         th.start()
     c0, w0 = time.process_time(), time.perf_counter()
-    meta = run(args.enu, args.out, rate_hz=args.rate, earth=args.earth[0], vehicle=args.vehicle)
+    opts = TruthOptions(rate_hz=args.rate, earth=args.earth[0], vehicle=args.vehicle)
+    meta = run(args.enu, args.out, opts)
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     stop.set()
     ru = resource.getrusage(resource.RUSAGE_SELF)

@@ -183,3 +183,40 @@ def test_disk_estimate_counts_the_stored_columns(tmp_path):
     ):
         est = preflight.estimate(config(**edits), tmp_path / "results")
         assert est["disk_b"] == pytest.approx(samples * (2 * 1 * per + 200) + allan), edits
+
+
+def test_untimed_flight_memory_at_the_fit_s_own_corner(tmp_path):
+    """A dense untimed flight is fitted with the corner rounding of its own point spacing (10th
+    percentile, 100 m - 2 km), not the airliner's 2 km: the path term is sized with the same
+    rule (``truth.flight.corner_length_m``), checked against the corner the truth job records
+    (the 429 km logger flight was estimated ~20x low)."""
+    import numpy as np
+
+    from imugen import truth
+    from imugen.core.frames import LocalFrame, Origin
+    from imugen.ingest.stage import ingest
+    from imugen.truth import VEHICLES
+
+    s = np.arange(0.0, 12_001.0, 250.0)  # a logger's fixes every 250 m: taxi-less run, climb
+    enu = np.column_stack([s, 400.0 * np.sin(s / 3000.0), 600.0 * (s / s[-1]) ** 2])
+    lat, lon, alt = LocalFrame(Origin(48.35, 11.78, 450.0)).to_geodetic(enu)
+    coords = " ".join(
+        f"{float(b)!r},{float(a)!r},{float(h)!r}" for a, b, h in zip(lat, lon, alt, strict=True)
+    )
+    kml = tmp_path / "flight.kml"
+    kml.write_text(
+        '<kml xmlns="http://www.opengis.net/kml/2.2"><Placemark><name>f</name><LineString>'
+        f"<altitudeMode>absolute</altitudeMode><coordinates>{coords}</coordinates></LineString>"
+        "</Placemark></kml>"
+    )
+    ing = ingest(str(kml), vehicle="airliner")
+    length = ing.meta["length_3d_m"]
+    _, m = truth.build_truth(ing.table, ing.meta, rate_hz=10.0, vehicle="airliner", verbose=False)
+    corner = m["fit"]["corner_m"]
+    assert 240.0 < corner < 260.0 and VEHICLES["airliner"].corner_m == 2000.0
+    cfg = config()
+    cfg["routes"] = {"fl": {"file": str(kml), "vehicle": "airliner"}}
+    est = preflight.estimate(cfg, tmp_path / "results")
+    dur = length / (0.8 * VEHICLES["airliner"].cruise_mps)
+    path_b = 1600.0 * 10.0 / corner * length  # 8x what the class's 2 km would give
+    assert est["memory_b"] == pytest.approx(300e6 + 700 * (dur * 10 + 1) + path_b)

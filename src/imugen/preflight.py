@@ -10,7 +10,9 @@ Estimates (measured, README "Security and limits")
     truth job memory: 300 MB + 700 bytes per IMU sample (``bench``: 268 MB at 31,207 samples,
     414 MB at 249,649) + 1,600 bytes per metre of an untimed path for a vehicle of
     ``corner_m = 10`` (scaled by ``10 / corner_m``: the path is fitted on a grid of
-    ``corner_m / 16``); ``benchmarks/bench_truth_memory.py``, car: the 7,602 km Pacific route,
+    ``corner_m / 16``; ``corner_m`` is the one the truth job fits with,
+    :func:`imugen.truth.flight.corner_length_m`: a dense logger flight is rounded at its own
+    point spacing, 100 m - 2 km, not at the airliner's 2 km); ``benchmarks/bench_truth_memory.py``, car: the 7,602 km Pacific route,
     ``geodetic``, peaks at 10.57 GB at 2 Hz (1,093,818 samples, at the fit of the path) and
     12.87 GB at 20 Hz (10.9 M samples, ``/usr/bin/time``): ~1,355 bytes per metre + ~234 per
     sample; a synthetic 500 km road at 2 / 20 Hz (71,974 / 719,737 samples) peaks at 948 /
@@ -156,8 +158,10 @@ def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, 
     vehicle's cruise speed for an untimed path).
     """
     from imugen.ingest.stage import ingest
+    from imugen.tables import enu as tenu
     from imugen.tables import truth as ttruth
     from imugen.truth import VEHICLES
+    from imugen.truth.flight import corner_length_m
 
     truth = Path(layout.truth(name, root=results))
     rate = route.get("_rate_hz")
@@ -172,6 +176,7 @@ def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, 
             path=route.get("path"),
             origin=None if route.get("origin") is None else ",".join(map(str, route["origin"])),
             dt=route.get("dt_s"),
+            vehicle=route.get("vehicle", "car"),
         )
     except InputError:
         return None, 0.0  # the ingest job reports it in one line
@@ -179,7 +184,8 @@ def route_figures(name: str, route: dict, results: Path) -> tuple[float | None, 
         return float(ing.meta["duration_s"]), 0.0
     vp = VEHICLES[route.get("vehicle", "car")]
     length = ing.meta["length_3d_m"]
-    path_b = TRUTH_PATH_PER_M_B * TRUTH_PATH_CORNER_M / vp.corner_m * length
+    corner = corner_length_m(ing.table[list(tenu.ENU)].to_numpy(float), vp)  # as the truth job
+    path_b = TRUTH_PATH_PER_M_B * TRUTH_PATH_CORNER_M / corner * length
     return length / (0.8 * vp.cruise_mps), path_b
 
 

@@ -35,7 +35,12 @@ Metadata (``cleaning`` of the ingest metadata, carried through the CSV stage)
     ``vehicle``, ``limits``, ``k_sigma``, ``min_kept_fraction``, ``points_in``,
     ``outliers_removed`` and ``outlier_points`` (1-based, of the points kept after duplicate
     removal), ``heights_rejected``, ``heights_filled`` and ``height_filled_points`` (1-based
-    rows of the output), ``noise_horizontal_m``, ``noise_vertical_m`` (None when untimed).
+    rows of the output), ``noise_horizontal_m``, ``noise_vertical_m`` (None when untimed),
+    ``at_rest`` (:func:`merge_rest`, None when no run of GPS jitter at rest was found).
+At rest
+    Runs of consecutive fixes that are GPS jitter around one place (:func:`rest_runs`) are
+    put at their centroid: one point on an untimed path, every fix kept (heights held) on a
+    timed one, so the truth neither crawls through the jitter nor counts it as path.
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from imugen.core.errors import InputError
+from imugen.core.jit import njit
 
 if TYPE_CHECKING:
     from imugen.core.frames import LocalFrame
@@ -295,13 +301,20 @@ def fill(x: np.ndarray, values: np.ndarray, missing: np.ndarray) -> np.ndarray:
     return out
 
 
-def _metric(cols: dict, enu_frame: LocalFrame | None) -> np.ndarray:
+def _frame(cols: dict, enu_frame: LocalFrame | None) -> LocalFrame:
+    """The metric frame of :func:`_metric`: ``enu_frame``, else the first point's."""
     if enu_frame is not None:
-        return np.array(cols["pos"], dtype=float)
+        return enu_frame
     from imugen.core.frames import LocalFrame, Origin  # pyproj: only when a file is geographic
 
-    o = Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0]))
-    return LocalFrame(o).to_enu(cols["lat"], cols["lon"], cols["alt"])
+    return LocalFrame(Origin(float(cols["lat"][0]), float(cols["lon"][0]), float(cols["alt"][0])))
+
+
+def _metric(cols: dict, enu_frame: LocalFrame | None) -> np.ndarray:
+    """Positions (n, 3) [m] in :func:`_frame`."""
+    if enu_frame is not None:
+        return np.array(cols["pos"], dtype=float)
+    return _frame(cols, None).to_enu(cols["lat"], cols["lon"], cols["alt"])
 
 
 def clean_path(
@@ -452,11 +465,34 @@ def clean_path(
                 "(not 0 m), flagged in the metadata"
             )
         enu = _metric(cols, enu_frame)
-    if timed and vehicle in FIXED_WING and len(cols["time"]) >= 3:
+    if timed and len(cols["time"]) >= 3:  # before the fixes at rest coincide
         d_h, _ = chord_deviation(cols["time"], enu[:, :2])
-        h_new, runs = still_heights(cols["time"], enu, noise_sigma(d_h, 2))
+        d_v, _ = chord_deviation(cols["time"], enu[:, 2:])
+        report["noise_horizontal_m"] = noise_sigma(d_h, 2)
+        report["noise_vertical_m"] = noise_sigma(d_v, 1)
+    report["at_rest"] = None
+    enu = _metric(cols, enu_frame)  # the frame of the points kept (a stale first one removed)
+    h_read = enu[:, 2].copy()  # the heights as read (timed: merge_rest keeps every fix)
+    if "att" not in cols:  # a pose trajectory is not a GNSS log
+        noise = report["noise_horizontal_m"] if timed else UNTIMED_NOISE_M
+        cols, enu, rest = merge_rest(cols, enu, noise or UNTIMED_NOISE_M, timed=timed,
+                                     enu_frame=enu_frame)  # fmt: skip
+        report["at_rest"] = rest
+        if rest:
+            what = (
+                "their fixes placed at the cluster's centroid (the truth stands still there)"
+                if timed
+                else "each merged into one point (an untimed path has no stops)"
+            )
+            warnings.append(
+                f"{rest['count']} clusters of GPS jitter at rest ({rest['fixes']} fixes within "
+                f"{rest['radius_m']:.1f} m of their centroid, no heading kept): {what}; path "
+                f"length {rest['length_before_m']:.0f} -> {rest['length_after_m']:.0f} m"
+            )
+    if timed and vehicle in FIXED_WING and len(cols["time"]) >= 3:
+        h_new, runs = still_heights(cols["time"], enu, report["noise_horizontal_m"])
         if runs:
-            drift = float(np.max(np.abs(h_new - enu[:, 2])))
+            drift = float(np.max(np.abs(h_new - h_read)))
             if enu_frame is not None:
                 cols["pos"] = np.column_stack([enu[:, :2], h_new])
                 cols["lat"], cols["lon"], cols["alt"] = enu_frame.to_geodetic(cols["pos"])
@@ -472,11 +508,6 @@ def clean_path(
                 f"heights, wandering up to {drift:.1f} m, held at the heights where it moves "
                 "(a parked aircraft does not climb)"
             )
-    if timed and len(cols["time"]) >= 3:
-        d_h, _ = chord_deviation(cols["time"], enu[:, :2])
-        d_v, _ = chord_deviation(cols["time"], enu[:, 2:])
-        report["noise_horizontal_m"] = noise_sigma(d_h, 2)
-        report["noise_vertical_m"] = noise_sigma(d_v, 1)
     return cols, report
 
 
@@ -536,20 +567,233 @@ def still_heights(
     span = t[hi] - t[lo]
     move = np.linalg.norm(enu[hi, :2] - enu[lo, :2], axis=1)
     still = (span > 0) & (move < STILL_SPEED_MPS * span + K_SIGMA * np.sqrt(2.0) * noise_m)
-    h = enu[:, 2].copy()
-    runs = []
     edges = np.flatnonzero(np.diff(np.r_[0, still.astype(np.int8), 0]))
-    for a, b in zip(edges[::2], edges[1::2] - 1, strict=True):
-        if t[b] - t[a] < STILL_MIN_S:
-            continue
+    runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2] - 1, strict=True)
+            if t[b] - t[a] >= STILL_MIN_S]  # fmt: skip
+    return hold_heights(t, enu[:, 2], runs), runs
+
+
+def hold_heights(t: np.ndarray, h: np.ndarray, runs: list[tuple[int, int]]) -> np.ndarray:
+    """Heights ``h`` (n,) with those of the stretches at rest ``runs`` ((first, last) fix
+    indexes) held: the height where the vehicle moves again (the median of the last
+    :data:`STILL_END_S` of the stretch), or where it came to rest when it never moves again;
+    between two moving phases, linear in time from the one to the other."""
+    h = np.asarray(h, float).copy()
+    for a, b in runs:
         first = np.median(h[a : np.searchsorted(t, t[a] + STILL_END_S, side="right")])
         last = np.median(h[np.searchsorted(t, t[b] - STILL_END_S) : b + 1])
         if a == 0 or b == len(t) - 1:  # the file starts or ends at rest: one height
             h[a : b + 1] = last if a == 0 and b < len(t) - 1 else first
         else:
             h[a : b + 1] = first + (last - first) * (t[a : b + 1] - t[a]) / (t[b] - t[a])
-        runs.append((int(a), int(b)))
-    return h, runs
+    return h
+
+
+#: :func:`rest_runs`: fewest consecutive fixes that make a cluster at rest.
+REST_MIN_FIXES = 10
+#: :func:`rest_runs`: most mean cosine of the turns between a cluster's consecutive legs. GPS
+#: jitter at rest makes legs that are differences of white noise (correlation -1/2 between
+#: consecutive legs: they reverse more often than they continue, mean cosine -0.41); a path,
+#: however slow or tight, continues its heading (mean cosine near +1).
+REST_MAX_TURN_COS = 0.0
+#: :func:`rest_runs`: a timed run at rest lasts at least :data:`STILL_MIN_S` and progresses at
+#: most this fast (m/s) beyond its noise (a receiver's position wanders slowly at rest; a queue
+#: creeps at 0.5 m/s, a slow walk at 0.3 m/s).
+REST_CREEP_MPS = 0.02
+#: :func:`rest_runs`: most drift between a run's halves, in standard deviations of its white
+#: noise: mistaking motion for rest makes a stop-and-go truth, mistaking rest for motion leaves
+#: the stop to the truth's fit, so the test is tight (true rest fails it with probability
+#: ``exp(-REST_DRIFT_SIGMAS^2 / 2)``, 1 %, and is then found from the next fix).
+REST_DRIFT_SIGMAS = 3.0
+#: Horizontal noise (m, one coordinate) an untimed path's clusters are judged with: an untimed
+#: file has no clock to estimate it from; a consumer receiver standing near buildings.
+UNTIMED_NOISE_M = 5.0
+
+
+@njit(cache=True)
+def _rest_runs(
+    xy, t, radius, sigma, drift_sigmas, creep_mps, min_fixes, min_s, max_cos
+):  # pragma: no cover
+    n = xy.shape[0]
+    out = np.empty((n, 2), dtype=np.int64)
+    k = 0
+    i = 0
+    while i < n:
+        sx, sy = xy[i, 0], xy[i, 1]
+        # the run is i .. j-1, each fix within radius of the run's centroid; the fixes before
+        # the newest lie within far + |c - (ax, ay)| of it (triangle inequality), checked one
+        # by one only when that bound exceeds the radius (a long stay costs O(m), not O(m^2))
+        ax, ay, far = sx, sy, 0.0
+        j = i + 1
+        while j < n:
+            cx, cy = (sx + xy[j, 0]) / (j - i + 1), (sy + xy[j, 1]) / (j - i + 1)
+            ok = np.hypot(xy[j, 0] - cx, xy[j, 1] - cy) <= radius
+            if ok and far + np.hypot(cx - ax, cy - ay) > radius:
+                far = 0.0
+                for m in range(i, j):
+                    far = max(far, np.hypot(xy[m, 0] - cx, xy[m, 1] - cy))
+                ok = far <= radius
+                ax, ay = cx, cy
+            if not ok:
+                break
+            far = max(far, np.hypot(xy[j, 0] - ax, xy[j, 1] - ay))
+            sx += xy[j, 0]
+            sy += xy[j, 1]
+            j += 1
+        found = False
+        m_run = j - i
+        if m_run >= min_fixes and t[j - 1] - t[i] >= min_s:
+            cos_sum = 0.0
+            for m in range(i + 1, j - 1):
+                ax, ay = xy[m, 0] - xy[m - 1, 0], xy[m, 1] - xy[m - 1, 1]
+                bx, by = xy[m + 1, 0] - xy[m, 0], xy[m + 1, 1] - xy[m, 1]
+                na, nb = np.hypot(ax, ay), np.hypot(bx, by)
+                cos_sum += (ax * bx + ay * by) / (na * nb) if na * nb > 0 else 1.0
+            h = i + m_run // 2  # halves i .. h-1 and h .. j-1
+            c1 = xy[i:h].sum(axis=0) / (h - i)
+            c2 = xy[h:j].sum(axis=0) / (j - h)
+            dt = t[h:j].mean() - t[i:h].mean()
+            drift = np.hypot(c2[0] - c1[0], c2[1] - c1[1])
+            found = (cos_sum / (m_run - 2) <= max_cos) and (
+                drift <= drift_sigmas * 2.0 * sigma / np.sqrt(m_run) + creep_mps * dt
+            )
+        if found:  # its ends: no fix moving away at the start or the end (arrival, departure)
+            cx, cy = sx / m_run, sy / m_run
+            a, b = i, j - 1
+            while (
+                j < n
+                and b - a + 1 > min_fixes
+                and np.hypot(xy[b, 0] - cx, xy[b, 1] - cy)
+                > np.hypot(xy[b - 1, 0] - cx, xy[b - 1, 1] - cy)
+            ):
+                b -= 1
+            while (
+                i > 0
+                and b - a + 1 > min_fixes
+                and np.hypot(xy[a, 0] - cx, xy[a, 1] - cy)
+                > np.hypot(xy[a + 1, 0] - cx, xy[a + 1, 1] - cy)
+            ):
+                a += 1
+            out[k, 0], out[k, 1] = a, b
+            k += 1
+            i = b + 1
+        else:
+            i += 1
+    return out[:k]
+
+
+def rest_runs(
+    enu: np.ndarray, noise_m: float, t: np.ndarray | None = None
+) -> list[tuple[int, int]]:
+    """Runs of consecutive fixes that are GPS jitter around one place: a vehicle at rest.
+
+    A run is at rest when it holds at least :data:`REST_MIN_FIXES` fixes and
+
+    - every one lies within the receiver's noise radius ``K_SIGMA noise_m`` of the run's
+      horizontal centroid (a 2-D Gaussian fix strays beyond it with probability
+      ``exp(-K_SIGMA^2 / 2)``, 4e-6);
+    - its legs keep no heading: the mean cosine of the turns between consecutive legs is at
+      most :data:`REST_MAX_TURN_COS` (jitter reverses; a tight circle continues);
+    - it does not progress: the centroids of its first and second halves (``m`` fixes in
+      all) differ by at most :data:`REST_DRIFT_SIGMAS` standard deviations of that difference
+      under white noise (``2 noise_m / sqrt(m)``) plus, when timed, :data:`REST_CREEP_MPS`
+      times the time between the halves (a slow walk or a creeping car progresses, however
+      noisy its fixes);
+    - when timed, it lasts at least :data:`STILL_MIN_S` (shorter stops are the truth fit's).
+
+    Runs are grown greedily from the first fix, each as long as the radius allows; then fixes
+    moving away from the centroid at its end (or towards it at its start: departure and
+    arrival) are left out of it, except at the ends of the path.
+
+    Parameters
+    ----------
+    enu : ndarray, shape (n, 2) or (n, 3)
+        Positions (m); the horizontal is used.
+    noise_m : float
+        Horizontal noise of one coordinate (m).
+    t : ndarray, shape (n,), optional
+        Times (s); None for an untimed path.
+
+    Returns
+    -------
+    list of (int, int)
+        (first, last) fix index of each run, in order, not overlapping.
+    """
+    xy = np.ascontiguousarray(np.asarray(enu, float)[:, :2])
+    if len(xy) < REST_MIN_FIXES:
+        return []
+    tt = np.zeros(len(xy)) if t is None else np.ascontiguousarray(t, dtype=float)
+    creep, min_s = (0.0, 0.0) if t is None else (REST_CREEP_MPS, STILL_MIN_S)
+    runs = _rest_runs(
+        xy, tt, K_SIGMA * float(noise_m), float(noise_m), REST_DRIFT_SIGMAS, creep,
+        REST_MIN_FIXES, min_s, REST_MAX_TURN_COS,
+    )  # fmt: skip
+    return [(int(a), int(b)) for a, b in runs]
+
+
+def _length(enu: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(enu[:, :2], axis=0), axis=1).sum())
+
+
+def merge_rest(
+    cols: dict, enu: np.ndarray, noise_m: float, *, timed: bool, enu_frame: LocalFrame | None
+) -> tuple[dict, np.ndarray, dict | None]:
+    """Put each run of fixes at rest (:func:`rest_runs`) at its centroid.
+
+    Untimed, the run becomes one point at its horizontal centroid and median height (a path
+    without a clock has no stops); timed, its fixes are kept with their times and all placed
+    at the run's horizontal centroid, their heights held (:func:`hold_heights`), so the truth
+    stands exactly still there instead of crawling through the jitter.
+
+    ``enu`` (n, 3) [m] are the points in :func:`_frame` (of ``cols``' first point, or
+    ``enu_frame``). Returns the columns, their positions in that frame, and the
+    report (None when no run is found): ``runs`` (first and last 1-based point numbers of
+    the kept points, at most :data:`MAX_LISTED`), ``fixes`` (in the runs), ``radius_m``,
+    ``noise_m``, ``length_before_m`` and ``length_after_m`` (horizontal path length).
+    """
+    runs = rest_runs(enu, noise_m, cols["time"] if timed else None)
+    if not runs:
+        return cols, enu, None
+    before = _length(enu)
+    new = enu.copy()
+    keep = np.ones(len(enu), dtype=bool)
+    for a, b in runs:
+        new[a : b + 1, :2] = enu[a : b + 1, :2].mean(axis=0)
+        if not timed:
+            new[a, 2] = np.median(enu[a : b + 1, 2])
+            keep[a + 1 : b + 1] = False
+    if timed:  # GPS heights wander at rest: held as a parked vehicle's (still_heights)
+        new[:, 2] = hold_heights(cols["time"], enu[:, 2], runs)
+    frame = _frame(cols, enu_frame)  # the one ``enu`` is in (:func:`_metric`)
+    at = np.zeros(len(enu), dtype=bool)
+    for a, b in runs:
+        at[a : b + 1] = True
+    lat, lon, alt = frame.to_geodetic(new[at])
+    cols["lat"], cols["lon"], cols["alt"] = (
+        c.astype(float) for c in (cols["lat"], cols["lon"], cols["alt"])
+    )
+    cols["lat"][at], cols["lon"][at], cols["alt"][at] = lat, lon, alt
+    if enu_frame is not None:
+        cols["pos"] = new
+    else:
+        cols["pos"] = np.column_stack([cols["lat"], cols["lon"], cols["alt"]])
+    for k in cols:
+        cols[k] = cols[k][keep]
+    new = new[keep]
+    report = {
+        "runs": [[a + 1, b + 1] for a, b in runs[:MAX_LISTED]],
+        "count": len(runs),
+        "fixes": int(sum(b - a + 1 for a, b in runs)),
+        "radius_m": K_SIGMA * float(noise_m),
+        "noise_m": float(noise_m),
+        "merged_to_one_point": not timed,
+        "runs_s": [[float(cols["time"][a]), float(cols["time"][b])] for a, b in runs]
+        if timed
+        else None,
+        "length_before_m": before,
+        "length_after_m": _length(new),
+    }
+    return cols, new, report
 
 
 def _along(enu: np.ndarray) -> np.ndarray:

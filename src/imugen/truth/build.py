@@ -111,10 +111,13 @@ def pose_motion(enu: pd.DataFrame, meta: dict, settings: PoseSettings | None):
 def _virtual(t: np.ndarray, meta: dict) -> np.ndarray | None:
     """Coordinates of a timed route that ingestion placed, (n, 3) bool, or None: the virtual
     fixes of bridged gaps (``segments.virtual_s`` spans, s like ``time_s``) and the heights
-    held while an aircraft stands still (``cleaning.still_runs_s``)."""
+    held while an aircraft stands still (``cleaning.still_runs_s``), and the fixes of GPS
+    jitter at rest placed at their centroid (``cleaning.at_rest.runs_s``)."""
     out = np.zeros((len(t), 3), bool)
     for a, b in (meta.get("segments") or {}).get("virtual_s") or []:
         out[(t > a + 1e-6) & (t < b - 1e-6)] = True
+    for a, b in ((meta.get("cleaning") or {}).get("at_rest") or {}).get("runs_s") or []:
+        out[(t >= a - 1e-6) & (t <= b + 1e-6)] = True
     for a, b in (meta.get("cleaning") or {}).get("still_runs_s") or []:
         out[(t >= a - 1e-6) & (t <= b + 1e-6), 2] = True
     return out if out.any() else None

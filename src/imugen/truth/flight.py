@@ -334,10 +334,23 @@ def flight_corner(y, alt_m, vp: VehicleParams, corner_m=None):
         Corner-rounding length [m] and the curvature limit against chord length.
     """
     y = np.asarray(y, float)
-    seg = np.linalg.norm(np.diff(y, axis=0), axis=1)
-    s_m = np.r_[0.0, np.cumsum(seg)]
-    if corner_m is None:
-        moved = seg[seg > 1e-9]
-        spacing = float(np.percentile(moved, 10)) if len(moved) else vp.corner_m
-        corner_m = min(vp.corner_m, max(FLIGHT_CORNER_MIN_M, spacing))
-    return float(corner_m), turn_curvature(s_m, alt_m, vp)
+    s_m = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(y, axis=0), axis=1))]
+    return corner_length_m(y, vp, corner_m), turn_curvature(s_m, alt_m, vp)
+
+
+def corner_length_m(y, vp: VehicleParams, corner_m=None) -> float:
+    """Corner-rounding length [m] an untimed path of points ``y`` (N, 3) [m] is fitted with.
+
+    ``corner_m`` when given; for a flight (``vp.phases``) the input's short point spacing
+    (10th percentile of the legs that move) within [:data:`FLIGHT_CORNER_MIN_M`,
+    ``vp.corner_m``]; otherwise the class's ``vp.corner_m``. The fit's grid is a sixteenth of
+    it, so :mod:`imugen.preflight` sizes the truth's memory with it.
+    """
+    if corner_m is not None:
+        return float(corner_m)
+    if not vp.phases:
+        return float(vp.corner_m)
+    seg = np.linalg.norm(np.diff(np.asarray(y, float), axis=0), axis=1)
+    moved = seg[seg > 1e-9]
+    spacing = float(np.percentile(moved, 10)) if len(moved) else vp.corner_m
+    return float(min(vp.corner_m, max(FLIGHT_CORNER_MIN_M, spacing)))
