@@ -519,7 +519,10 @@ ABRUPT_RESIDUAL_NOISE = 3.0
 """A fix next to a stop's edge farther than this many noise estimates (the RMS radius of a fix)
 from the fit makes the stop abrupt (:func:`_abrupt_stops`): the smoothing rounds its braking
 (or pulling away) over several seconds and the spline speeds up before to make up the
-distance."""
+distance. This and the next two distances are at least half ``stop_radius_m`` (as the stop's
+edge test): precise fixes (5 cm) of a car that stops while still decelerating (0.6 m/s^2)
+miss the zero-acceleration join by a few tenths of a metre, a gentle stop, not a bounce; a
+relaxed fit there only steps the jerk at the join (on a suspension, a kink in the pitch rate)."""
 
 ABRUPT_FIT_NOISE = 1.5
 """... and its relaxing goes on until those fixes are within this many noise estimates."""
@@ -583,9 +586,10 @@ def _abrupt_stops(held, spline, y, lam, vp, noise_m, d):
     edge's time, the limit, the value the relaxed curve asked for) and :func:`fit_timed` moves
     that edge a fix into the stop (:func:`_shorten`); the curve keeps to the limits."""
     t, n = held.t, held.n
-    tol = ABRUPT_RESIDUAL_NOISE * max(noise_m, 1e-3)
-    goal = ABRUPT_FIT_NOISE * max(noise_m, 1e-3)
-    near = ABRUPT_NEAR_NOISE * max(noise_m, 1e-3)
+    floor = 0.5 * vp.stop_radius_m  # as the stop's edge test (precise fixes)
+    tol = max(ABRUPT_RESIDUAL_NOISE * noise_m, floor)
+    goal = max(ABRUPT_FIT_NOISE * noise_m, floor)
+    near = max(ABRUPT_NEAR_NOISE * noise_m, floor)
     # per edge: (first, last) fix of the relaxed intervals, (first, last) fix looked at, edge
     spans = []
     for i0, i1 in held.stops:
