@@ -88,12 +88,19 @@ def test_reversal_through_a_stop_is_continuous(angle, suspension):
     # no attitude step beyond what the rates allow; dtheta agrees with the gyro columns
     # (the old blend: a 2.5 rad step in 10 ms, 43.6 rad/s between dtheta and the gyro)
     assert rep["max_attitude_step_excess_rad"] < 1e-4
-    assert _rate_increment_error(tr) < 1e-4
+    # on a suspension the body pitches with the acceleration, whose jerk steps where the
+    # spline joins a stop (zero speed and acceleration, a C2 join: issue 27's abrupt stops):
+    # a kink in the gyro, which the 4th-order integral of 20 Hz samples leaves at 1.3e-4 rad/s
+    # at the stop's edges (2.7e-5 with the C4 join before)
+    assert _rate_increment_error(tr) < (1e-4 if suspension == "rigid" else 2e-4)
     # heading: per sample never more than speed x max curvature x dt (no turning on the spot)
     yaw = np.unwrap(tr["yaw_rad"].to_numpy())
     v_h = np.linalg.norm(_arr(tr, col.VEL)[:, :2], axis=1)
     allowed = vp.max_curvature_1pm * np.maximum(v_h[1:], v_h[:-1]) / rate
-    assert np.all(np.abs(np.diff(yaw)) <= allowed * (1 + 1e-6) + 1e-12)
+    # (on a suspension the body still rocks for a moment after it stops: its Euler yaw moves
+    # by a few 1e-8 rad with the settling roll and pitch, the heading does not)
+    tol = 1e-12 if suspension == "rigid" else 1e-6
+    assert np.all(np.abs(np.diff(yaw)) <= allowed * (1 + 1e-6) + tol)
     # a real stop: the body settles on its suspension (a damped second order, pitch
     # envelope exp(-zeta omega_n t), 1/e in 0.33 s), then its attitude is constant
     stops = meta["fit"]["stops"]

@@ -13,7 +13,10 @@ least ``stop_min_s`` whose horizontal positions (3-D for aircraft) stay within
 ``stop_radius_m`` (or 3x the noise) of their median and barely move overall, and intervals
 between sparse fixes that barely moved (see :func:`imugen.truth.fit._find_stops`), are *stops*: the spline is
 constrained to be exactly constant there (its B-spline coefficients over the stop are tied),
-so velocity, acceleration, jerk and snap vanish at the stop's edges and the stop is a real stop.
+and joins it through a triple knot, so velocity and acceleration vanish at the stop's edges
+(the jerk is free: a vehicle braking within one interval of sparse fixes) and the stop is a
+real stop; next to an abrupt stop the smoothing is relaxed within the vehicle's limits
+(:func:`imugen.truth.fit._abrupt_stops`).
 
 *Untimed routes* (polylines, e.g. KML LineString): the polyline is densified and fitted by
 the same smoothing spline against chord length with a corner-rounding length ``corner_m``

@@ -391,16 +391,25 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         d = 2 if vp.attitude == "ground" else 3
         exact = None if real is None else ~real[:, :d].any(axis=1)
         stop_list = _find_stops(t, y[:, :d], float(np.linalg.norm(sig[:d])), vp, exact)
-        if stop_list:
-            # coefficients active on [t_i0, t_i1] are i0 .. i1 + k - 1 (knots at data sites)
-            ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
-            ps = PenalizedSpline(t, ties)
-            coef = np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(3)])
-            spline = ps.bspline(coef)
-    ties = [(i0, i1 + K_SPLINE - 1) for i0, i1 in stop_list]
-    spline, limited = _within_limits(
-        spline, t, y, vp, lambda w: PenalizedSpline(t, ties, w), lam, float(np.linalg.norm(sig))
-    )
+    held = HeldSites(t, stop_list)
+    abrupt, found = None, list(stop_list)
+    for _ in range(ABRUPT_SHORTEN + 1) if stop_list else ():
+        spline = held.fit(y, lam)
+        spline, abrupt = _abrupt_stops(held, spline, y, lam, vp, float(np.linalg.norm(sig[:d])), d)
+        shorter = _shorten(stop_list, abrupt, t, vp)
+        if shorter == stop_list:
+            break
+        stop_list = shorter
+        held = HeldSites(t, stop_list)
+    moved = [
+        [float(t[a]), float(t[b])]
+        for (a, b), (c, e) in zip(found, stop_list, strict=True)
+        for a, b in ((a, c), (b, e))
+        if a != b
+    ]
+    if moved:
+        abrupt = dict(abrupt or {}, edges_moved_s=moved)
+    spline, limited = _within_limits(spline, t, y, vp, held.spline, lam, float(np.linalg.norm(sig)))
     motion = TimedMotion(spline, float(t[0]), float(t[-1]))
     dist = np.linalg.norm(spline(t) - y, axis=1)
     report = {
@@ -414,9 +423,251 @@ def fit_timed(t, y, vp: VehicleParams, fit_tol_m=None, stops=True, virtual=None)
         "rms_distance_m": float(np.sqrt(np.mean(dist**2))),
         "max_distance_m": float(dist.max()),
         "stops": [[float(t[i0]), float(t[i1])] for i0, i1 in stop_list],
+        "abrupt_stops": abrupt,
         "limited": limited,
     }
     return motion, report
+
+
+STOP_JOIN_MULTIPLICITY = 3
+"""Multiplicity of the knot where a timed spline joins a stop inside the route
+(:class:`HeldSites`): a quintic is C^(5 - m) across a knot of multiplicity m, so the spline
+joins the stop with zero velocity and acceleration (C2), its jerk free."""
+
+
+class HeldSites:
+    """Sites of a timed route's penalized spline held still over ``stops``.
+
+    ``t`` (n,): input times; ``stops``: index ranges (i0, i1) of ``t`` where the spline is
+    constant. Each stop edge inside the route is a knot of multiplicity
+    :data:`STOP_JOIN_MULTIPLICITY` (zero-weight copies of the site): the spline joins the stop
+    with zero velocity and acceleration, as a vehicle braking to rest does. A simple knot would
+    join it C4, leaving the quintic one free coefficient on the interval before the stop
+    (``p_stop - c (t_stop - t)^5``): at sparse fixes of an abrupt stop (a 1 Hz logger braking
+    within its last second) the spline then brakes over several intervals and makes up the
+    distance by speeding up before (5.7 -> 8.8 -> 0 m/s); with the triple knot the last
+    interval holds the cubic braking ``a s^3 + b s^4 + c s^5`` (s the time to the stop), whose
+    speed falls monotonically from the fixes' speed to rest.
+
+    Attributes
+    ----------
+    x : ndarray, shape (m,)
+        The spline's sites (input times with the copies).
+    take : ndarray of int, shape (m,)
+        Input index of each site.
+    real : ndarray of bool, shape (m,)
+        False at the copies (weight 0).
+    ties : list of (int, int)
+        Coefficient ranges of the sites' spline held equal (:class:`PenalizedSpline`).
+    """
+
+    def __init__(self, t, stops, multiplicity=None):
+        multiplicity = STOP_JOIN_MULTIPLICITY if multiplicity is None else multiplicity
+        t = np.asarray(t, float)
+        n = len(t)
+        self.n, self.t, self.stops = n, t, list(stops)
+        self.relax = np.ones(max(n - 1, 0))  # factors of the penalty on the input intervals
+        edges = sorted({i for i0, i1 in stops for i in (i0, i1) if 0 < i < n - 1})
+        extra = np.zeros(n, int)
+        extra[edges] = multiplicity - 1
+        self.take = np.repeat(np.arange(n), 1 + extra)
+        self.x = t[self.take]
+        first = np.searchsorted(self.take, np.arange(n))  # first site of each input point
+        last = first + extra  # and its last copy
+        self.real = np.r_[True, np.diff(self.take) > 0]
+        # coefficients active on [x_a, x_b] (knots at the sites) are a .. b + k - 1: from the
+        # last copy of the stop's first site to the first copy of its last
+        self.ties = [(int(last[i0]), int(first[i1]) + K_SPLINE - 1) for i0, i1 in stops]
+
+    def spline(self, weights=None):
+        """The :class:`PenalizedSpline` of the sites, with input ``weights`` (n,) (default 1);
+        its ``solve`` takes values at the input times (n,)."""
+        w = np.ones(self.n) if weights is None else np.asarray(weights, float)
+        stiff = None
+        if np.any(self.relax != 1.0):
+            stiff = np.r_[self.relax, 1.0][self.take]  # a site's interval: its input's
+        ps = PenalizedSpline(self.x, self.ties, np.where(self.real, w[self.take], 0.0), stiff)
+        if len(self.x) == self.n:
+            return ps
+        return _SitesSpline(ps, self.take)
+
+    def fit(self, y, lam):
+        """The fitted curve (BSpline) of ``y`` (n, d) with smoothing ``lam`` (d,)."""
+        ps = self.spline()
+        return ps.bspline(np.column_stack([ps.solve(lam[i], y[:, i]) for i in range(y.shape[1])]))
+
+
+class _SitesSpline:
+    """A :class:`PenalizedSpline` on :class:`HeldSites`' sites solved for values at the input
+    times."""
+
+    def __init__(self, ps, take):
+        self.ps, self.take = ps, take
+
+    def solve(self, lam, y):
+        return self.ps.solve(lam, np.asarray(y, float)[self.take])
+
+    def bspline(self, c):
+        return self.ps.bspline(c)
+
+    @property
+    def scale(self):
+        return self.ps.scale
+
+
+ABRUPT_RESIDUAL_NOISE = 3.0
+"""A fix next to a stop's edge farther than this many noise estimates (the RMS radius of a fix)
+from the fit makes the stop abrupt (:func:`_abrupt_stops`): the smoothing rounds its braking
+(or pulling away) over several seconds and the spline speeds up before to make up the
+distance. This and the next two distances are at least half ``stop_radius_m`` (as the stop's
+edge test): precise fixes (5 cm) of a car that stops while still decelerating (0.6 m/s^2)
+miss the zero-acceleration join by a few tenths of a metre, a gentle stop, not a bounce; a
+relaxed fit there only steps the jerk at the join (on a suspension, a kink in the pitch rate)."""
+
+ABRUPT_FIT_NOISE = 1.5
+"""... and its relaxing goes on until those fixes are within this many noise estimates."""
+
+ABRUPT_LOOK = 5
+"""Fixes outside a stop's edge whose distance from the fit is examined (the smoothing rounds
+an abrupt stop over a few of its bandwidths)."""
+
+ABRUPT_REACH = 2
+"""Input intervals outside an abrupt stop's edge whose smoothing penalty is relaxed: before
+its first braking fix (after its last pulling-away fix), the fixes in between lying within
+:data:`ABRUPT_NEAR_NOISE` noise estimates of the stop's position (still fixes that the stop's
+edge test left out, :data:`STOP_EDGE_NOISE`: a fit free to follow their noise would creep)."""
+
+ABRUPT_NEAR_NOISE = 2.0
+"""See :data:`ABRUPT_REACH`."""
+
+ABRUPT_RELAX_STEP = 0.1
+"""Factor of that penalty per round."""
+
+ABRUPT_ITERATIONS = 8
+"""Rounds of relaxing (the penalty down to ``ABRUPT_RELAX_STEP ** ABRUPT_ITERATIONS``)."""
+
+
+ABRUPT_SHORTEN = 2
+"""Fixes by which an abrupt stop's edge may move into the stop (:func:`_shorten`)."""
+
+
+def _shorten(stops, abrupt, t, vp):
+    """The stops (index ranges of ``t``), each edge that :func:`_abrupt_stops` found beyond the
+    vehicle's limits (``abrupt["beyond"]``) moved one fix into its stop, as long as the stop
+    lasts ``stop_min_s``: the stop's edge test (:data:`STOP_EDGE_NOISE`) took in a fix still
+    braking or already pulling away, within the noise of the stop's position, and the curve,
+    held still there, cannot catch up with the fixes beyond within the limits."""
+    if not abrupt or not abrupt["beyond"]:
+        return stops
+    at = {b["t_s"] for b in abrupt["beyond"]}
+    out = []
+    for i0, i1 in stops:
+        j0 = i0 + 1 if float(t[i0]) in at and i0 > 0 else i0
+        j1 = i1 - 1 if float(t[i1]) in at and i1 < len(t) - 1 else i1
+        out.append((j0, j1) if t[j1] - t[j0] >= vp.stop_min_s else (i0, i1))
+    return out
+
+
+def _abrupt_stops(held, spline, y, lam, vp, noise_m, d):
+    """The fit of ``y`` (n, 3) held still over ``held``'s stops, its smoothing penalty relaxed
+    at the abrupt ones, and a report (None when none is abrupt).
+
+    A stop edge inside the route is abrupt when one of the :data:`ABRUPT_LOOK` fixes outside
+    it lies farther than :data:`ABRUPT_RESIDUAL_NOISE` noise estimates ``noise_m`` from the fit
+    (in the ``d`` coordinates that decide stops): a vehicle braking within the last interval
+    of sparse fixes, which the smoothing rounds over several seconds (the spline then speeds
+    up before the stop to make up the distance). The penalty on the :data:`ABRUPT_REACH`
+    intervals outside the edge shrinks by :data:`ABRUPT_RELAX_STEP` per round (the fit brakes
+    later and harder, as the fixes do) until those fixes are within :data:`ABRUPT_FIT_NOISE`
+    noise estimates; a round that takes the curve there beyond the vehicle's acceleration or
+    jerk limit is undone for that edge and ends its relaxing. Where the fixes then still lie
+    beyond :data:`ABRUPT_RESIDUAL_NOISE` noise estimates, the fixes stop (or pull away) harder
+    than the vehicle can from the stop's edge: the report lists the place (``beyond``: the
+    edge's time, the limit, the value the relaxed curve asked for) and :func:`fit_timed` moves
+    that edge a fix into the stop (:func:`_shorten`); the curve keeps to the limits."""
+    t, n = held.t, held.n
+    floor = 0.5 * vp.stop_radius_m  # as the stop's edge test (precise fixes)
+    tol = max(ABRUPT_RESIDUAL_NOISE * noise_m, floor)
+    goal = max(ABRUPT_FIT_NOISE * noise_m, floor)
+    near = max(ABRUPT_NEAR_NOISE * noise_m, floor)
+    # per edge: (first, last) fix of the relaxed intervals, (first, last) fix looked at, edge
+    spans = []
+    for i0, i1 in held.stops:
+        mid = np.median(y[i0 : i1 + 1, :d], axis=0)
+
+        def still(k, mid=mid):  # a fix outside the stop within the noise of its position
+            return np.linalg.norm(y[k, :d] - mid) <= near
+
+        if i0 > 0:
+            k = i0
+            while k > max(0, i0 - ABRUPT_LOOK) and still(k - 1):
+                k -= 1
+            spans.append((max(0, k - ABRUPT_REACH), k, max(0, i0 - ABRUPT_LOOK), i0, i0))
+        if i1 < n - 1:
+            k = i1
+            while k < min(n - 1, i1 + ABRUPT_LOOK) and still(k + 1):
+                k += 1
+            spans.append((k, min(n - 1, k + ABRUPT_REACH), i1, min(n - 1, i1 + ABRUPT_LOOK), i1))
+    # both ends of each interval (a quintic's jerk peaks at its knots, and a stop's join is C2)
+    f = np.linspace(0.0, 1.0 - 1e-9, 9)
+
+    def far(c, span, tol=goal):  # fixes looked at farther than tol from the curve
+        a, b = span[2:4]
+        return np.linalg.norm(c(t[a : b + 1])[:, :d] - y[a : b + 1, :d], axis=1).max() > tol
+
+    def peaks(c, span):  # the curve's largest acceleration and jerk over the relaxed intervals
+        a, b = span[:2]
+        tq = (t[a:b, None] + f * np.diff(t[a : b + 1])[:, None]).ravel()
+        return np.linalg.norm(c(tq, 2), axis=1).max(), np.linalg.norm(c(tq, 3), axis=1).max()
+
+    live = [s for s in spans if far(spline, s, tol=tol)]
+    if not live:
+        return spline, None
+    first, asked, rounds = list(live), {}, 0
+    for rounds in range(1, ABRUPT_ITERATIONS + 1):  # noqa: B007 (reported below)
+        before = held.relax.copy()
+        for s in live:
+            held.relax[s[0] : s[1]] = before[s[0] : s[1]] * ABRUPT_RELAX_STEP
+        trial = held.fit(y, lam)
+        over = []
+        for s in live:
+            acc, jerk = peaks(trial, s)
+            if acc > vp.max_accel_mps2 or jerk > vp.max_jerk_mps3:
+                over.append(s)
+                asked[s] = (acc, jerk)
+        if over:  # those edges keep their last round's penalty and stop relaxing
+            for s in over:
+                held.relax[s[0] : s[1]] = before[s[0] : s[1]]
+            trial = held.fit(y, lam)
+        spline = trial
+        live = [s for s in live if s not in over and far(spline, s)]
+        if not live:
+            break
+    if not np.any(held.relax < 1.0) and not asked:
+        return spline, None
+    beyond = []
+    for s, (acc, jerk) in asked.items():
+        if far(spline, s, tol=tol):
+            edge = s[4]
+            a_r, j_r = acc / vp.max_accel_mps2, jerk / vp.max_jerk_mps3
+            beyond.append(
+                {
+                    "t_s": float(t[edge]),
+                    "limit": "acceleration" if a_r >= j_r else "jerk",
+                    "value": float(acc if a_r >= j_r else jerk),
+                    "bound": float(vp.max_accel_mps2 if a_r >= j_r else vp.max_jerk_mps3),
+                    "unit": "m/s^2" if a_r >= j_r else "m/s^3",
+                }
+            )
+    return spline, {
+        "method": "smoothing penalty relaxed outside the edges of stops whose braking or "
+        "pulling away the fit rounded beyond the fixes' noise",
+        "residual_tolerance_m": tol,
+        "edges_s": [float(t[s[4]]) for s in first],
+        "rounds": rounds,
+        "least_relax": float(held.relax.min()),
+        "beyond": beyond,
+    }
 
 
 LIMIT_ITERATIONS = 12

@@ -20,7 +20,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 
 from imugen.truth.fit import (
     K_SPLINE,
-    PenalizedSpline,
+    HeldSites,
     TimedMotion,
     distance_to_curve,
     fit_height_profile,
@@ -30,6 +30,8 @@ from imugen.truth.fit import (
 _GL = np.polynomial.legendre.leggauss(4)
 KNOT_MAX_S = 1.0  # knots of the road-profile vertical at most this far apart in time [s]
 KNOTS_PER_SMOOTH = 5  # ... and at most grade_smooth_m / this far apart in distance
+STOP_KNOT_INTERVALS = 5  # input intervals either side of a stop's edge (fit.ABRUPT_LOOK) ...
+STOP_KNOT_PARTS = 8  # ... split into at least this many (a braking within one interval)
 _LAM = 1e-2  # penalty of the vertical spline (normalized): near interpolation of H(s(t))
 _HEIGHT_ITER = 3  # iterations from the profile's ellipsoidal height to n's Up (wgs84)
 
@@ -75,14 +77,19 @@ def _up_of_height(E, p, h):
     return u
 
 
-def _knot_sites(t_in, ds_in, smooth_m):
+def _knot_sites(t_in, ds_in, smooth_m, stop_edges=()):
     """Input times, each interval split into equal parts at most ``KNOT_MAX_S`` long and
-    ``smooth_m / KNOTS_PER_SMOOTH`` of distance."""
+    ``smooth_m / KNOTS_PER_SMOOTH`` of distance, and the :data:`STOP_KNOT_INTERVALS` intervals
+    either side of each stop edge (input indexes ``stop_edges``) into at least
+    :data:`STOP_KNOT_PARTS`."""
     dt = np.diff(t_in)
     parts = np.maximum(
         np.ceil(dt / KNOT_MAX_S), np.ceil(ds_in * KNOTS_PER_SMOOTH / smooth_m)
     ).astype(np.int64)
     parts = np.maximum(parts, 1)
+    for e in stop_edges:
+        lo, hi = max(0, e - STOP_KNOT_INTERVALS), min(len(dt), e + STOP_KNOT_INTERVALS)
+        parts[lo:hi] = np.maximum(parts[lo:hi], STOP_KNOT_PARTS)
     starts = np.repeat(t_in[:-1], parts)
     frac = np.arange(parts.sum()) - np.repeat(np.cumsum(parts) - parts, parts)
     x = starts + np.repeat(dt / parts, parts) * frac
@@ -121,18 +128,26 @@ def motion_on_road(motion: TimedMotion, E, vp, heights, noise_up_m, stops):
     )
     if H is None:
         return motion, None, {"grade": grep, "method": "time fit (too short for a profile)"}
-    x, idx = _knot_sites(t_in, ds_in, vp.grade_smooth_m)
+    # the horizontal distance brakes into a stop within an interval or two of sparse fixes
+    # (~ (t_stop - t)^3, :class:`imugen.truth.fit.HeldSites`): finer knots there follow it
+    edges = [int(np.searchsorted(t_in, e)) for st in stops for e in st]
+    x, idx = _knot_sites(t_in, ds_in, vp.grade_smooth_m, edges)
     # distance at the knots and midway between them (quadrature within each input interval)
     z = np.empty(2 * len(x) - 1)
     z[0::2], z[1::2] = x, 0.5 * (x[1:] + x[:-1])
     s_z = np.r_[0.0, np.cumsum(distance_steps(motion, E, z))]
     h_x = H(s_z[0::2])
     u_x = _up_of_height(E, motion.position(x) if not E.flat else None, h_x)
-    ties = [
-        (int(idx[np.searchsorted(t_in, a)]), int(idx[np.searchsorted(t_in, b)]) + K_SPLINE - 1)
-        for a, b in stops
-    ]
-    ps = PenalizedSpline(x, ties)
+    # held still over the stops, joining them as the horizontal does (zero velocity and
+    # acceleration: the vertical H(s(t)) brakes with the distance, ~ (t_stop - t)^3)
+    held = HeldSites(
+        x,
+        [
+            (int(idx[np.searchsorted(t_in, a)]), int(idx[np.searchsorted(t_in, b)]))
+            for a, b in stops
+        ],
+    )
+    ps = held.spline()
     u0 = float(np.mean(u_x))
     V = ps.bspline(ps.solve(_LAM, u_x - u0))
     V = BSpline(V.t, V.c + u0, V.k, extrapolate=True)  # the B-splines sum to 1
