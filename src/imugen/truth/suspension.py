@@ -47,6 +47,7 @@ from imugen.core.jit import njit
 
 NODES_PER_PERIOD = 25  # nodes of the time grid per natural period (at least; dt <= 0.02 s)
 MAX_DT_S = 0.02
+REST_RAD = 1e-12  # an input angle this small is rest (a stopped vehicle's is 0)
 CHUNK = 1 << 16
 
 
@@ -98,10 +99,33 @@ def _node_states(P, h, e, C, S, w2, sigma, x0, xd0):
     return x, xd
 
 
+def _input_spline(t, u):
+    """Coefficients (4, n - 1) of the input's piecewise cubic (highest power first): identically
+    the input's value over every interval whose two nodes are at rest (``|u| <= REST_RAD``: a
+    stopped vehicle), and the C^2 cubic spline through the nodes of each stretch between them.
+    One spline through a stop would reach into it ((2 - sqrt 3)^k at the k-th node): the body
+    would stir up to a second before the vehicle pulls away (1.3e-6 rad/s 0.02 s before)."""
+    n = len(t)
+    c = np.zeros((4, n - 1))
+    c[3] = u[:-1]
+    rest = np.abs(u) <= REST_RAD
+    moving = ~(rest[:-1] & rest[1:])  # intervals (n - 1,)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], moving.astype(np.int8), [0]))))
+    for i, j in zip(edges[::2], edges[1::2], strict=True):  # intervals i..j-1 move: nodes i..j
+        if j - i == 1:  # two nodes: the linear input
+            c[2, i] = (u[j] - u[i]) / (t[j] - t[i])
+        else:
+            c[:, i:j] = CubicSpline(t[i : j + 1], u[i : j + 1]).c
+    return c
+
+
 class Response:
     """Exact response of ``x'' = w^2 (u - x) - 2 zeta w x'`` to the C^2 cubic spline ``u``
     through input values on a uniform grid, from rest at ``u[0]``: C^4 in time (its fifth
-    derivative steps with the spline's third), evaluated in closed form at any time.
+    derivative steps with the spline's third), evaluated in closed form at any time. Over
+    intervals at rest the input is held at rest and the spline restarts after them (a stop's
+    edges are C^2 in the body's angle: the pull-away's step of jerk), so a body at rest stays
+    exactly at rest until its vehicle moves.
 
     Parameters
     ----------
@@ -119,11 +143,7 @@ class Response:
         self.w2 = (2.0 * math.pi * f_n) ** 2
         self.sigma = zeta * 2.0 * math.pi * f_n
         u = np.asarray(u, float)
-        if len(u) < 4:  # a cubic through few points: the linear input
-            c = np.zeros((4, len(u) - 1))
-            c[2], c[3] = np.diff(u) / self.h, u[:-1]
-        else:
-            c = CubicSpline(t, u).c
+        c = _input_spline(np.asarray(t, float), u)
         self.P = np.ascontiguousarray(_particular(c, f_n, zeta))
         e, C, S = _homogeneous(np.array(self.h), f_n, zeta)
         self.x, self.xd = _node_states(
