@@ -480,6 +480,9 @@ def build_truth(
         airborne=airborne,
         frame=E.frame,
         turns_at_rest=turns,
+        suspension_pitch_rad=(
+            None if ground is None or ground.suspension is None else ground.suspension(times)[2]
+        ),
     )
     # the pre-write gate (imugen.truth.gate); a pose truth is the given motion, not gated
     gate = (
