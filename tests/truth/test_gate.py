@@ -199,7 +199,7 @@ def test_real_tracks_pass_the_gate(path):
     suspension's input capped at the tyre limit). The slip (body lateral speed) is gated on
     timed routes too (issue 27): the timed ground tracks' bends tighter than the class turns
     are refitted within its radius (:mod:`imugen.truth.timed_bends`; the mountain-pass drive
-    3.3 -> 0.008 m/s, the bicycle computer's 2.9 -> 0.48 m/s, inside its declared turn at
+    3.3 -> 0.008 m/s; the bicycle computer's 2.9 -> 1.1 m/s, inside its declared turn at
     rest while creeping)."""
     from imugen.ingest.readers import read_route_file
     from imugen.ingest.stage import ingest

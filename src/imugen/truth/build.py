@@ -34,7 +34,7 @@ from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
 from imugen.truth.reversals import TURN_REST_S, find_reversals, legs_motion
 from imugen.truth.road import motion_on_road, path_on_road
-from imugen.truth.timed_bends import bound_timed_bends, slow_turns
+from imugen.truth.timed_bends import TURN_RATE_RADPS, bound_timed_bends, slow_turns
 from imugen.truth.vehicles import VehicleParams, vehicle_params
 
 CHUNK = 1 << 16  # samples per evaluation chunk
@@ -174,7 +174,7 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
         motion, fit = _bounded_bends(motion, fit, t, y, vp)
         timing = {"timed": True, "source": "input clock"}
         if vp.attitude == "ground":  # it pulls away from a stop facing its velocity
-            timing["turns_at_rest_s"] = sorted(
+            timing["turns_at_rest_s"] = _union(
                 _stop_turns(motion.spline, fit["stops"], t, vp)
                 + slow_turns(motion.spline, motion.t0, motion.t1, vp, fit["stops"])
             )
@@ -324,8 +324,8 @@ def _ground(motion, E, vp, enu, fit, profile=None, turns=()) -> GroundAttitude:
 
 def _stop_turns(spline, stops, t, vp):
     """Turns at rest [s] of a timed ground route: the middle of each stop inside the route (but
-    :data:`imugen.truth.reversals.TURN_REST_S` at either end, at most a quarter of the stop)
-    whose direction of departure differs from that of arrival by more than
+    :data:`imugen.truth.reversals.TURN_REST_S` at either end, at most a quarter of the stop;
+    at least :data:`imugen.truth.timed_bends.TURN_RATE_RADPS`'s time) whose direction of departure differs from that of arrival by more than
     :data:`imugen.truth.attitude.SLIP_GAP_RAD` (each the velocity's the last and first moment
     faster than twice ``stop_speed_mps``, within 10 s): the vehicle turns from the one to the
     other at rest (:class:`imugen.truth.attitude.GroundAttitude`), standing in for the
@@ -342,9 +342,22 @@ def _stop_turns(spline, stops, t, vp):
             fast = np.flatnonzero(np.hypot(v[:, 0], v[:, 1]) > 2.0 * vp.stop_speed_mps)
             if len(fast):
                 dirs.append(math.atan2(v[fast[0], 1], v[fast[0], 0]))
-        if len(dirs) == 2 and abs(math.remainder(dirs[1] - dirs[0], math.tau)) > SLIP_GAP_RAD:
-            m = min(TURN_REST_S, 0.25 * (b - a))
+        turn = abs(math.remainder(dirs[1] - dirs[0], math.tau)) if len(dirs) == 2 else 0.0
+        m = min(TURN_REST_S, 0.25 * (b - a))
+        # at least TURN_RATE_RADPS's time (a quicker one would spin the body on the spot)
+        if turn > SLIP_GAP_RAD and b - a - 2.0 * m >= turn / TURN_RATE_RADPS:
             out.append([float(a + m), float(b - m)])
+    return out
+
+
+def _union(intervals):
+    """Overlapping intervals merged (sorted)."""
+    out = []
+    for a, b in sorted(intervals):
+        if out and a <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
     return out
 
 

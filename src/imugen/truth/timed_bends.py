@@ -302,8 +302,9 @@ TURN_TOL_RAD = math.radians(30.0)
 """Lag of a heading turning at the least turning radius behind the velocity's direction, in a
 slow stretch, that makes the stretch a turn at rest (:func:`slow_turns`)."""
 
-TURN_RATE_RADPS = math.radians(45.0)
-"""Mean rate of a turn at rest: a shorter slow stretch is widened to ``|turn| / rate``."""
+TURN_RATE_RADPS = math.radians(22.5)
+"""Mean rate of a turn at rest (8 s per half turn, as at an untimed reversal's stop): a
+shorter slow stretch is widened to ``|turn| / rate``."""
 
 
 def slow_turns(spline, t0, t1, vp: VehicleParams, stops, dt=0.1):
@@ -342,6 +343,7 @@ def slow_turns(spline, t0, t1, vp: VehicleParams, stops, dt=0.1):
         c, half = 0.5 * (tq[i0] + tq[i1]), 0.5 * (tq[i1] - tq[i0])
         half = max(half, 0.5 * abs(th[i1] - th[i0]) / TURN_RATE_RADPS)
         a, b = max(c - half, t0), min(c + half, t1)
+        a, b = max(min(a, b - 2.0 * half), t0), min(max(b, a + 2.0 * half), t1)  # at an end
         for sa, sb in stops:  # never into a stop
             if sb <= c:
                 a = max(a, sb)
