@@ -154,7 +154,7 @@ REFUSED = {
     # 1 Hz GGA fixes whose own speeds go 39 -> 28 -> 9.5 -> 9.6 -> 18 m/s in one-second
     # steps (t = 234-239 s): no car brakes and accelerates so (the fit, smoothed within 4
     # noise estimates, still needs 11.9 m/s^2); its fixes zigzag at every bend, so that the
-    # body, its slip gated on timed routes too, slides sideways at 6.2 m/s (the worst finding)
+    # body, its slip gated on timed routes too, slides sideways at 5.0 m/s (the worst finding)
     "g_nmea_gga_midnight_rollover.nmea": ("slip (body lateral speed)", "acceleration"),
 }
 REVERSALS = {
