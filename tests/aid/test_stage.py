@@ -350,3 +350,42 @@ def test_filter_options_cover_the_suspension_the_truth_was_built_with():
     assert damped.nhc_pitch_sd_rad == pytest.approx(AID.suspension_pitch_sd("car", damped=True))
     assert damped.nhc_pitch_sd_rad > 0.02 and rigid.nhc_pitch_sd_rad == 0.0
     assert AID.filter_options(p, "car").nhc_pitch_sd_rad == AID.suspension_pitch_sd("car")
+
+
+def test_nhc_vertical_slip_sigma_does_not_count_the_dive_twice():
+    """On a car on its suspension the body's vertical speed holds the dive and squat
+    (``-u sin theta_s``), which NHC covers with its own ``nhc_pitch_sd_rad``: the vertical
+    slip sigma comes from the vehicle's speed under that pitch (the path's own, the same as
+    the rigid car's on the same road), the lateral from the body's lateral speed."""
+    t = np.arange(0.0, 40.0, 0.1)  # accelerate at 2 m/s^2 to 20 m/s, brake at 4 m/s^2 to 8
+    v = np.clip(np.minimum(np.minimum(2.0 * t, 20.0), 20.0 - 4.0 * (t - 25.0)), 8.0, None)
+    x = np.r_[0.0, np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.1)]
+    y = 5.0 * np.sin(x / 80.0)  # a gentle weave: some lateral acceleration
+    df, meta = T.enu_table(np.column_stack([x, y, 0.01 * x]), t, (31.63, -7.99, 480.6))
+    reps = {}
+    for susp in ("rigid", "damped"):
+        _, m = T.build_truth(
+            df, meta, rate_hz=50, earth="flat", vehicle="car", verbose=False,
+            vehicle_params={"suspension": susp},
+        )  # fmt: skip
+        reps[susp] = m["plausibility"]
+    rigid, damped = reps["rigid"], reps["damped"]
+    # the dive is in the body's vertical speed, not in the vehicle's under it
+    assert damped["rms_body_vertical_speed_mps"] > 20.0 * damped["rms_vehicle_vertical_speed_mps"]
+    assert damped["rms_vehicle_vertical_speed_mps"] == pytest.approx(
+        rigid["rms_body_vertical_speed_mps"], rel=0.05, abs=1e-5
+    )
+    assert rigid["rms_vehicle_vertical_speed_mps"] == rigid["rms_body_vertical_speed_mps"]
+    opts = AID.filter_options(AID.AidOptions(), "car", None, damped, {"suspension": "damped"})
+    assert opts.nhc_pitch_sd_rad > 0.0  # the dive: its own sigma
+    lat, vert = opts.nhc_sd_mps
+    assert (
+        vert
+        == AID.truth_slip_sd(rigid)[1]
+        == max(rigid["rms_body_vertical_speed_mps"], AID.SLIP_FLOOR_MPS)
+    )
+    assert vert < damped["rms_body_vertical_speed_mps"]
+    assert lat == max(damped["rms_body_lateral_speed_mps"], AID.SLIP_FLOOR_MPS)
+    # an older report without the vehicle's figure: the body's, as before
+    old = {k: v for k, v in damped.items() if "vehicle_vertical" not in k}
+    assert AID.truth_slip_sd(old)[1] == damped["rms_body_vertical_speed_mps"]

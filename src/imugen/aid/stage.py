@@ -142,8 +142,14 @@ def suspension_pitch_sd(vehicle: str | None, damped: bool | None = None) -> floa
 
 def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:
     """The vehicle's residual slip (lateral, vertical) [m/s] NHC must cover: the RMS lateral
-    and vertical body speeds of the truth's plausibility report (:mod:`imugen.truth.report`),
-    at least :data:`SLIP_FLOOR_MPS`, or :data:`SLIP_FALLBACK_MPS` for a truth without them.
+    body speed and the RMS vertical speed of the vehicle under the body's pitch on its
+    suspension (the path's own; the body's on a truth without a suspension or of an older
+    report) of the truth's plausibility report (:mod:`imugen.truth.report`), at least
+    :data:`SLIP_FLOOR_MPS`, or :data:`SLIP_FALLBACK_MPS` for a truth without them.
+
+    Each from its own source: the dive and squat of a car on its suspension are NHC's
+    ``nhc_pitch_sd_rad`` (:func:`suspension_pitch_sd`, the class's figure); the body's
+    vertical speed includes them, so taken as the slip too they were counted twice.
 
     The RMS, with NHC's own innovation gate (``Options.nhc_gate_sigma``) rejecting the bursts
     where the truth's path is implausible (the paper scene: RMS 0.010 m/s, largest 0.33 m/s
@@ -151,7 +157,10 @@ def truth_slip_sd(plausibility: dict | None) -> tuple[float, float]:
     0.13-0.17 and tilt 2.3 (consumer), and a 60 s outage drift of 4.6 m against 2.6 m."""
     rep = plausibility or {}
     out = []
-    for key in ("rms_body_lateral_speed_mps", "rms_body_vertical_speed_mps"):
+    vertical = "rms_vehicle_vertical_speed_mps"
+    if vertical not in rep:
+        vertical = "rms_body_vertical_speed_mps"
+    for key in ("rms_body_lateral_speed_mps", vertical):
         v = rep.get(key)
         ok = v is not None and math.isfinite(v)
         out.append(max(float(v), SLIP_FLOOR_MPS) if ok else SLIP_FALLBACK_MPS)

@@ -402,7 +402,7 @@ def _blend_holds(out, ci, sigma, sigma_d, E, vp):
 G_LEAN = 9.80665  # gravity of the lean of a coordinated turn [m/s^2]
 _PAD = 6  # coefficients added at each end of the node splines
 SLIP_CURVATURE_MARGIN = 1.0  # the attitude follows paths up to this fraction of max curvature
-SLIP_GAP_RAD = math.radians(10.0)  # ... and velocity directions this close to the heading
+SLIP_GAP_RAD = math.radians(10.0)  # ... and velocity directions this close to the reachable heading
 SLIP_MARGIN_M = 2.0  # distance over which it leaves / rejoins the velocity direction [m]
 # ... and pitch follows paths whose vertical curvature is within this x max_pitch / grade_smooth_m
 # (car: 0.021 rad/m; the height wiggles of a noisy fit beyond are left to the grade model)
@@ -476,8 +476,8 @@ class GroundAttitude:
       ``x = x_s + W(s) (x_v - x_s)`` with node-spline weights of distance is exactly 1 there and
       exactly 0 within ``SLIP_MARGIN_M`` of a node the vehicle crosses below twice
       ``stop_speed_mps`` (the direction is undefined at a stop), of a turn tighter than
-      ``max_curvature`` or of a velocity more than ``SLIP_GAP_RAD`` off the heading above
-      (a reversal); for the pitch, within ``grade_smooth_m`` of a vertical curvature beyond
+      ``max_curvature`` or of a velocity more than ``SLIP_GAP_RAD`` off the direction the
+      heading can turn to (its rate-limited values above, before their smoothing: a reversal); for the pitch, within ``grade_smooth_m`` of a vertical curvature beyond
       ``SLIP_PITCH_FACTOR x max_pitch / grade_smooth_m`` (height wiggles of a noisy fit, the
       steps of an altimeter's record: the grade spreads them, the slip integrates to ~0 over
       that length). The plausibility report
@@ -564,7 +564,16 @@ class GroundAttitude:
         d = np.interp(np.arange(ns), np.flatnonzero(ok), d)
         mid = sn[:-1] + 0.5 * ds
         for t0, t1 in turns:  # the jump of the velocity direction at a reversal's stop
-            s_k = float(np.interp(0.5 * (t0 + t1), tg, sg))
+            s0, s1 = (float(np.interp(x, tg, sg)) for x in (t0, t1))
+            inside = np.flatnonzero((mid[1:] >= s0) & (mid[1:] <= s1)) + 1
+            if len(inside) > 1:  # creeping through the turn: its whole change, held
+                j0, j1 = int(inside[0]), int(inside[-1])
+                jump = float(d[j1] - d[j0 - 1])
+                d[j0 : j1 + 1] = d[j0 - 1]
+                d[j1 + 1 :] -= jump
+                self.turns.append((float(t0), float(t1), jump))
+                continue
+            s_k = 0.5 * (s0 + s1)
             near = np.flatnonzero(np.abs(mid[1:] - s_k) <= max(1.0, 2.0 * ds)) + 1
             if not len(near):
                 continue
@@ -579,7 +588,8 @@ class GroundAttitude:
         )
         smooth_m = max(vp.heading_smooth_m, vp.heading_smooth_s * v_med)
         self.report["heading_smooth_m"] = smooth_m
-        psi = _smooth(_rate_limit(d, k * ds), max(1.0, smooth_m / ds))
+        lim = _rate_limit(d, k * ds)
+        psi = _smooth(lim, max(1.0, smooth_m / ds))
         self.Psi = _node_spline(psi, ds, 0.5 * ds)
         # where the path is plausible, the attitude follows the velocity (W = 1): not near stops
         # (direction undefined), not where the path turns tighter than the vehicle can or the
@@ -587,7 +597,9 @@ class GroundAttitude:
         a_l = np.einsum("mij,mj->mi", C_ln, a_n) - np.cross(w_nl, v_l)
         vh2 = np.maximum(v_l[:, 0] ** 2 + v_l[:, 1] ** 2, 1e-18)
         kappa = np.abs(v_l[:, 0] * a_l[:, 1] - v_l[:, 1] * a_l[:, 0]) / vh2**1.5
-        gap = np.abs(np.angle(np.exp(1j * (d - psi))))
+        # the velocity leaves the heading the vehicle can turn to (a reversal): against the
+        # rate-limited directions (their smoothing alone, at a bend within the limit, is no gap)
+        gap = np.abs(np.angle(np.exp(1j * (d - lim))))
         bad = (kappa > SLIP_CURVATURE_MARGIN * k) | (gap > SLIP_GAP_RAD)
         slow = np.zeros(ns, bool)  # nodes the vehicle crosses slowly (0.1 s grid)
         p_g = motion.position(tg) if E.ecef else None

@@ -16,17 +16,25 @@ from imugen.core.errors import InputError
 from imugen.tables import enu as tenu
 from imugen.tables import truth as col
 from imugen.truth import multirotor
-from imugen.truth.attitude import EarthField, GroundAttitude, attitude_pass
+from imugen.truth.attitude import SLIP_GAP_RAD, EarthField, GroundAttitude, attitude_pass
 from imugen.truth.budget import budget_meta, earth_budget
-from imugen.truth.fit import fit_path, fit_timed, floor_heights
+from imugen.truth.fit import (
+    CURVATURE_RESIDUAL_RADII,
+    LIMIT_RESIDUAL_NOISE,
+    TimedMotion,
+    fit_path,
+    fit_timed,
+    floor_heights,
+)
 from imugen.truth.flight import flight_corner, flight_geometry
 from imugen.truth.gate import findings
 from imugen.truth.increments import imu_pass
 from imugen.truth.pose import PoseSettings, fit_poses, motion_figures, pose_pass
 from imugen.truth.profile import PathMotion, speed_profile
 from imugen.truth.report import plausibility, report_lines
-from imugen.truth.reversals import find_reversals, legs_motion
+from imugen.truth.reversals import TURN_REST_S, find_reversals, legs_motion
 from imugen.truth.road import motion_on_road, path_on_road
+from imugen.truth.timed_bends import TURN_RATE_RADPS, bound_timed_bends, slow_turns
 from imugen.truth.vehicles import VehicleParams, vehicle_params
 
 CHUNK = 1 << 16  # samples per evaluation chunk
@@ -166,7 +174,13 @@ def build_motion(enu: pd.DataFrame, meta: dict, vp: VehicleParams, opts: BuildOp
     if timed:
         t = enu[col.TIME].to_numpy(float)
         motion, fit = fit_timed(t, y, vp, opts.fit_tol_m, opts.stops, _virtual(t, meta))
+        motion, fit = _bounded_bends(motion, fit, t, y, vp)
         timing = {"timed": True, "source": "input clock"}
+        if vp.attitude == "ground":  # it pulls away from a stop facing its velocity
+            timing["turns_at_rest_s"] = _union(
+                _stop_turns(motion.spline, fit["stops"], t, vp)
+                + slow_turns(motion.spline, motion.t0, motion.t1, vp, fit["stops"])
+            )
     elif vp.attitude == "ground" and (cuts := find_reversals(y, vp)):
         motion, fit, timing = legs_motion(y, cuts, vp, opts.corner_m, _limits(vp, opts))
     else:
@@ -309,6 +323,69 @@ def _ground(motion, E, vp, enu, fit, profile=None, turns=()) -> GroundAttitude:
         return GroundAttitude(motion, E, vp, turns=turns)
     noise_up = float(fit["noise_estimate_m"][2])
     return GroundAttitude(motion, E, vp, _input_heights(E, enu), noise_up, turns=turns)
+
+
+def _stop_turns(spline, stops, t, vp):
+    """Turns at rest [s] of a timed ground route: the middle of each stop inside the route (but
+    :data:`imugen.truth.reversals.TURN_REST_S` at either end, at most a quarter of the stop;
+    at least :data:`imugen.truth.timed_bends.TURN_RATE_RADPS`'s time) whose direction of departure differs from that of arrival by more than
+    :data:`imugen.truth.attitude.SLIP_GAP_RAD` (each the velocity's the last and first moment
+    faster than twice ``stop_speed_mps``, within 10 s): the vehicle turns from the one to the
+    other at rest (:class:`imugen.truth.attitude.GroundAttitude`), standing in for the
+    turn of its pulling away that the fixes' jitter at rest hides; a heading turning with the
+    distance after the stop slid sideways as the vehicle pulled away (0.6 m/s on the
+    mountain-pass drive)."""
+    out = []
+    for a, b in stops:
+        if not (a > t[0] and b < t[-1]):
+            continue
+        dirs = []
+        for tq in (np.arange(a - 10.0, a, 0.1)[::-1], np.arange(b, b + 10.0, 0.1)):
+            v = spline(tq, 1)
+            fast = np.flatnonzero(np.hypot(v[:, 0], v[:, 1]) > 2.0 * vp.stop_speed_mps)
+            if len(fast):
+                dirs.append(math.atan2(v[fast[0], 1], v[fast[0], 0]))
+        turn = abs(math.remainder(dirs[1] - dirs[0], math.tau)) if len(dirs) == 2 else 0.0
+        m = min(TURN_REST_S, 0.25 * (b - a))
+        # at least TURN_RATE_RADPS's time (a quicker one would spin the body on the spot)
+        if turn > SLIP_GAP_RAD and b - a - 2.0 * m >= turn / TURN_RATE_RADPS:
+            out.append([float(a + m), float(b - m)])
+    return out
+
+
+def _union(intervals):
+    """Overlapping intervals merged (sorted)."""
+    out = []
+    for a, b in sorted(intervals):
+        if out and a <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return out
+
+
+def _bounded_bends(motion, fit, t, y, vp):
+    """A timed ground fit with its bends tighter than the vehicle turns refitted
+    (:func:`imugen.truth.timed_bends.bound_timed_bends`; no fix farther from the curve than
+    the fit's cap on local smoothing), its report in ``fit["curvature_bound"]``."""
+    if vp.attitude != "ground":
+        return motion, fit
+    cap = max(  # the fit's cap on local smoothing, and the untimed paths' on a bend
+        LIMIT_RESIDUAL_NOISE * float(np.linalg.norm(fit["noise_estimate_m"])),
+        vp.fit_tol_max_m,
+        fit["max_distance_m"],
+        CURVATURE_RESIDUAL_RADII / vp.max_curvature_1pm,
+    )
+    spline, bends = bound_timed_bends(motion.spline, t, y, vp, fit["stops"], cap)
+    if bends is None:
+        return motion, fit
+    fit = {**fit, "curvature_bound": bends}
+    if bends["refitted"]:
+        motion = TimedMotion(spline, motion.t0, motion.t1)
+        dist = np.linalg.norm(spline(t) - y, axis=1)
+        fit["rms_distance_m"] = float(np.sqrt(np.mean(dist**2)))
+        fit["max_distance_m"] = float(dist.max())
+    return motion, fit
 
 
 def _column_slices() -> dict:
@@ -483,6 +560,9 @@ def build_truth(
         airborne=airborne,
         frame=E.frame,
         turns_at_rest=turns,
+        suspension_pitch_rad=(
+            None if ground is None or ground.suspension is None else ground.suspension(times)[2]
+        ),
     )
     # the pre-write gate (imugen.truth.gate); a pose truth is the given motion, not gated
     gate = (
@@ -494,7 +574,7 @@ def build_truth(
             frame=E.frame,
             airborne=airborne,
             input_heights=_gate_heights(E, enu),
-            slip=not timing.get("timed", True),
+            slip=True,
             turns_at_rest=turns,
         )
     )

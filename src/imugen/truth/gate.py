@@ -147,7 +147,13 @@ def findings(
     if slip and vp.attitude == "ground":
         v_b = np.einsum("kji,kj->ki", C_nb, v)  # C_bn v
         checks.append(
-            _worst("slip (body lateral speed)", np.abs(v_b[:, 1]), vp.max_slip_mps, "m/s", gnd)
+            _worst(
+                "slip (body lateral speed)",
+                np.abs(v_b[:, 1]),
+                vp.max_slip_mps,
+                "m/s",
+                gnd & ~in_intervals(t, turns_at_rest),
+            )
         )
     if input_heights is not None and len(input_heights):
         lo, hi = float(np.min(input_heights)), float(np.max(input_heights))

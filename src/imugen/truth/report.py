@@ -10,7 +10,8 @@ steps beyond what the rates allow (``(max |w| + |dw|) dt`` per interval), truth
 length against the input path length, fit residuals, the time stopped, moving and
 airborne, and the body-frame velocity on the ground (sideslip and vertical slip angles while
 moving, largest and RMS lateral and vertical body speeds, the fraction of the moving time slipping
-beyond 0.1 deg). A warning names every vehicle limit exceeded.
+beyond 0.1 deg; on a suspension also the vertical speed of the vehicle under the body's pitch on
+it, the path's own vertical slip without the dive and squat). A warning names every vehicle limit exceeded.
 """
 
 from __future__ import annotations
@@ -131,6 +132,7 @@ def plausibility(
     airborne=None,
     frame=None,
     turns_at_rest=(),
+    suspension_pitch_rad=None,
 ) -> dict:
     """Plausibility figures and warnings of a truth table.
 
@@ -154,6 +156,10 @@ def plausibility(
     turns_at_rest : sequence of (float, float)
         Intervals [s] of the declared turns at rest (a reversal's stop and turn): not
         counted as turning on the spot.
+    suspension_pitch_rad : ndarray, shape (K,), optional
+        The body's pitch on its suspension ``theta_s`` (:mod:`imugen.truth.suspension`):
+        taken out of the body velocity for the vehicle's own vertical slip
+        (``*_vehicle_vertical_speed_mps``; without it, the body's).
 
     Returns
     -------
@@ -198,6 +204,12 @@ def plausibility(
     dts = np.r_[dt, 0.0] if K > 1 else np.zeros(1)
     # body-frame velocity on the ground: a car's (non-holonomic) has no y and z components
     v_b = np.einsum("kji,kj->ki", C_nb, v)
+    # ... and of the vehicle under the body's pitch on its suspension (the dive and squat,
+    # C_nb = C_nv Ry(-theta_s): v_v = Ry(-theta_s) v_b): the path's own vertical slip
+    v_v = v_b
+    if suspension_pitch_rad is not None:
+        th = np.asarray(suspension_pitch_rad, float)
+        v_v = np.einsum("kij,kj->ki", rot.euler_to_dcm(0.0 * th, th, 0.0 * th), v_b)
     mov = ~stopped & gnd
     slip = np.arctan2(np.abs(v_b[:, 1:]), np.maximum(np.abs(v_b[:, :1]), 1e-12))  # (K, 2)
     t_mov = float(np.sum(dts[mov]))
@@ -233,6 +245,8 @@ def plausibility(
         "max_body_vertical_speed_mps": mx(v_b[:, 2], gnd),
         "rms_body_lateral_speed_mps": _rms(v_b[:, 1], dts, gnd),
         "rms_body_vertical_speed_mps": _rms(v_b[:, 2], dts, gnd),
+        "max_vehicle_vertical_speed_mps": mx(v_v[:, 2], gnd),
+        "rms_vehicle_vertical_speed_mps": _rms(v_v[:, 2], dts, gnd),
         "slip_fraction": (
             float(np.sum(dts[mov & (slip.max(axis=1) > SLIP_TOL_RAD)])) / t_mov if t_mov else 0.0
         ),

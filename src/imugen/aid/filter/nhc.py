@@ -30,7 +30,8 @@ speed is ``-u sin(theta_s)``, the dive and squat, which the vertical row takes a
 ``(u nhc_pitch_sd)^2`` at the estimated forward speed ``u`` (``Options.nhc_pitch_sd_rad``;
 without it a car on its suspension drove the companion scene's NEES to 1e7); the roll on the
 suspension moves no velocity into the lateral row.
-The slip is the truth's RMS (:func:`imugen.aid.stage.truth_slip_sd`) and its bursts, where a
+The slip is the truth's RMS (:func:`imugen.aid.stage.truth_slip_sd`; the vertical one under the
+body's pitch on the suspension, which is the term above) and its bursts, where a
 path is implausible, are left to NHC's own innovation gate (``Options.nhc_gate_sigma``; the
 largest slip as white noise left heading NEES/dof 0.13-0.17, tilt 2.3). The rows linearize at
 the estimated velocity: NHC waits while ``|v|^2 <= ratio^2 tr(P_vv)``
