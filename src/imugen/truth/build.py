@@ -336,7 +336,8 @@ def _stop_turns(spline, stops, t, vp):
     distance after the stop slid sideways as the vehicle pulled away (0.6 m/s on the
     mountain-pass drive)."""
     out = []
-    for a, b in stops:
+    for group in _stop_groups(spline, stops, vp):
+        a, b = group[0][0], group[-1][1]
         if not (a > t[0] and b < t[-1]):
             continue
         dirs = []
@@ -346,11 +347,29 @@ def _stop_turns(spline, stops, t, vp):
             if len(fast):
                 dirs.append(math.atan2(v[fast[0], 1], v[fast[0], 0]))
         turn = abs(math.remainder(dirs[1] - dirs[0], math.tau)) if len(dirs) == 2 else 0.0
+        a, b = max(group, key=lambda ab: ab[1] - ab[0])  # turned in the group's longest
         m = min(TURN_REST_S, 0.25 * (b - a))
         # at least TURN_RATE_RADPS's time (a quicker one would spin the body on the spot)
         if turn > SLIP_GAP_RAD and b - a - 2.0 * m >= turn / TURN_RATE_RADPS:
             out.append([float(a + m), float(b - m)])
     return out
+
+
+def _stop_groups(spline, stops, vp):
+    """The stops [s] in groups between which the vehicle never moves faster than twice
+    ``stop_speed_mps`` (a creep of a fix or two between two stops, which the stop join of
+    :func:`imugen.truth.fit.fit_timed` holds still at both ends): one arrival and one
+    departure each."""
+    groups = []
+    for a, b in stops:
+        if groups:
+            pa = groups[-1][-1][1]
+            v = spline(np.linspace(pa, a, max(3, math.ceil((a - pa) / 0.1) + 1)), 1)
+            if a - pa < 10.0 and np.all(np.hypot(v[:, 0], v[:, 1]) <= 2.0 * vp.stop_speed_mps):
+                groups[-1].append((a, b))
+                continue
+        groups.append([(a, b)])
+    return groups
 
 
 def _union(intervals):
