@@ -85,7 +85,7 @@ def _smoothstep9(x):
 
 class SplicedSpline:
     """A vector curve ``base(t)`` with stretches ``[ta, tb]`` replaced by other curves (each
-    equal to the base at its ends to the fourth derivative); ``derivative(nu)`` and
+    equal to the base at its ends to the third derivative); ``derivative(nu)`` and
     ``(t, nu)`` calls as a :class:`scipy.interpolate.BSpline`."""
 
     def __init__(self, base, pieces):
@@ -183,6 +183,7 @@ def _refit(spline, ta, tb, vp, end=False):
     a_t = (Vg[:, 0] * Ag[:, 0] + Vg[:, 1] * Ag[:, 1]) / np.sqrt(vg2)  # along the path
     a, b = HOLD_SHARE * S, (S if end else (1.0 - HOLD_SHARE) * S)
     nb = int(np.clip(round((b - a) / BASIS_M), 4, 20))
+    nb_in = nb
     Bf, dBf = _basis(sg, a, b, nb, end)
     nb = Bf.shape[1]
     kmax = CURVATURE_MARGIN * vp.max_curvature_1pm
@@ -229,22 +230,48 @@ def _refit(spline, ta, tb, vp, end=False):
         z = res.x
     if (not end and np.max(np.abs(closure(z))) > 1e-3) or bound(z, kmax).min() < -1e-3 * kmax:
         return None
-    dl, ep, _ = parts(z)
-    c = (1.0 + ep) * np.cos(theta + dl) - np.cos(theta)
-    d = (1.0 + ep) * np.sin(theta + dl) - np.sin(theta)
+    # the shift at the samples' own distances, integrated there (a quintic through the
+    # grid's values rang about the held ends, 1e-6 m at 0.05 s: 2e-3 m/s^2, a kink in the
+    # gyro); exactly constant where the heading and stretch are held
+    Bw = _basis(np.clip(s, 0.0, S), a, b, nb_in, end)[0]
+    dl, ep = Bw @ z[:nb], Bw @ z[nb:]
+    theta_w = np.arctan2(V[:, 1], V[:, 0])
+    c = (1.0 + ep) * np.cos(theta_w + dl) - np.cos(theta_w)
+    d = (1.0 + ep) * np.sin(theta_w + dl) - np.sin(theta_w)
+    hs = np.diff(s)
     D = np.column_stack(
         [
-            np.r_[0.0, np.cumsum(0.5 * (c[1:] + c[:-1]) * h)],
-            np.r_[0.0, np.cumsum(0.5 * (d[1:] + d[:-1]) * h)],
+            np.r_[0.0, np.cumsum(0.5 * (c[1:] + c[:-1]) * hs)],
+            np.r_[0.0, np.cumsum(0.5 * (d[1:] + d[:-1]) * hs)],
         ]
     )
     if not end:  # the closure's residual (< 1 mm), spread
-        D -= _smoothstep9(sg / S)[:, None] * D[-1]
-    B = P.copy()
-    B[:, :2] += make_interp_spline(sg, D, k=5)(np.clip(s, 0.0, S))
-    z3 = np.zeros(3)
-    bc = ([(1, V[0]), (2, A[0])], [(3, z3), (4, z3)] if end else [(1, V[-1]), (2, A[-1])])
-    return make_interp_spline(tw, B, k=5, bc_type=bc)
+        D -= _smoothstep9(s / S)[:, None] * D[-1]
+    Dt = np.zeros_like(P)
+    Dt[:, :2] = D
+    if end:  # the route's end: still there (third and fourth derivatives zero)
+        z3 = np.zeros(3)
+        bc = ([(1, V[0]), (2, A[0])], [(3, z3), (4, z3)])
+        return make_interp_spline(tw, P + Dt, k=5, bc_type=bc)
+    # the fit plus the shift, a septic whose first three derivatives are zero at both held
+    # ends as the shift's own: the fit's jerk continues across the joins (a quintic through
+    # the shifted samples matched only velocity and acceleration there, and its jerk step
+    # kinked the gyro: 1.2e-3 rad/s in an interval on a walk)
+    z3 = [(nu, np.zeros(3)) for nu in (1, 2, 3)]
+    return _Shifted(spline, make_interp_spline(tw, Dt, k=7, bc_type=(z3, z3)))
+
+
+class _Shifted:
+    """``base(t) + shift(t)`` with ``(t, nu)`` calls and ``derivative(nu)``."""
+
+    def __init__(self, base, shift):
+        self.base, self.shift = base, shift
+
+    def __call__(self, t, nu=0):
+        return self.base(t, nu) + self.shift(t, nu)
+
+    def derivative(self, nu=1):
+        return _Shifted(self.base.derivative(nu), self.shift.derivative(nu))
 
 
 def bound_timed_bends(spline, t, y, vp: VehicleParams, stops, cap_m):
