@@ -326,7 +326,8 @@ def _ground(motion, E, vp, enu, fit, profile=None, turns=()) -> GroundAttitude:
 
 
 def _stop_turns(spline, stops, t, vp):
-    """Turns at rest [s] of a timed ground route: the middle of each stop inside the route (but
+    """Turns at rest [s] of a timed ground route: the middle of each group of stops
+    (:func:`_stop_groups`; in its longest stop) inside the route (but
     :data:`imugen.truth.reversals.TURN_REST_S` at either end, at most a quarter of the stop;
     at least :data:`imugen.truth.timed_bends.TURN_RATE_RADPS`'s time) whose direction of departure differs from that of arrival by more than
     :data:`imugen.truth.attitude.SLIP_GAP_RAD` (each the velocity's the last and first moment
